@@ -1,0 +1,1 @@
+"""Subcommands of the ``skytorch`` command line (one module each)."""

@@ -1,0 +1,272 @@
+"""Tensors to CF-annotated ``xarray.Dataset`` objects, and lossless netCDF I/O.
+
+This is the boundary layer: tensors become numpy arrays only here. Metadata is declared
+next to the computation that produces a variable (as in xclim): a module describes each
+output once with :class:`VariableSpec` and builds its Dataset with :func:`build_dataset`,
+which enforces the conventions of ``DESIGN.md``:
+
+* every dimension has a coordinate;
+* every variable and coordinate has ``units``, ``long_name`` and ``description``, and a
+  CF ``standard_name`` where one exists;
+* global attributes ``Conventions``, ``title``, ``source`` (with the skytorch version),
+  ``history``, ``references``, and the full parameter set that produced the Dataset
+  (``parameters`` as JSON, plus one ``parameter_<name>`` attribute per scalar).
+
+:func:`to_netcdf` writes atomically (a temporary file renamed into place, so an
+interrupted write never destroys an existing file) and :func:`open_dataset` reads the file
+back fully into memory; the round trip is exact.
+
+Examples
+--------
+>>> import torch
+>>> from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
+>>> ds = build_dataset(
+...     {"tau": variable(("wavelength",), torch.tensor([0.36, 0.097]),
+...                      VariableSpec("1", "optical depth", "Rayleigh optical depth"))},
+...     {"wavelength": coordinate("wavelength", [400.0, 550.0],
+...                               VariableSpec("nm", "wavelength", "vacuum wavelength"))},
+...     title="example", parameters={"pressure_pa": 101325.0})
+>>> ds.attrs["Conventions"]
+'CF-1.10'
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import tempfile
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import xarray as xr
+
+__all__ = [
+    "VariableSpec",
+    "build_dataset",
+    "coordinate",
+    "open_dataset",
+    "to_netcdf",
+    "to_numpy",
+    "variable",
+]
+
+CONVENTIONS = "CF-1.10"
+
+
+@dataclass(frozen=True)
+class VariableSpec:
+    """Metadata of one Dataset variable, declared next to the code computing it.
+
+    Parameters
+    ----------
+    units : str
+        UDUNITS string (``"1"`` for dimensionless, ``"degree"`` for angles).
+    long_name : str
+        Human-readable name.
+    description : str
+        One or two sentences: what the quantity is and how it was computed.
+    standard_name : str, optional
+        CF standard name, only where CF defines one.
+    """
+
+    units: str
+    long_name: str
+    description: str = ""
+    standard_name: str | None = None
+
+    def attrs(self) -> dict[str, str]:
+        """The attribute dictionary for xarray."""
+        attrs = {"units": self.units, "long_name": self.long_name,
+                 "description": self.description or self.long_name}
+        if self.standard_name:
+            attrs["standard_name"] = self.standard_name
+        return attrs
+
+
+def to_numpy(value) -> np.ndarray:
+    """Detach a tensor (or pass through array-likes) and return a numpy array."""
+    if isinstance(value, torch.Tensor):
+        return value.detach().cpu().numpy()
+    return np.asarray(value)
+
+
+def _is_time(values: np.ndarray) -> bool:
+    return np.issubdtype(values.dtype, np.datetime64) or np.issubdtype(
+        values.dtype, np.timedelta64
+    )
+
+
+def variable(dims, values, spec: VariableSpec | Mapping[str, str]) -> xr.Variable:
+    """One annotated ``xarray.Variable`` from a tensor or array.
+
+    Datetime variables keep their metadata but no ``units`` attribute: their units are an
+    encoding chosen when writing netCDF (CF ``"nanoseconds since ..."``).
+    """
+    if isinstance(dims, str):
+        dims = (dims,)
+    array = to_numpy(values)
+    attrs = spec.attrs() if isinstance(spec, VariableSpec) else dict(spec)
+    missing = {"units", "long_name"} - set(attrs)
+    if missing and not _is_time(array):
+        raise ValueError(f"variable metadata lacks {sorted(missing)}: {attrs}")
+    if _is_time(array):
+        attrs.pop("units", None)
+    if array.ndim != len(dims):
+        raise ValueError(
+            f"values of shape {array.shape} do not match dimensions {tuple(dims)}"
+        )
+    return xr.Variable(tuple(dims), array, attrs=attrs)
+
+
+def coordinate(dim: str, values, spec: VariableSpec | Mapping[str, str]) -> xr.Variable:
+    """A one-dimensional coordinate variable for dimension ``dim``."""
+    return variable((dim,), values, spec)
+
+
+TIME_SPEC = VariableSpec("", "time (UTC)", "Instant in Coordinated Universal Time.", "time")
+
+
+def time_coordinate(times, dim: str = "time") -> xr.Variable:
+    """A ``datetime64[ns]`` UTC time coordinate from datetime64 values."""
+    values = np.asarray(times, dtype="datetime64[ns]").reshape(-1)
+    return coordinate(dim, values, TIME_SPEC)
+
+
+def _attribute_value(value):
+    """A netCDF-safe attribute value (str, int, float or 1-D numeric array)."""
+    if isinstance(value, torch.Tensor):
+        value = to_numpy(value)
+    if isinstance(value, np.ndarray):
+        if value.ndim == 0:
+            value = value.item()
+        elif value.dtype.kind in "fiu" and value.ndim == 1:
+            return value
+        else:
+            return json.dumps(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return str(bool(value))
+    if value is None:
+        return "None"
+    if isinstance(value, (int, float, str, np.integer, np.floating)):
+        return value
+    if isinstance(value, (_dt.datetime, _dt.date, np.datetime64)):
+        return str(value)
+    return json.dumps(value, default=str)
+
+
+def _json_default(value):
+    if isinstance(value, torch.Tensor):
+        return to_numpy(value).tolist()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.integer, np.floating)):
+        return value.item()
+    return str(value)
+
+
+def build_dataset(
+    data_vars: Mapping[str, xr.Variable],
+    coords: Mapping[str, xr.Variable],
+    *,
+    title: str,
+    references: Iterable[str] | str = (),
+    parameters: Mapping[str, object] | None = None,
+    history: str | None = None,
+    **attrs,
+) -> xr.Dataset:
+    """Assemble a CF-annotated Dataset and check the conventions.
+
+    Parameters
+    ----------
+    data_vars : mapping of str to xarray.Variable
+        Built with :func:`variable`.
+    coords : mapping of str to xarray.Variable
+        Built with :func:`coordinate`; every dimension used must have one.
+    title : str
+        Short description of the Dataset.
+    references : str or iterable of str
+        Literature the computation follows (one entry per reference, with DOI).
+    parameters : mapping, optional
+        Every parameter that affects the result, so a file is reproducible on its own.
+    history : str, optional
+        Provenance line; defaults to a UTC timestamp and the skytorch version.
+    **attrs
+        Further global attributes (netCDF-safe values are produced automatically).
+
+    Returns
+    -------
+    xarray.Dataset
+
+    Raises
+    ------
+    ValueError
+        If a dimension has no coordinate.
+    """
+    from skytorch import __version__
+
+    dataset = xr.Dataset(dict(data_vars), coords=dict(coords))
+    uncovered = [dim for dim in dataset.dims if dim not in dataset.coords]
+    if uncovered:
+        raise ValueError(f"dimensions without a coordinate: {uncovered}")
+    if isinstance(references, str):
+        references = [references]
+    now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    parameters = dict(parameters or {})
+    global_attrs = {
+        "Conventions": CONVENTIONS,
+        "title": title,
+        "source": f"skytorch {__version__}",
+        "history": history or f"{now}: created with skytorch {__version__}",
+        "references": "\n".join(references),
+        "parameters": json.dumps(parameters, default=_json_default, sort_keys=True),
+    }
+    for key, value in parameters.items():
+        global_attrs[f"parameter_{key}"] = _attribute_value(value)
+    for key, value in attrs.items():
+        global_attrs[key] = _attribute_value(value)
+    dataset.attrs.update(global_attrs)
+    return dataset
+
+
+def _sanitized(dataset: xr.Dataset) -> xr.Dataset:
+    """Copy of ``dataset`` whose attributes netCDF can store."""
+    out = dataset.copy(deep=False)
+    out.attrs = {k: _attribute_value(v) for k, v in dataset.attrs.items()}
+    for name in out.variables:
+        out[name].attrs = {k: _attribute_value(v) for k, v in dataset[name].attrs.items()}
+    return out
+
+
+def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
+    """Write ``dataset`` to a netCDF-4 file atomically and return the path.
+
+    The file is first written next to its destination and then renamed, so an interrupted
+    write never leaves a truncated file or destroys an existing one. Datetimes are stored
+    as int64 nanoseconds so that the round trip is exact.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    dataset = _sanitized(dataset)
+    encoding = {}
+    for name, var in dataset.variables.items():
+        if np.issubdtype(var.dtype, np.datetime64):
+            encoding[name] = {"units": "nanoseconds since 1970-01-01", "dtype": "int64"}
+    handle, temporary = tempfile.mkstemp(suffix=".nc.tmp", dir=path.parent)
+    os.close(handle)
+    try:
+        dataset.to_netcdf(temporary, engine="netcdf4", encoding=encoding)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def open_dataset(path: str | os.PathLike) -> xr.Dataset:
+    """Read a netCDF file written by :func:`to_netcdf` fully into memory."""
+    with xr.open_dataset(path, engine="netcdf4") as dataset:
+        return dataset.load()
