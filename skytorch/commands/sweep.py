@@ -1,0 +1,134 @@
+"""``skytorch sweep``: a parameter sweep described in a TOML file, written to netCDF.
+
+The TOML file names the function by import path and gives one list per swept parameter;
+constant keyword arguments go in ``[fixed]`` and options of :func:`skytorch.sweep.sweep`
+in ``[options]``::
+
+    function = "skytorch.spectrum:bv_to_temperature"
+
+    [parameters]
+    bv = [0.0, 0.3, 0.65, 1.0]
+
+    [fixed]        # optional: keyword arguments passed unchanged at every point
+
+    [options]      # optional: backend, chunk_size, memory_budget_bytes, store, key,
+    backend = "serial"   # n_workers, scheduler_address, units = {bv = "mag"}
+
+Examples
+--------
+::
+
+    skytorch sweep sweep.toml -o out/sweep.nc
+    skytorch sweep sweep.toml -o out/sweep.nc --backend dask --workers 2 --store out/chunks
+
+TOML is read with the standard library's ``tomllib`` (Python >= 3.11) or, on Python 3.10,
+with the ``tomli`` package when it is installed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import importlib
+import logging
+from pathlib import Path
+
+logger = logging.getLogger(__name__)
+
+#: option names accepted in the TOML ``[options]`` table
+OPTIONS = ("backend", "chunk_size", "memory_budget_bytes", "store", "key", "n_workers",
+           "scheduler_address", "units", "progress")
+
+
+def _toml_loads(text: str) -> dict:
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        try:
+            import tomli as tomllib
+        except ModuleNotFoundError as error:
+            raise ValueError(
+                "reading TOML on Python 3.10 needs the 'tomli' package (pip install tomli)"
+            ) from error
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"invalid TOML: {error}") from error
+
+
+def resolve_function(path: str):
+    """The callable named ``"package.module:function"`` (attributes may be dotted)."""
+    if not isinstance(path, str) or ":" not in path:
+        raise ValueError(f"function must be given as 'module:function'; got {path!r}")
+    module_name, attribute = path.split(":", 1)
+    try:
+        target = importlib.import_module(module_name)
+    except ModuleNotFoundError as error:
+        raise ValueError(f"cannot import module {module_name!r} for function {path!r}") from error
+    for part in attribute.split("."):
+        if not hasattr(target, part):
+            raise ValueError(f"module {module_name!r} has no attribute {attribute!r}")
+        target = getattr(target, part)
+    if not callable(target):
+        raise ValueError(f"{path!r} is not callable")
+    return target
+
+
+def load_config(path: str | Path) -> dict:
+    """Read and check a sweep TOML file; returns function, parameters, fixed, options."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"sweep configuration {str(path)!r} not found")
+    config = _toml_loads(path.read_text(encoding="utf-8"))
+    unknown = set(config) - {"function", "parameters", "fixed", "options"}
+    if unknown:
+        raise ValueError(f"unknown keys in {path.name}: {sorted(unknown)} (valid: function, "
+                         "parameters, fixed, options)")
+    if "function" not in config:
+        raise ValueError(f"{path.name} must name the function: function = 'module:function'")
+    parameters = config.get("parameters", {})
+    if not isinstance(parameters, dict) or not parameters:
+        raise ValueError(f"{path.name} needs a [parameters] table with one list per parameter")
+    options = dict(config.get("options", {}))
+    bad = set(options) - set(OPTIONS)
+    if bad:
+        raise ValueError(f"unknown [options] {sorted(bad)}; valid: {OPTIONS}")
+    return {"function": resolve_function(config["function"]), "parameters": parameters,
+            "fixed": dict(config.get("fixed", {})), "options": options,
+            "function_path": config["function"]}
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", help="TOML file naming the function and the parameter grids")
+    parser.add_argument("-o", "--output", required=True, help="netCDF file to write")
+    parser.add_argument("--backend", choices=("serial", "broadcast", "dask"),
+                        help="override the backend of the configuration")
+    parser.add_argument("--chunk-size", type=int, help="grid points per chunk")
+    parser.add_argument("--store", help="directory of resumable chunk results")
+    parser.add_argument("--workers", type=int, help="LocalCluster workers for --backend dask")
+    parser.add_argument("--scheduler", help="dask scheduler address (instead of a LocalCluster)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from skytorch.dataset import to_netcdf
+    from skytorch.sweep import sweep
+
+    config = load_config(args.config)
+    options = config["options"]
+    for option, value in (("backend", args.backend), ("chunk_size", args.chunk_size),
+                          ("store", args.store), ("n_workers", args.workers),
+                          ("scheduler_address", args.scheduler)):
+        if value is not None:
+            options[option] = value
+    if args.no_progress:
+        options["progress"] = False
+    fn = config["function"]
+    if config["fixed"]:
+        fn = functools.partial(fn, **config["fixed"])
+    dataset = sweep(fn, **options, **config["parameters"])
+    dataset.attrs["sweep_function"] = config["function_path"]
+    path = to_netcdf(dataset, args.output)
+    logger.info("wrote %s", path)
+    print(f"wrote {path}: {dict(dataset.sizes)}")
+    return 0

@@ -1,0 +1,531 @@
+"""Parameter sweeps: one Dataset dimension per swept parameter, batched, chunked, on dask.
+
+``sweep(fn, turbidity=[1, 2, 3], ozone_du=[250, 300])`` calls
+``fn(turbidity=..., ozone_du=...)`` for every point of the Cartesian grid and returns an
+``xarray.Dataset`` with dimensions ``("turbidity", "ozone_du", *result_dims)`` whose
+coordinates are the swept values. ``fn`` may return an ``xarray.Dataset``, a
+``DataArray``, a tensor or numpy array, a number, or a mapping of names to tensors or
+numbers.
+
+Backends
+--------
+``"serial"``
+    One call per grid point, in the calling process.
+``"broadcast"``
+    One call per chunk with the parameters as broadcastable float64 tensors: parameter
+    *i* of *k* has shape ``(1, …, n_i, …, 1)`` (``-1`` at position *i*), as a
+    ``torch.nn.Module`` with batched parameters accepts them (a ``(5, 1)`` turbidity and
+    a ``(1, 4)`` ozone give a 5 × 4 result). ``fn`` must then return tensors (or a
+    mapping of them) whose leading *k* dimensions broadcast to the grid shape. Chunks
+    are slabs along the first parameter.
+``"dask"``
+    Chunks run as tasks on ``dask.distributed``: a given ``client``, a scheduler at
+    ``scheduler_address``, or a ``LocalCluster`` (threads in this process,
+    ``n_workers`` workers of one thread each, default 2) started and shut down by the
+    call. Results are gathered, persisted and assembled in the calling process.
+
+All backends give the same Dataset (bit-identical for element-wise ``fn``; a function
+whose reductions vectorise differently over a batch may differ at the rounding level in
+``"broadcast"`` mode).
+
+Chunking and resuming
+---------------------
+The grid is flattened in C order and cut into chunks of ``chunk_size`` points (by
+default the whole grid, or as many points as fit ``memory_budget_bytes`` given the
+size of one point's result). With ``store`` (a directory), each finished chunk is
+written as netCDF under ``store/<key>/`` where the key hashes ``fn``'s qualified name,
+the grid, the chunk size and the optional ``key`` string; a rerun loads the chunks that
+exist and computes only the missing ones, so an interrupted sweep resumes where it
+stopped. The key does not see ``fn``'s code: pass a new ``key`` (e.g. a version) after
+changing ``fn``.
+
+Examples
+--------
+>>> import torch
+>>> import skytorch as st
+>>> ds = st.sweep(lambda a, b: torch.tensor([a + b, a * b]), a=[1.0, 2.0], b=[10.0, 20.0, 30.0],
+...               progress=False)
+>>> ds["result"].dims
+('a', 'b', 'result_dim_0')
+>>> ds["result"].sel(a=2.0, b=30.0).values.tolist()
+[32.0, 60.0]
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import json
+import logging
+import math
+import sys
+import types
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+import xarray as xr
+
+from skytorch._validate import check_choice, check_int
+from skytorch.dataset import (
+    VariableSpec,
+    _sanitized,
+    build_dataset,
+    coordinate,
+    open_dataset,
+    to_netcdf,
+    to_numpy,
+)
+
+__all__ = ["BACKENDS", "sweep"]
+
+logger = logging.getLogger(__name__)
+
+#: execution backends of :func:`sweep`
+BACKENDS = ("serial", "broadcast", "dask")
+#: name of the flattened grid dimension inside stored chunks
+POINT_DIM = "sweep_point"
+#: variable name for results that are not a Dataset, DataArray with a name, or mapping
+RESULT_NAME = "result"
+#: default number of LocalCluster workers for ``backend="dask"``
+DEFAULT_WORKERS = 2
+#: units inferred from a parameter name's suffix (``ozone_du``, ``wavelength_nm``, ...)
+_UNIT_SUFFIXES = {
+    "_nm": "nm", "_m": "m", "_km": "km", "_k": "K", "_deg": "degree", "_rad": "rad",
+    "_s": "s", "_pa": "Pa", "_hpa": "hPa", "_du": "DU", "_mag": "mag",
+}
+
+
+# --- grid -----------------------------------------------------------------------------------------
+
+def _grid_values(name: str, values) -> np.ndarray:
+    """The swept values of one parameter as a 1-D numpy array."""
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__"):
+        raise TypeError(
+            f"sweep parameter {name} must be a sequence of values; got {values!r:.80}"
+        )
+    array = to_numpy(values) if isinstance(values, torch.Tensor) else np.asarray(values)
+    if array.ndim != 1 or array.size == 0:
+        raise ValueError(
+            f"sweep parameter {name} must be a non-empty 1-D sequence; got shape {array.shape}"
+        )
+    if array.dtype.kind not in "biufUM":
+        raise TypeError(f"sweep parameter {name} must hold numbers or strings; got {array.dtype}")
+    if array.dtype.kind == "f" and not np.isfinite(array).all():
+        raise ValueError(f"sweep parameter {name} must be finite; got {array.tolist()}")
+    if len(np.unique(array)) != array.size:
+        raise ValueError(f"sweep parameter {name} repeats values: {array.tolist()}")
+    return array
+
+
+def _python_value(value):
+    """A numpy scalar as the plain Python value passed to ``fn``."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def _function_name(fn: Callable) -> str:
+    while isinstance(fn, functools.partial):
+        fn = fn.func
+    module = getattr(fn, "__module__", None) or type(fn).__module__
+    name = getattr(fn, "__qualname__", None) or type(fn).__qualname__
+    return f"{module}.{name}"
+
+
+def _units(name: str, units: Mapping[str, str]) -> str:
+    if name in units:
+        return units[name]
+    for suffix, unit in _UNIT_SUFFIXES.items():
+        if name.lower().endswith(suffix):
+            return unit
+    return "1"
+
+
+def _chunks(n_points: int, chunk_size: int) -> list[tuple[int, int]]:
+    return [(start, min(start + chunk_size, n_points)) for start in range(0, n_points,
+                                                                          chunk_size)]
+
+
+# --- results to chunk Datasets ------------------------------------------------------------------
+
+def _as_dataset(result) -> xr.Dataset:
+    """One grid point's result as a Dataset (tensors get dims ``<name>_dim_<j>``)."""
+    if isinstance(result, xr.Dataset):
+        return result
+    if isinstance(result, xr.DataArray):
+        return result.to_dataset(name=result.name if result.name is not None else RESULT_NAME)
+    if isinstance(result, Mapping):
+        items = result.items()
+    else:
+        items = [(RESULT_NAME, result)]
+    variables = {}
+    for name, value in items:
+        if isinstance(value, (str, bytes)):
+            raise TypeError(f"sweep result {name} must be numeric; got {value!r:.80}")
+        array = to_numpy(value)
+        if array.dtype == object:
+            raise TypeError(
+                f"sweep function must return a Dataset, DataArray, tensor, number or a "
+                f"mapping of them; got {type(value).__name__}"
+            )
+        dims = tuple(f"{name}_dim_{j}" for j in range(array.ndim))
+        variables[str(name)] = (dims, array)
+    return xr.Dataset(variables)
+
+
+def _same_layout(first: xr.Dataset, other: xr.Dataset) -> None:
+    if set(first.data_vars) != set(other.data_vars):
+        raise ValueError(
+            f"sweep results differ between grid points: variables {sorted(first.data_vars)} "
+            f"and {sorted(other.data_vars)}"
+        )
+    for name in first.data_vars:
+        if first[name].dims != other[name].dims or first[name].shape != other[name].shape:
+            raise ValueError(
+                f"sweep result {name} changes shape between grid points: "
+                f"{dict(first[name].sizes)} and {dict(other[name].sizes)}"
+            )
+    for name, coord in first.coords.items():
+        if name not in other.coords or not np.array_equal(coord.values, other[name].values):
+            raise ValueError(f"sweep result coordinate {name} differs between grid points")
+
+
+def _stack_points(results: Sequence[xr.Dataset]) -> xr.Dataset:
+    """Stack per-point Datasets along :data:`POINT_DIM`."""
+    first = results[0]
+    for other in results[1:]:
+        _same_layout(first, other)
+    data_vars = {
+        name: xr.Variable((POINT_DIM, *first[name].dims),
+                          np.stack([r[name].values for r in results]),
+                          attrs=dict(first[name].attrs))
+        for name in first.data_vars
+    }
+    return xr.Dataset(data_vars, coords=first.coords, attrs=dict(first.attrs))
+
+
+def _broadcast_chunk(result, grid_shape: tuple[int, ...]) -> xr.Dataset:
+    """A broadcast-mode result (leading dims over the grid) as a flat chunk Dataset."""
+    if isinstance(result, (xr.Dataset, xr.DataArray)):
+        raise TypeError(
+            "backend='broadcast' needs fn to return tensors, arrays, numbers or a mapping of "
+            "them whose leading dimensions follow the swept parameters; use backend='serial'"
+        )
+    items = result.items() if isinstance(result, Mapping) else [(RESULT_NAME, result)]
+    k = len(grid_shape)
+    n_points = math.prod(grid_shape)
+    variables = {}
+    for name, value in items:
+        array = to_numpy(value)
+        if array.ndim < k:
+            array = array.reshape((1,) * (k - array.ndim) + array.shape)
+        inner = array.shape[k:]
+        try:
+            array = np.broadcast_to(array, grid_shape + inner)
+        except ValueError as error:
+            raise ValueError(
+                f"backend='broadcast': result {name} of shape {array.shape} does not broadcast "
+                f"to the grid {grid_shape} in its leading dimensions; use backend='serial'"
+            ) from error
+        dims = (POINT_DIM, *(f"{name}_dim_{j}" for j in range(len(inner))))
+        variables[str(name)] = (dims, np.ascontiguousarray(array).reshape((n_points,) + inner))
+    return xr.Dataset(variables)
+
+
+# --- chunk computation (runs on workers for the dask backend) -------------------------------------
+
+def _compute_chunk(fn: Callable, names: tuple[str, ...], grids: tuple[np.ndarray, ...],
+                   start: int, stop: int, broadcast: bool) -> xr.Dataset:
+    """Evaluate ``fn`` on points ``start:stop`` of the flattened grid.
+
+    Attributes are made netCDF-safe at once, so fresh and resumed chunks are identical.
+    """
+    shape = tuple(len(g) for g in grids)
+    if broadcast:
+        inner = math.prod(shape[1:])
+        rows = slice(start // inner, stop // inner)
+        sliced = (grids[0][rows],) + tuple(grids[1:])
+        kwargs = {}
+        for i, (name, values) in enumerate(zip(names, sliced, strict=True)):
+            view = [1] * len(names)
+            view[i] = -1
+            kwargs[name] = torch.as_tensor(values, dtype=torch.float64).reshape(view)
+        sliced_shape = tuple(len(v) for v in sliced)
+        return _sanitized(_broadcast_chunk(fn(**kwargs), sliced_shape))
+    indices = np.unravel_index(np.arange(start, stop), shape)
+    results = []
+    for point in range(stop - start):
+        kwargs = {name: _python_value(grid[index[point]])
+                  for name, grid, index in zip(names, grids, indices, strict=True)}
+        results.append(_as_dataset(fn(**kwargs)))
+    return _sanitized(_stack_points(results))
+
+
+# --- store ---------------------------------------------------------------------------------
+
+def _store_directory(store, fn, names, grids, chunk_size, backend, key) -> Path:
+    description = {
+        "function": _function_name(fn),
+        "parameters": {n: [str(v) for v in g.tolist()] for n, g in zip(names, grids, strict=True)},
+        "dtypes": {n: str(g.dtype) for n, g in zip(names, grids, strict=True)},
+        "chunk_size": chunk_size,
+        "broadcast": backend == "broadcast",
+        "key": key,
+    }
+    text = json.dumps(description, sort_keys=True)
+    digest = hashlib.sha256(text.encode()).hexdigest()[:20]
+    directory = Path(store) / f"{description['function'].rsplit('.', 1)[-1]}-{digest}"
+    directory.mkdir(parents=True, exist_ok=True)
+    manifest = directory / "sweep.json"
+    if not manifest.exists():
+        manifest.write_text(text + "\n")
+    return directory
+
+
+def _chunk_path(directory: Path, start: int, stop: int) -> Path:
+    return directory / f"chunk_{start:09d}_{stop:09d}.nc"
+
+
+def _load_chunk(path: Path) -> xr.Dataset | None:
+    if not path.is_file():
+        return None
+    try:
+        return open_dataset(path)
+    except (OSError, ValueError, RuntimeError) as error:  # unreadable: compute it again
+        logger.warning("recomputing unreadable sweep chunk %s (%s)", path, error)
+        return None
+
+
+# --- dask -----------------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def _dask_client(client, scheduler_address, n_workers) -> Iterator[object]:
+    if client is not None:
+        yield client
+        return
+    from distributed import Client, LocalCluster
+
+    if scheduler_address is not None:
+        with Client(scheduler_address) as remote:
+            yield remote
+        return
+    workers = DEFAULT_WORKERS if n_workers is None else check_int("n_workers", n_workers, 1)
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster, Client(cluster) as local:
+        yield local
+
+
+def _run_dask(todo, compute, client, scheduler_address, n_workers, on_done) -> None:
+    from distributed import as_completed
+
+    with _dask_client(client, scheduler_address, n_workers) as active:
+        futures = {active.submit(compute, start, stop, pure=False): (start, stop)
+                   for start, stop in todo}
+        try:
+            for future in as_completed(futures):
+                start, stop = futures[future]
+                on_done(start, stop, future.result())
+        finally:
+            for future in futures:
+                future.cancel()
+
+
+# --- assembly ------------------------------------------------------------------------------
+
+def _assemble(chunks: list[xr.Dataset], names, grids, units, fn):
+    """Concatenate the flat chunks and reshape the point dimension into the grid."""
+    first = chunks[0]
+    shape = tuple(len(g) for g in grids)
+    data_vars = {}
+    for name in first.data_vars:
+        values = np.concatenate([c[name].values for c in chunks], axis=0)
+        inner_dims = first[name].dims[1:]
+        data_vars[name] = xr.Variable(
+            (*names, *inner_dims), values.reshape(shape + values.shape[1:]),
+            attrs=_result_attrs(name, first[name].attrs),
+        )
+    coords = {}
+    for name, grid in zip(names, grids, strict=True):
+        coords[name] = coordinate(name, grid, VariableSpec(
+            _units(name, units), f"swept parameter {name}",
+            f"Values of the keyword argument {name} passed to {_function_name(fn)}."))
+    for name, coord in first.coords.items():
+        coords[name] = coord.variable
+    used = {dim for v in data_vars.values() for dim in v.dims}
+    for dim in sorted(used - set(coords)):
+        size = first.sizes[dim]
+        coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
+            "1", f"index along {dim}", f"Position along the result dimension {dim}."))
+    references = first.attrs.get("references", ())
+    return build_dataset(
+        data_vars, coords,
+        title=f"parameter sweep of {_function_name(fn)}",
+        references=references.split("\n") if isinstance(references, str) else references,
+        parameters={"function": _function_name(fn),
+                    "swept_parameters": list(names),
+                    "grid": {n: g.tolist() for n, g in zip(names, grids, strict=True)}},
+        sweep_dimensions=",".join(names),
+        result_title=first.attrs.get("title", ""),
+    )
+
+
+def _result_attrs(name: str, attrs: Mapping[str, object]) -> dict:
+    attrs = dict(attrs)
+    attrs.setdefault("units", "1")
+    attrs.setdefault("long_name", name)
+    attrs.setdefault("description", f"{name} returned by the swept function")
+    return attrs
+
+
+def _point_bytes(fn, names, grids, broadcast) -> int:
+    """Size of one grid point's result [bytes] (one evaluation at the first point)."""
+    chunk = _compute_chunk(fn, names, tuple(g[:1] for g in grids), 0, 1, broadcast)
+    return max(1, sum(v.values.nbytes for v in chunk.data_vars.values()))
+
+
+# --- public function ------------------------------------------------------------------------------
+
+def sweep(
+    fn: Callable,
+    *,
+    backend: str = "serial",
+    chunk_size: int | None = None,
+    memory_budget_bytes: int | None = None,
+    store: str | Path | None = None,
+    key: str | None = None,
+    progress: bool = True,
+    client=None,
+    scheduler_address: str | None = None,
+    n_workers: int | None = None,
+    units: Mapping[str, str] | None = None,
+    **parameter_grids,
+) -> xr.Dataset:
+    """Evaluate ``fn`` over the Cartesian grid of the keyword parameter grids.
+
+    Parameters
+    ----------
+    fn : callable
+        Called as ``fn(**point)``; returns an ``xarray.Dataset``, ``DataArray``, tensor,
+        numpy array, number, or a mapping of names to tensors/arrays/numbers, with the
+        same layout at every point.
+    backend : {"serial", "broadcast", "dask"}
+        How the grid is evaluated (module docstring).
+    chunk_size : int, optional
+        Grid points per chunk (rounded up to whole slabs of the first parameter for
+        ``"broadcast"``). Default: from ``memory_budget_bytes`` if given, else the whole
+        grid (``"serial"``, ``"broadcast"``) or about four chunks per worker (``"dask"``).
+    memory_budget_bytes : int, optional
+        Bound on the result bytes held per chunk; the size of one point's result is
+        measured with one evaluation at the first grid point.
+    store : str or Path, optional
+        Directory for resumable chunk results (netCDF); see the module docstring.
+    key : str, optional
+        Extra text hashed into the store key (e.g. a version of ``fn``).
+    progress : bool
+        Show a tqdm progress bar over grid points (only on a terminal).
+    client : distributed.Client, optional
+        Existing dask client for ``backend="dask"``.
+    scheduler_address : str, optional
+        Address of a dask scheduler (e.g. ``"tcp://10.0.0.1:8786"``) for ``"dask"``.
+    n_workers : int, optional
+        Workers of the LocalCluster started for ``"dask"`` (default 2).
+    units : mapping of str to str, optional
+        Units of the swept parameters for the coordinates' metadata; by default inferred
+        from suffixes (``_nm`` nm, ``_m`` m, ``_k`` K, ``_deg`` degree, ``_du`` DU, ...),
+        otherwise ``"1"``.
+    **parameter_grids : sequence
+        One 1-D sequence of distinct values per swept keyword parameter.
+
+    Returns
+    -------
+    xarray.Dataset
+        Variables with dimensions ``(*parameters, *result_dims)``; coordinates are the
+        swept values; global attributes record the function, the grid
+        (``parameters`` JSON, ``sweep_dimensions``) and the result's references.
+
+    Raises
+    ------
+    ValueError, TypeError
+        No parameters, bad grids or options, or results whose layout changes.
+
+    Examples
+    --------
+    >>> ds = sweep(lambda x, n: x**n, x=[2.0, 3.0], n=[1, 2], progress=False)
+    >>> ds["result"].values.tolist()
+    [[2.0, 4.0], [3.0, 9.0]]
+    """
+    check_choice("backend", backend, BACKENDS)
+    if not callable(fn):
+        raise TypeError(f"fn must be callable; got {fn!r:.80}")
+    if not parameter_grids:
+        raise ValueError("sweep needs at least one parameter grid, e.g. turbidity=[1, 2, 3]")
+    names = tuple(parameter_grids)
+    grids = tuple(_grid_values(n, v) for n, v in parameter_grids.items())
+    broadcast = backend == "broadcast"
+    if broadcast:
+        for name, grid in zip(names, grids, strict=True):
+            if grid.dtype.kind not in "biuf":
+                raise TypeError(f"backend='broadcast' needs numeric grids; {name} is {grid.dtype}")
+    shape = tuple(len(g) for g in grids)
+    n_points = math.prod(shape)
+    slab = math.prod(shape[1:]) if broadcast else 1
+
+    if chunk_size is not None:
+        chunk_size = check_int("chunk_size", chunk_size, 1)
+    elif memory_budget_bytes is not None:
+        budget = check_int("memory_budget_bytes", memory_budget_bytes, 1)
+        chunk_size = max(1, budget // _point_bytes(fn, names, grids, broadcast))
+    elif backend == "dask":
+        workers = DEFAULT_WORKERS if n_workers is None else n_workers
+        chunk_size = max(1, math.ceil(n_points / (4 * workers)))
+    else:
+        chunk_size = n_points
+    chunk_size = min(n_points, math.ceil(chunk_size / slab) * slab)
+    spans = _chunks(n_points, chunk_size)
+
+    directory = None
+    results: dict[tuple[int, int], xr.Dataset] = {}
+    if store is not None:
+        directory = _store_directory(store, fn, names, grids, chunk_size, backend, key)
+        for start, stop in spans:
+            loaded = _load_chunk(_chunk_path(directory, start, stop))
+            if loaded is not None:
+                results[(start, stop)] = loaded
+        logger.info("sweep store %s: %d of %d chunks already done", directory, len(results),
+                    len(spans))
+    todo = [span for span in spans if span not in results]
+
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=n_points, desc=f"sweep {_function_name(fn)}", unit="point",
+               disable=None if progress else True,
+               initial=sum(stop - start for start, stop in results))
+
+    def done(start: int, stop: int, chunk: xr.Dataset) -> None:
+        if directory is not None:
+            to_netcdf(chunk, _chunk_path(directory, start, stop))
+        results[(start, stop)] = chunk
+        bar.update(stop - start)
+
+    compute = functools.partial(_compute_chunk, fn, names, grids, broadcast=broadcast)
+    try:
+        if backend == "dask" and todo:
+            _run_dask(todo, compute, client, scheduler_address, n_workers, done)
+        else:
+            for start, stop in todo:
+                done(start, stop, compute(start, stop))
+    finally:
+        bar.close()
+    ordered = [results[span] for span in spans]
+    return _assemble(ordered, names, grids, units or {}, fn)
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as :func:`sweep` (so ``st.sweep(...)`` always works)."""
+
+    def __call__(self, *args, **kwargs):
+        return sweep(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule

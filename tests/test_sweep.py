@@ -1,0 +1,225 @@
+"""Tests of skytorch.sweep: backends agree with a plain loop, resume, netCDF, CLI."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+import torch
+import xarray as xr
+
+import skytorch as st
+from skytorch.dataset import open_dataset, to_netcdf
+
+TURBIDITY = [1.0, 2.0, 3.0, 5.0]
+OZONE_DU = [250.0, 300.0, 350.0]
+WAVELENGTH_NM = torch.tensor([440.0, 550.0, 680.0], dtype=torch.float64)
+
+#: calls of the spied functions below (reset by each test that reads it)
+CALLS = {"count": 0, "fail_at": None}
+
+
+def transmittance_like(turbidity, ozone_du):
+    """Element-wise toy model: works with Python floats and with broadcast tensors."""
+    CALLS["count"] += 1
+    if CALLS["fail_at"] is not None and CALLS["count"] >= CALLS["fail_at"]:
+        raise RuntimeError("simulated interruption")
+    turbidity = torch.as_tensor(turbidity, dtype=torch.float64).unsqueeze(-1)
+    ozone = torch.as_tensor(ozone_du, dtype=torch.float64).unsqueeze(-1)
+    tau = 0.0088 * (WAVELENGTH_NM / 1000.0) ** -4.05 + 0.05 * (turbidity - 1.0) + 1e-4 * ozone
+    return {"transmittance": torch.exp(-tau), "tau_v": tau[..., 1]}
+
+
+def reference_loop():
+    """Independent reference: nested Python loops with math.exp."""
+    out = np.empty((len(TURBIDITY), len(OZONE_DU), 3))
+    for (i, t), (j, o) in itertools.product(enumerate(TURBIDITY), enumerate(OZONE_DU)):
+        for k, wl in enumerate(WAVELENGTH_NM.tolist()):
+            tau = 0.0088 * (wl / 1000.0) ** -4.05 + 0.05 * (t - 1.0) + 1e-4 * o
+            out[i, j, k] = math.exp(-tau)
+    return out
+
+
+@pytest.fixture(autouse=True)
+def _reset_calls():
+    CALLS["count"] = 0
+    CALLS["fail_at"] = None
+    yield
+    CALLS["fail_at"] = None
+
+
+def run(**options):
+    return st.sweep(transmittance_like, progress=False, turbidity=TURBIDITY, ozone_du=OZONE_DU,
+                    **options)
+
+
+def test_serial_matches_plain_loop():
+    ds = run()
+    assert ds["transmittance"].dims == ("turbidity", "ozone_du", "transmittance_dim_0")
+    np.testing.assert_allclose(ds["transmittance"].values, reference_loop(), rtol=1e-14)
+    assert ds["turbidity"].values.tolist() == TURBIDITY
+    assert ds["ozone_du"].values.tolist() == OZONE_DU
+    assert CALLS["count"] == len(TURBIDITY) * len(OZONE_DU)
+
+
+@pytest.mark.parametrize("options", [
+    {"chunk_size": 1}, {"chunk_size": 5}, {"memory_budget_bytes": 64},
+    {"backend": "broadcast"}, {"backend": "broadcast", "chunk_size": 4},
+])
+def test_backends_identical_to_serial(options):
+    serial = run()
+    other = run(**options)
+    xr.testing.assert_identical(serial.drop_attrs(), other.drop_attrs())
+    assert serial.attrs["parameters"] == other.attrs["parameters"]
+
+
+def test_broadcast_calls_once_per_slab():
+    run(backend="broadcast")
+    assert CALLS["count"] == 1
+    CALLS["count"] = 0
+    run(backend="broadcast", chunk_size=5)  # rounded up to slabs of 3 ozone values
+    assert CALLS["count"] == 2
+
+
+def test_dask_local_cluster_identical():
+    serial = run()
+    ds = run(backend="dask", n_workers=2, chunk_size=3)
+    xr.testing.assert_identical(serial.drop_attrs(), ds.drop_attrs())
+
+
+def test_resume_after_interruption(tmp_path):
+    n_points = len(TURBIDITY) * len(OZONE_DU)
+    CALLS["fail_at"] = 8  # dies during the 8th call: chunks 0-2 and 3-5 are finished
+    with pytest.raises(RuntimeError, match="simulated interruption"):
+        run(chunk_size=3, store=tmp_path)
+    stored = sorted(tmp_path.glob("*/chunk_*.nc"))
+    assert len(stored) == 2
+    CALLS["fail_at"] = None
+    CALLS["count"] = 0
+    resumed = run(chunk_size=3, store=tmp_path)
+    assert CALLS["count"] == n_points - 6  # only the two missing chunks
+    np.testing.assert_allclose(resumed["transmittance"].values, reference_loop(), rtol=1e-14)
+    CALLS["count"] = 0
+    again = run(chunk_size=3, store=tmp_path)
+    assert CALLS["count"] == 0
+    xr.testing.assert_identical(resumed.drop_attrs(), again.drop_attrs())
+    xr.testing.assert_identical(run().drop_attrs(), again.drop_attrs())
+
+
+def test_resume_with_dask(tmp_path):
+    CALLS["fail_at"] = 5
+    with pytest.raises(RuntimeError, match="simulated interruption"):
+        run(backend="dask", n_workers=1, chunk_size=4, store=tmp_path)
+    assert len(list(tmp_path.glob("*/chunk_*.nc"))) == 1  # the first chunk finished
+    CALLS["fail_at"] = None
+    CALLS["count"] = 0
+    ds = run(backend="dask", n_workers=1, chunk_size=4, store=tmp_path)
+    assert CALLS["count"] == 8
+    np.testing.assert_allclose(ds["transmittance"].values, reference_loop(), rtol=1e-14)
+
+
+def test_netcdf_round_trip_exact(tmp_path):
+    ds = run()
+    back = open_dataset(to_netcdf(ds, tmp_path / "sweep.nc"))
+    xr.testing.assert_identical(ds, back)
+
+
+def test_metadata():
+    ds = run()
+    assert ds["ozone_du"].attrs["units"] == "DU"
+    assert ds["turbidity"].attrs["units"] == "1"
+    assert ds["turbidity"].attrs["long_name"] == "swept parameter turbidity"
+    assert ds.attrs["sweep_dimensions"] == "turbidity,ozone_du"
+    assert "transmittance_like" in ds.attrs["parameters"]
+    assert ds.attrs["Conventions"] == "CF-1.10"
+    assert "transmittance_dim_0" in ds.coords
+    ds = st.sweep(transmittance_like, progress=False, units={"turbidity": "Linke"},
+                  turbidity=[1.0], ozone_du=[300.0])
+    assert ds["turbidity"].attrs["units"] == "Linke"
+
+
+def point_dataset(scale, offset):
+    wavelength = [400.0, 500.0]
+    return xr.Dataset(
+        {"radiance": ("wavelength", np.array(wavelength) * scale + offset,
+                      {"units": "W m-2 sr-1 nm-1", "long_name": "radiance"})},
+        coords={"wavelength": ("wavelength", wavelength, {"units": "nm"})},
+        attrs={"title": "toy", "references": "Ref A\nRef B"},
+    )
+
+
+def test_dataset_dataarray_and_number_results():
+    ds = st.sweep(point_dataset, progress=False, scale=[1.0, 2.0], offset=[0.0, 1.0, 2.0])
+    assert ds["radiance"].dims == ("scale", "offset", "wavelength")
+    assert ds["wavelength"].values.tolist() == [400.0, 500.0]
+    assert ds["radiance"].attrs["units"] == "W m-2 sr-1 nm-1"
+    assert float(ds["radiance"].sel(scale=2.0, offset=1.0, wavelength=500.0)) == 1001.0
+    assert ds.attrs["references"] == "Ref A\nRef B"
+    da = st.sweep(lambda scale: point_dataset(scale, 0.0)["radiance"].rename("r"),
+                  progress=False, scale=[1.0, 3.0])
+    assert da["r"].shape == (2, 2)
+    number = st.sweep(lambda n, p: n**p, progress=False, n=[2, 3], p=[0, 1, 2])
+    assert number["result"].values.tolist() == [[1, 2, 4], [1, 3, 9]]
+    labels = st.sweep(lambda model, x: len(model) * x, progress=False,
+                      model=["a", "bb"], x=[1.0, 2.0])
+    assert labels["result"].sel(model="bb", x=2.0).item() == 4.0
+
+
+def test_module_is_callable():
+    import importlib
+
+    import skytorch.sweep as module
+
+    package = importlib.import_module("skytorch")
+    assert callable(module) and callable(package.sweep)
+    ds = package.sweep(lambda x: 2 * x, x=[1.0, 2.0], progress=False)
+    assert ds["result"].values.tolist() == [2.0, 4.0]
+    ds = module(lambda x: 3 * x, x=[1.0], progress=False)
+    assert ds["result"].values.tolist() == [3.0]
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="at least one parameter"):
+        st.sweep(transmittance_like)
+    with pytest.raises(ValueError, match="backend"):
+        run(backend="threads")
+    with pytest.raises(TypeError, match="sequence"):
+        st.sweep(transmittance_like, turbidity=2.0, ozone_du=OZONE_DU)
+    with pytest.raises(ValueError, match="repeats"):
+        st.sweep(transmittance_like, turbidity=[1.0, 1.0], ozone_du=OZONE_DU)
+    with pytest.raises(ValueError, match="finite"):
+        st.sweep(transmittance_like, turbidity=[1.0, float("nan")], ozone_du=OZONE_DU)
+    with pytest.raises(TypeError, match="numeric"):
+        st.sweep(lambda m: 1.0, backend="broadcast", m=["a", "b"])
+    with pytest.raises(TypeError, match="broadcast"):
+        st.sweep(lambda x: xr.Dataset({"a": ("d", np.zeros(2))}), backend="broadcast",
+                 progress=False, x=[1.0, 2.0])
+    with pytest.raises(ValueError, match="shape"):
+        st.sweep(lambda n: torch.zeros(n), progress=False, n=[1, 2])
+    with pytest.raises(ValueError, match="chunk_size"):
+        run(chunk_size=0)
+
+
+def test_cli_sweep(tmp_path):
+    from skytorch.cli import main
+
+    config = tmp_path / "sweep.toml"
+    config.write_text(
+        'function = "skytorch.spectrum:bv_to_temperature"\n'
+        "[parameters]\nbv = [0.0, 0.65, 1.5]\n"
+        '[options]\nchunk_size = 2\nunits = {bv = "mag"}\n'
+    )
+    output = tmp_path / "sweep.nc"
+    assert main(["sweep", str(config), "-o", str(output), "--no-progress"]) == 0
+    ds = open_dataset(output)
+    assert ds["bv"].attrs["units"] == "mag"
+    # Ballesteros 2012 closed form
+    expected = [4600.0 * (1 / (0.92 * bv + 1.7) + 1 / (0.92 * bv + 0.62))
+                for bv in (0.0, 0.65, 1.5)]
+    np.testing.assert_allclose(ds["result"].values, expected, rtol=1e-12)
+    assert ds.attrs["sweep_function"] == "skytorch.spectrum:bv_to_temperature"
+    bad = tmp_path / "bad.toml"
+    bad.write_text('function = "skytorch.spectrum:no_such"\n[parameters]\nbv = [0.0]\n')
+    assert main(["sweep", str(bad), "-o", str(output)]) == 2
