@@ -244,6 +244,8 @@ def parse_times(times) -> np.ndarray:
         times = [times]
     if isinstance(times, torch.Tensor):
         raise TypeError("times must be strings, datetimes or datetime64 values, not a tensor")
+    if not isinstance(times, np.ndarray) and hasattr(times, "__array__"):
+        times = np.asarray(times)  # xarray / pandas datetime containers
     if isinstance(times, np.ndarray) and np.issubdtype(times.dtype, np.datetime64):
         values = times.astype("datetime64[ns]")
     else:

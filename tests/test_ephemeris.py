@@ -94,6 +94,9 @@ def test_parse_times_accepts_common_forms():
                                                          "2016-01-01"])).tolist()
     array = np.array(["2020-01-01", "2020-01-02"], dtype="datetime64[D]")
     assert eph.parse_times(array).tolist() == array.astype("datetime64[ns]").tolist()
+    # a Dataset's time coordinate goes straight back in
+    ds = eph.sun_moon(array)
+    assert eph.parse_times(ds.time).tolist() == array.astype("datetime64[ns]").tolist()
 
 
 @pytest.mark.parametrize(
