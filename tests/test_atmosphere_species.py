@@ -1,0 +1,69 @@
+"""Constituents against published references: Bodhaine 1999, ozone column, Preetham."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from skytorch.atmosphere import Atmosphere
+from skytorch.constants import PERCENT
+
+
+def bodhaine_eq30(wavelength_nm):
+    """Rayleigh optical depth at 1013.25 hPa, 45 deg, sea level (Bodhaine 1999, eq. 30)."""
+    lam = wavelength_nm / 1000.0
+    return 0.0021520 * (1.0455996 - 341.29061 * lam ** -2 - 0.90230850 * lam ** 2) / (
+        1.0 + 0.0027059889 * lam ** -2 - 85.968563 * lam ** 2)
+
+
+def test_rayleigh_optical_depth_matches_bodhaine_eq30():
+    wavelength = torch.linspace(400.0, 800.0, 41, dtype=torch.float64)
+    atm = Atmosphere.earth(turbidity=1.0, ozone_du=0.0)
+    tau = atm.optical_depth(wavelength, per_species=True)["rayleigh"]
+    relative = (tau / bodhaine_eq30(wavelength) - 1.0).abs()
+    assert float(relative.max()) <= 1 * PERCENT
+
+
+@pytest.mark.parametrize(("wavelength", "reference"), [(400.0, 0.360), (550.0, 0.0971),
+                                                       (700.0, 0.0364)])
+def test_rayleigh_design_reference_values(wavelength, reference):
+    atm = Atmosphere.earth(turbidity=1.0, ozone_du=0.0)
+    tau = atm.optical_depth(torch.tensor([wavelength], dtype=torch.float64),
+                            per_species=True)["rayleigh"]
+    assert abs(float(tau[0]) / reference - 1.0) <= 1 * PERCENT
+
+
+@pytest.mark.parametrize(("wavelength", "reference"), [(550.0, 0.028), (600.0, 0.040)])
+def test_ozone_optical_depth_300_du(wavelength, reference):
+    atm = Atmosphere.earth(turbidity=1.0, ozone_du=300.0)
+    tau = atm.optical_depth(torch.tensor([wavelength], dtype=torch.float64),
+                            per_species=True)["ozone"]
+    assert abs(float(tau[0]) - reference) <= 0.002
+
+
+def test_ozone_column_equals_dobson_units():
+    # vertical ozone optical depth = column [DU] * 2.687e20 m^-2 * cross-section
+    atm = Atmosphere.earth(turbidity=1.0, ozone_du=300.0)
+    tau = atm.optical_depth(torch.tensor([600.0], dtype=torch.float64), per_species=True)
+    assert float(tau["ozone"][0]) == pytest.approx(300 * 2.687e20 * 5.019e-25, rel=1e-9)
+
+
+def test_preetham_turbidity_aerosol_optical_depth():
+    # beta = 0.04608 T - 0.04586, alpha = 1.3 (Preetham 1999)
+    atm = Atmosphere.earth(turbidity=3.0, ozone_du=0.0)
+    tau = atm.optical_depth(torch.tensor([1000.0, 500.0], dtype=torch.float64),
+                            per_species=True)["aerosol"]
+    beta = 0.04608 * 3.0 - 0.04586
+    assert float(tau[0]) == pytest.approx(beta, rel=1e-6)
+    assert float(tau[1]) == pytest.approx(beta * 0.5 ** -1.3, rel=1e-6)
+
+
+def test_refractivity_scales_with_density():
+    atm = Atmosphere.earth()
+    n1 = atm.refractivity(torch.tensor([0.0, 8000.0], dtype=torch.float64))
+    assert float(n1[0]) == pytest.approx(2.77e-4, rel=1e-12)
+    assert float(n1[1]) == pytest.approx(2.77e-4 / math.e, rel=1e-12)
+    mars = Atmosphere.mars()
+    assert float(mars.refractivity(0.0)) == pytest.approx(3.38e-6, rel=1e-12)
