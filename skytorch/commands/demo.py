@@ -51,7 +51,7 @@ def _ephemeris_part(output_dir: Path, quick: bool) -> list[str]:
     png = output_dir / "eclipse_night_ephemeris.png"
     figure.savefig(png, dpi=110, bbox_inches="tight")
     plt.close(figure)
-    highest = int(ds["moon_altitude"].argmax())
+    highest = int(np.argmax(ds["moon_altitude"].values))
     return [
         f"ephemeris: {ds.sizes['time']} times -> {path}, {png}",
         f"  Moon highest at {str(ds['time'].values[highest])[:16]} UTC, "
