@@ -1,0 +1,17 @@
+"""Eclipses: occlusion of the Sun, shadow cones, lunar-eclipse circumstances.
+
+Public names are collected from the submodules below; each submodule adds its names with
+one ``from ... import`` line and one entry in ``__all__``.
+"""
+
+from skytorch.eclipse.occlusion import (  # noqa: F401
+    LIMB_DARKENING_LAWS,
+    limb_darkening_profile,
+    sun_visible_fraction,
+)
+
+__all__ = [
+    "LIMB_DARKENING_LAWS",
+    "limb_darkening_profile",
+    "sun_visible_fraction",
+]
