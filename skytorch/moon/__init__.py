@@ -1,0 +1,110 @@
+"""The Moon: geometry, reflectance, disc images, magnitude, earthshine, moonlit sky.
+
+Tensor functions (batched, differentiable, dtype following the inputs):
+
+* :mod:`~skytorch.moon.geometry` — phase angle, illuminated fraction, bright-limb position
+  angle, optical libration, parallactic angle, apparent diameter (Meeus 1998).
+* :mod:`~skytorch.moon.reflectance` — Hapke (2012) and Lommel–Seeliger reflectance with
+  published lunar parameters; the reddish albedo spectrum (Müller et al. 2012).
+* :mod:`~skytorch.moon.disc` — sample points on the visible disc, exact quadrature of the
+  sunlit part, radiance images (reused by the eclipse light curve).
+* :mod:`~skytorch.moon.brightness` — disc-integrated irradiance and V magnitude from
+  first principles; Krisciunas & Schaefer's (1991) observed phase curve for validation.
+* :mod:`~skytorch.moon.earthshine` — Müller's eq. 4 and a physical earthshine model.
+* :mod:`~skytorch.moon.sky` — moonlit sky brightness: Krisciunas & Schaefer (1991) and
+  single scattering through :class:`skytorch.atmosphere.Atmosphere`.
+
+Dataset builders: :func:`moon_geometry` (over time, from the ephemeris) and
+:func:`moon_disc_image`.
+
+Examples
+--------
+>>> import math, torch
+>>> import skytorch as st
+>>> m = st.moon.magnitude(torch.tensor(math.radians(90.0)))  # quarter Moon
+>>> -10.3 < float(m) < -9.7
+True
+"""
+
+from __future__ import annotations
+
+from skytorch.moon.brightness import (
+    disc_integrated_reflectance,
+    geometric_albedo,
+    lunar_irradiance,
+    magnitude,
+    magnitude_ks1991,
+)
+from skytorch.moon.datasets import moon_disc_image, moon_geometry
+from skytorch.moon.disc import (
+    dark_disc_quadrature,
+    disc_grid,
+    disc_image,
+    disc_radiance,
+    disc_reflectance,
+    lit_disc_quadrature,
+    sun_direction,
+)
+from skytorch.moon.earthshine import (
+    earthshine_irradiance_ratio,
+    earthshine_muller2012,
+    lambert_phase_function,
+)
+from skytorch.moon.geometry import (
+    apparent_diameter,
+    bright_limb_position_angle,
+    illuminated_fraction,
+    optical_libration,
+    parallactic_angle,
+    phase_angle,
+    phase_angle_from_radec,
+)
+from skytorch.moon.reflectance import (
+    HAPKE_PARAMETERS,
+    REFLECTANCE_MODELS,
+    albedo,
+    lommel_seeliger,
+    reflectance,
+)
+from skytorch.moon.sky import (
+    moonlit_sky_ks1991,
+    moonlit_sky_single_scattering,
+    nanolambert_to_mag_arcsec2,
+    radiance_to_mag_arcsec2,
+)
+
+__all__ = [
+    "HAPKE_PARAMETERS",
+    "REFLECTANCE_MODELS",
+    "albedo",
+    "apparent_diameter",
+    "bright_limb_position_angle",
+    "dark_disc_quadrature",
+    "disc_grid",
+    "disc_image",
+    "disc_integrated_reflectance",
+    "disc_radiance",
+    "disc_reflectance",
+    "earthshine_irradiance_ratio",
+    "earthshine_muller2012",
+    "geometric_albedo",
+    "illuminated_fraction",
+    "lambert_phase_function",
+    "lit_disc_quadrature",
+    "lommel_seeliger",
+    "lunar_irradiance",
+    "magnitude",
+    "magnitude_ks1991",
+    "moon_disc_image",
+    "moon_geometry",
+    "moonlit_sky_ks1991",
+    "moonlit_sky_single_scattering",
+    "nanolambert_to_mag_arcsec2",
+    "optical_libration",
+    "parallactic_angle",
+    "phase_angle",
+    "phase_angle_from_radec",
+    "radiance_to_mag_arcsec2",
+    "reflectance",
+    "sun_direction",
+]

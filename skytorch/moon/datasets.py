@@ -1,0 +1,189 @@
+"""Dataset builders for the Moon: geometry and photometry over time, disc images.
+
+Positions come from :mod:`skytorch.ephemeris` (skyfield with DE421); every number is then
+computed by the tensor functions of :mod:`skytorch.moon`.
+
+References
+----------
+1. Meeus, J. 1998, *Astronomical Algorithms*, 2nd ed., Willmann-Bell, ch. 14, 48, 53.
+2. Krisciunas, K., Schaefer, B. E. 1991, PASP 103, 1033, doi:10.1086/132921.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+import xarray as xr
+
+from skytorch.constants import DEGREE
+from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
+from skytorch.moon import geometry as _geometry
+from skytorch.moon.brightness import magnitude
+from skytorch.moon.disc import disc_image
+
+__all__ = ["moon_disc_image", "moon_geometry"]
+
+_REFERENCES = [
+    "Meeus, J. 1998, Astronomical Algorithms, 2nd ed., Willmann-Bell, ch. 14, 48, 53",
+    "Krisciunas, K., Schaefer, B. E. 1991, PASP 103, 1033, doi:10.1086/132921",
+    "Hapke, B. 2012, Theory of Reflectance and Emittance Spectroscopy, 2nd ed., "
+    "doi:10.1017/CBO9781139025683",
+    "Muller, T., Engel, J., Dollner, J. 2012, Proc. VMV, doi:10.2312/PE/VMV/VMV12/055-062",
+]
+
+_SPECS = {
+    "phase_angle": VariableSpec("degree", "lunar phase angle",
+                                "Geocentric Sun-Moon-Earth angle (selenocentric elongation of "
+                                "the Earth from the Sun); 0 at full Moon."),
+    "illuminated_fraction": VariableSpec("1", "illuminated fraction of the lunar disc",
+                                         "k = (1 + cos i)/2 (Meeus eq. 48.1)."),
+    "bright_limb_angle": VariableSpec("degree", "position angle of the bright limb",
+                                      "Position angle of the midpoint of the illuminated limb, "
+                                      "from the north point of the disc through east "
+                                      "(Meeus eq. 48.5), geocentric."),
+    "libration_longitude": VariableSpec("degree", "optical libration in longitude",
+                                        "Optical libration l' (Meeus eq. 53.1), geocentric; "
+                                        "physical libration not included."),
+    "libration_latitude": VariableSpec("degree", "optical libration in latitude",
+                                       "Optical libration b' (Meeus eq. 53.1), geocentric."),
+    "apparent_diameter": VariableSpec("degree", "apparent angular diameter of the Moon",
+                                      "2 asin(R_moon / d) with d the observer-Moon distance."),
+    "magnitude": VariableSpec("1", "V magnitude of the Moon",
+                              "Disc-integrated Johnson V magnitude above the atmosphere from "
+                              "the Hapke reflectance law, solar spectrum and actual distances "
+                              "(earthshine included); unit: mag."),
+    "parallactic_angle": VariableSpec("degree", "parallactic angle of the Moon",
+                                      "Angle at the Moon from the north celestial pole to the "
+                                      "zenith, positive west (Meeus eq. 14.1), topocentric."),
+}
+
+
+def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -> xr.Dataset:
+    """Phase, illumination, bright limb, libration, size and magnitude of the Moon.
+
+    Parameters
+    ----------
+    times : str, datetime, datetime64 or sequence of them
+        UTC times (see :func:`skytorch.ephemeris.parse_times`).
+    lat_deg, lon_deg : float, optional
+        Observer's geodetic latitude and longitude [degree]; with them the parallactic
+        angle is added and the apparent diameter is topocentric.
+    elevation_m : float
+        Observer's height above the WGS84 ellipsoid [m].
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimension ``time``; variables ``phase_angle``, ``illuminated_fraction``,
+        ``bright_limb_angle``, ``libration_longitude``, ``libration_latitude``,
+        ``apparent_diameter``, ``magnitude`` (+ ``parallactic_angle`` with an observer).
+    """
+    from skyfield.api import wgs84
+    from skyfield.nutationlib import iau2000b_radians, mean_obliquity
+
+    from skytorch.ephemeris import load_ephemeris, parse_times, skyfield_time, sun_moon_vectors
+
+    values = parse_times(times)
+    t = skyfield_time(values)
+    vectors = sun_moon_vectors(values)
+    sun, moon = vectors["sun_tod_m"], vectors["moon_tod_m"]
+    phase = _geometry.phase_angle(sun, moon)
+    sun_ra, sun_dec = _radec(sun)
+    moon_ra, moon_dec = _radec(moon)
+    chi = _geometry.bright_limb_position_angle(sun_ra, sun_dec, moon_ra, moon_dec)
+
+    # ecliptic of date: rotate the true-equator vectors by the true obliquity
+    dpsi, deps = (torch.as_tensor(np.atleast_1d(x), dtype=torch.float64)
+                  for x in iau2000b_radians(t))
+    epsilon = torch.as_tensor(np.atleast_1d(mean_obliquity(t.tdb)),
+                              dtype=torch.float64) / 3600.0 * DEGREE + deps
+    x, y, z = moon.unbind(-1)
+    y_ecl = y * torch.cos(epsilon) + z * torch.sin(epsilon)
+    z_ecl = -y * torch.sin(epsilon) + z * torch.cos(epsilon)
+    lam = torch.atan2(y_ecl, x)
+    beta = torch.atan2(z_ecl, torch.sqrt(x * x + y_ecl * y_ecl))
+    centuries = (torch.as_tensor(np.atleast_1d(t.tt), dtype=torch.float64) - 2451545.0) / 36525
+    lib_lon, lib_lat = _geometry.optical_libration(lam, beta, centuries, dpsi)
+
+    moon_distance = moon.norm(dim=-1)
+    data = {
+        "phase_angle": phase / DEGREE,
+        "illuminated_fraction": _geometry.illuminated_fraction(phase),
+        "bright_limb_angle": chi / DEGREE,
+        "libration_longitude": lib_lon / DEGREE,
+        "libration_latitude": lib_lat / DEGREE,
+        "magnitude": magnitude(phase, distance_m=moon_distance,
+                               sun_distance_m=(sun - moon).norm(dim=-1)),
+    }
+    distance = moon_distance
+    parameters = {"elevation_m": float(elevation_m)}
+    if lat_deg is not None and lon_deg is not None:
+        ephemeris = load_ephemeris()
+        observer = ephemeris["earth"] + wgs84.latlon(float(lat_deg), float(lon_deg),
+                                                     elevation_m=float(elevation_m))
+        apparent = observer.at(t).observe(ephemeris["moon"]).apparent()
+        hour_angle, dec, topo_distance = apparent.hadec()
+        q = _geometry.parallactic_angle(
+            torch.as_tensor(np.atleast_1d(hour_angle.radians), dtype=torch.float64),
+            torch.as_tensor(np.atleast_1d(dec.radians), dtype=torch.float64),
+            torch.tensor(float(lat_deg) * DEGREE, dtype=torch.float64))
+        data["parallactic_angle"] = q / DEGREE
+        distance = torch.as_tensor(np.atleast_1d(topo_distance.m), dtype=torch.float64)
+        parameters.update(lat_deg=float(lat_deg), lon_deg=float(lon_deg))
+    data["apparent_diameter"] = _geometry.apparent_diameter(distance) / DEGREE
+    return build_dataset(
+        {name: variable(("time",), value, _SPECS[name]) for name, value in data.items()},
+        {"time": time_coordinate(values)},
+        title="Geometry and brightness of the Moon",
+        references=_REFERENCES, parameters=parameters)
+
+
+def _radec(vector: torch.Tensor):
+    x, y, z = vector.unbind(-1)
+    ra = torch.remainder(torch.atan2(y, x), 2.0 * math.pi)
+    dec = torch.atan2(z, torch.sqrt(x * x + y * y))
+    return ra, dec
+
+
+def moon_disc_image(phase_angle_deg: float, bright_limb_angle_deg: float = 270.0,
+                    n_pixels: int = 128, wavelength_nm=None, **kwargs) -> xr.Dataset:
+    """Spectral radiance image of the lunar disc as a Dataset (Müller et al. 2012, Fig. 1).
+
+    Parameters
+    ----------
+    phase_angle_deg, bright_limb_angle_deg : float
+        Phase angle and position angle of the bright limb [degree].
+    n_pixels : int
+        Pixels across the lunar diameter.
+    wavelength_nm : sequence of float, optional
+        Default (680, 550, 440) nm.
+    **kwargs
+        Passed to :func:`skytorch.moon.disc.disc_radiance`.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``radiance`` (y, x, wavelength) [W m-2 sr-1 nm-1]; x west and y north in lunar radii.
+    """
+    wl = torch.tensor([680.0, 550.0, 440.0] if wavelength_nm is None else wavelength_nm,
+                      dtype=torch.float64)
+    image = disc_image(torch.tensor(phase_angle_deg * DEGREE, dtype=torch.float64),
+                       torch.tensor(bright_limb_angle_deg * DEGREE, dtype=torch.float64),
+                       n_pixels=n_pixels, wavelength_nm=wl, **kwargs)
+    centres = (np.arange(n_pixels) + 0.5) * (2.0 / n_pixels) - 1.0
+    position = "{} on the lunar disc in units of the lunar radius ({})"
+    return build_dataset(
+        {"radiance": variable(("y", "x", "wavelength"), image, VariableSpec(
+            "W m-2 sr-1 nm-1", "spectral radiance of the lunar disc",
+            "Sunlight (and earthshine) reflected by the Moon (Hapke law, Muller albedo "
+            "colour), above the Earth's atmosphere; 0 outside the disc."))},
+        {"y": coordinate("y", centres, VariableSpec("1", "y", position.format("y", "north"))),
+         "x": coordinate("x", centres, VariableSpec("1", "x", position.format("x", "west"))),
+         "wavelength": coordinate("wavelength", wl, VariableSpec("nm", "wavelength",
+                                                                 "vacuum wavelength"))},
+        title="Image of the lunar disc", references=_REFERENCES,
+        parameters={"phase_angle_deg": float(phase_angle_deg),
+                    "bright_limb_angle_deg": float(bright_limb_angle_deg),
+                    "n_pixels": int(n_pixels)})

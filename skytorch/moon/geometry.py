@@ -1,0 +1,322 @@
+"""Geometry of the Moon as seen from the Earth: phase, bright limb, libration, size.
+
+Pure tensor functions (batched over leading dimensions, differentiable, float32 or
+float64 following the inputs). Vectors are Cartesian ``(..., 3)`` tensors in any common
+frame; angles are radians.
+
+Notes
+-----
+* Phase angle ``i`` (selenocentric elongation of the Earth from the Sun) is the angle at
+  the Moon between the directions to the Sun and to the observer. It is computed from
+  vectors as ``atan2(|a × b|, a · b)``, which stays accurate at 0 and π where ``acos`` of
+  a dot product loses half of the significant digits. Meeus (1998) eq. 48.2–48.3 is the
+  same quantity from right ascensions, declinations and distances.
+* Illuminated fraction ``k = (1 + cos i) / 2`` (Meeus eq. 48.1).
+* Position angle of the bright limb, measured from the north point of the disc towards
+  the east (Meeus eq. 48.5)::
+
+      χ = atan2(cos δ0 sin(α0 − α), sin δ0 cos δ − cos δ0 sin δ cos(α0 − α))
+
+* Optical libration (Meeus ch. 53, eq. 53.1)::
+
+      W = λ − Δψ − Ω
+      A = atan2(sin W cos β cos I − sin β sin I, cos W cos β)
+      l' = A − F
+      b' = asin(−sin W cos β sin I − sin β cos I)
+
+  with the inclination of the mean lunar equator to the ecliptic I = 1.54242° and the
+  mean elements F (argument of latitude, Meeus eq. 47.5) and Ω (longitude of the mean
+  ascending node, Meeus eq. 47.7).
+* Parallactic angle (Meeus eq. 14.1): ``q = atan2(sin H, tan φ cos δ − sin δ cos H)``,
+  written as ``atan2(sin H cos φ, sin φ cos δ − cos φ sin δ cos H)`` so that it stays
+  finite at the poles.
+* Apparent angular diameter of a sphere of radius R at distance d: ``2 asin(R / d)``.
+
+References
+----------
+1. Meeus, J. 1998, *Astronomical Algorithms*, 2nd ed., Willmann-Bell, ch. 14, 47, 48, 53.
+2. Müller, T., Engel, J., Döllner, J. 2012, "Single-Pass Rendering of Day and Night Sky
+   Phenomena", Proc. Vision, Modeling and Visualization (VMV), doi:10.2312/PE/VMV/VMV12/055-062
+   (eq. 1–2: apparent size and libration orientation of the lunar disc).
+
+Examples
+--------
+>>> import torch
+>>> from skytorch.moon.geometry import illuminated_fraction
+>>> round(float(illuminated_fraction(torch.tensor(torch.pi / 2))), 6)  # quarter Moon
+0.5
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from skytorch._validate import as_tensor, check_finite, check_shape_last, common_dtype
+from skytorch.constants import DEGREE, MOON_RADIUS_M
+
+__all__ = [
+    "MEAN_LUNAR_EQUATOR_INCLINATION_RAD",
+    "angle_between",
+    "apparent_diameter",
+    "bright_limb_position_angle",
+    "illuminated_fraction",
+    "mean_lunar_elements",
+    "optical_libration",
+    "parallactic_angle",
+    "phase_angle",
+    "phase_angle_from_radec",
+    "radec_to_vector",
+]
+
+#: inclination I of the mean lunar equator to the ecliptic (Meeus 1998, ch. 53) [rad]
+MEAN_LUNAR_EQUATOR_INCLINATION_RAD = 1.54242 * DEGREE
+
+
+def _tensor(name, value, dtype):
+    return check_finite(name, as_tensor(name, value, dtype=dtype))
+
+
+def angle_between(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Angle between vectors ``a`` and ``b`` (…, 3) as ``atan2(|a × b|, a · b)`` [rad].
+
+    Accurate over the whole range [0, π], including nearly parallel and nearly
+    anti-parallel vectors. Its gradient is finite except for exactly parallel or
+    anti-parallel vectors, where a tiny floor keeps it finite (and zero).
+    """
+    # unit vectors first: products of metre-scale lengths overflow float32 (1e11² · 1e8²)
+    a = a / torch.linalg.vector_norm(a, dim=-1, keepdim=True)
+    b = b / torch.linalg.vector_norm(b, dim=-1, keepdim=True)
+    cross = torch.linalg.cross(a, b, dim=-1)
+    # sqrt(|c|^2 + tiny) keeps the gradient finite when a and b are exactly parallel
+    tiny = torch.finfo(cross.dtype).tiny
+    sine = torch.sqrt((cross * cross).sum(-1) + tiny)
+    cosine = (a * b).sum(-1)
+    return torch.atan2(sine, cosine)
+
+
+def phase_angle(sun_vec, moon_vec, observer_vec=None) -> torch.Tensor:
+    """Lunar phase angle: Sun–Moon–observer angle [rad].
+
+    Parameters
+    ----------
+    sun_vec : Tensor (..., 3)
+        Geocentric position of the Sun [m] (any frame shared with ``moon_vec``).
+    moon_vec : Tensor (..., 3)
+        Geocentric position of the Moon [m].
+    observer_vec : Tensor (..., 3), optional
+        Geocentric position of the observer [m] for the topocentric phase angle;
+        the Earth's centre when omitted.
+
+    Returns
+    -------
+    Tensor (...)
+        Phase angle i in [0, π] [rad]: 0 at full Moon, π at new Moon.
+
+    Notes
+    -----
+    ``i = ∠(r_sun − r_moon, r_obs − r_moon)``, computed with :func:`angle_between`.
+    Equivalent to Meeus (1998) eq. 48.2–48.3 without their small-angle steps.
+    """
+    dtype = common_dtype(sun_vec, moon_vec, observer_vec)
+    sun = check_shape_last("sun_vec", _tensor("sun_vec", sun_vec, dtype), 3)
+    moon = check_shape_last("moon_vec", _tensor("moon_vec", moon_vec, dtype), 3)
+    to_sun = sun - moon
+    if observer_vec is None:
+        to_observer = -moon
+    else:
+        observer = check_shape_last("observer_vec", _tensor("observer_vec", observer_vec,
+                                                            dtype), 3)
+        to_observer = observer - moon
+    return angle_between(to_sun, to_observer)
+
+
+def radec_to_vector(ra_rad, dec_rad, distance=1.0) -> torch.Tensor:
+    """Cartesian vector (…, 3) from right ascension, declination [rad] and distance."""
+    dtype = common_dtype(ra_rad, dec_rad, distance)
+    ra = _tensor("ra_rad", ra_rad, dtype)
+    dec = _tensor("dec_rad", dec_rad, dtype)
+    dist = _tensor("distance", distance, dtype)
+    cos_dec = torch.cos(dec)
+    return torch.stack(torch.broadcast_tensors(dist * cos_dec * torch.cos(ra),
+                                               dist * cos_dec * torch.sin(ra),
+                                               dist * torch.sin(dec)), dim=-1)
+
+
+def phase_angle_from_radec(sun_ra_rad, sun_dec_rad, sun_distance_m,
+                           moon_ra_rad, moon_dec_rad, moon_distance_m) -> torch.Tensor:
+    """Geocentric phase angle [rad] from equatorial coordinates and distances.
+
+    Same result as Meeus (1998) eq. 48.2–48.3, evaluated through :func:`phase_angle`.
+    """
+    sun = radec_to_vector(sun_ra_rad, sun_dec_rad, sun_distance_m)
+    moon = radec_to_vector(moon_ra_rad, moon_dec_rad, moon_distance_m)
+    return phase_angle(sun, moon)
+
+
+def illuminated_fraction(phase_angle_rad) -> torch.Tensor:
+    """Illuminated fraction of the lunar disc, ``k = (1 + cos i) / 2`` (Meeus eq. 48.1).
+
+    Parameters
+    ----------
+    phase_angle_rad : Tensor (...)
+        Phase angle i [rad].
+
+    Returns
+    -------
+    Tensor (...)
+        Fraction in [0, 1]; 1 at full Moon, 0 at new Moon.
+    """
+    i = _tensor("phase_angle_rad", phase_angle_rad, None)
+    return 0.5 * (1.0 + torch.cos(i))
+
+
+def bright_limb_position_angle(sun_ra_rad, sun_dec_rad, moon_ra_rad,
+                               moon_dec_rad) -> torch.Tensor:
+    """Position angle χ of the Moon's bright limb (Meeus 1998, eq. 48.5) [rad].
+
+    Parameters
+    ----------
+    sun_ra_rad, sun_dec_rad : Tensor (...)
+        Apparent right ascension α0 and declination δ0 of the Sun [rad].
+    moon_ra_rad, moon_dec_rad : Tensor (...)
+        Apparent right ascension α and declination δ of the Moon [rad].
+
+    Returns
+    -------
+    Tensor (...)
+        χ in [0, 2π), measured from the north point of the disc towards the east [rad].
+        The bright limb is the midpoint of the illuminated limb; the cusps lie at χ ± 90°.
+    """
+    dtype = common_dtype(sun_ra_rad, sun_dec_rad, moon_ra_rad, moon_dec_rad)
+    a0 = _tensor("sun_ra_rad", sun_ra_rad, dtype)
+    d0 = _tensor("sun_dec_rad", sun_dec_rad, dtype)
+    a = _tensor("moon_ra_rad", moon_ra_rad, dtype)
+    d = _tensor("moon_dec_rad", moon_dec_rad, dtype)
+    numerator = torch.cos(d0) * torch.sin(a0 - a)
+    denominator = torch.sin(d0) * torch.cos(d) - torch.cos(d0) * torch.sin(d) * torch.cos(a0 - a)
+    return torch.remainder(torch.atan2(numerator, denominator), 2.0 * math.pi)
+
+
+def mean_lunar_elements(julian_centuries_tt) -> tuple[torch.Tensor, torch.Tensor]:
+    """Moon's mean argument of latitude F and mean ascending node Ω [rad].
+
+    Parameters
+    ----------
+    julian_centuries_tt : Tensor (...)
+        T = (JDE − 2451545.0) / 36525, Julian centuries of TT from J2000.0.
+
+    Returns
+    -------
+    (F, Ω) : tuple of Tensor (...)
+        Reduced to [0, 2π) [rad].
+
+    Notes
+    -----
+    Meeus (1998) eq. 47.5 and 47.7 (after Chapront-Touzé & Chapront, ELP-2000/82)::
+
+        F = 93.2720950 + 483202.0175233 T − 0.0036539 T² − T³/3526000 + T⁴/863310000
+        Ω = 125.0445479 − 1934.1362891 T + 0.0020754 T² + T³/467441 − T⁴/60616000
+
+    (degrees). The polynomial is evaluated in float64 before the final cast: in float32
+    the 483202° T term alone would lose ~0.01°.
+    """
+    t_in = _tensor("julian_centuries_tt", julian_centuries_tt, None)
+    t = t_in.to(torch.float64)
+    f_deg = (93.2720950 + 483202.0175233 * t - 0.0036539 * t**2 - t**3 / 3526000.0
+             + t**4 / 863310000.0)
+    node_deg = (125.0445479 - 1934.1362891 * t + 0.0020754 * t**2 + t**3 / 467441.0
+                - t**4 / 60616000.0)
+    f = torch.remainder(f_deg, 360.0) * DEGREE
+    node = torch.remainder(node_deg, 360.0) * DEGREE
+    return f.to(t_in.dtype), node.to(t_in.dtype)
+
+
+def optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt,
+                      nutation_lon_rad=0.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Optical libration in longitude l' and latitude b' (Meeus 1998, eq. 53.1) [rad].
+
+    Parameters
+    ----------
+    moon_lon_rad, moon_lat_rad : Tensor (...)
+        Apparent geocentric ecliptic longitude λ (referred to the true equinox of date,
+        i.e. including the nutation in longitude) and latitude β of the Moon [rad].
+    julian_centuries_tt : Tensor (...)
+        T, Julian centuries of TT from J2000.0 (for the mean elements F and Ω).
+    nutation_lon_rad : Tensor (...), optional
+        Nutation in longitude Δψ [rad] (0 when λ is referred to the mean equinox).
+
+    Returns
+    -------
+    (l, b) : tuple of Tensor (...)
+        Optical libration in longitude, wrapped to (−π, π], and in latitude [rad].
+        Positive l brings the east limb (Mare Crisium) towards the observer; positive b
+        brings the north pole into view. Physical libration (≲ 0.04°) is not included.
+    """
+    dtype = common_dtype(moon_lon_rad, moon_lat_rad, julian_centuries_tt, nutation_lon_rad)
+    lam = _tensor("moon_lon_rad", moon_lon_rad, dtype)
+    beta = _tensor("moon_lat_rad", moon_lat_rad, dtype)
+    dpsi = _tensor("nutation_lon_rad", nutation_lon_rad, dtype)
+    f, node = mean_lunar_elements(_tensor("julian_centuries_tt", julian_centuries_tt, dtype))
+    inclination = MEAN_LUNAR_EQUATOR_INCLINATION_RAD
+    w = lam - dpsi - node
+    sin_i, cos_i = math.sin(inclination), math.cos(inclination)
+    a = torch.atan2(torch.sin(w) * torch.cos(beta) * cos_i - torch.sin(beta) * sin_i,
+                    torch.cos(w) * torch.cos(beta))
+    libration_lon = torch.remainder(a - f + math.pi, 2.0 * math.pi) - math.pi
+    sin_b = -torch.sin(w) * torch.cos(beta) * sin_i - torch.sin(beta) * cos_i
+    libration_lat = torch.asin(sin_b)  # |b'| <= I + |β| < 7°, far from the asin poles
+    return libration_lon, libration_lat
+
+
+def parallactic_angle(hour_angle_rad, dec_rad, lat_rad) -> torch.Tensor:
+    """Parallactic angle q (Meeus 1998, eq. 14.1) [rad].
+
+    Parameters
+    ----------
+    hour_angle_rad : Tensor (...)
+        Local hour angle H of the object [rad] (positive west of the meridian).
+    dec_rad : Tensor (...)
+        Declination δ of the object [rad].
+    lat_rad : Tensor (...)
+        Geographic latitude φ of the observer [rad].
+
+    Returns
+    -------
+    Tensor (...)
+        q in (−π, π]: the angle at the object from the direction of the north celestial
+        pole to the direction of the zenith, positive towards the west (q > 0 after the
+        meridian passage) [rad]. Undefined (returned as 0) when the object is at the
+        zenith or at a celestial pole.
+    """
+    dtype = common_dtype(hour_angle_rad, dec_rad, lat_rad)
+    h = _tensor("hour_angle_rad", hour_angle_rad, dtype)
+    dec = _tensor("dec_rad", dec_rad, dtype)
+    lat = _tensor("lat_rad", lat_rad, dtype)
+    y = torch.sin(h) * torch.cos(lat)
+    x = torch.sin(lat) * torch.cos(dec) - torch.cos(lat) * torch.sin(dec) * torch.cos(h)
+    return torch.atan2(y, x)
+
+
+def apparent_diameter(distance_m, radius_m: float = MOON_RADIUS_M) -> torch.Tensor:
+    """Apparent angular diameter ``2 asin(R / d)`` of a sphere [rad].
+
+    Parameters
+    ----------
+    distance_m : Tensor (...)
+        Distance from the observer to the centre of the Moon [m] (> radius).
+    radius_m : float
+        Radius of the sphere [m]; the IAU mean lunar radius by default.
+
+    Returns
+    -------
+    Tensor (...)
+        Angular diameter [rad]: about 0.49°–0.56° for the Moon (Müller et al. 2012, §2.1.1).
+    """
+    d = _tensor("distance_m", distance_m, None)
+    with torch.no_grad():
+        if bool((d <= radius_m).any()):
+            raise ValueError(f"distance_m must be > the radius {radius_m} m; got "
+                             f"{float(d.min())} m")
+    return 2.0 * torch.asin(radius_m / d)
