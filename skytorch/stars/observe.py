@@ -1,0 +1,363 @@
+"""The night sky of a catalogue seen from one site: positions, magnitudes, colours, visibility.
+
+:func:`observe` is the Dataset layer; :func:`observe_tensors` the tensor layer that the
+benchmark times. Refraction and extinction come from the atmosphere model through two
+small tables per call (:func:`refraction_table`, :func:`skytorch.stars.photometry.
+extinction_table`), evaluated once for the site and interpolated for all stars and times.
+
+References
+----------
+1. Müller, S., Engel, J., Döllner, J. 2012, "Single-Pass Rendering of Day and Night Sky
+   Phenomena", Proc. VMV 2012, §4 (stars), §5 (day–night factor).
+2. Schaefer, B. E. 1990, "Telescopic limiting magnitudes", PASP 102, 212,
+   doi:10.1086/132629.
+3. Young, A. T. 1967, "Photometric error analysis. VI.", AJ 72, 747, doi:10.1086/110303.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+
+import numpy as np
+import torch
+import xarray as xr
+
+from skytorch._validate import check_range
+from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
+from skytorch.ephemeris import parse_times
+from skytorch.stars.photometry import (
+    bv_to_srgb,
+    extinction,
+    extinction_table,
+    grid_altitudes,
+    lerp,
+    relative_brightness,
+    table_lookup,
+)
+from skytorch.stars.positions import horizontal_planes, star_vectors, time_operators
+from skytorch.stars.scintillation import scintillation_index
+from skytorch.stars.visibility import (
+    VISIBILITY_MODELS,
+    count_visible,
+    limiting_magnitude,
+    muller_day_night_factor,
+)
+
+__all__ = ["observe", "observe_tensors", "refract", "refraction_table"]
+
+logger = logging.getLogger(__name__)
+
+#: times processed together (keeps the temporaries in cache)
+TIME_CHUNK = 32
+#: squared floor of the horizontal component (keeps d altitude finite at the zenith)
+_TINY = 1e-30
+_REFRACTION_CACHE: dict[str, dict[str, torch.Tensor]] = {}
+
+
+def refraction_table(atmosphere, altitude_m: float = 0.0, n_nodes: int = 256
+                     ) -> dict[str, torch.Tensor]:
+    """Ray-traced refraction tabulated against true altitude.
+
+    Parameters
+    ----------
+    atmosphere : skytorch.atmosphere.Atmosphere
+    altitude_m : float
+        Observer altitude [m].
+    n_nodes : int
+        Nodes of the table (:func:`skytorch.stars.photometry.grid_altitudes`).
+
+    Returns
+    -------
+    dict of float64 torch.Tensor
+        ``true_altitude_rad`` (n_nodes,) from the true altitude of the apparent horizon
+        (about −0.57° at sea level) to π/2, ``refraction_rad`` (n_nodes,) apparent − true,
+        and ``low_rad`` (0-d) the first node.
+
+    Notes
+    -----
+    ``atmosphere.refraction`` is evaluated on a grid of 4 n_nodes apparent altitudes in
+    [0, π/2] (dense near the horizon), giving true = apparent − R; R is then resampled
+    on the true-altitude grid by linear interpolation.
+    """
+    key = json.dumps([id(atmosphere), atmosphere.parameters_dict()
+                      if hasattr(atmosphere, "parameters_dict") else {},
+                      float(altitude_m), n_nodes], sort_keys=True, default=str)
+    if key in _REFRACTION_CACHE:
+        return _REFRACTION_CACHE[key]
+    with torch.no_grad():
+        apparent = grid_altitudes(4 * n_nodes, 0.0, torch.float64)
+        bend = atmosphere.refraction(apparent, altitude_m).to(torch.float64).reshape(-1)
+        true = apparent - bend
+        low = float(true[0])
+        nodes = grid_altitudes(n_nodes, low, torch.float64)
+        resampled = np.interp(nodes.numpy(), true.numpy(), bend.numpy())
+    table = {"true_altitude_rad": nodes, "refraction_rad": torch.from_numpy(resampled),
+             "low_rad": torch.tensor(low, dtype=torch.float64)}
+    if len(_REFRACTION_CACHE) > 8:
+        _REFRACTION_CACHE.clear()
+    _REFRACTION_CACHE[key] = table
+    return table
+
+
+def refract(true_altitude_rad: torch.Tensor, table: dict[str, torch.Tensor]) -> torch.Tensor:
+    """Apparent altitude [rad] from true altitude with a :func:`refraction_table`.
+
+    Below the table (the source is below the apparent horizon) the refraction of the
+    lowest node is added, keeping the altitude continuous and finite.
+    """
+    low = float(table["low_rad"])
+    index, weight = table_lookup(true_altitude_rad, table["refraction_rad"].numel(), low)
+    return true_altitude_rad + lerp(table["refraction_rad"].to(true_altitude_rad.dtype),
+                                    index, weight)
+
+
+def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
+                    operators: torch.Tensor, velocity_m_s: torch.Tensor | None,
+                    refraction: dict[str, torch.Tensor] | None,
+                    extinction_tab: dict[str, torch.Tensor] | None,
+                    time_chunk: int = TIME_CHUNK) -> dict[str, torch.Tensor]:
+    """Apparent altitude, azimuth, magnitude and air mass of all stars at all times.
+
+    Parameters
+    ----------
+    stars : torch.Tensor, shape (star, 7)
+        :func:`skytorch.stars.positions.star_vectors`; its dtype is the output dtype.
+    vmag, bv : torch.Tensor, shape (star,)
+        V magnitude and B−V [mag].
+    operators : torch.Tensor, shape (time, 3, 7)
+    velocity_m_s : torch.Tensor or None, shape (time, 3)
+        From :func:`skytorch.stars.positions.time_operators`.
+    refraction : dict or None
+        :func:`refraction_table`; ``None`` for geometric altitudes.
+    extinction_tab : dict or None
+        :func:`skytorch.stars.photometry.extinction_table`; ``None`` for magnitudes above
+        the atmosphere (air mass from the plane-parallel sec z, capped at 40).
+    time_chunk : int
+        Times processed per step.
+
+    Returns
+    -------
+    dict of torch.Tensor, each (time, star)
+        ``altitude`` and ``azimuth`` [rad], ``magnitude`` [mag] (V after extinction;
+        below the horizon the horizon extinction, finite), ``airmass`` [1] and
+        ``above_horizon`` (bool, apparent altitude ≥ 0).
+    """
+    dtype = stars.dtype
+    n_time, n_star = operators.shape[0], stars.shape[0]
+    out = {name: torch.empty(n_time, n_star, dtype=dtype)
+           for name in ("altitude", "azimuth", "magnitude", "airmass")}
+    vmag = vmag.to(dtype)
+    bv = bv.to(dtype)
+    stars_t = stars.T.contiguous()
+    for start in range(0, n_time, time_chunk):
+        sl = slice(start, min(start + time_chunk, n_time))
+        north, east, up = horizontal_planes(
+            stars_t, operators[sl], None if velocity_m_s is None else velocity_m_s[sl])
+        # sqrt with a 1e-15 floor instead of hypot: finite gradients at the zenith
+        altitude = torch.atan2(up, torch.sqrt(north * north + east * east + _TINY))
+        if refraction is not None:
+            altitude = refract(altitude, refraction)
+        out["altitude"][sl] = altitude
+        out["azimuth"][sl] = torch.remainder(torch.atan2(east, north), 2.0 * math.pi)
+        if extinction_tab is not None:
+            delta_m, airmass = extinction(bv, altitude, extinction_tab)
+            out["magnitude"][sl] = vmag + delta_m
+            out["airmass"][sl] = airmass
+        else:
+            out["magnitude"][sl] = vmag
+            out["airmass"][sl] = 1.0 / torch.sin(altitude).clamp_min(1.0 / 40.0)
+    out["above_horizon"] = out["altitude"] >= 0.0
+    return out
+
+
+_SPECS = {
+    "altitude": VariableSpec("degree", "apparent altitude",
+                             "Topocentric altitude above the horizontal plane: proper motion, "
+                             "parallax, annual + diurnal aberration, precession-nutation, "
+                             "and refraction when enabled.", "altitude"),
+    "azimuth": VariableSpec("degree", "azimuth",
+                            "Azimuth from north through east.", "sensor_azimuth_angle"),
+    "magnitude": VariableSpec("mag", "apparent V magnitude after extinction",
+                              "V magnitude seen through the atmosphere along the refracted "
+                              "path; below the horizon the horizon value (see visible)."),
+    "airmass": VariableSpec("1", "relative air mass",
+                            "Slant over vertical V-band optical depth of the atmosphere "
+                            "model along the path."),
+    "above_horizon": VariableSpec("1", "star above the horizon",
+                                  "True where the apparent altitude is >= 0."),
+    "visible": VariableSpec("1", "star visible to the naked eye",
+                            "Above the horizon and brighter than the limiting magnitude."),
+    "relative_brightness": VariableSpec(
+        "1", "relative brightness", "10^(0.4 (m_a - m)) times the day-night factor "
+        "(Mueller et al. 2012), 0 below the horizon."),
+    "scintillation_index": VariableSpec(
+        "1", "scintillation index", "Relative intensity variance (Young 1967)."),
+    "limiting_magnitude": VariableSpec(
+        "mag", "naked-eye limiting magnitude",
+        "Faintest V visible against the sky background (Schaefer 1990)."),
+    "n_visible": VariableSpec("1", "number of visible stars",
+                              "Stars above the horizon brighter than the limiting magnitude."),
+    "day_night_factor": VariableSpec(
+        "1", "day-night visibility factor",
+        "(1 + (sin h_sun + 1.14)^32)^(-1/2) (Mueller et al. 2012, section 5)."),
+    "color": VariableSpec("1", "star colour (sRGB)",
+                          "Gamma-encoded sRGB of a black body at the Ballesteros (2012) "
+                          "temperature of B-V, above the atmosphere."),
+    "vmag": VariableSpec("mag", "V magnitude above the atmosphere", "Catalogue V."),
+    "bv": VariableSpec("mag", "B-V colour index", "Catalogue B-V."),
+}
+
+
+def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
+            elevation_m: float = 0.0, atmosphere=None, refraction: bool = True, *,
+            sky_brightness_mag_arcsec2=22.0, control_magnitude: float = 6.0,
+            visibility: str = "schaefer1990", aperture_m: float = 0.007,
+            exposure_s: float = 0.1, dtype: torch.dtype = torch.float64) -> xr.Dataset:
+    """Apparent positions, magnitudes, colours and visibility of catalogue stars.
+
+    Parameters
+    ----------
+    catalog : xarray.Dataset
+        Dimension ``star`` with ``ra``, ``dec`` [degree], ``pm_ra``, ``pm_dec`` [mas/yr],
+        ``parallax`` [mas], ``vmag``, ``bv`` [mag] (:func:`skytorch.stars.bright_stars`,
+        :func:`skytorch.stars.read_bsc5`); attribute ``epoch_jyear`` (default 2000.0).
+    times : str, datetime, datetime64 or a list/array of them
+        UTC instants (dimension ``time``), within DE421 (1899-07-29 … 2053-10-09).
+    lat_deg, lon_deg : float
+        Geodetic latitude and east longitude of one observer [deg].
+    elevation_m : float
+        Height of the observer [m]; also the altitude of the observer in the atmosphere.
+    atmosphere : skytorch.atmosphere.Atmosphere, optional
+        Default ``Atmosphere.earth()`` (turbidity 2, 300 DU). Pass ``False`` for no
+        atmosphere (geometric altitudes, magnitudes above the atmosphere).
+    refraction : bool
+        Refract the altitudes with the atmosphere's ray-traced refraction.
+    sky_brightness_mag_arcsec2 : float or array_like (time,)
+        Sky background in V [mag arcsec⁻²] for the limiting magnitude.
+    control_magnitude : float
+        m_a of the relative brightness 10^(0.4 (m_a − m)) [mag].
+    visibility : {"schaefer1990", "muller2012"}
+        Visibility model (:func:`skytorch.stars.visibility.count_visible`); with
+        ``"muller2012"`` the Sun's altitude sets the day–night factor, which also scales
+        the relative brightness.
+    aperture_m, exposure_s : float
+        Aperture [m] and exposure [s] of the scintillation index (default: the eye).
+    dtype : torch.dtype
+        Computation dtype of the per-star quantities (float64 or float32).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimensions ``time``, ``star`` (and ``channel`` for ``color``): ``altitude``,
+        ``azimuth`` [degree], ``magnitude`` [mag], ``airmass``, ``above_horizon``,
+        ``visible``, ``relative_brightness``, ``scintillation_index``; per time
+        ``limiting_magnitude`` and ``n_visible`` (and ``day_night_factor``); per star
+        ``color``, ``vmag``, ``bv`` and the catalogue's ``hip``/``hr`` when present.
+
+    Notes
+    -----
+    Positions agree with skyfield's ``observe().apparent().altaz()`` to a few mas
+    (largest 0.2″ away from the Sun; gravitational light deflection by the Sun, 0.47″ at
+    1° from it, is not modelled). Stars below the horizon keep finite magnitudes (the
+    horizon extinction) and are flagged by ``above_horizon``/``visible``.
+
+    Examples
+    --------
+    >>> from skytorch.stars import bright_stars, observe
+    >>> ds = observe(bright_stars(2.0), "2025-09-07T20:00", 52.5, 13.4)
+    >>> sorted(ds.sizes.items())
+    [('channel', 3), ('star', 95), ('time', 1)]
+    """
+    if visibility not in VISIBILITY_MODELS:
+        raise ValueError(f"visibility must be one of {VISIBILITY_MODELS}; got {visibility!r}")
+    lat = float(check_range("lat_deg", lat_deg, -90.0, 90.0, unit=" deg"))
+    lon = float(check_range("lon_deg", lon_deg, -180.0, 360.0, unit=" deg"))
+    elevation = float(check_range("elevation_m", elevation_m, 0.0, 1e4, unit=" m"))
+    values = parse_times(times)
+    if atmosphere is None:
+        from skytorch.atmosphere import Atmosphere
+
+        atmosphere = Atmosphere.earth()
+    has_atmosphere = atmosphere is not False
+    stars = star_vectors(catalog["ra"].values, catalog["dec"].values,
+                         catalog["pm_ra"].values, catalog["pm_dec"].values,
+                         catalog["parallax"].values, dtype=dtype)
+    vmag = torch.as_tensor(catalog["vmag"].values, dtype=dtype)
+    bv = torch.as_tensor(catalog["bv"].values, dtype=dtype)
+    operators, velocity = time_operators(values, lat, lon, elevation,
+                                         epoch_jyear=float(catalog.attrs.get("epoch_jyear",
+                                                                             2000.0)))
+    refraction_tab = (refraction_table(atmosphere, elevation)
+                      if has_atmosphere and refraction else None)
+    extinction_tab = (extinction_table(atmosphere, elevation, refraction=refraction)
+                      if has_atmosphere else None)
+    result = observe_tensors(stars, vmag, bv, operators, velocity, refraction_tab,
+                             extinction_tab)
+    sky = torch.as_tensor(np.broadcast_to(np.asarray(sky_brightness_mag_arcsec2, float),
+                                          (values.size,)).copy(), dtype=dtype)
+    limit = limiting_magnitude(sky)
+    factor = None
+    if visibility == "muller2012":
+        from skytorch.ephemeris import sun_moon
+
+        sun = sun_moon(values, lat, lon, elevation)
+        factor = muller_day_night_factor(torch.deg2rad(
+            torch.as_tensor(sun["sun_altitude"].values, dtype=dtype)))
+    visible, count = count_visible(result["magnitude"], result["above_horizon"], limit,
+                                   visibility, factor)
+    brightness = relative_brightness(result["magnitude"], control_magnitude)
+    brightness = brightness * result["above_horizon"]
+    if factor is not None:
+        brightness = brightness * factor[:, None]
+    scint = scintillation_index(result["airmass"].clamp_min(1.0), aperture_m, exposure_s,
+                                elevation)
+    color = bv_to_srgb(bv)
+
+    ts = ("time", "star")
+    data_vars = {
+        "altitude": variable(ts, torch.rad2deg(result["altitude"]), _SPECS["altitude"]),
+        "azimuth": variable(ts, torch.rad2deg(result["azimuth"]), _SPECS["azimuth"]),
+        "magnitude": variable(ts, result["magnitude"], _SPECS["magnitude"]),
+        "airmass": variable(ts, result["airmass"], _SPECS["airmass"]),
+        "above_horizon": variable(ts, result["above_horizon"], _SPECS["above_horizon"]),
+        "visible": variable(ts, visible, _SPECS["visible"]),
+        "relative_brightness": variable(ts, brightness, _SPECS["relative_brightness"]),
+        "scintillation_index": variable(ts, scint, _SPECS["scintillation_index"]),
+        "limiting_magnitude": variable("time", limit, _SPECS["limiting_magnitude"]),
+        "n_visible": variable("time", count, _SPECS["n_visible"]),
+        "color": variable(("star", "channel"), color, _SPECS["color"]),
+        "vmag": variable("star", vmag, _SPECS["vmag"]),
+        "bv": variable("star", bv, _SPECS["bv"]),
+    }
+    if factor is not None:
+        data_vars["day_night_factor"] = variable("time", factor, _SPECS["day_night_factor"])
+    for name in ("hip", "hr", "name"):
+        if name in catalog:
+            data_vars[name] = catalog[name].variable.copy()
+    coords = {
+        "time": time_coordinate(values),
+        "star": catalog["star"].variable.copy() if "star" in catalog.coords else coordinate(
+            "star", np.arange(stars.shape[0]), VariableSpec("1", "star index", "Row.")),
+        "channel": coordinate("channel", np.array(["R", "G", "B"]),
+                              VariableSpec("1", "sRGB channel", "Red, green, blue.")),
+    }
+    parameters = {
+        "lat_deg": lat, "lon_deg": lon, "elevation_m": elevation,
+        "atmosphere": json.dumps(atmosphere.parameters_dict(), default=str)
+        if has_atmosphere and hasattr(atmosphere, "parameters_dict") else "none",
+        "refraction": bool(refraction and has_atmosphere), "control_magnitude":
+        float(control_magnitude), "visibility": visibility, "aperture_m": float(aperture_m),
+        "exposure_s": float(exposure_s), "dtype": str(dtype).replace("torch.", ""),
+        "sky_brightness_mag_arcsec2": np.asarray(sky_brightness_mag_arcsec2, float),
+        "catalog": catalog.attrs.get("title", ""),
+    }
+    return build_dataset(
+        data_vars, coords, title="Apparent stars",
+        references=["Mueller, Engel & Doellner 2012, VMV, doi:10.2312/PE/VMV/VMV12/055-062",
+                    "Schaefer 1990, PASP 102, 212, doi:10.1086/132629",
+                    "Young 1967, AJ 72, 747, doi:10.1086/110303",
+                    "Ballesteros 2012, EPL 97, 34008, doi:10.1209/0295-5075/97/34008"],
+        parameters=parameters)
+
