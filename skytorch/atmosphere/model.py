@@ -46,6 +46,7 @@ torch.Size([2, 2, 1])
 from __future__ import annotations
 
 import json
+import math
 from functools import lru_cache
 
 import torch
@@ -94,11 +95,15 @@ MARS_GRAVITY_M_S2 = 3.711
 #: Bruneton's (2017) demo aerosol: single-scattering albedo and asymmetry
 EARTH_AEROSOL_SINGLE_SCATTERING_ALBEDO = 0.9
 EARTH_AEROSOL_ASYMMETRY = 0.8
-#: relative breakpoints of exponential profiles, in scale heights
-_EXPONENTIAL_LEVELS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
+#: breakpoints of exponential profiles above the lowest point of a leg, in scale heights;
+#: the last one ends the integration (exp(-30) = 9e-14 of the leg's peak density)
+_EXPONENTIAL_LEVELS = (0.5, 1.5, 4.0, 10.0, 30.0)
 #: integral of the US 1976 density ratio over altitude, in metres (computed once)
 _US1976_BREAKS_M = (1000.0, 2000.0, 4000.0, 8000.0, 11_019.1, 20_063.1, 32_161.9, 47_350.1,
                     51_412.5, 71_802.0, 86_000.0)
+
+#: rays per chunk in column integrals (keeps intermediates in cache)
+_CHUNK = 16384
 
 _PARAMETERS = (
     "surface_pressure_pa", "surface_temperature_k", "gravity_m_s2", "molar_mass_kg_mol",
@@ -346,6 +351,11 @@ class Atmosphere(nn.Module):
         width = self._p("ozone_half_width_m", dtype, 1)
         return torch.cat([torch.clamp(center - width, min=0.0), center, center + width], dim=-1)
 
+    def _truncates(self, species: str) -> bool:
+        """Whether the last quadrature level of ``species`` ends the integration."""
+        return species == "aerosol" or (species == "rayleigh"
+                                        and self.molecule_profile == "exponential")
+
     def molecular_column_m2(self, dtype: torch.dtype = torch.float64) -> torch.Tensor:
         """Vertical column of molecules :math:`p N_A/(m g)` [m^-2], shape ``batch_shape``."""
         return _rayleigh.column_number_density(self._p("surface_pressure_pa", dtype),
@@ -484,9 +494,24 @@ class Atmosphere(nn.Module):
         altitude = self._altitude(altitude_m, dtype)
         r = self.planet_radius_m + altitude
         mu = torch.cos(zenith)
+        shape = torch.broadcast_shapes(r.shape, mu.shape)
+        count = math.prod(shape)
+        if self.batch_shape == () and count > _CHUNK:
+            # unbatched parameters: integrate cache-sized chunks of rays
+            r_flat = r.expand(shape).reshape(-1)
+            mu_flat = mu.expand(shape).reshape(-1)
+            pieces = [self._column_integrals(r_flat[i:i + _CHUNK], mu_flat[i:i + _CHUNK],
+                                             method, n_steps, rtol, dtype)
+                      for i in range(0, count, _CHUNK)]
+            return {s: torch.cat([piece[s] for piece in pieces]).reshape(shape)
+                    for s in SPECIES}
+        return self._column_integrals(r, mu, method, n_steps, rtol, dtype)
+
+    def _column_integrals(self, r, mu, method, n_steps, rtol, dtype):
         return {s: _od.column_integral(self._density(s, dtype), r, mu, self.planet_radius_m,
                                        self.top_radius_m, self._levels(s, dtype),
-                                       method=method, n_steps=n_steps, rtol=rtol)
+                                       method=method, n_steps=n_steps, rtol=rtol,
+                                       truncate=self._truncates(s))
                 for s in SPECIES}
 
     def optical_depth(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, *,

@@ -93,9 +93,9 @@ def _altitude(c_lo, lo, u, planet_radius):
     :math:`r^2 - R^2 = c_{lo} + u (2 lo + u)` and :math:`h = (r^2 - R^2)/(r + R)`: all
     terms are accurate (no difference of nearly equal squares), also in float32.
     """
-    excess = c_lo + u * (2.0 * lo + u)
-    return excess / (torch.sqrt(torch.clamp(planet_radius ** 2 + excess, min=0.0))
-                     + planet_radius)
+    excess = torch.addcmul(c_lo, u, 2.0 * lo + u)
+    # r^2 = R^2 + excess >= 0 always; h = excess / (r + R)
+    return excess / (torch.sqrt(excess + planet_radius ** 2) + planet_radius)
 
 
 def _safe_ratio(numerator, denominator):
@@ -131,6 +131,9 @@ def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, t
     up_c = torch.where(from_observer, c_obs + zero, excess)
     up_len = _safe_ratio(c_top - up_c, t_top + up_lo)
     up_len = torch.where(up_exists, torch.clamp(up_len, min=0.0), zero)
+    # empty legs start at the observer so that every sample stays above the ground
+    up_lo = torch.where(up_exists, up_lo, zero)
+    up_c = torch.where(up_exists, up_c, c_obs + zero)
     # descending part (t < 0), mirrored: from closest approach or the ground up to the start
     down_exists = (inside & (mu < 0)) | entering
     down_hi = torch.where(inside, -r * mu, t_top)
@@ -139,12 +142,18 @@ def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, t
     down_c = torch.where(hits, zero, excess)
     down_len = _safe_ratio(down_c_hi - down_c, down_hi + down_lo)
     down_len = torch.where(down_exists, torch.clamp(down_len, min=0.0), zero)
+    down_lo = torch.where(down_exists, down_lo, zero)
+    down_c = torch.where(down_exists, down_c, c_obs + zero)
     return [{"lo": up_lo, "c_lo": up_c, "length": up_len, "excess": excess},
             {"lo": down_lo, "c_lo": down_c, "length": down_len, "excess": excess}]
 
 
-def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes):
-    """Composite Gauss–Legendre integral over one leg, cut at ``levels_m``."""
+def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate):
+    """Composite Gauss–Legendre integral over one leg, cut at ``levels_m``.
+
+    With ``truncate`` the last level ends the integration (where the density of an
+    exponential profile has dropped below a negligible fraction of the leg's maximum).
+    """
     lo, c_lo, length = leg["lo"], leg["c_lo"], leg["length"]
     dtype = lo.dtype
     if callable(levels_m):
@@ -157,20 +166,23 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes):
     tau_levels = safe_sqrt(c_levels - leg["excess"][..., None])
     u_levels = _safe_ratio(c_levels - c_lo[..., None], tau_levels + lo[..., None])
     u_levels = torch.minimum(torch.clamp(u_levels, min=0.0), length[..., None])
+    if truncate:
+        length = u_levels[..., -1]
+        u_levels = u_levels[..., :-1]
     shape = torch.broadcast_shapes(u_levels.shape[:-1], lo.shape)
     edges = torch.cat([torch.zeros(*shape, 1, dtype=dtype), u_levels.expand(*shape, -1),
                        length[..., None].expand(*shape, 1)], dim=-1)
     half = 0.5 * (edges[..., 1:] - edges[..., :-1])
-    middle = 0.5 * (edges[..., 1:] + edges[..., :-1])
+    middle = edges[..., :-1] + half
     nodes, weights = _gauss_legendre(n_nodes)
     nodes = torch.as_tensor(nodes, dtype=dtype)
     weights = torch.as_tensor(weights, dtype=dtype)
-    u = middle[..., None] + half[..., None] * nodes  # (..., pieces, nodes)
+    u = torch.addcmul(middle[..., None], half[..., None], nodes)  # (..., pieces, nodes)
     n_pieces = u.shape[-2]
     altitude = _altitude(c_lo[..., None, None], lo[..., None, None], u, planet_radius)
     values = density(altitude.reshape(*altitude.shape[:-2], n_pieces * n_nodes))
     values = values.reshape(*values.shape[:-1], n_pieces, n_nodes)
-    return (half * (values * weights).sum(-1)).sum(-1)
+    return ((values @ weights) * half).sum(-1)
 
 
 def _trapezoid_leg(density, leg, planet_radius, n_steps):
@@ -184,7 +196,8 @@ def _trapezoid_leg(density, leg, planet_radius, n_steps):
 
 def column_integral(density: Density, r, mu, planet_radius: float, top_radius: float,
                     levels_m: torch.Tensor, *, method: str = "gauss",
-                    n_steps: int | None = None, rtol: float = 1e-9) -> torch.Tensor:
+                    n_steps: int | None = None, rtol: float = 1e-9,
+                    truncate: bool = False) -> torch.Tensor:
     """Path integral :math:`\\int \\rho(h(s))\\,ds` of a density profile along a straight ray.
 
     Parameters
@@ -208,6 +221,8 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
         Nodes per piece ("gauss", start value for "adaptive") or steps ("trapezoid").
     rtol : float
         Relative tolerance of ``"adaptive"``.
+    truncate : bool
+        The last level ends the integration (the profile is negligible above it).
 
     Returns
     -------
@@ -230,7 +245,7 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     def integrate(n):
         total = zero
         for leg in legs:
-            total = total + _gauss_leg(density, leg, planet_radius, levels_m, n)
+            total = total + _gauss_leg(density, leg, planet_radius, levels_m, n, truncate)
         return total
 
     if method == "gauss":

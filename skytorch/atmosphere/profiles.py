@@ -100,7 +100,7 @@ def exponential(altitude_m, scale_height_m) -> torch.Tensor:
         Relative density [1].
     """
     altitude_m = as_tensor("altitude_m", altitude_m)
-    return torch.exp(-altitude_m / scale_height_m)
+    return torch.exp(altitude_m * (-1.0 / scale_height_m))
 
 
 def tent(altitude_m, center_m, half_width_m) -> torch.Tensor:
