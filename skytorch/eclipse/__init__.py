@@ -4,6 +4,8 @@ Public names are collected from the submodules below; each submodule adds its na
 one ``from ... import`` line and one entry in ``__all__``.
 """
 
+from skytorch.eclipse.circumstances import lunar_eclipses  # noqa: F401
+from skytorch.eclipse.cone import ENLARGEMENTS, shadow_cone, shadow_radii  # noqa: F401
 from skytorch.eclipse.occlusion import (  # noqa: F401
     LIMB_DARKENING_LAWS,
     limb_darkening_profile,
@@ -11,7 +13,11 @@ from skytorch.eclipse.occlusion import (  # noqa: F401
 )
 
 __all__ = [
+    "ENLARGEMENTS",
     "LIMB_DARKENING_LAWS",
     "limb_darkening_profile",
+    "lunar_eclipses",
+    "shadow_cone",
+    "shadow_radii",
     "sun_visible_fraction",
 ]

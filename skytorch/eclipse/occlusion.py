@@ -333,7 +333,7 @@ def sun_visible_fraction(
     >>> import torch
     >>> f = sun_visible_fraction(4.65e-3, 4.65e-3, torch.tensor([0.0, 4.65e-3, 1e-2]))
     >>> [round(v, 4) for v in f.tolist()]
-    [0.0, 0.5, 1.0]
+    [0.0, 0.6024, 1.0]
     """
     check_choice("law", law, LIMB_DARKENING_LAWS)
     n_nodes = check_int("n_nodes", n_nodes, low=2, high=256)

@@ -1,0 +1,836 @@
+r"""The shadow of a planet with a refracting, absorbing atmosphere.
+
+:class:`Shadow` gives the illuminance ``I / I_sun`` at any point behind (or beside) a
+spherical occluder: sunlight passing above the atmosphere plus sunlight refracted and
+attenuated through the atmosphere ring around the limb, integrated over the limb-darkened
+solar disc.
+
+Method (spherical symmetry, no per-point images)
+------------------------------------------------
+Let a point ``P`` lie at distance ``L`` from the occluder's centre. Seen from ``P`` the
+occluder's centre is the direction ``c``, the Sun's centre is at angular distance
+``sigma`` from ``c`` with angular radius ``rho_s``. A ray that leaves the atmosphere
+towards ``P`` with (geometric) impact parameter ``b = R + beta`` is seen at angular radius
+``theta = asin(b / L)`` from ``c``, at ring azimuth ``psi``. Traced back, it was bent
+towards the occluder by ``delta(beta)`` in the plane through ``c``: it comes from the sky
+direction at signed angular radius
+
+.. math::
+
+    a(\beta) = \arcsin\frac{R + \beta}{L} - k\,\delta(\beta), \qquad
+    k = \frac{D}{|S - P|}
+
+from ``c`` on the same great circle (``k`` converts the bend at the limb, a distance ``D``
+from the Sun, into the angle seen from ``P``). Radiance is conserved along rays apart from
+extinction, so ``P`` receives
+
+.. math::
+
+    E = \int_{\beta_{min}}^{\beta_{top}} T(\beta, \lambda)\,F(|a(\beta)|)\,
+        \frac{(R + \beta)\,d\beta}{L\sqrt{L^2 - (R + \beta)^2}} ,
+    \qquad F(\alpha) = \int_0^{2\pi} I_\odot(\gamma(\alpha, \psi))\,d\psi ,
+
+with ``hav gamma = hav(alpha - sigma) + sin(alpha) sin(sigma) hav(psi)`` the distance from
+the Sun's centre and ``I_sun`` the limb-darkened radiance (zero outside the disc). ``F`` is
+the radiance integrated along a circle through the offset solar disc: the arc inside the
+disc has half-angle ``psi_max``, ``hav psi_max = (hav rho_s - hav(alpha - sigma)) /
+(sin alpha sin sigma)``, and the substitution ``psi = psi_max (1 - v^2)`` removes the
+square-root behaviour at the limb (Gauss–Legendre in ``v``). ``a(beta)`` is monotone, so
+the breakpoints of ``F`` (``|a| = |sigma - rho_s|`` and ``sigma + rho_s``) are found by
+bisection in ``beta`` and the ``beta`` integral is split there; each piece is integrated
+with a Gauss–Legendre rule after the substitution ``s = (1 - cos pi t)/2`` that absorbs
+the square roots at both ends. ``delta(beta)`` and ``T(beta, lambda) = exp(-tau)`` come from
+:func:`skytorch.atmosphere.refraction.trace_grazing_rays`, tabulated once per atmosphere
+on a grid dense near the ground (``beta = beta_min + (beta_top - beta_min) s^2``, uniform
+in ``s``) and interpolated with cubic Catmull–Rom splines. The result is normalised by the
+unobstructed solar irradiance ``2 pi C(rho_s)``, ``C = int_0^rho_s I sin(gamma) d gamma``,
+and the direct light passing above the atmosphere, :func:`sun_visible_fraction` with the
+top of the atmosphere as occluder, is added.
+
+With refraction and extinction switched off the ring integral is the flux of the solar
+disc inside the annulus between the ground and the top of the atmosphere, so the result
+is the airless occlusion exactly (tested). Every term is positive, so deep-umbra values
+(``1e-8`` and below) keep their relative accuracy.
+
+Options: a cloud-top altitude below which rays are blocked, terrain attenuation near the
+ground (rays with periapsis altitude ``h`` weighted by ``clamp(h / (2 h_terrain), 0, 1)``,
+Schneegans et al. 2025 §5.2, mean land elevation 240 m for Earth). Light scattered into
+the shadow is not included (single scattering by the limb is a higher-order term that
+Schneegans et al. find to matter for dusty atmospheres such as Mars).
+
+References
+----------
+1. Schneegans, S., Gilg, J., Ahlers, V., Zachmann, G., Gerndt, A. 2025, "Physically
+   Based Real-Time Rendering of Eclipses", Computer Graphics Forum,
+   doi:10.1111/cgf.70220 (shadow with refraction, limb views, terrain, eq. 1).
+2. Link, F. 1969, *Eclipse Phenomena in Astronomy*, Springer,
+   doi:10.1007/978-3-642-86689-9 (refraction theory of the Earth's shadow).
+3. Vollmer, M., Gedzelman, S. D. 2008, "Simulating irradiance and color of the eclipsed
+   moon", Appl. Opt. 47, H52, doi:10.1364/AO.47.000H52.
+4. García Muñoz, A., Pallé, E. 2011, "Lunar eclipse theory revisited: Scattered sunlight in
+   both the quiescent and the volcanically perturbed atmosphere", JQSRT 112, 1609,
+   doi:10.1016/j.jqsrt.2011.03.017.
+
+Examples
+--------
+>>> import torch
+>>> from skytorch.eclipse.shadow import Shadow
+>>> shadow = Shadow.earth(n_altitude=101)
+>>> i = shadow.relative_illuminance(3.844e8, torch.tensor([0.0, 1e7]), [680.0, 440.0])
+>>> bool((i[0] < 1e-2).all()), [round(v, 6) for v in i[1].tolist()]
+(True, [1.0, 1.0])
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from functools import lru_cache
+
+import numpy as np
+import torch
+from torch import nn
+
+from skytorch._validate import (
+    as_tensor,
+    check_choice,
+    check_int,
+    check_positive,
+    check_range,
+    common_dtype,
+)
+from skytorch.constants import (
+    ASTRONOMICAL_UNIT_M,
+    EARTH_MEAN_RADIUS_M,
+    MARS_MEAN_RADIUS_M,
+    SUN_RADIUS_M,
+)
+from skytorch.eclipse.occlusion import (
+    LIMB_DARKENING_LAWS,
+    _angle_from_haversine,
+    _haversine,
+    _law_coefficients,
+    _safe_sqrt,
+    sun_visible_fraction,
+)
+
+__all__ = [
+    "EARTH_MEAN_TERRAIN_HEIGHT_M",
+    "MARS_SEMI_MAJOR_AXIS_M",
+    "RingProfile",
+    "Shadow",
+    "shadow_angles",
+    "solar_arc_integral",
+    "solar_normalisation",
+]
+
+logger = logging.getLogger(__name__)
+
+#: mean land elevation used for terrain attenuation (Schneegans et al. 2025, §5.2) [m]
+EARTH_MEAN_TERRAIN_HEIGHT_M = 240.0
+#: semi-major axis of Mars' orbit, 1.523679 AU (Standish & Williams, JPL) [m]
+MARS_SEMI_MAJOR_AXIS_M = 1.523679 * ASTRONOMICAL_UNIT_M
+#: default number of nodes of the altitude table (uniform in sqrt(altitude))
+DEFAULT_N_ALTITUDE = 401
+#: default Gauss–Legendre nodes per piece of the ring (impact-parameter) integral
+DEFAULT_RING_NODES = 12
+#: default Gauss–Legendre nodes on the arc through the solar disc
+DEFAULT_ARC_NODES = 6
+#: equal sub-pieces per piece of the ring integral (composite Gauss–Legendre)
+DEFAULT_SPLIT = 2
+#: bisection steps inside a coarse-grid bracket (resolution ~1e-8 of the table coordinate)
+_BISECTION_STEPS = 24
+#: relative singular-value cut-off of the optical-depth table (reconstruction ~1e-12)
+_RANK_TOLERANCE = 1e-13
+#: stride of the coarse grid that brackets the breakpoints before bisection
+_COARSE_STRIDE = 8
+#: points per chunk in the ring integral (bounds the temporaries to ~100 MB)
+_CHUNK = 4096
+
+
+@lru_cache(maxsize=32)
+def _unit_gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre nodes and weights on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def solar_normalisation(sun_radius_rad, limb_darkening=0.6, law: str = "linear",
+                        n_nodes: int = 16) -> torch.Tensor:
+    r"""Irradiance of the unobstructed solar disc in units of the central radiance.
+
+    Parameters
+    ----------
+    sun_radius_rad : Tensor (...)
+        Angular radius of the Sun ``rho_s`` [rad].
+    limb_darkening, law
+        As in :func:`~skytorch.eclipse.occlusion.sun_visible_fraction`.
+    n_nodes : int
+        Gauss–Legendre nodes in ``mu`` (the integrand is a polynomial times a smooth factor:
+        16 nodes are exact to rounding).
+
+    Returns
+    -------
+    Tensor (...)
+        :math:`2\pi C(\rho_s)` [sr], with
+        :math:`C = \sin^2\rho_s\int_0^1 I(\mu)\,\mu\,d\mu / \sqrt{1 - (1 - \mu^2)\sin^2\rho_s}`
+        (``r = sin(gamma)/sin(rho_s)``, ``mu = sqrt(1 - r^2)``).
+
+    Examples
+    --------
+    >>> import math
+    >>> round(float(solar_normalisation(0.01, 0.0)) / (math.pi * 0.01**2), 4)
+    1.0
+    """
+    rho_s = as_tensor("sun_radius_rad", sun_radius_rad)
+    a0, a1, a2 = _law_coefficients(law, limb_darkening, rho_s.dtype)
+    x, w = _unit_gauss(check_int("n_nodes", n_nodes, low=2))
+    mu = torch.as_tensor(x, dtype=rho_s.dtype)
+    weight = torch.as_tensor(w, dtype=rho_s.dtype)
+    b = (torch.sin(rho_s) ** 2).unsqueeze(-1)
+    radiance = (a0.unsqueeze(-1) + a1.unsqueeze(-1) * mu + a2.unsqueeze(-1) * mu * mu)
+    integrand = radiance * mu / torch.sqrt(1.0 - (1.0 - mu * mu) * b)
+    return 2.0 * math.pi * b.squeeze(-1) * (integrand * weight).sum(-1)
+
+
+def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
+                       n_nodes: int = DEFAULT_ARC_NODES) -> torch.Tensor:
+    r"""Limb-darkened solar radiance integrated along a circle on the sky.
+
+    Parameters
+    ----------
+    alpha_rad : Tensor (...)
+        Angular radius of the circle around the occluder's centre ``alpha >= 0`` [rad].
+    sun_radius_rad, separation_rad : Tensor (...)
+        Sun's angular radius ``rho_s`` and the separation ``sigma`` between the Sun's
+        centre and the circle's centre [rad].
+    coefficients : tuple of Tensor (...)
+        ``(a0, a1, a2)`` of ``I(mu) = a0 + a1 mu + a2 mu^2`` (central radiance ``a0 + a1 +
+        a2``).
+    n_nodes : int
+        Gauss–Legendre nodes on the arc.
+
+    Returns
+    -------
+    Tensor (...)
+        :math:`F(\alpha) = \int_0^{2\pi} I(\gamma(\alpha, \psi))\,d\psi` [rad].
+
+    Notes
+    -----
+    :math:`\operatorname{hav}\gamma = \operatorname{hav}(\alpha - \sigma)
+    + \sin\alpha\sin\sigma\operatorname{hav}\psi`; the arc inside the disc,
+    :math:`|\psi| \le \psi_{max}`, is integrated with :math:`\psi = \psi_{max}(1 - v^2)`.
+    For a uniform disc ``F = 2 psi_max`` (the arc length).
+    """
+    a0, a1, a2 = coefficients
+    alpha, rho_s, sigma = alpha_rad, sun_radius_rad, separation_rad
+    tiny = torch.finfo(alpha.dtype).tiny
+    hav_offset = _haversine(alpha - sigma)
+    product = torch.sin(alpha) * torch.sin(sigma)
+    numerator = _haversine(rho_s) - hav_offset
+    ratio = torch.where(numerator >= product, torch.ones_like(numerator),
+                        numerator / torch.clamp(product, min=tiny))
+    psi_max = _angle_from_haversine(ratio)
+    x, w = _unit_gauss(n_nodes)
+    v = torch.as_tensor(x, dtype=alpha.dtype)
+    weight = torch.as_tensor(2.0 * x * w, dtype=alpha.dtype)
+    hav_psi = torch.sin(0.5 * psi_max.unsqueeze(-1) * (1.0 - v * v)) ** 2
+    hav_gamma = torch.addcmul(hav_offset.unsqueeze(-1), product.unsqueeze(-1), hav_psi)
+    r2 = 4.0 * hav_gamma * (1.0 - hav_gamma) / (torch.sin(rho_s) ** 2).unsqueeze(-1)
+    mu = _safe_sqrt(1.0 - r2)
+    radiance = a0.unsqueeze(-1) + mu * (a1.unsqueeze(-1) + a2.unsqueeze(-1) * mu)
+    return 2.0 * psi_max * (radiance @ weight)
+
+
+def shadow_angles(distance_m, offset_m, sun_distance_m, sun_radius_m, occluder_radius_m):
+    """Angles seen from a point in the shadow cone.
+
+    Parameters
+    ----------
+    distance_m : Tensor (...)
+        Distance behind the occluder's centre along the anti-Sun axis [m] (negative on the
+        day side).
+    offset_m : Tensor (...)
+        Distance from the anti-Sun axis [m], >= 0.
+    sun_distance_m, sun_radius_m, occluder_radius_m : float or Tensor (...)
+        Sun–occluder distance, solar radius and occluder radius [m].
+
+    Returns
+    -------
+    dict of Tensor (...)
+        ``centre_distance_m`` (L, point to occluder centre), ``sun_range_m`` (point to Sun),
+        ``sun_radius_rad``, ``occluder_radius_rad`` and ``separation_rad`` (angle between
+        the Sun's and the occluder's centres), exact for the planar triangle
+        Sun–occluder–point.
+    """
+    d, rho = distance_m, offset_m
+    centre = torch.hypot(d, rho)
+    sun_range = torch.hypot(sun_distance_m + d, rho)
+    separation = torch.atan2(rho, d) - torch.atan2(rho, sun_distance_m + d)
+    return {
+        "centre_distance_m": centre,
+        "sun_range_m": sun_range,
+        "sun_radius_rad": torch.asin(sun_radius_m / sun_range),
+        "occluder_radius_rad": torch.asin(torch.clamp(occluder_radius_m / centre, max=1.0)),
+        "separation_rad": separation,
+    }
+
+
+# --- cubic interpolation on a uniform grid -------------------------------------------------
+
+
+def _spline_coefficients(values: torch.Tensor) -> torch.Tensor:
+    """Catmull–Rom cubic coefficients per interval of a uniform grid.
+
+    ``values`` (N, C) at ``s_k = k / (N - 1)``; returns (N - 1, 4, C) with
+    ``f(s) = c0 + c1 t + c2 t^2 + c3 t^3`` on interval ``k``, ``t = s (N - 1) - k``. Ghost
+    rows by quadratic extrapolation close the ends.
+    """
+    first = 3.0 * values[0] - 3.0 * values[1] + values[2]
+    last = 3.0 * values[-1] - 3.0 * values[-2] + values[-3]
+    padded = torch.cat([first[None], values, last[None]], dim=0)
+    p0, p1, p2, p3 = padded[:-3], padded[1:-2], padded[2:-1], padded[3:]
+    c1 = 0.5 * (p2 - p0)
+    c2 = p0 - 2.5 * p1 + 2.0 * p2 - 0.5 * p3
+    c3 = 0.5 * (p3 - p0) + 1.5 * (p1 - p2)
+    return torch.stack([p1, c1, c2, c3], dim=1).contiguous()
+
+
+def _spline(coefficients: torch.Tensor, s: torch.Tensor) -> torch.Tensor:
+    """Evaluate :func:`_spline_coefficients` at ``s`` in [0, 1] -> (*s.shape, C)."""
+    n = coefficients.shape[0]
+    x = torch.clamp(s, 0.0, 1.0) * n
+    i = torch.clamp(torch.floor(x.detach()), 0, n - 1).long()
+    t = (x - i.to(x.dtype)).unsqueeze(-1)
+    rows = coefficients.index_select(0, i.reshape(-1)).reshape(*i.shape, 4, -1)
+    c0, c1, c2, c3 = rows.unbind(-2)
+    return c0 + t * (c1 + t * (c2 + t * c3))
+
+
+class RingProfile:
+    """Bending and transmittance of the atmosphere ring, tabulated in impact altitude.
+
+    Rows ``k = 0 .. n-1`` are at ``s_k = k / (n - 1)``, impact altitude ``beta_k =
+    beta_min + (beta_top - beta_min) s_k^2`` (dense near the ground).
+
+    Attributes
+    ----------
+    beta_min_m, beta_top_m : float
+        Impact altitudes of the lowest transmitting ray (ground or cloud top) and of the
+        top of the atmosphere [m].
+    terrain_beta_m : float or None
+        Impact altitude of the ray grazing at twice the mean terrain height [m].
+    deviation_rad : Tensor (n,)
+        Total bending [rad].
+    optical_depth : Tensor (n, n_wavelength)
+        Optical depth along the bent path [1].
+    periapsis_altitude_m : Tensor (n,)
+        Lowest altitude of each ray [m].
+    """
+
+    def __init__(self, beta_min_m, beta_top_m, deviation_rad, optical_depth,
+                 periapsis_altitude_m, terrain_height_m=None, terrain_beta_m=None):
+        self.beta_min_m = float(beta_min_m)
+        self.beta_top_m = float(beta_top_m)
+        self.deviation_rad = deviation_rad
+        self.optical_depth = optical_depth
+        self.periapsis_altitude_m = periapsis_altitude_m
+        self.terrain_height_m = terrain_height_m
+        self.terrain_beta_m = terrain_beta_m
+        # the optical depth is a sum over species of (profile integral) x (cross-section):
+        # a matrix of low rank; interpolate its few factors instead of every wavelength
+        u, sv, vh = torch.linalg.svd(optical_depth.to(torch.float64), full_matrices=False)
+        rank = int((sv > _RANK_TOLERANCE * sv[:1].clamp_min(1e-300)).sum()) if sv.numel() else 0
+        self.optical_factors = u[:, :rank] * sv[:rank]
+        self.optical_basis = vh[:rank]
+        self._cache: dict = {}
+
+    @property
+    def n_altitude(self) -> int:
+        return int(self.deviation_rad.shape[0])
+
+    def beta(self, s: torch.Tensor) -> torch.Tensor:
+        """Impact altitude [m] at the table coordinate ``s``."""
+        return self.beta_min_m + (self.beta_top_m - self.beta_min_m) * s * s
+
+    def s_of_beta(self, beta_m: float) -> float:
+        return math.sqrt(max(beta_m - self.beta_min_m, 0.0)
+                         / (self.beta_top_m - self.beta_min_m))
+
+    def tables(self, dtype: torch.dtype) -> dict[str, torch.Tensor]:
+        """Padded interpolation tables cast to ``dtype`` (cached)."""
+        if dtype not in self._cache:
+            deviation = self.deviation_rad.to(dtype)[:, None]
+            periapsis = self.periapsis_altitude_m.to(dtype)[:, None]
+            factors = self.optical_factors.to(dtype)
+            coarse = list(range(0, self.n_altitude, _COARSE_STRIDE))
+            if coarse[-1] != self.n_altitude - 1:
+                coarse.append(self.n_altitude - 1)
+            self._cache[dtype] = {
+                "deviation": _spline_coefficients(deviation),
+                "all": _spline_coefficients(torch.cat([deviation, periapsis, factors], dim=-1)),
+                "basis": self.optical_basis.to(dtype),
+                "nodes": deviation[coarse, 0],
+                "nodes_s": torch.linspace(0.0, 1.0, self.n_altitude, dtype=dtype)[coarse],
+            }
+        return self._cache[dtype]
+
+
+def _terrain_weight(periapsis_m: torch.Tensor, terrain_height_m) -> torch.Tensor:
+    if terrain_height_m is None:
+        return torch.ones_like(periapsis_m)
+    return torch.clamp(periapsis_m / (2.0 * terrain_height_m), 0.0, 1.0)
+
+
+def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coefficients,
+                n_ring: int, n_arc: int, radius: float, n_split: int = 1) -> torch.Tensor:
+    """Ring integral for 1-D tensors of points -> (n_point, n_wavelength), unnormalised."""
+    dtype = centre.dtype
+    tables = profile.tables(dtype)
+    span = profile.beta_top_m - profile.beta_min_m
+
+    def apparent(s):  # a(beta(s)) for broadcastable s (…, m) with per-point (…, 1) inputs
+        beta = profile.beta(s)
+        deviation = _spline(tables["deviation"], s)[..., 0]
+        return torch.asin((radius + beta) / centre[:, None]) - scale[:, None] * deviation
+
+    with torch.no_grad():
+        edges = torch.stack([-(separation + sun_radius), -(separation - sun_radius).abs(),
+                             (separation - sun_radius).abs(), separation + sun_radius], dim=-1)
+        # bracket on the coarse grid (a is increasing), then bisect inside the bracket
+        nodes_s = tables["nodes_s"]
+        coarse = (torch.asin((radius + profile.beta(nodes_s)) / centre[:, None])
+                  - scale[:, None] * tables["nodes"])
+        index = torch.searchsorted(coarse.contiguous(), edges.contiguous())
+        last = nodes_s.shape[0] - 1
+        low = nodes_s[torch.clamp(index - 1, 0, last)]
+        high = torch.where(index > last, 1.0, nodes_s[torch.clamp(index, 0, last)])
+        high = torch.where(index == 0, 0.0, high)
+        for _ in range(_BISECTION_STEPS):
+            middle = 0.5 * (low + high)
+            above = apparent(middle) > edges
+            high = torch.where(above, middle, high)
+            low = torch.where(above, low, middle)
+        # pieces between the breakpoints of F: [e0, e1], [e1, e2] (zero unless the Sun
+        # covers the occluder's centre, sigma < rho_s), [e2, e3]
+        breaks = 0.5 * (low + high)
+        lo, hi = breaks[:, :-1], breaks[:, 1:]  # (n_point, 3)
+        if not bool((separation < sun_radius).any()):  # middle piece empty everywhere
+            lo, hi = lo[:, ::2], hi[:, ::2]
+        if profile.terrain_beta_m is not None:
+            cut = torch.clamp(torch.full_like(lo, profile.s_of_beta(profile.terrain_beta_m)),
+                              lo, hi)
+            lo, hi = torch.cat([lo, cut], dim=-1), torch.cat([cut, hi], dim=-1)
+        if n_split > 1:  # composite rule: equal sub-pieces
+            fraction = torch.arange(n_split + 1, dtype=dtype) / n_split
+            edges_s = lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * fraction
+            lo, hi = edges_s[..., :-1].flatten(1), edges_s[..., 1:].flatten(1)
+        x, w = _unit_gauss(n_ring)
+        t = torch.as_tensor(x, dtype=dtype)
+        wt = torch.as_tensor(w, dtype=dtype)
+        shape = 0.5 * (1.0 - torch.cos(math.pi * t))
+        slope = 0.5 * math.pi * torch.sin(math.pi * t) * wt
+        s = (lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * shape).flatten(1)  # (n_point, m)
+        ds = ((hi - lo).unsqueeze(-1) * slope).flatten(1)
+    values = _spline(tables["all"], s)  # (n_point, m, 2 + rank)
+    deviation, periapsis = values[..., 0], values[..., 1]
+    optical = values[..., 2:] @ tables["basis"]  # (n_point, m, n_wl)
+    beta = profile.beta(s)
+    b = radius + beta
+    a = torch.asin(b / centre[:, None]) - scale[:, None] * deviation
+    arc = solar_arc_integral(a.abs(), sun_radius[:, None], separation[:, None],
+                             tuple(c[:, None] for c in coefficients), n_nodes=n_arc)
+    solid = b / (centre[:, None] * torch.sqrt((centre[:, None] - b) * (centre[:, None] + b)))
+    weight = arc * solid * (2.0 * span * s) * ds
+    weight = weight * _terrain_weight(periapsis, profile.terrain_height_m)
+    transmittance = torch.exp(-torch.clamp(optical, min=0.0))
+    return torch.einsum("pm,pml->pl", weight, transmittance)
+
+
+def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, separation_rad,
+                     deviation_scale, coefficients, occluder_radius_m: float,
+                     n_ring: int = DEFAULT_RING_NODES,
+                     n_arc: int = DEFAULT_ARC_NODES,
+                     n_split: int = 1) -> torch.Tensor:
+    """Irradiance through the atmosphere ring, in units of the central solar radiance.
+
+    Parameters
+    ----------
+    profile : RingProfile
+        Tabulated bending and optical depth.
+    centre_distance_m, sun_radius_rad, separation_rad, deviation_scale : Tensor (...)
+        ``L`` [m], ``rho_s`` [rad], ``sigma`` [rad] and ``k`` [1] (module docstring).
+    coefficients : tuple of Tensor (...)
+        Limb-darkening polynomial ``(a0, a1, a2)``.
+    occluder_radius_m : float
+        Planet radius ``R`` [m].
+    n_ring, n_arc : int
+        Gauss–Legendre nodes per ring piece and on the solar arc.
+
+    Returns
+    -------
+    Tensor (..., n_wavelength)
+        Ring irradiance [sr] (divide by :func:`solar_normalisation` for I / I_sun).
+    """
+    tensors = torch.broadcast_tensors(centre_distance_m, sun_radius_rad, separation_rad,
+                                      deviation_scale, *coefficients)
+    shape = tensors[0].shape
+    flat = [x.reshape(-1) for x in tensors]
+    n_wl = profile.optical_depth.shape[-1]
+    pieces = []
+    for start in range(0, max(flat[0].shape[0], 1), _CHUNK):
+        part = [x[start:start + _CHUNK] for x in flat]
+        if part[0].numel() == 0:
+            pieces.append(flat[0].new_zeros((0, n_wl)))
+            continue
+        pieces.append(_ring_chunk(profile, *part[:4], tuple(part[4:]), n_ring, n_arc,
+                                  occluder_radius_m, n_split))
+    return torch.cat(pieces).reshape(*shape, n_wl)
+
+
+class _NoRefraction:
+    """Wraps an atmosphere with its refractivity switched off (straight rays)."""
+
+    def __init__(self, atmosphere):
+        self._atmosphere = atmosphere
+        self.planet_radius_m = atmosphere.planet_radius_m
+        self.top_altitude_m = atmosphere.top_altitude_m
+        self.top_radius_m = atmosphere.top_radius_m
+
+    def refractivity(self, altitude_m, wavelength_nm=None):
+        return torch.zeros_like(torch.as_tensor(altitude_m))
+
+    def extinction_coefficient(self, altitude_m, wavelength_nm):
+        return self._atmosphere.extinction_coefficient(altitude_m, wavelength_nm)
+
+
+class Shadow(nn.Module):
+    """Shadow cone of a spherical occluder with (optionally) a refracting atmosphere.
+
+    Parameters
+    ----------
+    occluder_radius_m : float
+        Radius of the solid body [m] (overridden by the atmosphere's planet radius).
+    sun_distance_m : float
+        Default Sun–occluder distance [m].
+    atmosphere : Atmosphere or None or False
+        The occluder's atmosphere (unbatched); ``None`` or ``False``: airless.
+    sun_radius_m : float
+        Solar radius [m].
+    refraction, extinction : bool
+        Switch the bending and the optical depth of the ring on or off.
+    cloud_top_altitude_m : float
+        Rays whose lowest point is below this altitude are blocked [m] (0: the ground).
+    terrain_height_m : float or None
+        Mean terrain height for the linear attenuation of rays with periapsis between 0 and
+        twice this height [m] (Schneegans et al. 2025 §5.2); ``None``: off.
+    limb_darkening, law
+        Solar limb darkening (see :func:`sun_visible_fraction`).
+    n_altitude : int
+        Rows of the ring table (uniform in ``sqrt`` of the impact altitude).
+    n_ring, n_arc : int
+        Gauss–Legendre nodes per piece of the ring integral and on the solar arc.
+    trace_nodes : int
+        Gauss–Legendre nodes of the Bouguer ray integrals.
+    name : str
+        Label for Datasets.
+
+    Examples
+    --------
+    >>> shadow = Shadow.earth(atmosphere=False)
+    >>> round(float(shadow.relative_illuminance(3.844e8, 4.0e6, 550.0)[0]), 6)
+    0.0
+    """
+
+    def __init__(self, *, occluder_radius_m: float, sun_distance_m: float, atmosphere=None,
+                 sun_radius_m: float = SUN_RADIUS_M, refraction: bool = True,
+                 extinction: bool = True, cloud_top_altitude_m: float = 0.0,
+                 terrain_height_m: float | None = None, limb_darkening=0.6,
+                 law: str = "linear", n_altitude: int = DEFAULT_N_ALTITUDE,
+                 n_ring: int = DEFAULT_RING_NODES, n_arc: int = DEFAULT_ARC_NODES,
+                 n_split: int = DEFAULT_SPLIT, trace_nodes: int = 64, name: str = "custom"):
+        super().__init__()
+        if atmosphere is False:
+            atmosphere = None
+        if atmosphere is not None and tuple(getattr(atmosphere, "batch_shape", ())) != ():
+            raise ValueError("Shadow needs an unbatched atmosphere (batch_shape ()); got "
+                             f"batch_shape {tuple(atmosphere.batch_shape)}: build one Shadow "
+                             "per parameter set")
+        self.atmosphere = atmosphere
+        radius = atmosphere.planet_radius_m if atmosphere is not None else occluder_radius_m
+        self.occluder_radius_m = float(check_positive("occluder_radius_m", radius, unit=" m"))
+        self.top_radius_m = (atmosphere.top_radius_m if atmosphere is not None
+                             else self.occluder_radius_m)
+        self.sun_distance_m = float(check_positive("sun_distance_m", sun_distance_m,
+                                                   unit=" m"))
+        self.sun_radius_m = float(check_positive("sun_radius_m", sun_radius_m, unit=" m"))
+        self.refraction = bool(refraction)
+        self.extinction = bool(extinction)
+        top = atmosphere.top_altitude_m if atmosphere is not None else 0.0
+        self.cloud_top_altitude_m = float(check_range(
+            "cloud_top_altitude_m", cloud_top_altitude_m, 0.0, max(top, 0.0), unit=" m"))
+        if terrain_height_m is not None:
+            terrain_height_m = float(check_positive("terrain_height_m", terrain_height_m,
+                                                    unit=" m"))
+        self.terrain_height_m = terrain_height_m
+        check_choice("law", law, LIMB_DARKENING_LAWS)
+        self.law = law
+        self.register_buffer("limb_darkening",
+                             as_tensor("limb_darkening", limb_darkening).to(torch.float64))
+        _law_coefficients(law, self.limb_darkening, torch.float64)  # validate
+        self.n_altitude = check_int("n_altitude", n_altitude, low=8)
+        self.n_ring = check_int("n_ring", n_ring, low=2, high=256)
+        self.n_arc = check_int("n_arc", n_arc, low=2, high=256)
+        self.n_split = check_int("n_split", n_split, low=1, high=64)
+        self.trace_nodes = check_int("trace_nodes", trace_nodes, low=4)
+        self.name = str(name)
+        self._profiles: dict = {}
+
+    # ------------------------------------------------------------------ presets
+    @classmethod
+    def earth(cls, atmosphere=None, **kwargs) -> Shadow:
+        """The Earth's shadow; ``atmosphere=None`` uses ``Atmosphere.earth()``.
+
+        Pass ``atmosphere=False`` for the airless Earth (radius 6371 km).
+        """
+        if atmosphere is None:
+            from skytorch.atmosphere import Atmosphere
+
+            atmosphere = Atmosphere.earth()
+        options = {"occluder_radius_m": EARTH_MEAN_RADIUS_M,
+                   "sun_distance_m": ASTRONOMICAL_UNIT_M, "name": "earth"}
+        options.update(kwargs)
+        return cls(atmosphere=atmosphere, **options)
+
+    @classmethod
+    def mars(cls, atmosphere=None, **kwargs) -> Shadow:
+        """The shadow of Mars at its mean distance from the Sun (1.5237 AU).
+
+        ``atmosphere=None`` uses ``Atmosphere.mars()``; ``False`` gives the airless planet.
+        """
+        if atmosphere is None:
+            from skytorch.atmosphere import Atmosphere
+
+            atmosphere = Atmosphere.mars()
+        options = {"occluder_radius_m": MARS_MEAN_RADIUS_M,
+                   "sun_distance_m": MARS_SEMI_MAJOR_AXIS_M, "name": "mars"}
+        options.update(kwargs)
+        return cls(atmosphere=atmosphere, **options)
+
+    def extra_repr(self) -> str:
+        return (f"name={self.name!r}, radius={self.occluder_radius_m:.0f} m, "
+                f"top={self.top_radius_m:.0f} m, refraction={self.refraction}, "
+                f"extinction={self.extinction}")
+
+    def parameters_dict(self) -> dict:
+        """Settings of this shadow model (for Dataset attributes)."""
+        result = {
+            "shadow": self.name, "occluder_radius_m": self.occluder_radius_m,
+            "top_radius_m": self.top_radius_m, "sun_distance_m": self.sun_distance_m,
+            "sun_radius_m": self.sun_radius_m, "refraction": self.refraction,
+            "extinction": self.extinction, "cloud_top_altitude_m": self.cloud_top_altitude_m,
+            "terrain_height_m": self.terrain_height_m if self.terrain_height_m else "none",
+            "limb_darkening": self.limb_darkening.tolist(), "limb_darkening_law": self.law,
+            "n_altitude": self.n_altitude, "n_ring": self.n_ring, "n_arc": self.n_arc,
+        }
+        if self.atmosphere is not None and hasattr(self.atmosphere, "parameters_dict"):
+            result["atmosphere"] = self.atmosphere.parameters_dict()
+        return result
+
+    # ------------------------------------------------------------------ ring table
+    def ring_profile(self, wavelength_nm) -> RingProfile | None:
+        """Tabulated ring (bending, optical depth) for these wavelengths (cached).
+
+        Returns ``None`` for an airless occluder.
+        """
+        if self.atmosphere is None:
+            return None
+        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
+        key = tuple(round(float(x), 9) for x in wavelength)
+        if key in self._profiles:
+            return self._profiles[key]
+        from skytorch.atmosphere.refraction import trace_grazing_rays
+
+        atm = self.atmosphere if self.refraction else _NoRefraction(self.atmosphere)
+        top = float(atm.top_altitude_m)
+        with torch.no_grad():
+            lowest = trace_grazing_rays(
+                atm, periapsis_altitude_m=torch.tensor(self.cloud_top_altitude_m,
+                                                       dtype=torch.float64))
+            beta_min = float(lowest["impact_altitude_m"])
+            terrain_beta = None
+            if self.terrain_height_m is not None:
+                h_t = min(2.0 * self.terrain_height_m, top)
+                if h_t > self.cloud_top_altitude_m:
+                    terrain = trace_grazing_rays(
+                        atm, periapsis_altitude_m=torch.tensor(h_t, dtype=torch.float64))
+                    terrain_beta = float(terrain["impact_altitude_m"])
+            s = torch.linspace(0.0, 1.0, self.n_altitude, dtype=torch.float64)
+            beta = beta_min + (top - beta_min) * s * s
+            logger.info("tracing %d grazing rays x %d wavelengths", beta.numel(),
+                        wavelength.numel())
+            rays = trace_grazing_rays(atm, impact_altitude_m=beta, wavelength_nm=wavelength,
+                                      n_nodes=self.trace_nodes)
+            deviation = rays["deviation_rad"].detach().to(torch.float64)
+            optical = rays["optical_depth"].detach().to(torch.float64)
+            if not self.extinction:
+                optical = torch.zeros_like(optical)
+            periapsis = rays["contact_altitude_m"].detach().to(torch.float64)
+        profile = RingProfile(beta_min, top, deviation, optical, periapsis,
+                              self.terrain_height_m, terrain_beta)
+        self._profiles[key] = profile
+        return profile
+
+    # ------------------------------------------------------------------ illuminance
+    def _geometry(self, distance_m, offset_m, sun_distance_m, dtype):
+        distance = check_range("distance_m", distance_m, unit=" m", dtype=dtype)
+        offset = check_range("offset_m", offset_m, 0.0, unit=" m", dtype=dtype)
+        sun_distance = self.sun_distance_m if sun_distance_m is None else check_positive(
+            "sun_distance_m", sun_distance_m, unit=" m").to(dtype)
+        angles = shadow_angles(distance, offset, sun_distance, self.sun_radius_m,
+                               self.top_radius_m)
+        with torch.no_grad():
+            inside = angles["centre_distance_m"] <= self.top_radius_m
+            if bool(inside.any()):
+                index = tuple(int(i) for i in torch.nonzero(inside)[0])
+                value = float(angles["centre_distance_m"][index])
+                what = ("the occluder" if value <= self.occluder_radius_m
+                        else "the occluder's atmosphere")
+                raise ValueError(
+                    f"point (distance_m, offset_m) lies inside {what}: distance from the "
+                    f"centre {value:.6g} m at index {index}; valid: > {self.top_radius_m:.6g} m "
+                    "(top of the atmosphere)")
+        angles["sun_distance_m"] = sun_distance
+        return angles
+
+    def relative_illuminance(self, distance_m, offset_m, wavelength_nm,
+                             sun_distance_m=None) -> torch.Tensor:
+        """Illuminance relative to the unobstructed Sun at points in the shadow cone.
+
+        Parameters
+        ----------
+        distance_m : Tensor (...)
+            Distance behind the occluder's centre along the anti-Sun axis [m].
+        offset_m : Tensor (...)
+            Distance from the anti-Sun axis [m] (>= 0).
+        wavelength_nm : float or Tensor (n_wavelength,)
+            Wavelengths [nm].
+        sun_distance_m : float or Tensor (...), optional
+            Sun–occluder distance [m]; default the preset's.
+
+        Returns
+        -------
+        Tensor (..., n_wavelength)
+            ``I / I_sun`` in [0, 1] (1 outside the penumbra), dtype of the geometry inputs.
+
+        Raises
+        ------
+        ValueError
+            For a point inside the occluder or its atmosphere.
+        """
+        dtype = common_dtype(distance_m, offset_m)
+        angles = self._geometry(distance_m, offset_m, sun_distance_m, dtype)
+        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=dtype).reshape(-1)
+        n_wl = wavelength.shape[0]
+        centre = angles["centre_distance_m"]
+        rho_s = angles["sun_radius_rad"]
+        sigma = angles["separation_rad"]
+        limb = self.limb_darkening.to(dtype)
+        direct = sun_visible_fraction(rho_s, angles["occluder_radius_rad"], sigma, limb,
+                                      self.law)
+        profile = self.ring_profile(wavelength)
+        if profile is None:
+            return direct.unsqueeze(-1).expand(*direct.shape, n_wl)
+        coefficients = _law_coefficients(self.law, limb, dtype)
+        scale = (self.sun_distance_m if sun_distance_m is None
+                 else angles["sun_distance_m"]) / angles["sun_range_m"]
+        ring = ring_illuminance(profile, centre, rho_s, sigma, scale, coefficients,
+                                self.occluder_radius_m, self.n_ring, self.n_arc, self.n_split)
+        normalisation = solar_normalisation(rho_s, limb, self.law)
+        return direct.unsqueeze(-1) + ring / normalisation.unsqueeze(-1)
+
+    forward = relative_illuminance
+
+    # ------------------------------------------------------------------ limb view
+    def limb_view(self, distance_m, offset_m, wavelength_nm, *, n_azimuth: int = 256,
+                  n_altitude: int = 16, oversample: int = 4,
+                  sun_distance_m=None) -> dict[str, torch.Tensor]:
+        """Radiance of the atmosphere ring seen from points in the shadow.
+
+        The ring is divided into ``n_azimuth`` bins of ring azimuth ``psi`` (0 towards the
+        Sun's centre, counted around the occluder's centre) and ``n_altitude`` bins of
+        impact altitude between the lowest transmitting ray and the top of the
+        atmosphere; each bin holds the mean radiance over it (``oversample``² samples),
+        so a refracted solar image smaller than a bin is not lost.
+
+        Parameters
+        ----------
+        distance_m, offset_m : Tensor (...)
+            Point in the shadow [m] (see :meth:`relative_illuminance`).
+        wavelength_nm : Tensor (n_wavelength,)
+            Wavelengths [nm].
+        n_azimuth, n_altitude, oversample : int
+            Image size and supersampling per bin.
+        sun_distance_m : float or Tensor (...), optional
+            Sun–occluder distance [m].
+
+        Returns
+        -------
+        dict of Tensor
+            ``radiance`` (..., altitude, azimuth, n_wavelength): radiance relative to the
+            radiance at the centre of the solar disc [1]; ``altitude_m`` (altitude,) impact
+            altitude of the bin centres [m]; ``azimuth_rad`` (azimuth,) [rad];
+            ``elevation_rad`` (..., altitude) apparent angular radius from the occluder's
+            centre [rad]; ``solid_angle_sr`` (..., altitude, azimuth) [sr].
+        """
+        n_azimuth = check_int("n_azimuth", n_azimuth, low=1)
+        n_altitude = check_int("n_altitude", n_altitude, low=1)
+        oversample = check_int("oversample", oversample, low=1)
+        dtype = common_dtype(distance_m, offset_m)
+        angles = self._geometry(distance_m, offset_m, sun_distance_m, dtype)
+        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=dtype).reshape(-1)
+        profile = self.ring_profile(wavelength)
+        if profile is None:
+            raise ValueError("limb_view needs an occluder with an atmosphere")
+        tables = profile.tables(dtype)
+        span = profile.beta_top_m - profile.beta_min_m
+        shape = angles["centre_distance_m"].shape
+        # sample points: altitude (uniform in beta within each bin), azimuth
+        n_b, n_p = n_altitude * oversample, n_azimuth * oversample
+        beta = profile.beta_min_m + span * (torch.arange(n_b, dtype=dtype) + 0.5) / n_b
+        psi = (torch.arange(n_p, dtype=dtype) + 0.5) * (2.0 * math.pi / n_p) - math.pi
+        s = torch.sqrt((beta - profile.beta_min_m) / span)
+        values = _spline(tables["all"], s)
+        deviation, periapsis, optical = values[:, 0], values[:, 1], values[:, 2:]
+        centre = angles["centre_distance_m"][..., None]
+        b = self.occluder_radius_m + beta
+        scale = ((self.sun_distance_m if sun_distance_m is None
+                  else angles["sun_distance_m"]) / angles["sun_range_m"])[..., None]
+        a = torch.asin(b / centre) - scale * deviation  # (..., n_b)
+        sigma = angles["separation_rad"][..., None, None]
+        rho_s = angles["sun_radius_rad"][..., None, None]
+        # distance from the Sun's centre of the source direction (a, psi)
+        hav_gamma = (_haversine(a[..., :, None] - sigma) + torch.sin(a[..., :, None])
+                     * torch.sin(sigma) * _haversine(psi))
+        r2 = 4.0 * hav_gamma * (1.0 - hav_gamma) / torch.sin(rho_s) ** 2
+        inside = (hav_gamma < _haversine(rho_s)) & (r2 < 1.0)
+        mu = _safe_sqrt(1.0 - r2)
+        a0, a1, a2 = _law_coefficients(self.law, self.limb_darkening.to(dtype), dtype)
+        radiance = torch.where(inside, a0 + a1 * mu + a2 * mu * mu, 0.0) / (a0 + a1 + a2)
+        transmittance = torch.exp(-optical) * _terrain_weight(
+            periapsis, profile.terrain_height_m)[:, None]  # (n_b, n_wl)
+        image = radiance[..., None] * transmittance[:, None, :]  # (..., n_b, n_p, n_wl)
+        image = image.reshape(*shape, n_altitude, oversample, n_azimuth, oversample, -1)
+        image = image.mean(dim=(-4, -2))
+        edges = profile.beta_min_m + span * torch.arange(n_altitude + 1, dtype=dtype) / n_altitude
+        theta_edges = torch.asin((self.occluder_radius_m + edges) / centre)
+        solid = (torch.cos(theta_edges[..., :-1]) - torch.cos(theta_edges[..., 1:])) * (
+            2.0 * math.pi / n_azimuth)
+        centres_b = 0.5 * (edges[:-1] + edges[1:])
+        return {
+            "radiance": image,
+            "altitude_m": centres_b,
+            "azimuth_rad": psi.reshape(n_azimuth, oversample).mean(-1),
+            "elevation_rad": torch.asin((self.occluder_radius_m + centres_b) / centre),
+            "solid_angle_sr": solid[..., :, None].expand(*shape, n_altitude, n_azimuth),
+        }
