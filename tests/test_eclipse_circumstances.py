@@ -236,3 +236,42 @@ def test_cone_gradients_and_errors():
         shadow_radii(384e6, ASTRONOMICAL_UNIT_M, SUN_RADIUS_M, 6.378e6, enlargement="lahire")
     with pytest.raises(ValueError, match="smaller than the Sun"):
         shadow_radii(384e6, ASTRONOMICAL_UNIT_M, 1e6, 6.378e6)
+
+
+# 2015-09-28 contacts (UTC) as listed for NASA's predictions in the Wikipedia infobox
+# "September 2015 lunar eclipse" (Espenak's eclipse page LE2015Sep28T)
+CONTACTS_2015_09_28 = {"p1": "2015-09-28T00:11:47", "u1": "2015-09-28T01:07:11",
+                       "u2": "2015-09-28T02:11:10", "time": "2015-09-28T02:47:08",
+                       "u3": "2015-09-28T03:23:05", "u4": "2015-09-28T04:27:03",
+                       "p4": "2015-09-28T05:22:27"}
+
+
+def test_contacts_of_2015_09_28(danjon):
+    eclipse, _ = _find(danjon, "2015-09-28T02:48:17")
+    for name, published in CONTACTS_2015_09_28.items():
+        assert abs(eclipse[name].values - np.datetime64(published)) <= MINUTE, name
+
+
+# --- command line ------------------------------------------------------------------------------
+
+
+def test_cli_table(tmp_path, capsys):
+    from skytorch.cli import main
+    from skytorch.dataset import open_dataset
+
+    path = tmp_path / "table.nc"
+    assert main(["eclipse", "--from", "2022-01-01", "--to", "2024-01-01", "-o", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "4 lunar eclipses" in out and "2022-11-08 10:59" in out and "penumbral" in out
+    assert open_dataset(path).sizes["eclipse"] == 4
+
+
+def test_cli_single_date_circumstances(tmp_path, capsys, monkeypatch):
+    from skytorch.cli import main
+    from skytorch.commands import eclipse as command
+
+    monkeypatch.setattr(command, "_light_curve_model", lambda: None)
+    assert main(["eclipse", "2018-07-27", "-o", str(tmp_path / "one.nc")]) == 0
+    out = capsys.readouterr().out
+    assert "U2        2018-07-27T19:30" in out and "total" in out
+    assert main(["eclipse", "2018-07-27", "--from", "2018-01-01"]) == 2

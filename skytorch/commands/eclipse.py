@@ -1,0 +1,146 @@
+"""``skytorch eclipse``: lunar eclipses — a table of circumstances, or one eclipse.
+
+Examples
+--------
+::
+
+    skytorch eclipse --from 2020-01-01 --to 2030-01-01 -o eclipses.nc
+    skytorch eclipse 2015-09-28 -o eclipse.nc --png eclipse.png
+
+Table mode (``--from/--to``) prints every eclipse with its greatest eclipse, kind,
+magnitudes, gamma and durations, and writes the :func:`skytorch.eclipse.lunar_eclipses`
+Dataset. Single-date mode (``DATE``) describes the eclipse nearest to that date: with the
+light-curve model (:func:`skytorch.eclipse.lunar.lunar_eclipse`) when it is available,
+otherwise its circumstances (greatest eclipse and contacts).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+#: how far from DATE the single-date mode looks for the nearest eclipse
+SEARCH_DAYS = 20
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``skytorch eclipse``."""
+    parser.add_argument("date", nargs="?",
+                        help="date (UTC) of one eclipse, e.g. 2015-09-28 (single-date mode)")
+    parser.add_argument("--from", dest="start", metavar="START",
+                        help="start of the range (UTC) for a table of eclipses")
+    parser.add_argument("--to", dest="end", metavar="END", help="end of the range (UTC)")
+    parser.add_argument("--enlargement", default="danjon",
+                        choices=("danjon", "chauvenet", "none"),
+                        help="shadow enlargement convention (default danjon, as the NASA canon)")
+    parser.add_argument("-o", "--output", help="netCDF file to write")
+    parser.add_argument("--png", help="PNG figure to write (single-date mode with light curve)")
+
+
+def format_table(dataset) -> str:
+    """A fixed-width text table of eclipse circumstances (one line per eclipse)."""
+    header = (f"{'greatest eclipse (UTC)':<21} {'kind':<9} {'umbral':>7} {'penumb.':>7} "
+              f"{'gamma':>7} {'pen.min':>7} {'par.min':>7} {'tot.min':>7}")
+    lines = [header, "-" * len(header)]
+
+    def minutes(value) -> str:
+        return "-" if np.isnan(value) else f"{value:.1f}"
+
+    for index in range(dataset.sizes["eclipse"]):
+        row = dataset.isel(eclipse=index)
+        time = np.datetime_as_string(row.time.values, unit="s").replace("T", " ")
+        lines.append(
+            f"{time:<21} {str(row.kind.values):<9} {float(row.umbral_magnitude):7.4f} "
+            f"{float(row.penumbral_magnitude):7.4f} {float(row.gamma):7.4f} "
+            f"{minutes(float(row.penumbral_duration)):>7} "
+            f"{minutes(float(row.partial_duration)):>7} {minutes(float(row.total_duration)):>7}"
+        )
+    return "\n".join(lines)
+
+
+def _write(dataset, path: str | None) -> None:
+    if path:
+        from skytorch.dataset import to_netcdf
+
+        print(f"wrote {to_netcdf(dataset, path)}")
+
+
+def _run_table(args: argparse.Namespace) -> int:
+    from skytorch.eclipse import lunar_eclipses
+
+    if args.start is None or args.end is None:
+        raise ValueError("table mode needs both --from START and --to END")
+    dataset = lunar_eclipses(args.start, args.end, enlargement=args.enlargement)
+    print(f"{dataset.sizes['eclipse']} lunar eclipses from {args.start} to {args.end} "
+          f"(enlargement: {args.enlargement}; times UTC)")
+    print(format_table(dataset))
+    _write(dataset, args.output)
+    return 0
+
+
+def _light_curve_model():
+    """``skytorch.eclipse.lunar.lunar_eclipse`` if that module is installed, else None."""
+    try:
+        module = importlib.import_module("skytorch.eclipse.lunar")
+    except ModuleNotFoundError as error:
+        if error.name == "skytorch.eclipse.lunar":
+            return None
+        raise
+    return getattr(module, "lunar_eclipse", None)
+
+
+def nearest_eclipse(date: str, enlargement: str = "danjon"):
+    """Circumstances of the lunar eclipse nearest to ``date`` (within 20 days)."""
+    from skytorch.eclipse import lunar_eclipses
+    from skytorch.ephemeris import parse_times
+
+    (moment,) = parse_times(date)
+    window = np.timedelta64(SEARCH_DAYS, "D")
+    dataset = lunar_eclipses(moment - window, moment + window, enlargement=enlargement)
+    if dataset.sizes["eclipse"] == 0:
+        raise ValueError(f"no lunar eclipse within {SEARCH_DAYS} days of {date}")
+    index = int(np.argmin(np.abs(dataset.time.values - moment)))
+    return dataset.isel(eclipse=[index])
+
+
+def _run_light_curve(args: argparse.Namespace, model) -> int:
+    """Single-date mode with the light-curve model: circumstances plus brightness."""
+    if args.png:
+        raise ValueError("--png is not available for the light-curve mode in this version")
+    dataset = model(args.date)
+    _write(dataset, args.output)
+    return 0
+
+
+def _run_circumstances(args: argparse.Namespace) -> int:
+    """Single-date mode without the light-curve model: circumstances and contacts."""
+    if args.png:
+        raise ValueError("--png needs the lunar-eclipse light-curve model")
+    dataset = nearest_eclipse(args.date, args.enlargement)
+    print(format_table(dataset))
+    row = dataset.isel(eclipse=0)
+    for name in ("p1", "u1", "u2", "time", "u3", "u4", "p4"):
+        value = row[name].values
+        label = "greatest" if name == "time" else name.upper()
+        text = "-" if np.isnat(value) else np.datetime_as_string(value, unit="s")
+        print(f"  {label:<9} {text}")
+    _write(dataset, args.output)
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``skytorch eclipse``."""
+    if args.date is not None and (args.start or args.end):
+        raise ValueError("give either DATE or --from/--to, not both")
+    if args.date is None:
+        return _run_table(args)
+    model = _light_curve_model()
+    if model is None:
+        logger.info("light-curve model not available: circumstances only")
+        return _run_circumstances(args)
+    return _run_light_curve(args, model)
