@@ -49,7 +49,7 @@ tensor([680., 550., 440.], dtype=torch.float64)
 
 from __future__ import annotations
 
-from functools import cache
+from functools import cache, lru_cache
 
 import numpy as np
 import torch
@@ -371,12 +371,33 @@ def _hat_weights(wavelength: torch.Tensor, fine: torch.Tensor) -> torch.Tensor:
     return weights
 
 
-def _projection(wavelength_nm, n_spectral: int, response_fine: torch.Tensor,
-                reference: str, dtype: torch.dtype) -> torch.Tensor:
+def _fine_response(response: str) -> torch.Tensor:
+    """Response functions (n_fine, k) on the 1-nm grid: ``"xyz"`` (k = 3), ``"B"``, ``"V"``."""
+    if response == "xyz":
+        return _table("cie1931_2deg_cmf.csv")[:, 1:4]
+    band_table = _band_table(response)
+    fine, _ = _fine_grid(torch.float64)
+    return _interp(fine, band_table[:, 0], band_table[:, 1:2])
+
+
+@lru_cache(maxsize=128)
+def _projection_matrix(wavelengths: tuple[float, ...], response: str,
+                       reference: str) -> torch.Tensor:
+    """Cached float64 projection matrix for sorted, distinct ``wavelengths``."""
+    ordered = torch.tensor(wavelengths, dtype=torch.float64)
+    fine, trapezoid = _fine_grid(torch.float64)
+    hat = _hat_weights(ordered, fine)
+    if reference == "solar":
+        hat = hat * solar_irradiance(fine).unsqueeze(-1) / solar_irradiance(ordered)
+    return hat.T @ (_fine_response(response) * trapezoid.unsqueeze(-1))
+
+
+def _projection(wavelength_nm, n_spectral: int, response: str, reference: str,
+                dtype: torch.dtype) -> torch.Tensor:
     """Matrix (n_wavelength, k): ∫ S(λ) r_k(λ) dλ for a spectrum sampled at ``wavelength_nm``.
 
-    ``response_fine`` is (n_fine, k) on the 1-nm grid. The spectrum is reconstructed
-    piecewise linearly, or piecewise linearly relative to the solar spectrum.
+    ``response`` names the response functions (:func:`_fine_response`). The spectrum is
+    reconstructed piecewise linearly, or piecewise linearly relative to the solar spectrum.
     """
     check_choice("reference", reference, REFERENCES)
     wavelength = _check_wavelength(wavelength_nm, dtype=torch.float64).detach()
@@ -394,11 +415,7 @@ def _projection(wavelength_nm, n_spectral: int, response_fine: torch.Tensor,
     ordered = wavelength[order]
     if bool((ordered[1:] == ordered[:-1]).any()):
         raise ValueError(f"wavelength_nm must not repeat values; got {wavelength.tolist()}")
-    fine, trapezoid = _fine_grid(torch.float64)
-    hat = _hat_weights(ordered, fine)
-    if reference == "solar":
-        hat = hat * solar_irradiance(fine).unsqueeze(-1) / solar_irradiance(ordered)
-    matrix_sorted = hat.T @ (response_fine.to(torch.float64) * trapezoid.unsqueeze(-1))
+    matrix_sorted = _projection_matrix(tuple(ordered.tolist()), response, reference)
     matrix = torch.empty_like(matrix_sorted)
     matrix[order] = matrix_sorted
     return matrix.to(dtype)
@@ -457,8 +474,7 @@ def spectrum_to_xyz(spectral_radiance, wavelength_nm, *, reference: str = "none"
     [0.313, 0.324]
     """
     values, dtype = _spectral_input("spectral_radiance", spectral_radiance, wavelength_nm)
-    table = _table("cie1931_2deg_cmf.csv")
-    matrix = _projection(wavelength_nm, values.shape[-1], table[:, 1:4], reference, dtype)
+    matrix = _projection(wavelength_nm, values.shape[-1], "xyz", reference, dtype)
     xyz = values @ matrix
     return xyz * LUMINOUS_EFFICACY_LM_PER_W if luminous else xyz
 
@@ -583,17 +599,16 @@ def spectrum_to_magnitude(spectral_flux, wavelength_nm, band: str = "V",
     """
     values, dtype = _spectral_input("spectral_flux", spectral_flux, wavelength_nm)
     check_range("spectral_flux", values, low=0.0, unit=" W m^-2 nm^-1")
-    band_table = _band_table(band)
+    _band_table(band)
     if isinstance(zero_point, str):
         check_choice("zero_point", zero_point, ZERO_POINTS)
         flux_zero = ZERO_POINT_FLUX_W_M2_NM[zero_point][band]
     else:
         flux_zero = float(check_range("zero_point", zero_point, low=0.0, low_inclusive=False,
                                       unit=" W m^-2 nm^-1"))
-    fine, trapezoid = _fine_grid(torch.float64)
-    response = _interp(fine, band_table[:, 0], band_table[:, 1:2])
-    matrix = _projection(wavelength_nm, values.shape[-1], response, reference, dtype)[:, 0]
-    normalisation = float((response[:, 0] * trapezoid).sum())
+    _, trapezoid = _fine_grid(torch.float64)
+    matrix = _projection(wavelength_nm, values.shape[-1], band, reference, dtype)[:, 0]
+    normalisation = float((_fine_response(band)[:, 0] * trapezoid).sum())
     mean_flux = values @ matrix / normalisation
     return -2.5 * torch.log10(mean_flux / flux_zero)
 

@@ -22,7 +22,9 @@ Backends
     Chunks run as tasks on ``dask.distributed``: a given ``client``, a scheduler at
     ``scheduler_address``, or a ``LocalCluster`` (threads in this process,
     ``n_workers`` workers of one thread each, default 2) started and shut down by the
-    call. Results are gathered, persisted and assembled in the calling process.
+    call. Results are gathered, persisted and assembled in the calling process. If a
+    chunk fails, the other chunks still run and are persisted before the first error is
+    raised (the serial backends stop at the first error).
 
 All backends give the same Dataset (bit-identical for element-wise ``fn``; a function
 whose reductions vectorise differently over a batch may differ at the rounding level in
@@ -322,13 +324,22 @@ def _run_dask(todo, compute, client, scheduler_address, n_workers, on_done) -> N
     with _dask_client(client, scheduler_address, n_workers) as active:
         futures = {active.submit(compute, start, stop, pure=False): (start, stop)
                    for start, stop in todo}
+        failure = None
         try:
             for future in as_completed(futures):
                 start, stop = futures[future]
-                on_done(start, stop, future.result())
+                try:
+                    chunk = future.result()
+                except Exception as error:  # keep the other chunks, raise at the end
+                    logger.error("sweep chunk %d:%d failed: %s", start, stop, error)
+                    failure = failure or error
+                    continue
+                on_done(start, stop, chunk)
         finally:
             for future in futures:
                 future.cancel()
+        if failure is not None:
+            raise failure
 
 
 # --- assembly ------------------------------------------------------------------------------

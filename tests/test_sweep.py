@@ -18,7 +18,7 @@ OZONE_DU = [250.0, 300.0, 350.0]
 WAVELENGTH_NM = torch.tensor([440.0, 550.0, 680.0], dtype=torch.float64)
 
 #: calls of the spied functions below (reset by each test that reads it)
-CALLS = {"count": 0, "fail_at": None}
+CALLS = {"count": 0, "fail_at": None, "fail_turbidity": None}
 
 
 def transmittance_like(turbidity, ozone_du):
@@ -26,6 +26,8 @@ def transmittance_like(turbidity, ozone_du):
     CALLS["count"] += 1
     if CALLS["fail_at"] is not None and CALLS["count"] >= CALLS["fail_at"]:
         raise RuntimeError("simulated interruption")
+    if turbidity == CALLS["fail_turbidity"]:
+        raise RuntimeError("simulated failure")
     turbidity = torch.as_tensor(turbidity, dtype=torch.float64).unsqueeze(-1)
     ozone = torch.as_tensor(ozone_du, dtype=torch.float64).unsqueeze(-1)
     tau = 0.0088 * (WAVELENGTH_NM / 1000.0) ** -4.05 + 0.05 * (turbidity - 1.0) + 1e-4 * ozone
@@ -44,10 +46,9 @@ def reference_loop():
 
 @pytest.fixture(autouse=True)
 def _reset_calls():
-    CALLS["count"] = 0
-    CALLS["fail_at"] = None
+    CALLS.update(count=0, fail_at=None, fail_turbidity=None)
     yield
-    CALLS["fail_at"] = None
+    CALLS.update(fail_at=None, fail_turbidity=None)
 
 
 def run(**options):
@@ -109,14 +110,16 @@ def test_resume_after_interruption(tmp_path):
 
 
 def test_resume_with_dask(tmp_path):
-    CALLS["fail_at"] = 5
-    with pytest.raises(RuntimeError, match="simulated interruption"):
-        run(backend="dask", n_workers=1, chunk_size=4, store=tmp_path)
-    assert len(list(tmp_path.glob("*/chunk_*.nc"))) == 1  # the first chunk finished
-    CALLS["fail_at"] = None
+    # every point with turbidity 3 fails: the dask backend still finishes and persists the
+    # other chunks (one turbidity value per chunk of 3 points) before raising
+    CALLS["fail_turbidity"] = 3.0
+    with pytest.raises(RuntimeError, match="simulated failure"):
+        run(backend="dask", n_workers=2, chunk_size=3, store=tmp_path)
+    assert len(list(tmp_path.glob("*/chunk_*.nc"))) == 3
+    CALLS["fail_turbidity"] = None
     CALLS["count"] = 0
-    ds = run(backend="dask", n_workers=1, chunk_size=4, store=tmp_path)
-    assert CALLS["count"] == 8
+    ds = run(backend="dask", n_workers=1, chunk_size=3, store=tmp_path)
+    assert CALLS["count"] == 3
     np.testing.assert_allclose(ds["transmittance"].values, reference_loop(), rtol=1e-14)
 
 

@@ -1,0 +1,140 @@
+"""Benchmark of parameter sweeps: plain loop vs sweep backends on a 10 x 10 grid.
+
+The swept function integrates a toy slant optical depth along straight rays through a
+spherical shell (exponential air and aerosol profiles, ozone tent; 15 wavelengths, 1000
+path steps, 32 zenith angles) for one turbidity and one ozone column: a few tens of ms of
+torch work per grid point. Rows:
+
+* plain loop — nested Python loops building the array by hand (the baseline);
+* sweep serial — ``st.sweep`` with one chunk (overhead of the Dataset assembly);
+* sweep serial, chunks of 10 — chunking overhead;
+* sweep broadcast — one batched call per slab of 10 points ((1, 1) turbidity, (1, 10) ozone);
+* sweep dask, 1 and 2 workers — LocalCluster threads (torch releases the GIL), chunks of 10
+  points.
+
+All rows but the first run torch with one intra-op thread, so that workers do not compete
+for the two cores.
+
+Run: ``python benchmarks/bench_sweep.py [--append]`` (``--append`` adds the table to
+``docs/benchmarks.md``). Timings on a shared 2-core machine are noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import skytorch as st  # noqa: E402
+from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+
+N = 10
+TURBIDITY = [1.0 + 0.5 * i for i in range(N)]
+OZONE_DU = [200.0 + 20.0 * i for i in range(N)]
+WAVELENGTH_NM = torch.linspace(360.0, 830.0, 15, dtype=torch.float64)
+PATH_M = torch.linspace(0.0, 600e3, 1000, dtype=torch.float64)
+ZENITH_RAD = torch.linspace(0.0, 1.55, 32, dtype=torch.float64)
+EARTH_RADIUS_M = 6.371e6
+
+
+def optical_depth(turbidity, ozone_du):
+    """Toy slant optical depth (..., zenith, wavelength) for broadcastable parameters."""
+    turbidity = torch.as_tensor(turbidity, dtype=torch.float64)[..., None, None, None]
+    ozone = torch.as_tensor(ozone_du, dtype=torch.float64)[..., None, None, None]
+    s = PATH_M[:, None, None]
+    mu = torch.cos(ZENITH_RAD)[:, None]
+    h = torch.sqrt(EARTH_RADIUS_M**2 + s**2 + 2 * EARTH_RADIUS_M * s * mu) - EARTH_RADIUS_M
+    wl = WAVELENGTH_NM / 550.0
+    rayleigh = 1.2e-5 * wl**-4.05 * torch.exp(-h / 8000.0)
+    aerosol = 1e-5 * (turbidity - 1.0) * wl**-1.3 * torch.exp(-h / 1200.0)
+    ozone_density = ozone * 1e-9 * torch.clamp(1 - (h - 25e3).abs() / 15e3, min=0.0)
+    extinction = rayleigh + aerosol + ozone_density  # (..., path, zenith, wavelength)
+    return torch.trapezoid(extinction, PATH_M, dim=-3)
+
+
+def plain_loop():
+    out = torch.empty(N, N, len(ZENITH_RAD), len(WAVELENGTH_NM), dtype=torch.float64)
+    for i, t in enumerate(TURBIDITY):
+        for j, o in enumerate(OZONE_DU):
+            out[i, j] = optical_depth(t, o)
+    return out
+
+
+def run_sweep(**options):
+    return st.sweep(optical_depth, progress=False, turbidity=TURBIDITY, ozone_du=OZONE_DU,
+                    **options)
+
+
+@contextlib.contextmanager
+def torch_threads(count: int | None):
+    previous = torch.get_num_threads()
+    if count is not None:
+        torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args(argv)
+
+    reference = plain_loop()
+    # One intra-op torch thread everywhere except the first row: on a shared, oversubscribed
+    # 2-core machine OpenMP's barriers make 2-thread torch calls up to 10x slower.
+    cases = [
+        ("plain loop, torch default threads", None, plain_loop),
+        ("plain loop", 1, plain_loop),
+        ("sweep serial", 1, lambda: run_sweep()),
+        ("sweep serial, chunks of 10", 1, lambda: run_sweep(chunk_size=10)),
+        ("sweep broadcast, slabs of 10", 1,
+         lambda: run_sweep(backend="broadcast", chunk_size=10)),
+        ("sweep dask, 1 worker", 1, lambda: run_sweep(backend="dask", n_workers=1,
+                                                      chunk_size=10)),
+        ("sweep dask, 2 workers", 1, lambda: run_sweep(backend="dask", n_workers=2,
+                                                       chunk_size=10)),
+    ]
+    rows = []
+    baseline = {}
+    for label, threads, function in cases:
+        with torch_threads(threads):
+            result = function()
+            values = result if isinstance(result, torch.Tensor) else torch.from_numpy(
+                result["result"].values)
+            identical = bool(torch.equal(values, reference))
+            seconds = median_seconds(function, repeat=args.repeat, warmup=0)
+        if label == "plain loop":
+            baseline["plain"] = seconds
+        rows.append({"case (10 x 10 grid)": label, "torch threads": threads or
+                     torch.get_num_threads(), "median [s]": seconds,
+                     "identical to loop": "yes" if identical else "no"})
+    for row in rows:
+        row["vs plain loop"] = row["median [s]"] / baseline["plain"]
+    dask_1 = rows[-2]["median [s]"]
+    dask_2 = rows[-1]["median [s]"]
+    table = markdown_table(rows)
+    text = (
+        f"\n## Parameter sweeps (`benchmarks/bench_sweep.py`)\n\n"
+        f"Machine: {machine_description()}. Medians of {args.repeat} runs; the machine is "
+        f"shared, so timings are noisy.\n\n{table}\n\n"
+        f"Dask speed-up with 2 workers vs 1 (one torch thread each): {dask_1 / dask_2:.2f}x. "
+        f"Target (issue 7): a 10 x 10 sweep of the eclipse light curve within 60 s; this "
+        f"toy function stands in for it.\n"
+    )
+    print(text)
+    if args.append:
+        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as out:
+            out.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
