@@ -27,12 +27,12 @@ def test_physical_earthshine_new_moon():
 
 
 def test_muller_polynomial_shape_vs_physical():
-    """Both peak at new Moon; normalised shapes differ by < 0.15 (of the new-Moon value)."""
+    """Both peak at new Moon; normalised shapes differ by < 0.08 (measured 0.069 at 90°)."""
     phi = torch.linspace(0.5, math.pi, 50, dtype=torch.float64)
     muller = es.earthshine_muller2012(phi)
     physical = es.earthshine_irradiance_ratio(phi)
     assert int(torch.argmax(muller)) == 49 and int(torch.argmax(physical)) == 49
     shape_difference = muller / muller[-1] - physical / physical[-1]
-    assert float(shape_difference.abs().max()) < 0.15
+    assert float(shape_difference.abs().max()) < 0.08
     # published value at new Moon: −0.0061 π³ + 0.0289 π²
     assert abs(float(muller[-1]) - (-0.0061 * math.pi**3 + 0.0289 * math.pi**2)) < 1e-12
