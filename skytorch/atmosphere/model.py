@@ -227,7 +227,9 @@ class Atmosphere(nn.Module):
                                                       reference_temperature_k),
         }
         for key, value in values.items():
-            self.register_buffer(key, value.detach().to(torch.float64).clone())
+            # not detached: parameters given as tensors with requires_grad stay
+            # differentiable (e.g. fitting turbidity to observed extinction)
+            self.register_buffer(key, value.to(torch.float64).clone())
         self.batch_shape = torch.broadcast_shapes(*(v.shape for v in values.values()))
 
     # ------------------------------------------------------------------ presets

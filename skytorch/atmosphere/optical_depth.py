@@ -234,7 +234,7 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     n_steps = check_int("n_steps", DEFAULT_STEPS[method] if n_steps is None else n_steps, 1)
     legs = [leg for leg in ray_legs(r, mu, planet_radius, top_radius)
             if bool((leg["length"] > 0).any())]
-    zero = torch.zeros_like(r * mu)
+    zero = 0.0 * (r * mu)  # keeps the graph: empty paths have a zero (not missing) gradient
     if method == "trapezoid":
         # n_steps uniform steps along each leg
         total = zero
