@@ -1,0 +1,506 @@
+"""Single-scattering skyglow kernel b(θ, φ, r, h_c, h_o, λ) of one ground light source.
+
+A source of unit luminous (or radiant) flux stands at ground distance ``r`` and altitude
+``h_c`` in azimuth 0; an observer at altitude ``h_o`` looks in azimuth ``θ`` and elevation
+``φ``. The kernel is the radiance scattered once towards the observer along the view ray,
+with extinction on both legs, the spherical Earth and the atmosphere's Rayleigh and
+aerosol phase functions (Dobashi et al. 2023, eq. 1–2):
+
+.. math::
+
+    b = \\int_0^{u_{top}} T(O, P)\\, \\sum_s \\beta_s(P)\\, p_s(\\cos\\Theta)\\,
+        \\frac{I(\\psi)\\, T(S, P)}{|P - S|^2 + a^2}\\, du ,
+
+where ``P = O + u d`` is a point of the view ray, ``I(ψ)`` the upward emission function of
+the source [sr^-1 per unit flux] at emission zenith angle ``ψ``, ``Θ`` the scattering
+angle, ``T`` transmittances and ``a`` the source radius that regularises ``r → 0``.
+As in Dobashi et al. §3.2 the integral is split at the point ``u_c`` of the view ray
+closest to the source; each part is integrated by Gauss–Legendre quadrature after the
+substitution ``u = u_c + ρ tan t`` (``ρ`` the distance of closest approach), which maps
+the ``1/|P - S|^2`` peak onto a flat integrand. The number of nodes per part is chosen by
+:func:`converged_steps` from a relative tolerance.
+
+Optical depths between arbitrary points are differences of a two-dimensional table of
+the optical depth to the top of the atmosphere, ``τ(A→B) = τ_top(r_A, μ_A) − τ_top(r_B,
+μ_B)`` for upward legs (Bruneton & Neyret 2008), tabulated once from the atmosphere's
+``extinction_coefficient`` by quadrature along each table ray.
+
+References
+----------
+1. Dobashi, Y., Ishikawa, N. & Iwasaki, K. 2023, "Efficient Visualization of Light
+   Pollution for the Night Sky", ACM Trans. Graph. 42, 219, doi:10.1145/3618337.
+2. Garstang, R. H. 1986, "Model for artificial night-sky illumination", PASP 98, 364,
+   doi:10.1086/131768.
+3. Bruneton, E. & Neyret, F. 2008, "Precomputed Atmospheric Scattering", Computer
+   Graphics Forum 27, 1079, doi:10.1111/j.1467-8659.2008.01245.x.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping
+
+import numpy as np
+import torch
+
+from skytorch._validate import (
+    as_tensor,
+    check_choice,
+    check_int,
+    check_positive,
+    check_range,
+    common_dtype,
+)
+
+__all__ = [
+    "EMISSION_FUNCTIONS",
+    "GARSTANG_F",
+    "GARSTANG_G",
+    "Medium",
+    "converged_steps",
+    "emission_intensity",
+    "kernel_radiance",
+]
+
+logger = logging.getLogger(__name__)
+
+#: upward emission functions of a lit area, selectable by name
+EMISSION_FUNCTIONS = ("garstang1986", "lambertian", "dobashi2023")
+
+#: Garstang 1986: fraction of the light emitted directly upwards by the fixtures
+GARSTANG_F = 0.10
+#: Garstang 1986: reflectance of the ground for the downward light
+GARSTANG_G = 0.15
+#: normalisation of Garstang's ψ^4 term: 1 / ∫_0^{π/2} ψ^4 sin ψ dψ = 0.554 (Garstang 1986)
+_GARSTANG_PSI4_NORM = 1.0 / (4.0 * ((math.pi / 2.0) ** 3 - 6.0 * (math.pi / 2.0 - 1.0)))
+#: default exponent of the zenith beam cos^n ψ representing Dobashi's upward emission
+DOBASHI_BEAM_EXPONENT = 8.0
+
+
+def emission_intensity(cos_psi: torch.Tensor, emission: str = "garstang1986",
+                       parameters: Mapping[str, float] | None = None) -> torch.Tensor:
+    """Upward intensity of a lit ground element per unit emitted flux [sr^-1].
+
+    Parameters
+    ----------
+    cos_psi : Tensor (...)
+        Cosine of the emission zenith angle ψ (1 = straight up). Directions below the
+        local horizon (``cos_psi <= 0``) receive no light.
+    emission : {"garstang1986", "lambertian", "dobashi2023"}
+        ``"garstang1986"``: :math:`I = [2G(1-F)\\cos ψ + 0.554 F ψ^4] / (2π)` with the
+        fraction ``F`` of light sent directly upwards (default 0.10) and ground
+        reflectance ``G`` (default 0.15); the upward total is ``G(1 − F) + F`` of the flux.
+        ``"lambertian"``: :math:`\\cos ψ / π`, all flux upwards.
+        ``"dobashi2023"``: light emitted towards the zenith (Dobashi et al. 2023 §3.1),
+        represented by the normalised beam :math:`(n + 1) \\cos^n ψ / (2π)` with
+        ``n = beam_exponent`` (default 8): an infinitely thin beam would never cross a
+        view ray of finite elevation.
+    parameters : mapping, optional
+        ``{"F": .., "G": ..}`` or ``{"beam_exponent": ..}``.
+
+    Returns
+    -------
+    Tensor (...)
+        Intensity [sr^-1] per unit flux.
+
+    Examples
+    --------
+    >>> import torch
+    >>> float(emission_intensity(torch.tensor(1.0), "lambertian")) * math.pi
+    1.0
+    """
+    check_choice("emission", emission, EMISSION_FUNCTIONS)
+    parameters = dict(parameters or {})
+    up = cos_psi > 0.0
+    c = torch.where(up, cos_psi, torch.zeros_like(cos_psi))
+    if emission == "lambertian":
+        value = c / math.pi
+    elif emission == "dobashi2023":
+        n = float(parameters.get("beam_exponent", DOBASHI_BEAM_EXPONENT))
+        value = (n + 1.0) / (2.0 * math.pi) * c.pow(n)
+    else:
+        f = float(parameters.get("F", GARSTANG_F))
+        g = float(parameters.get("G", GARSTANG_G))
+        psi = torch.acos(c.clamp(0.0, 1.0))
+        value = (2.0 * g * (1.0 - f) * c + _GARSTANG_PSI4_NORM * f * psi.pow(4)) / (2.0 * math.pi)
+    return torch.where(up, value, torch.zeros_like(value))
+
+
+#: floor of the tabulated optical depth (the table stores its logarithm)
+_TINY_OPTICAL_DEPTH = 1e-30
+
+
+def _gauss_legendre(n: int, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
+    """Nodes and weights on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    return (torch.as_tensor(0.5 * (x + 1.0), dtype=dtype),
+            torch.as_tensor(0.5 * w, dtype=dtype))
+
+
+class Medium:
+    """Tables of an atmosphere needed by the kernel, at fixed wavelengths.
+
+    Parameters
+    ----------
+    atmosphere : object
+        Anything with ``planet_radius_m``, ``top_altitude_m``,
+        ``extinction_coefficient(altitude_m, wavelength_nm)`` and
+        ``scattering_coefficients(altitude_m, wavelength_nm)`` (a dict of species) — the
+        :class:`skytorch.atmosphere.Atmosphere` contract.
+    wavelength_nm : Tensor (wavelength,)
+        Wavelengths of the kernel [nm].
+    phase_functions : mapping of str to callable, optional
+        Phase function [sr^-1] of each scattering species, called with ``cos_theta``;
+        default Rayleigh from :mod:`skytorch.atmosphere.scattering` and the atmosphere's
+        ``aerosol_phase``.
+    n_altitude : int
+        Nodes of the altitude tables (scattering coefficients) [default 4001].
+    n_table_radius, n_table_mu : int
+        Size of the optical-depth-to-top table (Bruneton's parametrisation).
+    n_table_steps : int
+        Quadrature nodes along each table ray.
+
+    Notes
+    -----
+    Only an atmosphere with a scalar parameter set is supported (one turbidity); sweep
+    turbidity by building one model per value.
+    """
+
+    def __init__(self, atmosphere, wavelength_nm, *,
+                 phase_functions: Mapping[str, Callable] | None = None,
+                 n_altitude: int = 4001, n_table_radius: int = 96, n_table_mu: int = 256,
+                 n_table_steps: int = 256):
+        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
+        check_positive("wavelength_nm", wavelength)
+        self.wavelength_nm = wavelength
+        self.planet_radius_m = float(atmosphere.planet_radius_m)
+        self.top_altitude_m = float(atmosphere.top_altitude_m)
+        self.top_radius_m = self.planet_radius_m + self.top_altitude_m
+        if phase_functions is None:
+            from skytorch.atmosphere.scattering import rayleigh_phase
+
+            phase_functions = {"rayleigh": rayleigh_phase, "aerosol": atmosphere.aerosol_phase}
+        self.phase_functions = dict(phase_functions)
+        altitude = torch.linspace(0.0, self.top_altitude_m, n_altitude, dtype=torch.float64)
+        self.altitude_step_m = float(altitude[1] - altitude[0])
+        with torch.no_grad():
+            scattering = atmosphere.scattering_coefficients(altitude, wavelength)
+            missing = set(self.phase_functions) - set(scattering)
+            if missing:
+                raise ValueError(f"atmosphere has no scattering coefficient for {missing}")
+            self.species = tuple(self.phase_functions)
+            #: (species, altitude, wavelength) [1/m]
+            self.scattering_table = torch.stack(
+                [_scalar_parameters(scattering[s], altitude, wavelength) for s in self.species])
+            #: (altitude, wavelength) [1/m]
+            self.extinction_table = _scalar_parameters(
+                atmosphere.extinction_coefficient(altitude, wavelength), altitude, wavelength)
+            self.optical_depth_table = self._optical_depth_table(
+                n_table_radius, n_table_mu, n_table_steps)
+
+    # --- optical depth to the top of the atmosphere --------------------------------------
+    def _horizon_distance(self, radius):
+        return torch.sqrt((radius**2 - self.planet_radius_m**2).clamp_min(0.0))
+
+    def _optical_depth_table(self, n_r, n_mu, n_steps):
+        big_h = math.sqrt(self.top_radius_m**2 - self.planet_radius_m**2)
+        x_r = torch.linspace(0.0, 1.0, n_r, dtype=torch.float64)
+        x_mu = torch.linspace(0.0, 1.0, n_mu, dtype=torch.float64)
+        rho = x_r * big_h
+        radius = torch.sqrt(rho**2 + self.planet_radius_m**2).clamp(max=self.top_radius_m)
+        d_min = (self.top_radius_m - radius)[:, None]
+        d_max = torch.sqrt((self.top_radius_m**2 - radius**2).clamp_min(0.0))[:, None]
+        distance = d_min + x_mu[None, :] * (d_max - d_min)  # (r, mu)
+        # ray from radius r with cosine mu reaching the top after `distance`
+        mu = torch.where(distance > 0, (self.top_radius_m**2 - radius[:, None] ** 2
+                                        - distance**2) / (2.0 * radius[:, None] * distance
+                                                          ).clamp_min(1e-30),
+                         torch.ones_like(distance))
+        # nodes clustered near the start of the ray where the air is densest: s = D w^2
+        panels, order = max(n_steps // 8, 1), 8
+        xg, wg = _gauss_legendre(order, torch.float64)
+        edges = torch.linspace(0.0, 1.0, panels + 1, dtype=torch.float64)
+        w_nodes = (edges[:-1, None] + (edges[1:] - edges[:-1])[:, None] * xg).reshape(-1)
+        w_weights = ((edges[1:] - edges[:-1])[:, None] * wg).reshape(-1)
+        s = distance[..., None] * w_nodes**2
+        ds = distance[..., None] * 2.0 * w_nodes * w_weights
+        r_node = torch.sqrt(radius[:, None, None] ** 2 + s**2
+                            + 2.0 * radius[:, None, None] * mu[..., None] * s)
+        h_node = (r_node - self.planet_radius_m).clamp(0.0, self.top_altitude_m)
+        tau = torch.zeros(n_r, n_mu, self.wavelength_nm.numel(), dtype=torch.float64)
+        for i in range(n_r):
+            k = _interpolate_altitude(self.extinction_table, h_node[i], self.altitude_step_m)
+            tau[i] = (k * ds[i][..., None]).sum(dim=-2)
+        # stored as a logarithm: exact interpolation for an exponential atmosphere
+        return torch.log(tau.clamp_min(_TINY_OPTICAL_DEPTH))
+
+    def optical_depth_to_top(self, radius, mu):
+        """Optical depth from radius ``r`` along direction cosine ``μ ≥ 0`` to the top.
+
+        Parameters
+        ----------
+        radius : Tensor (...)
+            Distance from the planet centre [m].
+        mu : Tensor (...)
+            Cosine of the zenith angle of the ray (clamped to [0, 1]: downward legs carry
+            no light in the kernel).
+
+        Returns
+        -------
+        Tensor (..., wavelength)
+        """
+        dtype = radius.dtype
+        table = self.optical_depth_table.to(dtype)
+        n_r, n_mu, n_wl = table.shape
+        big_h = math.sqrt(self.top_radius_m**2 - self.planet_radius_m**2)
+        radius = radius.clamp(self.planet_radius_m, self.top_radius_m)
+        mu = mu.clamp(0.0, 1.0)
+        rho = self._horizon_distance(radius)
+        distance = -radius * mu + torch.sqrt(
+            (radius**2 * mu**2 + self.top_radius_m**2 - radius**2).clamp_min(0.0))
+        d_min = self.top_radius_m - radius
+        d_max = torch.sqrt((self.top_radius_m**2 - radius**2).clamp_min(0.0))
+        x_mu = ((distance - d_min) / (d_max - d_min).clamp_min(1e-9)).clamp(0.0, 1.0)
+        x_r = (rho / big_h).clamp(0.0, 1.0)
+        fr = x_r * (n_r - 1)
+        fm = x_mu * (n_mu - 1)
+        i0 = fr.floor().clamp(0, n_r - 2).long()
+        j0 = fm.floor().clamp(0, n_mu - 2).long()
+        wr = (fr - i0.to(dtype)).unsqueeze(-1)
+        wm = (fm - j0.to(dtype)).unsqueeze(-1)
+        flat = table.reshape(n_r * n_mu, n_wl)
+        base = i0 * n_mu + j0
+        t00 = flat[base]
+        t01 = flat[base + 1]
+        t10 = flat[base + n_mu]
+        t11 = flat[base + n_mu + 1]
+        log_tau = (1 - wr) * ((1 - wm) * t00 + wm * t01) + wr * ((1 - wm) * t10 + wm * t11)
+        return torch.exp(log_tau)
+
+    def scattering(self, altitude_m):
+        """Scattering coefficients of each species at ``altitude_m`` (..., species, wl)."""
+        table = self.scattering_table.to(altitude_m.dtype)
+        return _interpolate_altitude(table.movedim(0, 1), altitude_m, self.altitude_step_m)
+
+
+def _interpolate_altitude(table: torch.Tensor, altitude_m: torch.Tensor, step_m: float):
+    """Linear interpolation of ``table`` (altitude, *trailing) on a uniform grid from 0."""
+    n = table.shape[0]
+    f = (altitude_m / step_m).clamp(0.0, n - 1.0)
+    i0 = f.floor().clamp(0, n - 2).long()
+    w = (f - i0.to(f.dtype)).reshape(*f.shape, *([1] * (table.ndim - 1)))
+    lower = table[i0]
+    return lower + w * (table[i0 + 1] - lower)
+
+
+def _scalar_parameters(value: torch.Tensor, altitude: torch.Tensor, wavelength: torch.Tensor):
+    """Reduce an atmosphere output to shape (*altitude.shape, n_wl); reject batched ones."""
+    value = torch.as_tensor(value, dtype=torch.float64)
+    target = (*altitude.shape, wavelength.numel())
+    if value.shape != target:
+        try:
+            value = value.expand(target)
+        except RuntimeError as error:
+            raise ValueError(
+                f"the skyglow kernel needs an atmosphere with one parameter set; its "
+                f"coefficients have shape {tuple(value.shape)}, expected {target}") from error
+    return value
+
+
+def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
+                    source_altitude_m=0.0, observer_altitude_m=0.0, *,
+                    emission: str = "garstang1986",
+                    emission_parameters: Mapping[str, float] | None = None,
+                    n_steps: int = 16, source_radius_m: float = 10.0,
+                    chunk_size: int = 16384) -> torch.Tensor:
+    """Radiance scattered once towards the observer from a unit-flux ground source.
+
+    Parameters
+    ----------
+    medium : Medium
+        Atmosphere tables at the wavelengths of the result.
+    azimuth_rad : Tensor (...)
+        Azimuth θ of the view ray, measured from the direction of the source [rad].
+    elevation_rad : Tensor (...)
+        Elevation φ of the view ray above the observer's horizon, in [0, π/2] [rad].
+    distance_m : Tensor (...)
+        Ground (arc) distance r from the observer to the source [m], ≥ 0.
+    source_altitude_m, observer_altitude_m : Tensor (...)
+        Altitudes h_c and h_o above the planet surface [m].
+    emission : str
+        Upward emission function, one of :data:`EMISSION_FUNCTIONS`.
+    emission_parameters : mapping, optional
+        Parameters of the emission function (see :func:`emission_intensity`).
+    n_steps : int
+        Gauss–Legendre nodes on each side of the point closest to the source.
+    source_radius_m : float
+        Radius ``a`` of the lit area that replaces the point source's ``1/s^2`` by
+        ``1/(s^2 + a^2)`` [m]; keeps the kernel finite for a source at the observer.
+    chunk_size : int
+        Number of geometries evaluated at once (bounds memory).
+
+    Returns
+    -------
+    Tensor (..., wavelength)
+        Radiance per unit emitted flux [m^-2 sr^-1] (with flux in lm: cd m^-2 per lm).
+        Broadcast shape of the geometric inputs, wavelengths of ``medium`` trailing;
+        dtype of the inputs (default float64).
+
+    Notes
+    -----
+    Only the part of each view ray below the top of the atmosphere contributes; view rays
+    start upwards (``φ ≥ 0``) so no ray reaches the ground.
+
+    Examples
+    --------
+    >>> from skytorch.skyglow.kernel import Medium, kernel_radiance  # doctest: +SKIP
+    """
+    check_choice("emission", emission, EMISSION_FUNCTIONS)
+    n_steps = check_int("n_steps", n_steps, low=1, high=4096)
+    chunk_size = check_int("chunk_size", chunk_size, low=1)
+    check_positive("source_radius_m", source_radius_m, unit=" m")
+    inputs = (("azimuth_rad", azimuth_rad), ("elevation_rad", elevation_rad),
+              ("distance_m", distance_m), ("source_altitude_m", source_altitude_m),
+              ("observer_altitude_m", observer_altitude_m))
+    dtype = common_dtype(*(v for _, v in inputs))
+    values = [as_tensor(n, v, dtype=dtype) for n, v in inputs]
+    check_range("elevation_rad", values[1], -1e-9, math.pi / 2 + 1e-9, unit=" rad")
+    check_range("distance_m", values[2], 0.0, unit=" m")
+    check_range("source_altitude_m", values[3], 0.0, medium.top_altitude_m, unit=" m")
+    check_range("observer_altitude_m", values[4], 0.0, medium.top_altitude_m, unit=" m")
+    shape = torch.broadcast_shapes(*(v.shape for v in values))
+    flat = [v.expand(shape).reshape(-1) for v in values]
+    n = flat[0].numel()
+    xg, wg = _gauss_legendre(n_steps, dtype)
+    out = []
+    for start in range(0, max(n, 1), chunk_size):
+        part = [v[start:start + chunk_size] for v in flat]
+        out.append(_kernel_chunk(medium, *part, xg, wg, emission, emission_parameters,
+                                 float(source_radius_m)))
+    result = torch.cat(out) if out else torch.zeros(0, medium.wavelength_nm.numel(),
+                                                     dtype=dtype)
+    return result.reshape(*shape, medium.wavelength_nm.numel())
+
+
+def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_parameters, a):
+    """The quadrature for a flat batch of geometries: returns (n, wavelength)."""
+    big_r = medium.planet_radius_m
+    # frame: observer above the origin, Earth centre at (0, 0, -R), source in azimuth 0
+    alpha = r / big_r
+    rs = big_r + h_c
+    sx = rs * torch.sin(alpha)
+    sz = rs * torch.cos(alpha) - big_r
+    ro = big_r + h_o
+    cphi, sphi = torch.cos(phi), torch.sin(phi)
+    dx, dy, dz = cphi * torch.cos(theta), cphi * torch.sin(theta), sphi
+    oz = h_o
+    # closest approach of the view ray to the source
+    vx, vz = sx, sz - oz
+    u_proj = vx * dx + vz * dz
+    u_c = u_proj.clamp_min(0.0)
+    dist2 = vx**2 + vz**2
+    rho2 = (dist2 - u_c * (2.0 * u_proj - u_c)).clamp_min(0.0)
+    rho_e = torch.sqrt(rho2 + a * a)
+    u_top = -ro * sphi + torch.sqrt((ro**2 * sphi**2 + medium.top_radius_m**2 - ro**2)
+                                    .clamp_min(0.0))
+    # the lit part of the ray lies above the source's horizon plane (n_S . (P - S) > 0):
+    # integrating only there keeps a discontinuous emission function (Garstang's ψ^4 term
+    # at ψ = 90°) out of the quadrature
+    nsx, nsz = torch.sin(alpha), torch.cos(alpha)
+    height_o = rs - ro * nsz  # n_S . (S - O)
+    d_n = dx * nsx + dz * nsz
+    safe = torch.where(d_n.abs() > 1e-15, d_n, torch.full_like(d_n, 1e-15))
+    u_h = (height_o / safe).clamp(0.0)
+    u_h = torch.minimum(u_h, u_top)
+    all_lit = height_o < 0
+    u_lo = torch.where(d_n > 0, u_h, torch.zeros_like(u_h))
+    u_hi = torch.where(d_n < 0, torch.where(height_o < 0, u_h, torch.zeros_like(u_h)), u_top)
+    u_lo = torch.where(d_n.abs() <= 1e-15, torch.zeros_like(u_lo), u_lo)
+    u_hi = torch.where(d_n.abs() <= 1e-15, torch.where(all_lit, u_top, torch.zeros_like(u_hi)),
+                       u_hi)
+    t_lo = torch.atan((u_lo - u_c) / rho_e)
+    t_hi = torch.atan((u_hi - u_c) / rho_e)
+    start_b = t_lo.clamp_min(0.0)
+    length_a = (torch.minimum(t_hi, torch.zeros_like(t_hi)) - t_lo).clamp_min(0.0)
+    length_b = (t_hi - start_b).clamp_min(0.0)
+    # nodes on the parts before and after the point closest to the source
+    t = torch.cat([t_lo[:, None] + length_a[:, None] * xg,
+                   start_b[:, None] + length_b[:, None] * xg], dim=1)
+    wt = torch.cat([length_a[:, None] * wg, length_b[:, None] * wg], dim=1)
+    tan_t = torch.tan(t)
+    u = (u_c[:, None] + rho_e[:, None] * tan_t).clamp(0.0)
+    du = wt * rho_e[:, None] * (1.0 + tan_t**2)
+    # points on the view ray
+    px = u * dx[:, None]
+    py = u * dy[:, None]
+    pz = oz[:, None] + u * dz[:, None]
+    cz = pz + big_r
+    rp = torch.sqrt(px**2 + py**2 + cz**2)
+    hp = rp - big_r
+    # source leg
+    ex, ey, ez = px - sx[:, None], py, pz - sz[:, None]
+    s2 = ex**2 + ey**2 + ez**2
+    s_len = torch.sqrt(s2).clamp_min(1e-12)
+    ex, ey, ez = ex / s_len, ey / s_len, ez / s_len
+    cos_psi = ex * nsx[:, None] + ez * nsz[:, None]
+    intensity = emission_intensity(cos_psi, emission, emission_parameters)
+    cos_scatter = -(ex * dx[:, None] + ey * dy[:, None] + ez * dz[:, None])
+    mu_p_src = (ex * px + ey * py + ez * cz) / rp
+    mu_p_view = (dx[:, None] * px + dy[:, None] * py + dz[:, None] * cz) / rp
+    rs_b = rs[:, None].expand_as(rp)
+    tau_src = (medium.optical_depth_to_top(rs_b, cos_psi)
+               - medium.optical_depth_to_top(rp, mu_p_src)).clamp_min(0.0)
+    tau_obs = (medium.optical_depth_to_top(ro, sphi)[:, None]
+               - medium.optical_depth_to_top(rp, mu_p_view)).clamp_min(0.0)
+    beta = medium.scattering(hp)  # (n, nodes, species, wl)
+    phase = torch.stack([medium.phase_functions[s](cos_scatter).to(beta.dtype)
+                         for s in medium.species], dim=-1)  # (n, nodes, species)
+    scatter = (beta * phase[..., None]).sum(dim=-2)  # (n, nodes, wl)
+    geometric = intensity * du / (s2 + a * a)
+    integrand = scatter * torch.exp(-(tau_src + tau_obs)) * geometric[..., None]
+    return integrand.sum(dim=1)
+
+
+def converged_steps(medium: Medium, tolerance: float = 1e-3, *, probe=None,
+                    max_steps: int = 256, **kernel_arguments) -> tuple[int, float]:
+    """Smallest number of Gauss nodes whose kernel agrees with twice as many nodes.
+
+    Parameters
+    ----------
+    medium : Medium
+    tolerance : float
+        Target maximum relative change of the kernel (over the probe geometries and
+        wavelengths) when the node count is doubled.
+    probe : tuple of Tensors, optional
+        ``(azimuth, elevation, distance, source_altitude, observer_altitude)`` geometries
+        on which convergence is checked; default a small spread over the sky.
+    max_steps : int
+        Upper limit.
+    **kernel_arguments
+        Passed to :func:`kernel_radiance` (emission, source_radius_m, ...).
+
+    Returns
+    -------
+    (n_steps, relative_change)
+    """
+    check_range("tolerance", tolerance, 0.0, 1.0, low_inclusive=False)
+    if probe is None:
+        az = torch.linspace(0.0, math.pi, 7, dtype=torch.float64)
+        el = torch.tensor([0.01, 0.1, 0.4, 1.0, 1.55], dtype=torch.float64)
+        dist = torch.tensor([30.0, 1e3, 1e4, 5e4], dtype=torch.float64)
+        probe = (az[:, None, None], el[None, :, None], dist[None, None, :], 0.0, 0.0)
+    n = 4
+    previous = kernel_radiance(medium, *probe, n_steps=n, **kernel_arguments)
+    change = float("inf")
+    while n < max_steps:
+        current = kernel_radiance(medium, *probe, n_steps=2 * n, **kernel_arguments)
+        scale = current.abs().amax().clamp_min(1e-300)
+        change = float(((current - previous).abs() / (current.abs() + 1e-6 * scale)).max())
+        logger.debug("kernel quadrature: %d -> %d nodes, relative change %.3g", n, 2 * n,
+                     change)
+        if change <= tolerance:
+            return n, change
+        n *= 2
+        previous = current
+    return n, change

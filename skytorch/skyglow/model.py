@@ -1,0 +1,729 @@
+"""Skyglow of whole cities by PCA + azimuthal FFT convolution (Dobashi et al. 2023 §3.3).
+
+:meth:`SkyglowModel.precompute` tabulates the single-scattering kernel
+(:mod:`skytorch.skyglow.kernel`) on a grid of view azimuths θ, elevations φ, source
+distances r, source altitudes h_c and observer altitudes h_o, compresses the images of
+each observer altitude with PCA (:mod:`skytorch.skyglow.basis`) and keeps the basis
+images' Fourier transforms over azimuth. :meth:`SkyglowModel.render` then evaluates
+
+.. math::
+
+    L(θ, φ) = \\sum_k \\mathcal F^{-1}_θ\\big[\\mathcal F_θ[H_k]\\,\\mathcal F_θ[B_k]\\big],
+    \\qquad H_k(θ_c) = \\sum_{r, h_c} F(θ_c, r, h_c)\\, c_k(r, h_c)
+
+(eq. 7–9, with eq. 8's radial integral as a sum over the polar cells' flux ``F``).
+
+Conventions: ``x`` is east and ``y`` north [m]; azimuth is measured from north through
+east; elevation cells are centred, ``φ_j = (j + ½) 90°/N_φ``; azimuths are
+``θ_i = i 360°/N_θ``. A lighting cell's flux is distributed (bilinearly, conserving flux)
+over the four polar nodes around it — in azimuth, distance and, with a terrain, source
+altitude; cells beyond ``max_distance_m`` are ignored and cells closer than the first
+distance node are assigned to it.
+
+The kernel is symmetric about the source's azimuth, b(θ) = b(−θ): only
+``N_θ//2 + 1`` azimuths are integrated and the rest mirrored, and the bases' Fourier
+transforms are real, so only their real parts are stored.
+
+References
+----------
+1. Dobashi, Y., Ishikawa, N. & Iwasaki, K. 2023, ACM Trans. Graph. 42, 219,
+   doi:10.1145/3618337.
+2. Garstang, R. H. 1986, PASP 98, 364, doi:10.1086/131768.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import sys
+import time
+from collections.abc import Mapping
+
+import numpy as np
+import torch
+from torch import nn
+
+from skytorch._validate import as_tensor, check_choice, check_int, check_positive, check_range
+from skytorch.skyglow.basis import fit_basis, resolve_components
+from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
+
+__all__ = ["DISTANCE_SPACINGS", "SkyglowModel", "light_map_arrays"]
+
+logger = logging.getLogger(__name__)
+
+#: how the distance nodes are spaced
+DISTANCE_SPACINGS = ("linear", "quadratic")
+
+REFERENCES = (
+    "Dobashi, Y., Ishikawa, N. & Iwasaki, K. 2023, Efficient Visualization of Light "
+    "Pollution for the Night Sky, ACM Trans. Graph. 42, 219, doi:10.1145/3618337",
+    "Garstang, R. H. 1986, Model for artificial night-sky illumination, PASP 98, 364, "
+    "doi:10.1086/131768",
+    "Falchi, F. et al. 2016, The new world atlas of artificial night sky brightness, "
+    "Sci. Adv. 2, e1600377, doi:10.1126/sciadv.1600377",
+)
+
+
+def _grid(n: int, value_range) -> torch.Tensor:
+    low, high = (float(v) for v in value_range)
+    if n == 1:
+        return torch.tensor([low], dtype=torch.float64)
+    return torch.linspace(low, high, n, dtype=torch.float64)
+
+
+def distance_edges(max_distance_m: float, n_distance: int, spacing: str) -> torch.Tensor:
+    """Edges of the distance cells [m] (n_distance + 1,)."""
+    check_choice("distance_spacing", spacing, DISTANCE_SPACINGS)
+    x = torch.linspace(0.0, 1.0, n_distance + 1, dtype=torch.float64)
+    return max_distance_m * (x if spacing == "linear" else x**2)
+
+
+def _linear_weights(grid: torch.Tensor, value: torch.Tensor):
+    """Lower index and weight of the upper node for linear interpolation on ``grid``
+    (clamped to the ends)."""
+    n = grid.numel()
+    if n == 1:
+        return torch.zeros_like(value, dtype=torch.long), torch.zeros_like(value)
+    grid = grid.to(value.dtype)
+    j = (torch.searchsorted(grid, value.detach().contiguous(), right=True) - 1).clamp(0, n - 2)
+    w = ((value - grid[j]) / (grid[j + 1] - grid[j])).clamp(0.0, 1.0)
+    return j, w
+
+
+def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
+    """Cell coordinates and fluxes of a light map, validated.
+
+    Parameters
+    ----------
+    light_map : xarray.Dataset or Tensor (y, x)
+        A Dataset with variable ``flux`` [lm] on dimensions ``(y, x)`` with coordinates in
+        metres east (``x``) and north (``y``), and optionally ``altitude`` [m] on the same
+        grid; or a flux tensor with ``x_m`` and ``y_m`` given.
+    x_m, y_m : Tensor (x,), (y,)
+        Cell-centre coordinates for a tensor map [m].
+    altitude_m : Tensor (y, x), optional
+        Source altitudes for a tensor map [m].
+
+    Returns
+    -------
+    dict with Tensors ``flux``, ``x``, ``y``, ``altitude`` (all (y, x): per cell) and the
+    coordinates ``x_coord (x,)``, ``y_coord (y,)``.
+
+    Raises
+    ------
+    ValueError
+        For NaN/infinite or negative flux (naming the cell), or mismatched shapes.
+    """
+    if not isinstance(light_map, torch.Tensor) and hasattr(light_map, "data_vars"):
+        if "flux" not in light_map:
+            raise ValueError("light_map must have a variable 'flux' on (y, x)")
+        da = light_map["flux"].transpose("y", "x")
+        flux = torch.tensor(np.array(da.values, dtype=np.float64))
+        x_m = torch.tensor(np.array(light_map["x"].values, dtype=np.float64))
+        y_m = torch.tensor(np.array(light_map["y"].values, dtype=np.float64))
+        if "altitude" in light_map:
+            altitude_m = torch.tensor(np.array(
+                light_map["altitude"].transpose("y", "x").values, dtype=np.float64))
+    else:
+        flux = as_tensor("light_map", light_map)
+        if x_m is None or y_m is None:
+            raise ValueError("a tensor light_map needs x_m and y_m coordinates [m]")
+        x_m = as_tensor("x_m", x_m, dtype=flux.dtype).reshape(-1)
+        y_m = as_tensor("y_m", y_m, dtype=flux.dtype).reshape(-1)
+    if flux.ndim != 2 or flux.shape != (y_m.numel(), x_m.numel()):
+        raise ValueError(f"flux must have shape (y, x) = ({y_m.numel()}, {x_m.numel()}); "
+                         f"got {tuple(flux.shape)}")
+    with torch.no_grad():
+        for bad, what in ((~torch.isfinite(flux), "finite"), (flux < 0, "non-negative")):
+            if bool(bad.any()):
+                iy, ix = (int(i) for i in torch.nonzero(bad)[0])
+                raise ValueError(
+                    f"light_map flux must be {what}; cell (y={iy}, x={ix}) at "
+                    f"x={float(x_m[ix]):.6g} m, y={float(y_m[iy]):.6g} m has "
+                    f"{float(flux[iy, ix])!r} lm ({int(bad.sum())} offending cell"
+                    f"{'s' * (int(bad.sum()) > 1)})")
+    if altitude_m is None:
+        altitude_m = torch.zeros_like(flux)
+    else:
+        altitude_m = check_range("altitude_m", altitude_m, unit=" m").to(flux.dtype)
+        if altitude_m.shape != flux.shape:
+            raise ValueError(f"altitude must have the flux's shape {tuple(flux.shape)}; got "
+                             f"{tuple(altitude_m.shape)}")
+    x_m, y_m = x_m.to(flux.dtype), y_m.to(flux.dtype)
+    return {"flux": flux, "x": x_m[None, :].expand_as(flux), "y": y_m[:, None].expand_as(flux),
+            "altitude": altitude_m, "x_coord": x_m, "y_coord": y_m}
+
+
+class SkyglowModel(nn.Module):
+    """Precomputed PCA + FFT skyglow tables for one atmosphere.
+
+    Build it with :meth:`precompute` (or :meth:`load`); render with :meth:`render`.
+
+    Buffers
+    -------
+    azimuth_rad (azimuth,), elevation_rad (elevation,), distance_m (distance,),
+    distance_edges_m (distance + 1,), source_altitude_m (source_altitude,),
+    observer_altitude_m (observer_altitude,), wavelength_nm (wavelength,);
+    basis (observer_altitude, component, azimuth, elevation, wavelength) [m^-2 sr^-1]
+    with component 0 the mean image; coefficients (observer_altitude, distance,
+    source_altitude, component) [1]; basis_fft (observer_altitude, frequency, component,
+    elevation · wavelength), the real Fourier transform of the bases over azimuth;
+    pollution_level (observer_altitude, distance, source_altitude), Q of eq. 10.
+    """
+
+    def __init__(self, *, azimuth_rad, elevation_rad, distance_m, distance_edges_m,
+                 source_altitude_m, observer_altitude_m, wavelength_nm, basis, coefficients,
+                 explained_variance_ratio, parameters: Mapping[str, object]):
+        super().__init__()
+        for name, value in (("azimuth_rad", azimuth_rad), ("elevation_rad", elevation_rad),
+                            ("distance_m", distance_m), ("distance_edges_m", distance_edges_m),
+                            ("source_altitude_m", source_altitude_m),
+                            ("observer_altitude_m", observer_altitude_m),
+                            ("wavelength_nm", wavelength_nm), ("basis", basis),
+                            ("coefficients", coefficients),
+                            ("explained_variance_ratio", explained_variance_ratio)):
+            self.register_buffer(name, torch.as_tensor(value, dtype=torch.float64))
+        self.parameters_used = dict(parameters)
+        self.medium: Medium | None = None
+        self.kernel: torch.Tensor | None = None
+        n_ho, n_k, n_t, n_p, n_wl = self.basis.shape
+        spectrum = torch.fft.rfft(self.basis, dim=2)  # (ho, K, f, φ, λ)
+        imaginary = float(spectrum.imag.abs().amax()) if spectrum.numel() else 0.0
+        scale = float(spectrum.real.abs().amax()) if spectrum.numel() else 1.0
+        if imaginary > 1e-6 * max(scale, 1e-300):
+            logger.warning("basis images are not mirror-symmetric (|Im FFT| / max = %.3g)",
+                           imaginary / scale)
+        self.register_buffer("basis_fft", spectrum.real.permute(0, 2, 1, 3, 4).reshape(
+            n_ho, n_t // 2 + 1, n_k, n_p * n_wl).contiguous())
+        gram = torch.einsum("hkx,hlx->hkl", self.basis.reshape(n_ho, n_k, -1),
+                            self.basis.reshape(n_ho, n_k, -1))
+        q2 = torch.einsum("hrsk,hkl,hrsl->hrs", self.coefficients, gram, self.coefficients)
+        self.register_buffer("pollution_level", q2.clamp_min(0.0).sqrt())
+        self._cast: dict = {}
+
+    # ------------------------------------------------------------------ construction ---
+    @property
+    def n_components(self) -> int:
+        """Number M of principal components (the mean image not counted)."""
+        return self.basis.shape[1] - 1
+
+    @classmethod
+    def precompute(cls, atmosphere, n_azimuth: int = 256, n_elevation: int = 64,
+                   max_distance_m: float = 20_000.0, n_distance: int = 128,
+                   n_components=32, emission: str = "garstang1986",
+                   n_source_altitude: int = 1, n_observer_altitude: int = 1, *,
+                   source_altitude_range_m=(0.0, 1000.0),
+                   observer_altitude_range_m=(0.0, 1000.0), wavelength_nm=None,
+                   emission_parameters: Mapping[str, float] | None = None,
+                   n_steps: int | None = None, quadrature_tolerance: float = 1e-3,
+                   source_radius_m: float | None = None, distance_spacing: str = "linear",
+                   normalize: bool = True, phase_functions=None, progress: bool = True,
+                   keep_kernel: bool = False, chunk_size: int = 16384,
+                   medium: Medium | None = None) -> SkyglowModel:
+        """Tabulate kernels, fit the PCA basis and transform it over azimuth.
+
+        Parameters
+        ----------
+        atmosphere : skytorch.atmosphere.Atmosphere
+            One parameter set (scalar turbidity); its extinction, scattering
+            coefficients and phase functions define the kernel.
+        n_azimuth, n_elevation : int
+            Panorama size N_θ × N_φ (Dobashi: 256 × 64).
+        max_distance_m : float
+            Largest source distance R [m] (Dobashi: 10 km).
+        n_distance : int
+            Distance cells N_r (Dobashi: 128).
+        n_components : int or float
+            M, or a cumulative explained-variance threshold in (0, 1).
+        emission : str
+            Upward emission function, one of ``EMISSION_FUNCTIONS``.
+        n_source_altitude, n_observer_altitude : int
+            N_hc and N_ho, spread evenly over the altitude ranges [m].
+        source_altitude_range_m, observer_altitude_range_m : (float, float)
+            Altitude ranges [m] (Dobashi: 0–1000 m with 16 nodes each).
+        wavelength_nm : Tensor (wavelength,), optional
+            Default ``spectrum.wavelength_grid("rgb")``.
+        emission_parameters : mapping, optional
+            ``{"F": 0.1, "G": 0.15}`` for Garstang, ``{"beam_exponent": 8}`` for Dobashi.
+        n_steps : int, optional
+            Gauss nodes per half view ray; default chosen by
+            :func:`~skytorch.skyglow.kernel.converged_steps` for
+            ``quadrature_tolerance``.
+        source_radius_m : float, optional
+            Regularising source radius [m]; default half the first distance cell.
+        distance_spacing : {"linear", "quadratic"}
+            Distance nodes evenly spaced (Dobashi) or denser near the observer.
+        normalize : bool
+            PCA on samples divided by their RMS (equal relative accuracy at all r).
+        progress : bool
+            tqdm progress bar (only on a TTY).
+        keep_kernel : bool
+            Keep the raw kernel tensor in ``model.kernel`` (for studies of M; memory!).
+        medium : Medium, optional
+            Reuse atmosphere tables built before (must hold the same wavelengths).
+
+        Returns
+        -------
+        SkyglowModel
+        """
+        n_azimuth = check_int("n_azimuth", n_azimuth, low=2)
+        n_elevation = check_int("n_elevation", n_elevation, low=1)
+        n_distance = check_int("n_distance", n_distance, low=1)
+        n_source_altitude = check_int("n_source_altitude", n_source_altitude, low=1)
+        n_observer_altitude = check_int("n_observer_altitude", n_observer_altitude, low=1)
+        check_positive("max_distance_m", max_distance_m, unit=" m")
+        check_choice("emission", emission, EMISSION_FUNCTIONS)
+        if wavelength_nm is None:
+            from skytorch.spectrum import wavelength_grid
+
+            wavelength_nm = wavelength_grid("rgb")
+        started = time.perf_counter()
+        if medium is None:
+            medium = Medium(atmosphere, wavelength_nm, phase_functions=phase_functions)
+        wavelength = medium.wavelength_nm
+        n_components = resolve_components(n_components, n_distance * n_source_altitude,
+                                          n_azimuth * n_elevation * wavelength.numel())
+        edges = distance_edges(float(max_distance_m), n_distance, distance_spacing)
+        distance = 0.5 * (edges[1:] + edges[:-1])
+        azimuth = torch.arange(n_azimuth, dtype=torch.float64) * (2 * math.pi / n_azimuth)
+        elevation = (torch.arange(n_elevation, dtype=torch.float64) + 0.5) * (
+            0.5 * math.pi / n_elevation)
+        source_altitude = _grid(n_source_altitude, source_altitude_range_m)
+        observer_altitude = _grid(n_observer_altitude, observer_altitude_range_m)
+        if source_radius_m is None:
+            source_radius_m = 0.5 * float(edges[1] - edges[0])
+        kernel_arguments = {"emission": emission, "emission_parameters": emission_parameters,
+                            "source_radius_m": float(source_radius_m)}
+        if n_steps is None:
+            n_steps, change = converged_steps(medium, quadrature_tolerance, **kernel_arguments)
+            logger.info("kernel quadrature: %d nodes per half ray (relative change %.2g)",
+                        n_steps, change)
+        n_steps = check_int("n_steps", n_steps, low=1)
+        half = n_azimuth // 2 + 1
+        mirror = torch.tensor([min(i, n_azimuth - i) for i in range(n_azimuth)])
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n_observer_altitude * n_distance, desc="skyglow kernels",
+                   unit="distance", disable=not progress or not sys.stderr.isatty())
+        fits, kernels = [], []
+        for h_o in observer_altitude:
+            table = torch.empty(n_distance, n_source_altitude, n_azimuth, n_elevation,
+                                wavelength.numel(), dtype=torch.float64)
+            block = max(1, 4 * chunk_size // (half * n_elevation * n_source_altitude))
+            for start in range(0, n_distance, block):
+                stop = min(start + block, n_distance)
+                values = kernel_radiance(
+                    medium, azimuth[:half, None], elevation[None, :],
+                    distance[start:stop, None, None, None], source_altitude[:, None, None],
+                    h_o, n_steps=n_steps, chunk_size=chunk_size, **kernel_arguments)
+                table[start:stop] = values[:, :, mirror]
+                bar.update(stop - start)
+            fits.append(fit_basis(table.reshape(n_distance * n_source_altitude, -1),
+                                  n_components, normalize=normalize))
+            if keep_kernel:
+                kernels.append(table)
+        bar.close()
+        n_k = max(f.basis.shape[0] for f in fits)
+        basis = torch.zeros(n_observer_altitude, n_k, n_azimuth, n_elevation, wavelength.numel(),
+                            dtype=torch.float64)
+        coefficients = torch.zeros(n_observer_altitude, n_distance, n_source_altitude, n_k,
+                                   dtype=torch.float64)
+        ratio = torch.zeros(n_observer_altitude, n_k - 1, dtype=torch.float64)
+        for j, fit in enumerate(fits):
+            k = fit.basis.shape[0]
+            basis[j, :k] = fit.basis.reshape(k, n_azimuth, n_elevation, -1)
+            coefficients[j, ..., :k] = fit.coefficients.reshape(n_distance, n_source_altitude, k)
+            ratio[j, :k - 1] = fit.explained_variance_ratio
+        atmosphere_parameters = (atmosphere.parameters_dict()
+                                 if hasattr(atmosphere, "parameters_dict") else
+                                 {"description": repr(atmosphere)})
+        parameters = {
+            "n_azimuth": n_azimuth, "n_elevation": n_elevation,
+            "max_distance_m": float(max_distance_m), "n_distance": n_distance,
+            "distance_spacing": distance_spacing, "n_components_requested": n_components,
+            "n_components": n_k - 1, "emission": emission,
+            "emission_parameters": dict(emission_parameters or {}),
+            "n_source_altitude": n_source_altitude, "n_observer_altitude": n_observer_altitude,
+            "source_altitude_range_m": [float(v) for v in source_altitude_range_m],
+            "observer_altitude_range_m": [float(v) for v in observer_altitude_range_m],
+            "n_steps": n_steps, "quadrature_tolerance": float(quadrature_tolerance),
+            "source_radius_m": float(source_radius_m), "normalize": bool(normalize),
+            "atmosphere": atmosphere_parameters,
+            "precompute_seconds": time.perf_counter() - started,
+        }
+        model = cls(azimuth_rad=azimuth, elevation_rad=elevation, distance_m=distance,
+                    distance_edges_m=edges, source_altitude_m=source_altitude,
+                    observer_altitude_m=observer_altitude, wavelength_nm=wavelength,
+                    basis=basis, coefficients=coefficients, explained_variance_ratio=ratio,
+                    parameters=parameters)
+        model.medium = medium
+        if keep_kernel:
+            model.kernel = torch.stack(kernels)
+        return model
+
+    def refit(self, n_components, normalize: bool | None = None) -> SkyglowModel:
+        """A new model with another number of components, from the kept kernel.
+
+        Requires ``keep_kernel=True`` at :meth:`precompute`.
+        """
+        if self.kernel is None:
+            raise ValueError("refit needs the kernel: precompute with keep_kernel=True")
+        normalize = self.parameters_used["normalize"] if normalize is None else normalize
+        n_ho, n_r, n_hc, n_t, n_p, n_wl = self.kernel.shape
+        fits = [fit_basis(k.reshape(n_r * n_hc, -1), n_components, normalize=normalize)
+                for k in self.kernel]
+        n_k = max(f.basis.shape[0] for f in fits)
+        basis = torch.zeros(n_ho, n_k, n_t, n_p, n_wl, dtype=torch.float64)
+        coefficients = torch.zeros(n_ho, n_r, n_hc, n_k, dtype=torch.float64)
+        ratio = torch.zeros(n_ho, n_k - 1, dtype=torch.float64)
+        for j, fit in enumerate(fits):
+            k = fit.basis.shape[0]
+            basis[j, :k] = fit.basis.reshape(k, n_t, n_p, n_wl)
+            coefficients[j, ..., :k] = fit.coefficients.reshape(n_r, n_hc, k)
+            ratio[j, :k - 1] = fit.explained_variance_ratio
+        parameters = dict(self.parameters_used, n_components_requested=n_components,
+                          n_components=n_k - 1, normalize=bool(normalize))
+        model = type(self)(
+            azimuth_rad=self.azimuth_rad, elevation_rad=self.elevation_rad,
+            distance_m=self.distance_m, distance_edges_m=self.distance_edges_m,
+            source_altitude_m=self.source_altitude_m,
+            observer_altitude_m=self.observer_altitude_m, wavelength_nm=self.wavelength_nm,
+            basis=basis, coefficients=coefficients, explained_variance_ratio=ratio,
+            parameters=parameters)
+        model.medium, model.kernel = self.medium, self.kernel
+        return model
+
+    # ---------------------------------------------------------------------- runtime ---
+    def _buffer(self, name: str, dtype: torch.dtype) -> torch.Tensor:
+        value = getattr(self, name)
+        if value.dtype == dtype:
+            return value
+        key = (name, dtype)
+        if key not in self._cast:
+            self._cast[key] = value.to(dtype)
+        return self._cast[key]
+
+    def polar_flux(self, x_m, y_m, flux, altitude_m, observer_xy) -> torch.Tensor:
+        """Flux of the lighting cells distributed over the polar nodes of each observer.
+
+        Parameters
+        ----------
+        x_m, y_m, flux, altitude_m : Tensor (cell,)
+            Cell centres east/north [m], fluxes [lm] and source altitudes [m].
+        observer_xy : Tensor (observer, 2)
+            Observer positions east/north [m].
+
+        Returns
+        -------
+        Tensor (observer, azimuth, distance, source_altitude)
+            Flux per polar node [lm]; the total over nodes equals the flux of the cells
+            within ``max_distance_m``.
+        """
+        dtype = flux.dtype
+        n_t = self.azimuth_rad.numel()
+        n_r = self.distance_m.numel()
+        n_h = self.source_altitude_m.numel()
+        n_obs = observer_xy.shape[0]
+        dx = x_m[None, :] - observer_xy[:, :1]
+        dy = y_m[None, :] - observer_xy[:, 1:2]
+        r = torch.sqrt(dx**2 + dy**2)
+        theta = torch.remainder(torch.atan2(dx, dy), 2 * math.pi)
+        ft = theta * (n_t / (2 * math.pi))
+        i0 = ft.floor()
+        wt = ft - i0
+        i0 = torch.remainder(i0.long(), n_t)
+        i1 = torch.remainder(i0 + 1, n_t)
+        jr, wr = _linear_weights(self._buffer("distance_m", dtype), r)
+        inside = (r <= float(self.distance_edges_m[-1])).to(dtype)
+        jh, wh = _linear_weights(self._buffer("source_altitude_m", dtype),
+                                 altitude_m[None, :].expand_as(r))
+        observer = torch.arange(n_obs)[:, None]
+        out = torch.zeros(n_obs * n_t * n_r * n_h, dtype=dtype)
+        weighted = flux[None, :] * inside
+        r_nodes = ((jr, 1 - wr), (jr + 1, wr)) if n_r > 1 else ((jr, torch.ones_like(wr)),)
+        h_nodes = ((jh, 1 - wh), (jh + 1, wh)) if n_h > 1 else ((jh, torch.ones_like(wh)),)
+        for it, w_t in ((i0, 1 - wt), (i1, wt)):
+            for ir, w_r in r_nodes:
+                for ih, w_h in h_nodes:
+                    index = ((observer * n_t + it) * n_r + ir) * n_h + ih
+                    out = out.index_add(0, index.reshape(-1),
+                                        (weighted * w_t * w_r * w_h).reshape(-1))
+        return out.reshape(n_obs, n_t, n_r, n_h)
+
+    def convolve(self, polar: torch.Tensor, observer_altitude_index: int) -> torch.Tensor:
+        """Per-unit-flux radiance from polar node fluxes for one observer altitude node.
+
+        Parameters
+        ----------
+        polar : Tensor (observer, azimuth, distance, source_altitude)
+            Flux per polar node [lm] (from :meth:`polar_flux`).
+        observer_altitude_index : int
+            Which observer-altitude node's tables to use.
+
+        Returns
+        -------
+        Tensor (observer, elevation, azimuth, wavelength)
+            ``Σ_sources flux · b`` [lm m^-2 sr^-1], eq. 5–9.
+        """
+        dtype = polar.dtype
+        n_obs, n_t, n_r, n_h = polar.shape
+        n_p, n_wl = self.elevation_rad.numel(), self.wavelength_nm.numel()
+        coefficients = self._buffer("coefficients", dtype)[observer_altitude_index]
+        basis_fft = self._buffer("basis_fft", dtype)[observer_altitude_index]
+        n_k = coefficients.shape[-1]
+        h = polar.reshape(n_obs, n_t, n_r * n_h) @ coefficients.reshape(n_r * n_h, n_k)
+        h_fft = torch.fft.rfft(h, dim=1)  # (observer, frequency, K)
+        n_f = h_fft.shape[1]
+        stacked = torch.stack([h_fft.real, h_fft.imag], dim=0).permute(2, 0, 1, 3)
+        product = torch.bmm(stacked.reshape(n_f, 2 * n_obs, n_k), basis_fft)
+        product = product.reshape(n_f, 2, n_obs, n_p * n_wl)
+        spectrum = torch.complex(product[:, 0], product[:, 1])
+        radiance = torch.fft.irfft(spectrum, n=n_t, dim=0)  # (azimuth, observer, φ·λ)
+        return radiance.reshape(n_t, n_obs, n_p, n_wl).permute(1, 2, 0, 3)
+
+    def observer_altitude_weights(self, observer_altitude_m: torch.Tensor):
+        """Lower node index and weight of the upper node for each observer altitude."""
+        grid = self.observer_altitude_m
+        check_range("observer_altitude_m", observer_altitude_m, 0.0, unit=" m")
+        return _linear_weights(grid, observer_altitude_m.to(torch.float64))
+
+    def radiance_per_lumen(self, cells: Mapping[str, torch.Tensor], observer_xy,
+                           observer_altitude_m=0.0, *, max_pairs: int = 4_000_000
+                           ) -> torch.Tensor:
+        """``Σ_cells flux · b`` for each observer (the tensor core of :meth:`render`).
+
+        Parameters
+        ----------
+        cells : mapping
+            ``flux``, ``x``, ``y``, ``altitude`` tensors of the same shape (from
+            :func:`light_map_arrays`; any shape, flattened).
+        observer_xy : Tensor (observer, 2) or (2,)
+            Observer positions [m].
+        observer_altitude_m : Tensor (observer,) or scalar
+            Observer altitudes [m]; interpolated linearly between the tabulated nodes.
+        max_pairs : int
+            Bound on observer × cell pairs handled at once (memory).
+
+        Returns
+        -------
+        Tensor (observer, elevation, azimuth, wavelength)
+        """
+        flux = cells["flux"].reshape(-1)
+        dtype = flux.dtype
+        x = cells["x"].reshape(-1).to(dtype)
+        y = cells["y"].reshape(-1).to(dtype)
+        altitude = cells["altitude"].reshape(-1).to(dtype)
+        if not flux.requires_grad:
+            keep = flux != 0
+            flux, x, y, altitude = flux[keep], x[keep], y[keep], altitude[keep]
+        observer_xy = as_tensor("observer_xy", observer_xy, dtype=dtype).reshape(-1, 2)
+        n_obs = observer_xy.shape[0]
+        h_o = as_tensor("observer_altitude_m", observer_altitude_m, dtype=dtype)
+        h_o = h_o.reshape(-1).expand(n_obs) if h_o.numel() == 1 else h_o.reshape(-1)
+        if h_o.numel() != n_obs:
+            raise ValueError(f"observer_altitude_m must have one value per observer "
+                             f"({n_obs}); got {h_o.numel()}")
+        j, w = self.observer_altitude_weights(h_o)
+        n_p, n_t = self.elevation_rad.numel(), self.azimuth_rad.numel()
+        n_wl = self.wavelength_nm.numel()
+        step = max(1, max_pairs // max(flux.numel(), 1))
+        pieces = []
+        for start in range(0, n_obs, step):
+            stop = min(start + step, n_obs)
+            polar = self.polar_flux(x, y, flux, altitude, observer_xy[start:stop])
+            result = torch.zeros(stop - start, n_p, n_t, n_wl, dtype=dtype)
+            jj, ww = j[start:stop], w[start:stop].to(dtype)
+            for node in torch.unique(torch.cat([jj, jj + 1])).tolist():
+                if node >= self.observer_altitude_m.numel():
+                    continue
+                weight = torch.where(jj == node, 1 - ww, torch.zeros_like(ww)) + torch.where(
+                    jj + 1 == node, ww, torch.zeros_like(ww))
+                if self.observer_altitude_m.numel() == 1:
+                    weight = torch.ones_like(ww)
+                use = weight > 0
+                if not bool(use.any()):
+                    continue
+                part = self.convolve(polar[use], node)
+                result = result.index_add(0, torch.nonzero(use)[:, 0],
+                                          part * weight[use][:, None, None, None])
+            pieces.append(result)
+        return torch.cat(pieces)
+
+    def render(self, light_map, observer_xy=(0.0, 0.0), observer_altitude_m=0.0, *,
+               lamp="white", x_m=None, y_m=None, altitude_m=None,
+               natural_mag_arcsec2: float | None = None, as_dataset: bool = True):
+        """Skyglow panorama(s) of a light map (Dobashi et al. 2023, eq. 5–9).
+
+        Parameters
+        ----------
+        light_map : xarray.Dataset or Tensor (y, x)
+            Variable ``flux`` [lm] on ``(y, x)`` in metres east/north, optional
+            ``altitude`` [m] (see :func:`light_map_arrays`).
+        observer_xy : array_like (2,) or (observer, 2)
+            Observer position(s) in the map's coordinates [m].
+        observer_altitude_m : float or array_like (observer,)
+            Observer altitude(s) [m].
+        lamp : str or (wavelength_nm, spectrum)
+            Lamp spectrum (:data:`skytorch.skyglow.lamps.LAMPS`) giving the spectral
+            power of one lumen.
+        x_m, y_m, altitude_m : Tensor, optional
+            Coordinates for a tensor light map.
+        natural_mag_arcsec2 : float, optional
+            Natural zenith brightness added in ``total_brightness`` (default 22.0).
+        as_dataset : bool
+            Return a Dataset (default) or a dict of tensors.
+
+        Returns
+        -------
+        xarray.Dataset
+            ``radiance`` (observer, elevation, azimuth, wavelength) spectral radiance
+            [W m^-2 sr^-1 nm^-1]; ``luminance`` (observer, elevation, azimuth) [cd m^-2];
+            ``artificial_ratio`` [1] (to the natural zenith sky) and ``total_brightness``
+            [mag arcsec^-2] (natural + artificial). The ``observer`` dimension is dropped
+            for a single observer given as ``(2,)``.
+        """
+        from skytorch.skyglow.lamps import luminance_weights
+        from skytorch.skyglow.units import NATURAL_ZENITH_SKY_MAG_ARCSEC2
+
+        cells = light_map_arrays(light_map, x_m, y_m, altitude_m)
+        single = torch.as_tensor(observer_xy).ndim == 1
+        per_lumen = self.radiance_per_lumen(cells, observer_xy, observer_altitude_m)
+        weights, band_power = luminance_weights(lamp, self.wavelength_nm)
+        dtype = per_lumen.dtype
+        luminance = per_lumen @ weights.to(dtype)
+        radiance = per_lumen * band_power.to(dtype)
+        natural = NATURAL_ZENITH_SKY_MAG_ARCSEC2 if natural_mag_arcsec2 is None else float(
+            natural_mag_arcsec2)
+        outputs = {"radiance": radiance, "luminance": luminance}
+        if single:
+            outputs = {k: v[0] for k, v in outputs.items()}
+        if not as_dataset:
+            return outputs
+        return self._dataset(outputs, cells, observer_xy, observer_altitude_m, lamp, natural,
+                             single)
+
+    def _dataset(self, outputs, cells, observer_xy, observer_altitude_m, lamp, natural,
+                 single):
+        from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
+        from skytorch.skyglow.units import artificial_to_natural_ratio, total_mag_arcsec2
+
+        prefix = () if single else ("observer",)
+        luminance = outputs["luminance"].detach()
+        data = {
+            "radiance": variable((*prefix, "elevation", "azimuth", "wavelength"),
+                                 outputs["radiance"], VariableSpec(
+                "W m-2 sr-1 nm-1", "artificial sky spectral radiance",
+                "Singly scattered light of the city lights (PCA + FFT convolution, "
+                "Dobashi et al. 2023), lamp power averaged over each wavelength's band.")),
+            "luminance": variable((*prefix, "elevation", "azimuth"), luminance, VariableSpec(
+                "cd m-2", "artificial sky luminance",
+                "K_m ∫ s(λ) V(λ) b(λ) dλ summed over the lighting cells.")),
+            "artificial_ratio": variable(
+                (*prefix, "elevation", "azimuth"),
+                artificial_to_natural_ratio(luminance, natural), VariableSpec(
+                    "1", "artificial to natural sky brightness ratio",
+                    f"Artificial luminance over the natural zenith sky of {natural} "
+                    "mag arcsec-2 V (Falchi et al. 2016).")),
+            "total_brightness": variable(
+                (*prefix, "elevation", "azimuth"), total_mag_arcsec2(luminance, natural),
+                VariableSpec("mag arcsec-2", "total sky surface brightness (V)",
+                             "Natural zenith sky plus artificial luminance, "
+                             "m = -2.5 log10(L / 10.8e4 cd m-2) (Falchi et al. 2016).")),
+        }
+        coords = self._panorama_coords()
+        if not single:
+            xy = torch.as_tensor(observer_xy, dtype=torch.float64).reshape(-1, 2)
+            n = xy.shape[0]
+            coords["observer"] = coordinate("observer", np.arange(n), VariableSpec(
+                "1", "observer index", "Index of the observer position."))
+            coords["observer_x"] = variable(("observer",), xy[:, 0], VariableSpec(
+                "m", "observer easting", "Observer position east in the map frame."))
+            coords["observer_y"] = variable(("observer",), xy[:, 1], VariableSpec(
+                "m", "observer northing", "Observer position north in the map frame."))
+        lamp_name = lamp if isinstance(lamp, str) else "custom spectrum"
+        parameters = dict(self.parameters_used, lamp=lamp_name,
+                          observer_xy=torch.as_tensor(observer_xy).tolist(),
+                          observer_altitude_m=torch.as_tensor(observer_altitude_m).tolist(),
+                          natural_mag_arcsec2=natural,
+                          total_flux_lm=float(cells["flux"].detach().sum()))
+        return build_dataset(data, coords, title="Artificial skyglow panorama",
+                             references=list(REFERENCES), parameters=parameters)
+
+    def _panorama_coords(self):
+        from skytorch.dataset import VariableSpec, coordinate
+
+        return {
+            "elevation": coordinate("elevation", torch.rad2deg(self.elevation_rad), VariableSpec(
+                "degree", "elevation", "Elevation of the view direction above the horizon "
+                "(cell centres).")),
+            "azimuth": coordinate("azimuth", torch.rad2deg(self.azimuth_rad), VariableSpec(
+                "degree", "azimuth", "Azimuth of the view direction from north through east.")),
+            "wavelength": coordinate("wavelength", self.wavelength_nm, VariableSpec(
+                "nm", "wavelength", "Vacuum wavelength.", "radiation_wavelength")),
+        }
+
+    # ------------------------------------------------------------------------ files ---
+    def to_dataset(self):
+        """The tables and every precompute parameter as a Dataset (for netCDF)."""
+        from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
+
+        n_k = self.basis.shape[1]
+        coords = self._panorama_coords()
+        coords.update({
+            "distance": coordinate("distance", self.distance_m, VariableSpec(
+                "m", "source distance", "Ground distance of the distance-cell centres.")),
+            "distance_edge": coordinate("distance_edge", self.distance_edges_m, VariableSpec(
+                "m", "distance cell edge", "Edges of the distance cells.")),
+            "source_altitude": coordinate("source_altitude", self.source_altitude_m,
+                                          VariableSpec("m", "source altitude",
+                                                       "Altitude of the light source.")),
+            "observer_altitude": coordinate("observer_altitude", self.observer_altitude_m,
+                                            VariableSpec("m", "observer altitude",
+                                                         "Altitude of the observer.")),
+            "component": coordinate("component", np.arange(n_k), VariableSpec(
+                "1", "basis index", "0: mean image; 1..M: principal components.")),
+            "principal_component": coordinate("principal_component", np.arange(1, n_k),
+                                              VariableSpec("1", "principal component index",
+                                                           "Index k of B_k, k >= 1.")),
+        })
+        data = {
+            "basis": variable(("observer_altitude", "component", "azimuth", "elevation",
+                               "wavelength"), self.basis, VariableSpec(
+                "1", "basis images B_k", "Mean and principal components of the normalised "
+                "kernel images (Dobashi et al. 2023, eq. 4).")),
+            "coefficients": variable(("observer_altitude", "distance", "source_altitude",
+                                      "component"), self.coefficients, VariableSpec(
+                "m-2 sr-1", "basis coefficients c_k", "Kernel radiance per unit flux is "
+                "sum_k c_k B_k.")),
+            "explained_variance_ratio": variable(
+                ("observer_altitude", "principal_component"), self.explained_variance_ratio,
+                VariableSpec("1", "explained variance ratio",
+                             "Fraction of the normalised kernels' variance per component.")),
+        }
+        return build_dataset(data, coords, title="Skyglow PCA + FFT model",
+                             references=list(REFERENCES), parameters=self.parameters_used)
+
+    def save(self, path):
+        """Write the model to a netCDF file (atomic); returns the path."""
+        from skytorch.dataset import to_netcdf
+
+        return to_netcdf(self.to_dataset(), path)
+
+    @classmethod
+    def load(cls, path) -> SkyglowModel:
+        """Read a model written by :meth:`save`."""
+        from skytorch.dataset import open_dataset
+
+        ds = open_dataset(path)
+
+        def t(name):
+            return torch.tensor(np.array(ds[name].values, dtype=np.float64))
+
+        return cls(azimuth_rad=torch.deg2rad(t("azimuth")),
+                   elevation_rad=torch.deg2rad(t("elevation")), distance_m=t("distance"),
+                   distance_edges_m=t("distance_edge"), source_altitude_m=t("source_altitude"),
+                   observer_altitude_m=t("observer_altitude"), wavelength_nm=t("wavelength"),
+                   basis=t("basis"), coefficients=t("coefficients"),
+                   explained_variance_ratio=t("explained_variance_ratio"),
+                   parameters=json.loads(ds.attrs["parameters"]))

@@ -1,0 +1,223 @@
+"""SkyglowModel: PCA + FFT rendering against direct accumulation, symmetries, hard cases."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+import xarray as xr
+from _skyglow_standin import cached_model
+
+from skytorch.constants import PERCENT
+from skytorch.skyglow import render_naive
+from skytorch.skyglow.model import SkyglowModel
+
+#: issue targets for PCA + FFT against the naive sum on the same grid (mean relative error)
+TARGET_ERROR_M32 = 2 * PERCENT
+TARGET_ERROR_M128 = 1 * PERCENT
+
+
+def _map(x, y, flux, altitude=None):
+    data = {"flux": (("y", "x"), np.asarray(flux, dtype=float))}
+    if altitude is not None:
+        data["altitude"] = (("y", "x"), np.asarray(altitude, dtype=float))
+    return xr.Dataset(data, coords={"x": np.asarray(x, float), "y": np.asarray(y, float)})
+
+
+def _one_cell(x, y, flux=1e6, altitude=None):
+    return _map([x], [y], [[flux]], None if altitude is None else [[altitude]])
+
+
+def _direct_sum(model, polar, node=0):
+    """Σ over polar nodes of flux × kernel table shifted in azimuth: the naive sum on the
+    model's grid, from the kernel values themselves (no PCA, no FFT)."""
+    kernel = model.kernel[node]  # (r, hc, θ, φ, λ)
+    n_t = kernel.shape[2]
+    total = torch.zeros(kernel.shape[3], n_t, kernel.shape[4], dtype=torch.float64)
+    it, ir, ih = torch.nonzero(polar, as_tuple=True)
+    for a, j, k in zip(it.tolist(), ir.tolist(), ih.tolist(), strict=True):
+        shifted = torch.roll(kernel[j, k], shifts=a, dims=0)  # b(θ - θ_a)
+        total += polar[a, j, k] * shifted.permute(1, 0, 2)
+    return total
+
+
+@pytest.fixture(scope="module")
+def terrain_model():
+    # 144 samples (24 distances × 6 source altitudes) allow up to 128 components
+    return cached_model(n_source_altitude=6, source_altitude_range_m=(0.0, 1400.0),
+                        n_components=128)
+
+
+def test_pca_fft_matches_direct_sum_on_the_same_grid(terrain_model):
+    rng = np.random.default_rng(3)
+    x = np.arange(-18e3, 18e3 + 1, 1500.0)
+    flux = np.zeros((x.size, x.size))
+    lit = rng.choice(flux.size, 120, replace=False)
+    flux.flat[lit] = rng.uniform(1e5, 1e6, lit.size)
+    altitude = rng.uniform(0.0, 1400.0, flux.shape)
+    city = _map(x, x, flux, altitude)
+    cells = {k: torch.as_tensor(v) for k, v in (
+        ("flux", flux), ("altitude", altitude))}
+    cells["x"] = torch.as_tensor(np.broadcast_to(x[None, :], flux.shape).copy())
+    cells["y"] = torch.as_tensor(np.broadcast_to(x[:, None], flux.shape).copy())
+    polar = terrain_model.polar_flux(cells["x"].reshape(-1), cells["y"].reshape(-1),
+                                     cells["flux"].reshape(-1), cells["altitude"].reshape(-1),
+                                     torch.zeros(1, 2, dtype=torch.float64))[0]
+    reference = _direct_sum(terrain_model, polar)
+    errors = {}
+    for m in (8, 32, 128):
+        model = terrain_model.refit(m)
+        ours = model.radiance_per_lumen(
+            {"flux": cells["flux"], "x": cells["x"], "y": cells["y"],
+             "altitude": cells["altitude"]}, (0.0, 0.0))[0]
+        errors[m] = float(((ours - reference).abs() / reference).mean())
+    assert errors[32] <= TARGET_ERROR_M32
+    assert errors[128] <= TARGET_ERROR_M128
+    assert errors[128] <= errors[8]
+    # and the Dataset path gives the same panorama
+    ds = terrain_model.refit(32).render(city, lamp="white")
+    assert ds["radiance"].dims == ("elevation", "azimuth", "wavelength")
+
+
+def test_naive_renderer_equals_direct_sum_and_pca():
+    model = cached_model()
+    city = _map([-3000.0, 2500.0], [4000.0], [[3e5, 7e5]])
+    naive = render_naive(model, city, sources="polar", as_dataset=False)["luminance"]
+    ours = model.render(city, as_dataset=False)["luminance"]
+    rel = ((ours - naive).abs() / naive).mean()
+    assert float(rel) <= 1 * PERCENT
+    cells = render_naive(model, city, sources="cells", as_dataset=False)["luminance"]
+    # exact placement vs polar-node placement: same total within the grid's resolution
+    assert float(cells.sum()) == pytest.approx(float(naive.sum()), rel=10 * PERCENT)
+
+
+def test_superposition():
+    model = cached_model()
+    x = np.array([-5e3, 0.0, 6e3])
+    a = np.array([[1e5, 0, 0], [0, 0, 2e5], [0, 0, 0]])
+    b = np.array([[0, 0, 3e5], [0, 4e4, 0], [1e6, 0, 0]])
+    la = model.render(_map(x, x, a))["luminance"].values
+    lb = model.render(_map(x, x, b))["luminance"].values
+    lab = model.render(_map(x, x, a + 2.0 * b))["luminance"].values
+    np.testing.assert_allclose(lab, la + 2.0 * lb, rtol=1e-12)
+
+
+@pytest.mark.parametrize("n_azimuth", [32, 31])
+def test_rotation_equivariance_and_mirror_symmetry(n_azimuth):
+    model = cached_model(n_azimuth=n_azimuth, n_elevation=8, n_distance=8, n_components=8)
+    step = 2 * math.pi / n_azimuth
+    r = float(model.distance_m[3])
+    panoramas = []
+    for k in (0, 5):
+        theta = k * step
+        city = _one_cell(r * math.sin(theta), r * math.cos(theta))
+        panoramas.append(model.render(city, as_dataset=False)["radiance"])
+    np.testing.assert_allclose(torch.roll(panoramas[0], 5, dims=1).numpy(),
+                               panoramas[1].numpy(), rtol=1e-9, atol=1e-30)
+    # a source in azimuth 0 gives a panorama symmetric about north
+    mirrored = torch.roll(torch.flip(panoramas[0], dims=[1]), 1, dims=1)
+    np.testing.assert_allclose(mirrored.numpy(), panoramas[0].numpy(), rtol=1e-9, atol=1e-30)
+    # the stored basis spectra are real because the kernel is mirror-symmetric
+    spectrum = torch.fft.rfft(model.basis, dim=2)
+    assert float(spectrum.imag.abs().max()) <= 1e-9 * float(spectrum.real.abs().max())
+
+
+def test_more_components_than_samples_warns_and_clamps():
+    with pytest.warns(UserWarning, match="exceeds"):
+        model = cached_model(n_azimuth=16, n_elevation=4, n_distance=6, n_components=50)
+    assert model.n_components == 6
+
+
+def test_variance_threshold_selects_components():
+    model = cached_model()
+    small = model.refit(0.99)
+    assert 1 <= small.n_components < model.n_components
+    assert float(small.explained_variance_ratio.sum()) >= 0.99
+
+
+def test_all_zero_map_gives_natural_sky():
+    model = cached_model()
+    ds = model.render(_map([0.0, 1e3], [0.0], [[0.0, 0.0]]))
+    assert float(np.abs(ds["luminance"]).max()) == 0.0
+    np.testing.assert_allclose(ds["total_brightness"].values, 22.0, rtol=1e-12)
+
+
+def test_negative_and_nan_flux_name_the_cell():
+    model = cached_model()
+    flux = np.array([[1e5, 2e5], [3e5, -1.0]])
+    with pytest.raises(ValueError, match=r"non-negative; cell \(y=1, x=1\)"):
+        model.render(_map([0.0, 500.0], [0.0, 500.0], flux))
+    flux[1, 1] = 1.0
+    flux[0, 1] = np.nan
+    with pytest.raises(ValueError, match=r"finite; cell \(y=0, x=1\) at x=500 m, y=0 m"):
+        model.render(_map([0.0, 500.0], [0.0, 500.0], flux))
+
+
+def test_source_at_observer_and_float32(dtype):
+    model = cached_model()
+    flux = torch.tensor([[1e6]], dtype=dtype)
+    out = model.render(flux, x_m=torch.zeros(1, dtype=dtype), y_m=torch.zeros(1, dtype=dtype),
+                       as_dataset=False)
+    assert out["luminance"].dtype == dtype
+    assert torch.all(torch.isfinite(out["luminance"])) and torch.all(out["luminance"] > 0)
+    reference = model.render(flux.double(), x_m=torch.zeros(1, dtype=torch.float64),
+                             y_m=torch.zeros(1, dtype=torch.float64),
+                             as_dataset=False)["luminance"]
+    assert torch.allclose(out["luminance"].double(), reference, rtol=1e-4)
+
+
+def test_sources_at_the_integration_limit():
+    model = cached_model()
+    edge = float(model.distance_edges_m[-1])
+    last = float(model.distance_m[-1])
+    inside = model.render(_one_cell(0.0, 0.5 * (edge + last)), as_dataset=False)["luminance"]
+    at_last = model.render(_one_cell(0.0, last), as_dataset=False)["luminance"]
+    torch.testing.assert_close(inside, at_last, rtol=1e-12, atol=0.0)
+    beyond = model.render(_one_cell(0.0, edge * 1.001), as_dataset=False)["luminance"]
+    assert float(beyond.abs().max()) == 0.0
+    polar = model.polar_flux(torch.tensor([0.0, 0.0, 3e3]), torch.tensor([edge * 0.999,
+                                                                          edge * 2, 0.0]),
+                             torch.tensor([1.0, 5.0, 2.0], dtype=torch.float64),
+                             torch.zeros(3, dtype=torch.float64), torch.zeros(1, 2,
+                                                                               dtype=torch.float64))
+    assert float(polar.sum()) == pytest.approx(3.0, rel=1e-12)
+
+
+def test_batched_observers_equal_single_renders():
+    model = cached_model()
+    city = _map([-4e3, 1e3, 5e3], [-2e3, 3e3], [[1e5, 0, 3e5], [2e5, 4e5, 0]])
+    xy = [[0.0, 0.0], [2e3, -1e3], [-6e3, 4e3]]
+    batch = model.render(city, observer_xy=xy)
+    assert batch["luminance"].dims == ("observer", "elevation", "azimuth")
+    for i, p in enumerate(xy):
+        single = model.render(city, observer_xy=p)
+        np.testing.assert_allclose(batch["luminance"].values[i], single["luminance"].values,
+                                   rtol=1e-12)
+
+
+def test_gradient_through_render():
+    model = cached_model()
+    flux = torch.tensor([[1e5, 2e5], [3e5, 4e5]], dtype=torch.float64, requires_grad=True)
+    x = torch.tensor([-2e3, 3e3], dtype=torch.float64)
+
+    def zenith(f):
+        return model.render(f, x_m=x, y_m=x, as_dataset=False)["luminance"][-1].sum()
+
+    assert torch.autograd.gradcheck(zenith, (flux,), eps=1.0, atol=1e-12, rtol=1e-6)
+
+
+def test_save_load_round_trip(tmp_path):
+    model = cached_model()
+    path = model.save(tmp_path / "model.nc")
+    loaded = SkyglowModel.load(path)
+    assert loaded.parameters_used["emission"] == "garstang1986"
+    assert loaded.parameters_used["n_steps"] == 8
+    city = _map([-3e3, 2e3], [1e3], [[2e5, 5e5]])
+    np.testing.assert_allclose(loaded.render(city)["radiance"].values,
+                               model.render(city)["radiance"].values, rtol=1e-12)
+    from skytorch.dataset import open_dataset
+
+    attrs = open_dataset(path).attrs
+    assert "parameter_n_distance" in attrs and "parameter_source_radius_m" in attrs
