@@ -22,7 +22,7 @@ def test_magnitude_against_ks1991():
     range +0.16 at 110°, +0.22 at 120° (model fainter) and −0.19 at 0° (opposition surge,
     absent from the linear K&S law).
     """
-    alpha = torch.arange(3.0, 101.0, 1.0, dtype=torch.float64) * DEGREE
+    alpha = torch.arange(3.0, 101.0, 2.0, dtype=torch.float64) * DEGREE
     difference = br.magnitude(alpha) - br.magnitude_ks1991(alpha)
     assert float(difference.abs().max()) <= KS_TOLERANCE
 
@@ -43,7 +43,7 @@ def test_full_moon_opposition_surge():
 def test_quadrature_converged():
     alpha = torch.tensor([0.0, 30.0, 90.0, 150.0], dtype=torch.float64) * DEGREE
     coarse = br.magnitude(alpha, n_quadrature=48)
-    fine = br.magnitude(alpha, n_quadrature=128)
+    fine = br.magnitude(alpha, n_quadrature=96)
     assert float((coarse - fine).abs().max()) < 1e-5 * MAG
 
 

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import importlib
 import math
-import subprocess
 import sys
 from pathlib import Path
 
@@ -53,10 +53,13 @@ def test_disc_image_orientation_and_earthshine(dtype):
     assert float(image[16, 28, 0]) > float(image[16, 28, 2])
 
 
-def test_accuracy_cost_experiment_quick(tmp_path):
-    script = Path(__file__).resolve().parents[1] / "experiments" / "moon_accuracy_cost.py"
-    subprocess.run([sys.executable, str(script), "--quick", "--output-dir", str(tmp_path)],
-                   check=True, capture_output=True)
+def test_accuracy_cost_experiment_quick(tmp_path, capsys):
+    root = Path(__file__).resolve().parents[1]
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
+    experiment = importlib.import_module("experiments.moon_accuracy_cost")
+    assert experiment.main(["--quick", "--output-dir", str(tmp_path)]) == 0
+    assert "| quadrature | float64 |" in capsys.readouterr().out
     ds = open_dataset(tmp_path / "moon_accuracy_cost.nc")
     assert (tmp_path / "moon_accuracy_cost.png").is_file()
     error = ds.magnitude_error.sel(scheme="quadrature", dtype="float64")
