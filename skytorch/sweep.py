@@ -312,7 +312,7 @@ def _dask_client(client, scheduler_address, n_workers) -> Iterator[object]:
         with Client(scheduler_address) as remote:
             yield remote
         return
-    workers = DEFAULT_WORKERS if n_workers is None else check_int("n_workers", n_workers, 1)
+    workers = DEFAULT_WORKERS if n_workers is None else n_workers
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
                       dashboard_address=None) as cluster, Client(cluster) as local:
         yield local
@@ -478,6 +478,8 @@ def sweep(
         for name, grid in zip(names, grids, strict=True):
             if grid.dtype.kind not in "biuf":
                 raise TypeError(f"backend='broadcast' needs numeric grids; {name} is {grid.dtype}")
+    if n_workers is not None:
+        n_workers = check_int("n_workers", n_workers, 1)
     shape = tuple(len(g) for g in grids)
     n_points = math.prod(shape)
     slab = math.prod(shape[1:]) if broadcast else 1

@@ -16,6 +16,7 @@ from skytorch.constants import (
     PLANCK_J_S,
     SPEED_OF_LIGHT_M_S,
 )
+from skytorch.dataset import open_dataset
 
 #: tolerance on CIE 1931 chromaticity coordinates
 CHROMATICITY = 1.0
@@ -336,3 +337,16 @@ def test_bad_input():
         spectrum.xyz_to_srgb(torch.ones(4))
     with pytest.raises(TypeError):
         spectrum.spectrum_to_xyz("bright", wavelength)
+
+
+def test_accuracy_cost_experiment_quick(tmp_path):
+    from experiments.spectrum_accuracy_cost import main
+
+    netcdf_path, png_path = main(["--quick", "--output-dir", str(tmp_path)])
+    assert png_path.is_file()
+    ds = open_dataset(netcdf_path)
+    blackbodies = ["blackbody_3000K", "blackbody_5800K", "blackbody_10000K"]
+    error = ds["chromaticity_error"].sel(dtype="float64", spectrum_kind=blackbodies)
+    # converged trend: the 5-nm grid is far better than three wavelengths for black bodies
+    assert float(error.sel(grid="cie5", reference="none").max()) < 1e-4
+    assert float(error.sel(grid="rgb", reference="none").max()) > 1e-3

@@ -203,6 +203,8 @@ def test_bad_input():
         st.sweep(lambda n: torch.zeros(n), progress=False, n=[1, 2])
     with pytest.raises(ValueError, match="chunk_size"):
         run(chunk_size=0)
+    with pytest.raises(ValueError, match="n_workers"):
+        run(backend="dask", n_workers=0)
 
 
 def test_cli_sweep(tmp_path):
