@@ -1,0 +1,113 @@
+"""``skytorch skyglow``: artificial sky brightness panorama from a city light map.
+
+Examples
+--------
+::
+
+    skytorch skyglow --synthetic --lat 43.6 --lon 1.44 -o sky.nc --png sky.png
+    skytorch skyglow --lights map.nc --observer-x 12000 --observer-y -3000 \\
+        --model skyglow_model.nc -o sky.nc
+    skytorch skyglow --synthetic --save-model model.nc --components 64 -o sky.nc
+
+The light map is a netCDF file with variable ``flux`` [lm] on ``(y, x)``, coordinates in
+metres east/north, and optionally ``altitude`` [m]. Without ``--model`` the PCA + FFT
+tables are precomputed for the given atmosphere (minutes at full resolution); save them
+with ``--save-model`` and reuse them with ``--model``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+logger = logging.getLogger(__name__)
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``skytorch skyglow``."""
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--lights", help="netCDF light map (flux [lm] on y, x in metres)")
+    source.add_argument("--synthetic", action="store_true",
+                        help="use a synthetic city (100 000 inhabitants, 1000 lm each)")
+    where = parser.add_argument_group("observer")
+    where.add_argument("--lat", type=float, help="observer latitude [deg] (recorded)")
+    where.add_argument("--lon", type=float, help="observer longitude [deg] (recorded)")
+    where.add_argument("--observer-x", type=float, default=0.0,
+                       help="observer position east in the map frame [m] (default 0)")
+    where.add_argument("--observer-y", type=float, default=0.0,
+                       help="observer position north in the map frame [m] (default 0)")
+    where.add_argument("--observer-altitude", type=float, default=0.0,
+                       help="observer altitude [m] (default 0)")
+    model = parser.add_argument_group("model")
+    model.add_argument("--model", help="precomputed model file (from --save-model)")
+    model.add_argument("--save-model", help="write the precomputed model to this file")
+    model.add_argument("--turbidity", type=float, default=2.0,
+                       help="atmospheric turbidity (1 = no aerosols; default 2)")
+    model.add_argument("--emission", default="garstang1986",
+                       help="upward emission function: garstang1986, lambertian, dobashi2023")
+    model.add_argument("--n-azimuth", type=int, default=128)
+    model.add_argument("--n-elevation", type=int, default=32)
+    model.add_argument("--n-distance", type=int, default=64)
+    model.add_argument("--max-distance", type=float, default=20_000.0,
+                       help="largest source distance [m] (default 20000)")
+    model.add_argument("--components", type=int, default=32, help="PCA components M")
+    model.add_argument("--steps", type=int, default=None,
+                       help="Gauss nodes per half view ray (default: from a 1e-3 tolerance)")
+    parser.add_argument("--lamp", default="led4000k",
+                        help="lamp spectrum: white, incandescent, led3000k, led4000k, hps, lps")
+    parser.add_argument("-o", "--output", required=True, help="netCDF file to write")
+    parser.add_argument("--png", help="also draw the panorama into this PNG file")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def _plot(ds, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(10, 3.2))
+    brightness = ds["total_brightness"]
+    image = axis.pcolormesh(ds["azimuth"].values, ds["elevation"].values, brightness.values,
+                            cmap="magma_r", shading="nearest")
+    axis.set_xlabel("azimuth [degree] (0 = north, 90 = east)")
+    axis.set_ylabel("elevation [degree]")
+    axis.set_title("Sky brightness with artificial light [mag arcsec$^{-2}$, V]")
+    figure.colorbar(image, ax=axis, label="mag arcsec$^{-2}$")
+    figure.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(figure)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Render the panorama and write the files."""
+    from skytorch.dataset import open_dataset, to_netcdf
+    from skytorch.skyglow.citymap import synthetic_city
+    from skytorch.skyglow.model import SkyglowModel, light_map_arrays
+
+    light_map = synthetic_city() if args.synthetic else open_dataset(args.lights)
+    light_map_arrays(light_map)  # fail early on a bad map, before any precomputation
+    if args.model:
+        model = SkyglowModel.load(args.model)
+    else:
+        from skytorch.atmosphere import Atmosphere
+
+        model = SkyglowModel.precompute(
+            Atmosphere.earth(turbidity=args.turbidity), n_azimuth=args.n_azimuth,
+            n_elevation=args.n_elevation, n_distance=args.n_distance,
+            max_distance_m=args.max_distance, n_components=args.components,
+            emission=args.emission, n_steps=args.steps, progress=not args.no_progress)
+        if args.save_model:
+            model.save(args.save_model)
+            logger.info("model written to %s", args.save_model)
+    ds = model.render(light_map, observer_xy=(args.observer_x, args.observer_y),
+                      observer_altitude_m=args.observer_altitude, lamp=args.lamp)
+    if args.lat is not None:
+        ds.attrs["observer_lat_deg"] = args.lat
+    if args.lon is not None:
+        ds.attrs["observer_lon_deg"] = args.lon
+    to_netcdf(ds, args.output)
+    zenith = float(ds["total_brightness"].isel(elevation=-1).mean())
+    print(f"zenith sky brightness {zenith:.2f} mag/arcsec^2 V -> {args.output}")
+    if args.png:
+        _plot(ds, args.png)
+    return 0

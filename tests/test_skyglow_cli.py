@@ -1,0 +1,46 @@
+"""``skytorch skyglow`` command line."""
+
+from __future__ import annotations
+
+import pytest
+
+from skytorch.cli import main
+from skytorch.dataset import open_dataset
+
+SMALL = ["--n-azimuth", "16", "--n-elevation", "4", "--n-distance", "6", "--components", "4",
+         "--steps", "4", "--no-progress"]
+
+
+def test_skyglow_command_synthetic_city(tmp_path, capsys):
+    out, png, model = tmp_path / "sky.nc", tmp_path / "sky.png", tmp_path / "model.nc"
+    status = main(["skyglow", "--synthetic", "--lat", "43.6", "--lon", "1.44", "-o", str(out),
+                   "--png", str(png), "--save-model", str(model), *SMALL])
+    assert status == 0
+    ds = open_dataset(out)
+    assert ds["radiance"].dims == ("elevation", "azimuth", "wavelength")
+    assert ds.attrs["observer_lat_deg"] == pytest.approx(43.6)
+    # the observer stands in the city centre: the sky is brighter than natural
+    assert float(ds["total_brightness"].max()) < 22.0
+    assert png.stat().st_size > 0 and "mag/arcsec^2" in capsys.readouterr().out
+    # reuse the saved model on a light map file
+    lights = tmp_path / "lights.nc"
+    from skytorch.dataset import to_netcdf
+    from skytorch.skyglow.citymap import synthetic_city
+
+    to_netcdf(synthetic_city(20_000.0, 1_000.0), lights)
+    again = tmp_path / "again.nc"
+    assert main(["skyglow", "--lights", str(lights), "--model", str(model), "-o", str(again),
+                 "--observer-x", "5000"]) == 0
+    assert open_dataset(again)["luminance"].shape == (4, 16)
+
+
+def test_skyglow_command_reports_bad_map(tmp_path, capsys):
+    import numpy as np
+    import xarray as xr
+
+    bad = tmp_path / "bad.nc"
+    xr.Dataset({"flux": (("y", "x"), np.array([[1.0, -5.0]]))},
+               coords={"x": [0.0, 100.0], "y": [0.0]}).to_netcdf(bad)
+    status = main(["skyglow", "--lights", str(bad), "-o", str(tmp_path / "o.nc"), *SMALL])
+    assert status == 2
+    assert "non-negative" in capsys.readouterr().err
