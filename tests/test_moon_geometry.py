@@ -44,6 +44,30 @@ def test_optical_libration_meeus_53a(dtype):
     assert abs(float(lat) - 4.194 * DEGREE) < 0.0006 * DEGREE
 
 
+def test_axis_position_angle_meeus_53a():
+    """Meeus ex. 53.a: P = 15.08° (with physical libration, ≲ 0.03°, not modelled here)."""
+    p = g.axis_position_angle(torch.tensor(MEEUS_MOON_RA * DEGREE, dtype=torch.float64),
+                              torch.tensor(4.194 * DEGREE, dtype=torch.float64),
+                              torch.tensor(MEEUS_T, dtype=torch.float64),
+                              torch.tensor(23.440636 * DEGREE, dtype=torch.float64),
+                              torch.tensor(MEEUS_DPSI * DEGREE, dtype=torch.float64))
+    assert abs(float(p) - 15.08 * DEGREE) < 0.03 * DEGREE
+
+
+def test_orientation_matrix_is_rotation():
+    m = g.orientation_matrix(torch.tensor([0.0, -0.02]), torch.tensor([0.0, 0.07]),
+                             torch.tensor([0.0, 0.6]), torch.tensor([0.0, 0.26]))
+    assert torch.allclose(m[0], torch.eye(3))
+    assert torch.allclose(m[1] @ m[1].T, torch.eye(3), atol=1e-6)
+    assert abs(float(torch.linalg.det(m[1])) - 1.0) < 1e-6
+    # R_x(b) R_y(l) R_z(p − a) applied to the x axis, written out by hand
+    b, l, z = 0.07, -0.02, 0.6 - 0.26
+    x = torch.tensor([math.cos(l) * math.cos(z),
+                      math.sin(b) * math.sin(l) * math.cos(z) + math.cos(b) * math.sin(z),
+                      -math.cos(b) * math.sin(l) * math.cos(z) + math.sin(b) * math.sin(z)])
+    assert torch.allclose(m[1, :, 0], x, atol=1e-6)
+
+
 def test_moon_geometry_dataset_reproduces_meeus():
     """Ephemeris-driven Dataset at 1992-04-12 0h (TD − UT = 58 s, negligible)."""
     from skytorch.moon import moon_geometry
@@ -52,6 +76,7 @@ def test_moon_geometry_dataset_reproduces_meeus():
     assert abs(float(ds.libration_longitude[0]) - (-1.206)) < 0.003
     assert abs(float(ds.libration_latitude[0]) - 4.194) < 0.003
     assert abs(float(ds.bright_limb_angle[0]) - 285.0) < 0.1
+    assert abs(float(ds.axis_position_angle[0]) - 15.08) < 0.05
     assert abs(float(ds.illuminated_fraction[0]) - 0.6786) < 2e-4
     assert ds.magnitude.attrs["long_name"]
 

@@ -52,9 +52,11 @@ from skytorch.moon.earthshine import (
 )
 from skytorch.moon.geometry import (
     apparent_diameter,
+    axis_position_angle,
     bright_limb_position_angle,
     illuminated_fraction,
     optical_libration,
+    orientation_matrix,
     parallactic_angle,
     phase_angle,
     phase_angle_from_radec,
@@ -78,6 +80,7 @@ __all__ = [
     "REFLECTANCE_MODELS",
     "albedo",
     "apparent_diameter",
+    "axis_position_angle",
     "bright_limb_position_angle",
     "dark_disc_quadrature",
     "disc_grid",
@@ -101,6 +104,7 @@ __all__ = [
     "moonlit_sky_single_scattering",
     "nanolambert_to_mag_arcsec2",
     "optical_libration",
+    "orientation_matrix",
     "parallactic_angle",
     "phase_angle",
     "phase_angle_from_radec",

@@ -48,6 +48,10 @@ _SPECS = {
                                         "physical libration not included."),
     "libration_latitude": VariableSpec("degree", "optical libration in latitude",
                                        "Optical libration b' (Meeus eq. 53.1), geocentric."),
+    "axis_position_angle": VariableSpec("degree", "position angle of the lunar axis",
+                                        "Position angle of the northern end of the Moon's "
+                                        "rotation axis, from north through east (Meeus ch. 53, "
+                                        "without physical libration), geocentric."),
     "apparent_diameter": VariableSpec("degree", "apparent angular diameter of the Moon",
                                       "2 asin(R_moon / d) with d the observer-Moon distance."),
     "magnitude": VariableSpec("1", "V magnitude of the Moon",
@@ -78,7 +82,8 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     xarray.Dataset
         Dimension ``time``; variables ``phase_angle``, ``illuminated_fraction``,
         ``bright_limb_angle``, ``libration_longitude``, ``libration_latitude``,
-        ``apparent_diameter``, ``magnitude`` (+ ``parallactic_angle`` with an observer).
+        ``axis_position_angle``, ``apparent_diameter``, ``magnitude`` (+
+        ``parallactic_angle`` with an observer).
     """
     from skyfield.api import wgs84
     from skyfield.nutationlib import iau2000b_radians, mean_obliquity
@@ -106,6 +111,7 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     beta = torch.atan2(z_ecl, torch.sqrt(x * x + y_ecl * y_ecl))
     centuries = (torch.as_tensor(np.atleast_1d(t.tt), dtype=torch.float64) - 2451545.0) / 36525
     lib_lon, lib_lat = _geometry.optical_libration(lam, beta, centuries, dpsi)
+    axis_pa = _geometry.axis_position_angle(moon_ra, lib_lat, centuries, epsilon, dpsi)
 
     moon_distance = moon.norm(dim=-1)
     data = {
@@ -114,6 +120,7 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
         "bright_limb_angle": chi / DEGREE,
         "libration_longitude": lib_lon / DEGREE,
         "libration_latitude": lib_lat / DEGREE,
+        "axis_position_angle": axis_pa / DEGREE,
         "magnitude": magnitude(phase, distance_m=moon_distance,
                                sun_distance_m=(sun - moon).norm(dim=-1)),
     }

@@ -60,10 +60,12 @@ __all__ = [
     "MEAN_LUNAR_EQUATOR_INCLINATION_RAD",
     "angle_between",
     "apparent_diameter",
+    "axis_position_angle",
     "bright_limb_position_angle",
     "illuminated_fraction",
     "mean_lunar_elements",
     "optical_libration",
+    "orientation_matrix",
     "parallactic_angle",
     "phase_angle",
     "phase_angle_from_radec",
@@ -268,6 +270,91 @@ def optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt,
     sin_b = -torch.sin(w) * torch.cos(beta) * sin_i - torch.sin(beta) * cos_i
     libration_lat = torch.asin(sin_b)  # |b'| <= I + |β| < 7°, far from the asin poles
     return libration_lon, libration_lat
+
+
+def axis_position_angle(moon_ra_rad, libration_lat_rad, julian_centuries_tt, obliquity_rad,
+                        nutation_lon_rad=0.0) -> torch.Tensor:
+    """Position angle P of the Moon's axis of rotation (Meeus 1998, ch. 53) [rad].
+
+    Parameters
+    ----------
+    moon_ra_rad : Tensor (...)
+        Apparent right ascension α of the Moon [rad].
+    libration_lat_rad : Tensor (...)
+        Libration in latitude b [rad] (optical, from :func:`optical_libration`).
+    julian_centuries_tt : Tensor (...)
+        T, Julian centuries of TT from J2000.0 (for Ω).
+    obliquity_rad : Tensor (...)
+        True obliquity of the ecliptic ε [rad].
+    nutation_lon_rad : Tensor (...), optional
+        Nutation in longitude Δψ [rad].
+
+    Returns
+    -------
+    Tensor (...)
+        P in (−π/2, π/2], the position angle of the northern end of the axis, from north
+        through east [rad]. Physical libration (ρ, σ ≲ 0.03°) is neglected: Meeus ex. 53.a
+        gives 15.08° with it, this function 15.066°.
+
+    Notes
+    -----
+    ``V = Ω + Δψ``, ``X = sin I sin V``, ``Y = sin I cos V cos ε − cos I sin ε``,
+    ``ω = atan2(X, Y)``, ``sin P = √(X² + Y²) cos(α − ω) / cos b``.
+    """
+    dtype = common_dtype(moon_ra_rad, libration_lat_rad, julian_centuries_tt, obliquity_rad,
+                         nutation_lon_rad)
+    ra = _tensor("moon_ra_rad", moon_ra_rad, dtype)
+    b = _tensor("libration_lat_rad", libration_lat_rad, dtype)
+    eps = _tensor("obliquity_rad", obliquity_rad, dtype)
+    dpsi = _tensor("nutation_lon_rad", nutation_lon_rad, dtype)
+    _, node = mean_lunar_elements(_tensor("julian_centuries_tt", julian_centuries_tt, dtype))
+    inclination = MEAN_LUNAR_EQUATOR_INCLINATION_RAD
+    v = node + dpsi
+    x = math.sin(inclination) * torch.sin(v)
+    y = (math.sin(inclination) * torch.cos(v) * torch.cos(eps)
+         - math.cos(inclination) * torch.sin(eps))
+    omega = torch.atan2(x, y)
+    sin_p = torch.sqrt(x * x + y * y) * torch.cos(ra - omega) / torch.cos(b)
+    return torch.asin(sin_p.clamp(-1.0, 1.0))
+
+
+def orientation_matrix(libration_lon_rad, libration_lat_rad, parallactic_angle_rad,
+                       axis_position_angle_rad) -> torch.Tensor:
+    """Selenocentric orientation ``R_m = R_x(b) R_y(l) R_z(p − a)`` (Müller et al. 2012, eq. 2).
+
+    Parameters
+    ----------
+    libration_lon_rad, libration_lat_rad : Tensor (...)
+        Libration in longitude l and latitude b [rad].
+    parallactic_angle_rad : Tensor (...)
+        Parallactic angle p [rad].
+    axis_position_angle_rad : Tensor (...)
+        Position angle a of the lunar axis [rad].
+
+    Returns
+    -------
+    Tensor (..., 3, 3)
+        Rotation matrix (counter-clockwise elementary rotations about x, y, z) taking
+        disc-frame normals to selenographic directions for texture look-up.
+    """
+    dtype = common_dtype(libration_lon_rad, libration_lat_rad, parallactic_angle_rad,
+                         axis_position_angle_rad)
+    b = _tensor("libration_lat_rad", libration_lat_rad, dtype)
+    lon = _tensor("libration_lon_rad", libration_lon_rad, dtype)
+    z_angle = (_tensor("parallactic_angle_rad", parallactic_angle_rad, dtype)
+               - _tensor("axis_position_angle_rad", axis_position_angle_rad, dtype))
+    b, lon, z_angle = torch.broadcast_tensors(b, lon, z_angle)
+    one, zero = torch.ones_like(b), torch.zeros_like(b)
+
+    def matrix(rows):
+        return torch.stack([torch.stack(row, dim=-1) for row in rows], dim=-2)
+
+    cb, sb, cl, sl = torch.cos(b), torch.sin(b), torch.cos(lon), torch.sin(lon)
+    cz, sz = torch.cos(z_angle), torch.sin(z_angle)
+    rx = matrix([[one, zero, zero], [zero, cb, -sb], [zero, sb, cb]])
+    ry = matrix([[cl, zero, sl], [zero, one, zero], [-sl, zero, cl]])
+    rz = matrix([[cz, -sz, zero], [sz, cz, zero], [zero, zero, one]])
+    return rx @ ry @ rz
 
 
 def parallactic_angle(hour_angle_rad, dec_rad, lat_rad) -> torch.Tensor:
