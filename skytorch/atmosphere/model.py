@@ -103,7 +103,7 @@ _US1976_BREAKS_M = (1000.0, 2000.0, 4000.0, 8000.0, 11_019.1, 20_063.1, 32_161.9
                     51_412.5, 71_802.0, 86_000.0)
 
 #: rays per chunk in column integrals (keeps intermediates in cache)
-_CHUNK = 16384
+_CHUNK = 4096
 
 _PARAMETERS = (
     "surface_pressure_pa", "surface_temperature_k", "gravity_m_s2", "molar_mass_kg_mol",
@@ -513,7 +513,7 @@ class Atmosphere(nn.Module):
         return {s: _od.column_integral(self._density(s, dtype), r, mu, self.planet_radius_m,
                                        self.top_radius_m, self._levels(s, dtype),
                                        method=method, n_steps=n_steps, rtol=rtol,
-                                       truncate=self._truncates(s))
+                                       truncate=self._truncates(s), support=s == "ozone")
                 for s in SPECIES}
 
     def optical_depth(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, *,

@@ -148,11 +148,13 @@ def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, t
             {"lo": down_lo, "c_lo": down_c, "length": down_len, "excess": excess}]
 
 
-def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate):
+def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support=False):
     """Composite Gauss–Legendre integral over one leg, cut at ``levels_m``.
 
     With ``truncate`` the last level ends the integration (where the density of an
-    exponential profile has dropped below a negligible fraction of the leg's maximum).
+    exponential profile has dropped below a negligible fraction of the leg's maximum);
+    with ``support`` the density vanishes outside [first level, last level] and only that
+    range is integrated.
     """
     lo, c_lo, length = leg["lo"], leg["c_lo"], leg["length"]
     dtype = lo.dtype
@@ -166,12 +168,16 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate):
     tau_levels = safe_sqrt(c_levels - leg["excess"][..., None])
     u_levels = _safe_ratio(c_levels - c_lo[..., None], tau_levels + lo[..., None])
     u_levels = torch.minimum(torch.clamp(u_levels, min=0.0), length[..., None])
-    if truncate:
-        length = u_levels[..., -1]
-        u_levels = u_levels[..., :-1]
     shape = torch.broadcast_shapes(u_levels.shape[:-1], lo.shape)
-    edges = torch.cat([torch.zeros(*shape, 1, dtype=dtype), u_levels.expand(*shape, -1),
-                       length[..., None].expand(*shape, 1)], dim=-1)
+    u_levels = u_levels.expand(*shape, -1)
+    if support:
+        edges = u_levels
+    else:
+        if truncate:
+            length = u_levels[..., -1]
+            u_levels = u_levels[..., :-1]
+        edges = torch.cat([torch.zeros(*shape, 1, dtype=dtype), u_levels,
+                           length[..., None].expand(*shape, 1)], dim=-1)
     half = 0.5 * (edges[..., 1:] - edges[..., :-1])
     middle = edges[..., :-1] + half
     nodes, weights = _gauss_legendre(n_nodes)
@@ -197,7 +203,7 @@ def _trapezoid_leg(density, leg, planet_radius, n_steps):
 def column_integral(density: Density, r, mu, planet_radius: float, top_radius: float,
                     levels_m: torch.Tensor, *, method: str = "gauss",
                     n_steps: int | None = None, rtol: float = 1e-9,
-                    truncate: bool = False) -> torch.Tensor:
+                    truncate: bool = False, support: bool = False) -> torch.Tensor:
     """Path integral :math:`\\int \\rho(h(s))\\,ds` of a density profile along a straight ray.
 
     Parameters
@@ -223,6 +229,9 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
         Relative tolerance of ``"adaptive"``.
     truncate : bool
         The last level ends the integration (the profile is negligible above it).
+    support : bool
+        The profile vanishes below the first and above the last level (ozone tent): only
+        that range is integrated.
 
     Returns
     -------
@@ -245,7 +254,8 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     def integrate(n):
         total = zero
         for leg in legs:
-            total = total + _gauss_leg(density, leg, planet_radius, levels_m, n, truncate)
+            total = total + _gauss_leg(density, leg, planet_radius, levels_m, n, truncate,
+                                       support)
         return total
 
     if method == "gauss":

@@ -1,0 +1,355 @@
+"""Transmittance look-up table (Bruneton parametrisation) with a disk cache.
+
+The table stores the optical depth from a point at radius :math:`r` along direction
+cosine :math:`\\mu` to the top of the atmosphere, for rays that do not meet the ground,
+on the texture coordinates of Bruneton (ref. 1, ``GetTransmittanceTextureUvFromRMu``):
+
+.. math::
+
+    H = \\sqrt{R_t^2 - R^2},\\quad \\rho = \\sqrt{r^2 - R^2},\\quad x_r = \\rho / H,
+
+    d_{min} = R_t - r,\\quad d_{max} = \\rho + H,\\quad
+    x_\\mu = (d - d_{min})/(d_{max} - d_{min}),
+
+with :math:`d` the distance to the top. Samples lie on the unit range, including both
+ends (:math:`x = k/(n-1)`), and look-ups interpolate bilinearly. Optical depths between
+two points, and to the ground, follow from differences of two look-ups (ref. 1,
+``GetTransmittance``). Because the per-species path integrals do not depend on
+wavelength, the table's cost is that of ``n_r * n_mu`` rays times three species.
+
+Tables are cached on disk as netCDF files named by a SHA-256 hash of every parameter
+that affects them (the atmosphere's parameters, the wavelengths, the resolution, the
+quadrature and a format version). The cache directory is ``$SKYTORCH_CACHE_DIR`` or
+``~/.cache/skytorch``. A file that cannot be read, or whose stored key, shapes or values
+do not match, is rebuilt.
+
+References
+----------
+1. Bruneton, E. 2017, "Precomputed Atmospheric Scattering: a New Implementation",
+   https://ebruneton.github.io/precomputed_atmospheric_scattering/.
+2. Bruneton, E. & Neyret, F. 2008, "Precomputed Atmospheric Scattering",
+   Computer Graphics Forum 27, 1079, doi:10.1111/j.1467-8659.2008.01245.x.
+
+Examples
+--------
+>>> import torch
+>>> from skytorch.atmosphere import Atmosphere
+>>> from skytorch.atmosphere.tables import TransmittanceTable
+>>> atm = Atmosphere.earth(turbidity=2.0)
+>>> table = TransmittanceTable.build(atm, torch.tensor([440.0, 550.0, 680.0]), n_mu=64,
+...                                  n_r=16)
+>>> table.optical_depth(torch.tensor([0.0, 1.0])).shape
+torch.Size([2, 3])
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from skytorch._validate import check_finite, check_int, common_dtype
+from skytorch.dataset import (
+    VariableSpec,
+    build_dataset,
+    coordinate,
+    open_dataset,
+    to_netcdf,
+    variable,
+)
+
+__all__ = [
+    "TransmittanceTable",
+    "cache_directory",
+    "cached_transmittance_table",
+    "table_key",
+    "transmittance_table",
+]
+
+logger = logging.getLogger(__name__)
+
+#: bump when the layout or the numerics of the table change (invalidates caches)
+TABLE_FORMAT_VERSION = 1
+
+_REFERENCES = [
+    "Bruneton, E. 2017, Precomputed Atmospheric Scattering: a New Implementation, "
+    "https://ebruneton.github.io/precomputed_atmospheric_scattering/",
+    "Bruneton, E. & Neyret, F. 2008, Computer Graphics Forum 27, 1079, "
+    "doi:10.1111/j.1467-8659.2008.01245.x",
+]
+
+
+def cache_directory() -> Path:
+    """``$SKYTORCH_CACHE_DIR`` if set, else ``~/.cache/skytorch``."""
+    return Path(os.environ.get("SKYTORCH_CACHE_DIR") or Path.home() / ".cache" / "skytorch")
+
+
+def _geometry(x_r, x_mu, planet_radius, top_radius):
+    """(r, mu) of texture coordinates (broadcast)."""
+    horizon = math.sqrt(top_radius ** 2 - planet_radius ** 2)
+    rho = horizon * x_r
+    r = torch.sqrt(rho * rho + planet_radius ** 2)
+    d_min = top_radius - r
+    d_max = rho + horizon
+    d = d_min + x_mu * (d_max - d_min)
+    safe_d = torch.where(d == 0, torch.ones_like(d), d)
+    mu = torch.where(d == 0, torch.ones_like(d),
+                     (horizon * horizon - rho * rho - d * d) / (2.0 * r * safe_d))
+    return r, torch.clamp(mu, -1.0, 1.0)
+
+
+def _coordinates(r, mu, planet_radius, top_radius):
+    """Texture coordinates (x_r, x_mu) in [0, 1] of (r, mu) for rays that miss the ground."""
+    horizon = math.sqrt(top_radius ** 2 - planet_radius ** 2)
+    rho = torch.sqrt(torch.clamp((r - planet_radius) * (r + planet_radius), min=0.0))
+    disc = (r * mu) ** 2 + (top_radius - r) * (top_radius + r)
+    d = torch.clamp(-r * mu + torch.sqrt(torch.clamp(disc, min=0.0)), min=0.0)
+    d_min = top_radius - r
+    d_max = rho + horizon
+    span = d_max - d_min
+    x_mu = torch.where(span > 0, (d - d_min) / torch.where(span > 0, span, 1.0),
+                       torch.zeros_like(d))
+    return torch.clamp(rho / horizon, 0.0, 1.0), torch.clamp(x_mu, 0.0, 1.0)
+
+
+def table_key(atmosphere, wavelength_nm, n_mu: int, n_r: int, method: str,
+              n_steps: int | None) -> str:
+    """SHA-256 hex digest of every parameter that affects the table."""
+    payload = {
+        "kind": "transmittance", "format": TABLE_FORMAT_VERSION,
+        "atmosphere": atmosphere.parameters_dict(),
+        "wavelength_nm": [float(w) for w in torch.as_tensor(wavelength_nm).reshape(-1)],
+        "n_mu": n_mu, "n_r": n_r, "method": method, "n_steps": n_steps,
+    }
+    text = json.dumps(payload, sort_keys=True, default=float)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int = 64,
+                        method: str = "gauss", n_steps: int | None = None):
+    """Compute the transmittance table as a Dataset.
+
+    Parameters
+    ----------
+    atmosphere : Atmosphere
+        With scalar (unbatched) parameters.
+    wavelength_nm : Tensor (wavelength,)
+        Wavelengths [nm].
+    n_mu, n_r : int
+        Samples along :math:`x_\\mu` and :math:`x_r` (Bruneton: 256 x 64).
+    method, n_steps
+        Quadrature of the column integrals (:meth:`Atmosphere.optical_depth`).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``x_r``, ``x_mu``, ``wavelength``; variables ``optical_depth``,
+        ``transmittance`` (x_r, x_mu, wavelength), ``altitude`` (x_r) [m],
+        ``zenith_angle`` (x_r, x_mu) [degree]; attribute ``cache_key``.
+    """
+    n_mu = check_int("n_mu", n_mu, 2)
+    n_r = check_int("n_r", n_r, 2)
+    if atmosphere.batch_shape != ():
+        raise ValueError("transmittance tables need an Atmosphere with scalar parameters; "
+                         f"got batch shape {tuple(atmosphere.batch_shape)} (loop over the "
+                         "sweep)")
+    wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
+    x_r = torch.linspace(0.0, 1.0, n_r, dtype=torch.float64)
+    x_mu = torch.linspace(0.0, 1.0, n_mu, dtype=torch.float64)
+    r, mu = _geometry(x_r[:, None], x_mu[None, :], atmosphere.planet_radius_m,
+                      atmosphere.top_radius_m)
+    # the last column is the ray tangent to the ground: nudge it above the horizon so that
+    # it counts as reaching the top (continuity with its neighbours)
+    mu = torch.where(x_mu[None, :] == 1.0, mu * (1.0 - 1e-12), mu)
+    altitude = torch.clamp(r - atmosphere.planet_radius_m, min=0.0)
+    tau = atmosphere.optical_depth(wavelength, torch.acos(mu), altitude, method=method,
+                                   n_steps=n_steps)
+    key = table_key(atmosphere, wavelength, n_mu, n_r, method, n_steps)
+    data_vars = {
+        "optical_depth": variable(("x_r", "x_mu", "wavelength"), tau, VariableSpec(
+            "1", "optical depth to the top of the atmosphere",
+            "Slant optical depth from (r, mu) to the top of the atmosphere along a straight "
+            "ray (all constituents).")),
+        "transmittance": variable(("x_r", "x_mu", "wavelength"), torch.exp(-tau), VariableSpec(
+            "1", "transmittance to the top of the atmosphere",
+            "exp(-optical_depth).", "atmosphere_transmittance")),
+        "altitude": variable(("x_r",), altitude[:, 0], VariableSpec(
+            "m", "altitude of the ray origin", "r - planet radius.", "altitude")),
+        "zenith_angle": variable(("x_r", "x_mu"), torch.rad2deg(torch.acos(mu)), VariableSpec(
+            "degree", "zenith angle of the ray", "Angle between the ray and the local "
+            "vertical at its origin.", "zenith_angle")),
+    }
+    coords = {
+        "x_r": coordinate("x_r", x_r, VariableSpec(
+            "1", "radius texture coordinate", "sqrt(r^2 - R^2) / sqrt(R_t^2 - R^2)")),
+        "x_mu": coordinate("x_mu", x_mu, VariableSpec(
+            "1", "direction texture coordinate",
+            "(d - d_min) / (d_max - d_min), d the distance to the top")),
+        "wavelength": coordinate("wavelength", wavelength, VariableSpec(
+            "nm", "wavelength", "Vacuum wavelength.", "radiation_wavelength")),
+    }
+    parameters = dict(atmosphere.parameters_dict())
+    parameters.update({"n_mu": n_mu, "n_r": n_r, "method": method,
+                       "n_steps": -1 if n_steps is None else n_steps,
+                       "table_format": TABLE_FORMAT_VERSION})
+    return build_dataset(data_vars, coords, title="Transmittance look-up table",
+                         references=_REFERENCES, parameters=parameters, cache_key=key)
+
+
+def _valid(dataset, key: str, n_wavelength: int, n_mu: int, n_r: int) -> bool:
+    try:
+        tau = dataset["optical_depth"].values
+        return (dataset.attrs.get("cache_key") == key
+                and tau.shape == (n_r, n_mu, n_wavelength)
+                and bool(np.isfinite(tau).all()) and bool((tau >= 0).all()))
+    except (KeyError, AttributeError, ValueError):
+        return False
+
+
+def cached_transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int = 64,
+                               method: str = "gauss", n_steps: int | None = None,
+                               cache_dir: str | os.PathLike | None = None,
+                               progress: bool | None = None):
+    """The transmittance table from the disk cache, computed and stored if absent or bad.
+
+    Parameters
+    ----------
+    atmosphere, wavelength_nm, n_mu, n_r, method, n_steps
+        As for :func:`transmittance_table`.
+    cache_dir : path, optional
+        Cache directory (default :func:`cache_directory`).
+    progress : bool, optional
+        Show a progress bar while building (default: only on a terminal).
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    from tqdm.auto import tqdm
+
+    wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
+    key = table_key(atmosphere, wavelength, n_mu, n_r, method, n_steps)
+    directory = Path(cache_dir) if cache_dir is not None else cache_directory()
+    path = directory / f"transmittance_{key[:24]}.nc"
+    if path.is_file():
+        try:
+            dataset = open_dataset(path)
+        except Exception as error:  # noqa: BLE001 - any unreadable file is rebuilt
+            logger.warning("unreadable table cache %s (%s); rebuilding", path, error)
+        else:
+            if _valid(dataset, key, wavelength.numel(), n_mu, n_r):
+                logger.debug("transmittance table from cache %s", path)
+                return dataset
+            logger.warning("stale or inconsistent table cache %s; rebuilding", path)
+    disable = (not os.isatty(2)) if progress is None else not progress
+    with tqdm(total=1, desc="transmittance table", disable=disable) as bar:
+        dataset = transmittance_table(atmosphere, wavelength, n_mu=n_mu, n_r=n_r,
+                                      method=method, n_steps=n_steps)
+        bar.update(1)
+    to_netcdf(dataset, path)
+    logger.info("transmittance table written to %s", path)
+    return dataset
+
+
+class TransmittanceTable(nn.Module):
+    """Batched bilinear look-ups in a transmittance table.
+
+    Parameters
+    ----------
+    optical_depth : Tensor (x_r, x_mu, wavelength)
+        Table of optical depths to the top.
+    wavelength_nm : Tensor (wavelength,)
+        Its wavelengths [nm].
+    planet_radius_m, top_radius_m : float
+        Radii the table was computed for [m].
+    """
+
+    def __init__(self, optical_depth, wavelength_nm, planet_radius_m: float,
+                 top_radius_m: float):
+        super().__init__()
+        self.register_buffer("table", torch.tensor(np.array(optical_depth, dtype=np.float64)))
+        self.register_buffer("wavelength_nm",
+                             torch.tensor(np.array(wavelength_nm, dtype=np.float64)))
+        self.planet_radius_m = float(planet_radius_m)
+        self.top_radius_m = float(top_radius_m)
+
+    @classmethod
+    def from_dataset(cls, dataset) -> TransmittanceTable:
+        """From a Dataset of :func:`transmittance_table` (or the cache)."""
+        parameters = json.loads(dataset.attrs["parameters"])
+        planet = parameters["planet_radius_m"]
+        return cls(dataset["optical_depth"].values, dataset["wavelength"].values, planet,
+                   planet + parameters["top_altitude_m"])
+
+    @classmethod
+    def build(cls, atmosphere, wavelength_nm, *, cache: bool = False, **kwargs
+              ) -> TransmittanceTable:
+        """Compute (or, with ``cache=True``, load from the disk cache) a table."""
+        if cache:
+            dataset = cached_transmittance_table(atmosphere, wavelength_nm, **kwargs)
+        else:
+            dataset = transmittance_table(atmosphere, wavelength_nm, **kwargs)
+        return cls.from_dataset(dataset)
+
+    def _lookup(self, r, mu):
+        """Bilinear interpolation at (r, mu) (rays missing the ground) -> (..., wavelength)."""
+        x_r, x_mu = _coordinates(r, mu, self.planet_radius_m, self.top_radius_m)
+        table = self.table.to(x_r.dtype)
+        n_r, n_mu, n_wl = table.shape
+        fr = x_r * (n_r - 1)
+        fm = x_mu * (n_mu - 1)
+        i = torch.clamp(fr.detach().floor().long(), 0, n_r - 2)
+        j = torch.clamp(fm.detach().floor().long(), 0, n_mu - 2)
+        wr = (fr - i)[..., None]
+        wm = (fm - j)[..., None]
+        flat = table.reshape(n_r * n_mu, n_wl)
+
+        def at(a, b):
+            return flat[a * n_mu + b]
+
+        return ((1 - wr) * ((1 - wm) * at(i, j) + wm * at(i, j + 1))
+                + wr * ((1 - wm) * at(i + 1, j) + wm * at(i + 1, j + 1)))
+
+    def optical_depth(self, zenith_rad, altitude_m=0.0) -> torch.Tensor:
+        """Optical depth from the observer to the top or to the ground (..., wavelength).
+
+        Parameters
+        ----------
+        zenith_rad : Tensor (...)
+            Zenith angle of the view direction [rad].
+        altitude_m : Tensor (...)
+            Observer altitude [m], between 0 and the top.
+
+        Notes
+        -----
+        Rays meeting the ground at :math:`(R, \\mu_g)`:
+        :math:`\\tau = \\tau_{top}(R, -\\mu_g) - \\tau_{top}(r, -\\mu)` (ref. 1).
+        """
+        from skytorch.atmosphere.geometry import distance_to_ground, ray_hits_ground
+
+        dtype = common_dtype(zenith_rad, altitude_m)
+        zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
+        altitude = check_finite("altitude_m", altitude_m, dtype=dtype)
+        r = self.planet_radius_m + altitude
+        mu = torch.cos(zenith)
+        r, mu = torch.broadcast_tensors(r, mu)
+        hits = ray_hits_ground(r, mu, self.planet_radius_m)
+        up = self._lookup(r, torch.where(hits, -mu, mu))
+        d = distance_to_ground(r, mu, self.planet_radius_m)
+        planet = self.planet_radius_m
+        # mu at the ground point (looking down) from r mu + d = R mu_g
+        mu_ground = torch.clamp((r * mu + d) / planet, -1.0, 0.0)
+        from_ground = self._lookup(torch.full_like(r, planet), -mu_ground)
+        down = torch.clamp(from_ground - up, min=0.0)
+        return torch.where(hits[..., None], down, up)
+
+    def transmittance(self, zenith_rad, altitude_m=0.0) -> torch.Tensor:
+        """:math:`e^{-\\tau}` of :meth:`optical_depth` (..., wavelength) [1]."""
+        return torch.exp(-self.optical_depth(zenith_rad, altitude_m))

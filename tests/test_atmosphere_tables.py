@@ -1,0 +1,123 @@
+"""Transmittance look-up table: accuracy against direct integration, Dataset, disk cache."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from skytorch.atmosphere import Atmosphere
+from skytorch.atmosphere import tables as tables_module
+from skytorch.atmosphere.tables import (
+    TransmittanceTable,
+    cached_transmittance_table,
+    transmittance_table,
+)
+from skytorch.constants import PERCENT
+from skytorch.dataset import open_dataset, to_netcdf
+
+WAVELENGTH = torch.tensor([440.0, 550.0, 680.0], dtype=torch.float64)
+
+
+@pytest.fixture(scope="module")
+def atmosphere():
+    return Atmosphere.earth(turbidity=2.0, ozone_du=300.0)
+
+
+@pytest.fixture(scope="module")
+def table(atmosphere):
+    return TransmittanceTable.build(atmosphere, WAVELENGTH)
+
+
+@pytest.mark.parametrize("altitude", [0.0, 2000.0, 20_000.0])
+def test_lookup_matches_direct_integration(atmosphere, table, altitude):
+    # bilinear look-up in the default 256 x 64 table vs the direct quadrature: the
+    # interpolation error (not the integration) dominates, 0.3 % at most
+    zenith = torch.linspace(0.0, math.radians(89.0), 60, dtype=torch.float64)
+    looked_up = table.optical_depth(zenith, altitude)
+    direct = atmosphere.optical_depth(WAVELENGTH, zenith, altitude)
+    assert float(((looked_up - direct).abs() / direct).max()) <= 0.3 * PERCENT
+
+
+def test_lookup_for_rays_hitting_the_ground(atmosphere, table):
+    zenith = torch.tensor([math.radians(100.0), math.radians(130.0), math.pi],
+                          dtype=torch.float64)
+    looked_up = table.optical_depth(zenith, 10_000.0)
+    direct = atmosphere.optical_depth(WAVELENGTH, zenith, 10_000.0)
+    assert float(((looked_up - direct).abs() / direct).max()) <= 1 * PERCENT
+
+
+def test_table_dataset_metadata(atmosphere):
+    dataset = transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=8)
+    assert dataset["optical_depth"].dims == ("x_r", "x_mu", "wavelength")
+    for name in dataset.dims:
+        assert name in dataset.coords
+    for name in dataset.variables:
+        assert "units" in dataset[name].attrs and "long_name" in dataset[name].attrs
+    assert dataset.attrs["cache_key"]
+    # the table's first row is the ground, its first column the zenith
+    assert float(dataset["altitude"][0]) == 0.0
+    assert float(dataset["zenith_angle"][0, 0]) == pytest.approx(0.0, abs=1e-9)
+    assert np.allclose(dataset["transmittance"], np.exp(-dataset["optical_depth"]))
+
+
+def test_batched_atmosphere_rejected():
+    atm = Atmosphere.earth(turbidity=torch.tensor([2.0, 3.0], dtype=torch.float64))
+    with pytest.raises(ValueError, match="scalar parameters"):
+        transmittance_table(atm, WAVELENGTH, n_mu=8, n_r=4)
+
+
+def test_cache_written_then_read(atmosphere, tmp_path, monkeypatch):
+    first = cached_transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=8,
+                                       cache_dir=tmp_path)
+    files = list(tmp_path.glob("transmittance_*.nc"))
+    assert len(files) == 1
+
+    def fail(*args, **kwargs):
+        raise AssertionError("the table was recomputed instead of read from the cache")
+
+    monkeypatch.setattr(tables_module, "transmittance_table", fail)
+    second = cached_transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=8,
+                                        cache_dir=tmp_path)
+    assert np.array_equal(first["optical_depth"].values, second["optical_depth"].values)
+
+
+def test_cache_key_changes_with_parameters(atmosphere, tmp_path):
+    cached_transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=8, cache_dir=tmp_path)
+    other = Atmosphere.earth(turbidity=2.0, ozone_du=301.0)
+    cached_transmittance_table(other, WAVELENGTH, n_mu=16, n_r=8, cache_dir=tmp_path)
+    cached_transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=9, cache_dir=tmp_path)
+    assert len(list(tmp_path.glob("transmittance_*.nc"))) == 3
+
+
+def test_corrupt_cache_file_is_rebuilt(atmosphere, tmp_path):
+    good = cached_transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=8,
+                                      cache_dir=tmp_path)
+    (path,) = tmp_path.glob("transmittance_*.nc")
+    path.write_bytes(b"not a netCDF file")
+    rebuilt = cached_transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=8,
+                                         cache_dir=tmp_path)
+    assert np.array_equal(good["optical_depth"].values, rebuilt["optical_depth"].values)
+    assert open_dataset(path).attrs["cache_key"] == good.attrs["cache_key"]
+
+
+def test_stale_cache_file_is_rebuilt(atmosphere, tmp_path):
+    good = cached_transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=8,
+                                      cache_dir=tmp_path)
+    (path,) = tmp_path.glob("transmittance_*.nc")
+    stale = good.copy(deep=True)
+    stale.attrs["cache_key"] = "0" * 64
+    stale["optical_depth"].values[:] = 1.0
+    to_netcdf(stale, path)
+    rebuilt = cached_transmittance_table(atmosphere, WAVELENGTH, n_mu=16, n_r=8,
+                                         cache_dir=tmp_path)
+    assert np.array_equal(good["optical_depth"].values, rebuilt["optical_depth"].values)
+
+
+def test_cache_directory_from_environment(atmosphere, tmp_path, monkeypatch):
+    monkeypatch.setenv("SKYTORCH_CACHE_DIR", str(tmp_path / "env-cache"))
+    table = TransmittanceTable.build(atmosphere, WAVELENGTH, cache=True, n_mu=16, n_r=8)
+    assert len(list((tmp_path / "env-cache").glob("transmittance_*.nc"))) == 1
+    assert table.table.shape == (8, 16, 3)
