@@ -135,7 +135,7 @@ DEFAULT_N_ALTITUDE = 401
 #: default Gauss–Legendre nodes per piece of the ring (impact-parameter) integral
 DEFAULT_RING_NODES = 12
 #: default Gauss–Legendre nodes on the arc through the solar disc
-DEFAULT_ARC_NODES = 6
+DEFAULT_ARC_NODES = 8
 #: equal sub-pieces per piece of the ring integral (composite Gauss–Legendre)
 DEFAULT_SPLIT = 2
 #: bisection steps inside a coarse-grid bracket (resolution ~1e-8 of the table coordinate)
@@ -228,8 +228,9 @@ def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
     hav_offset = _haversine(alpha - sigma)
     product = torch.sin(alpha) * torch.sin(sigma)
     numerator = _haversine(rho_s) - hav_offset
-    ratio = torch.where(numerator >= product, torch.ones_like(numerator),
-                        numerator / torch.clamp(product, min=tiny))
+    full = numerator >= product
+    ratio = torch.where(full, torch.ones_like(numerator),
+                        numerator / torch.where(full, 1.0, torch.clamp(product, min=tiny)))
     psi_max = _angle_from_haversine(ratio)
     x, w = _unit_gauss(n_nodes)
     v = torch.as_tensor(x, dtype=alpha.dtype)
@@ -801,7 +802,8 @@ class Shadow(nn.Module):
         psi = (torch.arange(n_p, dtype=dtype) + 0.5) * (2.0 * math.pi / n_p) - math.pi
         s = torch.sqrt((beta - profile.beta_min_m) / span)
         values = _spline(tables["all"], s)
-        deviation, periapsis, optical = values[:, 0], values[:, 1], values[:, 2:]
+        deviation, periapsis = values[:, 0], values[:, 1]
+        optical = values[:, 2:] @ tables["basis"]
         centre = angles["centre_distance_m"][..., None]
         b = self.occluder_radius_m + beta
         scale = ((self.sun_distance_m if sun_distance_m is None
@@ -817,7 +819,7 @@ class Shadow(nn.Module):
         mu = _safe_sqrt(1.0 - r2)
         a0, a1, a2 = _law_coefficients(self.law, self.limb_darkening.to(dtype), dtype)
         radiance = torch.where(inside, a0 + a1 * mu + a2 * mu * mu, 0.0) / (a0 + a1 + a2)
-        transmittance = torch.exp(-optical) * _terrain_weight(
+        transmittance = torch.exp(-torch.clamp(optical, min=0.0)) * _terrain_weight(
             periapsis, profile.terrain_height_m)[:, None]  # (n_b, n_wl)
         image = radiance[..., None] * transmittance[:, None, :]  # (..., n_b, n_p, n_wl)
         image = image.reshape(*shape, n_altitude, oversample, n_azimuth, oversample, -1)
