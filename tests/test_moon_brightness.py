@@ -91,3 +91,15 @@ def test_geometric_albedo_and_lunar_irradiance_consistent():
     e = br.lunar_irradiance(torch.tensor(0.0, dtype=torch.float64), wl, earthshine=False)
     expected = solar_irradiance(wl) * p * (1737400.0 / MEAN_EARTH_MOON_DISTANCE_M) ** 2
     assert torch.allclose(e, expected, rtol=1e-12)
+
+
+def test_module_matches_function(dtype):
+    from skytorch.moon import MoonPhotometry
+
+    moon = MoonPhotometry()
+    alpha = torch.tensor([0.0, 0.7, 2.0, math.pi], dtype=dtype)
+    d = torch.tensor(4.0e8, dtype=dtype)
+    tolerance = 1e-9 if dtype == torch.float64 else 1e-4
+    assert torch.allclose(moon(alpha, d), br.magnitude(alpha, distance_m=d), atol=tolerance)
+    assert moon(alpha).dtype == dtype
+    assert "hapke2012" in repr(moon)

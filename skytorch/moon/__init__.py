@@ -14,7 +14,8 @@ Tensor functions (batched, differentiable, dtype following the inputs):
 * :mod:`~skytorch.moon.sky` — moonlit sky brightness: Krisciunas & Schaefer (1991) and
   single scattering through :class:`skytorch.atmosphere.Atmosphere`.
 
-Dataset builders: :func:`moon_geometry` (over time, from the ephemeris) and
+Module: :class:`MoonPhotometry` (reflectance law and parameters fixed, reference magnitude
+as a buffer). Dataset builders: :func:`moon_geometry` (over time, from the ephemeris) and
 :func:`moon_disc_image`.
 
 Examples
@@ -61,6 +62,7 @@ from skytorch.moon.geometry import (
     phase_angle,
     phase_angle_from_radec,
 )
+from skytorch.moon.module import MoonPhotometry
 from skytorch.moon.reflectance import (
     HAPKE_PARAMETERS,
     REFLECTANCE_MODELS,
@@ -77,6 +79,7 @@ from skytorch.moon.sky import (
 
 __all__ = [
     "HAPKE_PARAMETERS",
+    "MoonPhotometry",
     "REFLECTANCE_MODELS",
     "albedo",
     "apparent_diameter",
