@@ -158,3 +158,23 @@ def test_bad_inputs():
         g.phase_angle(torch.tensor([1.0, 2.0]), torch.tensor([1.0, 2.0, 3.0]))
     with pytest.raises(ValueError, match="finite"):
         g.illuminated_fraction(torch.tensor(float("nan")))
+
+
+def test_moon_geometry_topocentric():
+    """With an observer: topocentric distance as skyfield's, phase within the parallax."""
+    from skyfield.api import wgs84
+
+    from skytorch.ephemeris import load_ephemeris, skyfield_time
+    from skytorch.moon import moon_geometry
+
+    times = ["2024-04-15T19:13", "2024-04-16T02:00"]
+    geo = moon_geometry(times)
+    topo = moon_geometry(times, lat_deg=52.5, lon_deg=13.4)
+    ephemeris = load_ephemeris()
+    site = ephemeris["earth"] + wgs84.latlon(52.5, 13.4)
+    distance = site.at(skyfield_time(times)).observe(ephemeris["moon"]).apparent().distance().m
+    expected = 2 * np.degrees(np.arcsin(1737400.0 / distance))
+    assert np.allclose(topo.apparent_diameter.values, expected, rtol=1e-5)  # 4 km
+    shift = np.abs(topo.phase_angle.values - geo.phase_angle.values)
+    assert (shift < 1.0).all() and (shift > 0.0).all()  # lunar parallax ≤ 0.95°
+    assert "parallactic_angle" in topo and "parallactic_angle" not in geo

@@ -35,8 +35,8 @@ _REFERENCES = [
 
 _SPECS = {
     "phase_angle": VariableSpec("degree", "lunar phase angle",
-                                "Geocentric Sun-Moon-Earth angle (selenocentric elongation of "
-                                "the Earth from the Sun); 0 at full Moon."),
+                                "Sun-Moon-observer angle (geocentric without an observer); "
+                                "0 at full Moon."),
     "illuminated_fraction": VariableSpec("1", "illuminated fraction of the lunar disc",
                                          "k = (1 + cos i)/2 (Meeus eq. 48.1)."),
     "bright_limb_angle": VariableSpec("degree", "position angle of the bright limb",
@@ -57,7 +57,8 @@ _SPECS = {
     "magnitude": VariableSpec("1", "V magnitude of the Moon",
                               "Disc-integrated Johnson V magnitude above the atmosphere from "
                               "the Hapke reflectance law, solar spectrum and actual distances "
-                              "(earthshine included); unit: mag."),
+                              "(earthshine included), at the observer-Moon distance; unit: "
+                              "mag."),
     "parallactic_angle": VariableSpec("degree", "parallactic angle of the Moon",
                                       "Angle at the Moon from the north celestial pole to the "
                                       "zenith, positive west (Meeus eq. 14.1), topocentric."),
@@ -72,8 +73,9 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     times : str, datetime, datetime64 or sequence of them
         UTC times (see :func:`skytorch.ephemeris.parse_times`).
     lat_deg, lon_deg : float, optional
-        Observer's geodetic latitude and longitude [degree]; with them the parallactic
-        angle is added and the apparent diameter is topocentric.
+        Observer's geodetic latitude and longitude [degree]; with them the phase angle,
+        illuminated fraction, magnitude and apparent diameter are topocentric and the
+        parallactic angle is added (bright limb and librations stay geocentric).
     elevation_m : float
         Observer's height above the WGS84 ellipsoid [m].
 
@@ -114,6 +116,24 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     axis_pa = _geometry.axis_position_angle(moon_ra, lib_lat, centuries, epsilon, dpsi)
 
     moon_distance = moon.norm(dim=-1)
+    observer = None
+    parameters = {"elevation_m": float(elevation_m)}
+    if lat_deg is not None and lon_deg is not None:
+        site = wgs84.latlon(float(lat_deg), float(lon_deg), elevation_m=float(elevation_m))
+        # topocentric phase angle and distance (up to 0.95° and 1.7 % from geocentric)
+        observer = torch.as_tensor(np.ascontiguousarray(site.at(t).position.m.T),
+                                   dtype=torch.float64)
+        sun_g, moon_g = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
+        phase = _geometry.phase_angle(sun_g, moon_g, observer)
+        moon_distance = (moon_g - observer).norm(dim=-1)
+        ephemeris = load_ephemeris()
+        apparent = (ephemeris["earth"] + site).at(t).observe(ephemeris["moon"]).apparent()
+        hour_angle, dec, _ = apparent.hadec()
+        q = _geometry.parallactic_angle(
+            torch.as_tensor(np.atleast_1d(hour_angle.radians), dtype=torch.float64),
+            torch.as_tensor(np.atleast_1d(dec.radians), dtype=torch.float64),
+            torch.tensor(float(lat_deg) * DEGREE, dtype=torch.float64))
+        parameters.update(lat_deg=float(lat_deg), lon_deg=float(lon_deg))
     data = {
         "phase_angle": phase / DEGREE,
         "illuminated_fraction": _geometry.illuminated_fraction(phase),
@@ -124,22 +144,9 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
         "magnitude": magnitude(phase, distance_m=moon_distance,
                                sun_distance_m=(sun - moon).norm(dim=-1)),
     }
-    distance = moon_distance
-    parameters = {"elevation_m": float(elevation_m)}
-    if lat_deg is not None and lon_deg is not None:
-        ephemeris = load_ephemeris()
-        observer = ephemeris["earth"] + wgs84.latlon(float(lat_deg), float(lon_deg),
-                                                     elevation_m=float(elevation_m))
-        apparent = observer.at(t).observe(ephemeris["moon"]).apparent()
-        hour_angle, dec, topo_distance = apparent.hadec()
-        q = _geometry.parallactic_angle(
-            torch.as_tensor(np.atleast_1d(hour_angle.radians), dtype=torch.float64),
-            torch.as_tensor(np.atleast_1d(dec.radians), dtype=torch.float64),
-            torch.tensor(float(lat_deg) * DEGREE, dtype=torch.float64))
+    if observer is not None:
         data["parallactic_angle"] = q / DEGREE
-        distance = torch.as_tensor(np.atleast_1d(topo_distance.m), dtype=torch.float64)
-        parameters.update(lat_deg=float(lat_deg), lon_deg=float(lon_deg))
-    data["apparent_diameter"] = _geometry.apparent_diameter(distance) / DEGREE
+    data["apparent_diameter"] = _geometry.apparent_diameter(moon_distance) / DEGREE
     return build_dataset(
         {name: variable(("time",), value, _SPECS[name]) for name, value in data.items()},
         {"time": time_coordinate(values)},
