@@ -75,3 +75,15 @@ def test_disc_image_dataset_roundtrip(tmp_path):
     assert ds.radiance.attrs["units"] == "W m-2 sr-1 nm-1"
     back = open_dataset(to_netcdf(ds, tmp_path / "disc.nc"))
     assert float(abs(back.radiance - ds.radiance).max()) == 0.0
+
+
+def test_integrated_disc_radiance_equals_lunar_irradiance():
+    """Sampled disc radiance (polar grid) integrates to the quadrature irradiance."""
+    from skytorch.moon.brightness import lunar_irradiance
+
+    alpha = torch.tensor([30.0, 100.0], dtype=torch.float64) * DEGREE
+    wl = torch.tensor([450.0, 600.0], dtype=torch.float64)
+    grid = disc.disc_grid(64)
+    radiance = disc.disc_radiance(grid["normal"], alpha, wl)
+    sampled = disc.integrate_disc(radiance, grid["weight"])
+    assert torch.allclose(sampled, lunar_irradiance(alpha, wl), rtol=1e-3)

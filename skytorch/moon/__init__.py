@@ -43,6 +43,7 @@ from skytorch.moon.disc import (
     disc_image,
     disc_radiance,
     disc_reflectance,
+    integrate_disc,
     lit_disc_quadrature,
     sun_direction,
 )
@@ -95,6 +96,7 @@ __all__ = [
     "earthshine_muller2012",
     "geometric_albedo",
     "illuminated_fraction",
+    "integrate_disc",
     "lambert_phase_function",
     "lit_disc_quadrature",
     "lommel_seeliger",

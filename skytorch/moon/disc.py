@@ -44,7 +44,7 @@ import numpy as np
 import torch
 
 from skytorch._validate import as_tensor, check_choice, check_int, check_range, common_dtype
-from skytorch.constants import ASTRONOMICAL_UNIT_M, MEAN_EARTH_MOON_DISTANCE_M
+from skytorch.constants import ASTRONOMICAL_UNIT_M, MEAN_EARTH_MOON_DISTANCE_M, MOON_RADIUS_M
 from skytorch.moon.reflectance import REFLECTANCE_MODELS, reflectance
 
 __all__ = [
@@ -55,6 +55,7 @@ __all__ = [
     "disc_radiance",
     "disc_reflectance",
     "gauss_legendre",
+    "integrate_disc",
     "lit_disc_quadrature",
     "sun_direction",
 ]
@@ -291,6 +292,36 @@ def disc_radiance(normal, phase_angle_rad, wavelength_nm, bright_limb_angle_rad=
                               parameters=parameters)  # (n_point, n_wl) or broadcast
         r = r + ratio[..., None, None] * r_earth
     return r * irradiance.unsqueeze(-2)
+
+
+def integrate_disc(radiance, weight, distance_m=MEAN_EARTH_MOON_DISTANCE_M,
+                   radius_m: float = MOON_RADIUS_M) -> torch.Tensor:
+    """Irradiance at the observer from radiance sampled on the disc.
+
+    Parameters
+    ----------
+    radiance : Tensor (..., n_point, n_wavelength)
+        Spectral radiance at the points of a :func:`disc_grid` (e.g. :func:`disc_radiance`
+        times a shadow's relative illuminance at each point).
+    weight : Tensor (n_point,)
+        The grid's projected-area weights [lunar radii²].
+    distance_m : float or Tensor (...)
+        Observer–Moon distance [m].
+    radius_m : float
+        Lunar radius [m].
+
+    Returns
+    -------
+    Tensor (..., n_wavelength)
+        ``E = (R/d)² Σ_p L_p w_p`` [W m^-2 nm^-1] (the solid angle of a disc element is
+        w (R/d)²).
+    """
+    radiance = as_tensor("radiance", radiance)
+    weight = as_tensor("weight", weight, dtype=radiance.dtype)
+    d = check_range("distance_m", as_tensor("distance_m", distance_m, dtype=radiance.dtype),
+                    radius_m, low_inclusive=False, unit=" m")
+    solid_angle = (radius_m / d) ** 2
+    return solid_angle.unsqueeze(-1) * torch.einsum("...pw,p->...w", radiance, weight)
 
 
 def disc_image(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi, n_pixels: int = 64,
