@@ -83,22 +83,30 @@ def main(argv=None):
     ds.attrs["title"] = "spectrum_to_xyz: chromaticity error versus grid, reconstruction, dtype"
     ds.attrs["batch"] = batch
 
-    figure, axis = plt.subplots(figsize=(7, 4.5))
+    counts = np.array([len(grid_wavelengths(g)) for g in grids])
+    figure, (axis, cost_axis) = plt.subplots(1, 2, figsize=(11, 4.5))
     markers = {"none": "o", "solar": "s"}
     colours = dict(zip(SPECTRA, ("tab:red", "tab:orange", "tab:blue", "tab:green"),
                        strict=True))
     for name in SPECTRA:
         for reference in spectrum.REFERENCES:
             sel = ds.sel(spectrum_kind=name, reference=reference, dtype="float64")
-            axis.loglog(sel["seconds"].values, np.maximum(sel["chromaticity_error"].values,
-                                                          1e-12),
+            axis.loglog(counts, np.maximum(sel["chromaticity_error"].values, 1e-12),
                         marker=markers[reference], color=colours[name],
+                        ls="-" if reference == "none" else ":",
                         label=f"{name}, reference={reference}")
     axis.axhline(1e-3, color="grey", lw=0.8, ls="--")
-    axis.set_xlabel(f"time for {batch} spectra [s]")
+    axis.set_xlabel("number of wavelengths (" + ", ".join(grids) + ")")
     axis.set_ylabel("chromaticity error (max |Δx|, |Δy|)")
-    axis.set_title("colour from coarse grids (points: " + ", ".join(grids) + ")")
+    axis.set_title("colour from coarse grids vs 1-nm integral")
     axis.legend(fontsize=7)
+    for dtype in DTYPES:
+        seconds = ds["seconds"].sel(dtype=dtype).median(("spectrum_kind", "reference"))
+        cost_axis.loglog(counts, seconds.values, marker="o", label=dtype)
+    cost_axis.set_xlabel("number of wavelengths")
+    cost_axis.set_ylabel(f"time for {batch} spectra [s] (median over spectra)")
+    cost_axis.set_title("cost of spectrum_to_xyz")
+    cost_axis.legend()
     paths = save_outputs(ds, figure, args.output_dir, "spectrum_accuracy_cost")
     print(ds["chromaticity_error"].sel(dtype="float64", drop=True).to_pandas()
           if ds["chromaticity_error"].ndim == 2 else
