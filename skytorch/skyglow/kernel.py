@@ -251,8 +251,7 @@ class Medium:
         Tensor (..., wavelength)
         """
         dtype = radius.dtype
-        table = self.optical_depth_table.to(dtype)
-        n_r, n_mu, n_wl = table.shape
+        n_wl = self.optical_depth_table.shape[-1]
         big_h = math.sqrt(self.top_radius_m**2 - self.planet_radius_m**2)
         radius = radius.clamp(self.planet_radius_m, self.top_radius_m)
         mu = mu.clamp(0.0, 1.0)
@@ -263,25 +262,36 @@ class Medium:
         d_max = torch.sqrt((self.top_radius_m**2 - radius**2).clamp_min(0.0))
         x_mu = ((distance - d_min) / (d_max - d_min).clamp_min(1e-9)).clamp(0.0, 1.0)
         x_r = (rho / big_h).clamp(0.0, 1.0)
-        fr = x_r * (n_r - 1)
-        fm = x_mu * (n_mu - 1)
-        i0 = fr.floor().clamp(0, n_r - 2).long()
-        j0 = fm.floor().clamp(0, n_mu - 2).long()
-        wr = (fr - i0.to(dtype)).unsqueeze(-1)
-        wm = (fm - j0.to(dtype)).unsqueeze(-1)
-        flat = table.reshape(n_r * n_mu, n_wl)
-        base = i0 * n_mu + j0
-        t00 = flat[base]
-        t01 = flat[base + 1]
-        t10 = flat[base + n_mu]
-        t11 = flat[base + n_mu + 1]
-        log_tau = (1 - wr) * ((1 - wm) * t00 + wm * t01) + wr * ((1 - wm) * t10 + wm * t11)
-        return torch.exp(log_tau)
+        # bilinear interpolation of all wavelengths at once: grid_sample on the table as an
+        # image (wavelength channels, x_r rows, x_mu columns), coordinates in [-1, 1]
+        shape = x_r.shape
+        grid = torch.stack([2.0 * x_mu - 1.0, 2.0 * x_r - 1.0], dim=-1).reshape(1, -1, 1, 2)
+        image = self._table_image(dtype)
+        log_tau = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
+                                                  padding_mode="border", align_corners=True)
+        return torch.exp(log_tau[0, :, :, 0].T.reshape(*shape, n_wl))
+
+    def _table_image(self, dtype):
+        cache = self.__dict__.setdefault("_images", {})
+        if dtype not in cache:
+            cache[dtype] = self.optical_depth_table.permute(2, 0, 1)[None].to(dtype).contiguous()
+        return cache[dtype]
 
     def scattering(self, altitude_m):
         """Scattering coefficients of each species at ``altitude_m`` (..., species, wl)."""
-        table = self.scattering_table.to(altitude_m.dtype)
-        return _interpolate_altitude(table.movedim(0, 1), altitude_m, self.altitude_step_m)
+        dtype = altitude_m.dtype
+        cache = self.__dict__.setdefault("_scattering_images", {})
+        if dtype not in cache:  # (1, species * wavelength, altitude, 1)
+            n_s, n_h, n_wl = self.scattering_table.shape
+            cache[dtype] = self.scattering_table.permute(0, 2, 1).reshape(
+                1, n_s * n_wl, n_h, 1).to(dtype).contiguous()
+        image = cache[dtype]
+        y = (2.0 * altitude_m / self.top_altitude_m - 1.0).reshape(1, -1, 1)
+        grid = torch.stack([torch.zeros_like(y), y], dim=-1)
+        values = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
+                                                 padding_mode="border", align_corners=True)
+        n_s, _, n_wl = self.scattering_table.shape
+        return values[0, :, :, 0].T.reshape(*altitude_m.shape, n_s, n_wl)
 
 
 def _interpolate_altitude(table: torch.Tensor, altitude_m: torch.Tensor, step_m: float):

@@ -220,7 +220,8 @@ class SkyglowModel(nn.Module):
                    source_radius_m: float | None = None, distance_spacing: str = "linear",
                    normalize: bool = True, phase_functions=None, progress: bool = True,
                    keep_kernel: bool = False, chunk_size: int = 16384,
-                   medium: Medium | None = None) -> SkyglowModel:
+                   medium: Medium | None = None,
+                   compute_dtype: torch.dtype = torch.float64) -> SkyglowModel:
         """Tabulate kernels, fit the PCA basis and transform it over azimuth.
 
         Parameters
@@ -262,6 +263,9 @@ class SkyglowModel(nn.Module):
             Keep the raw kernel tensor in ``model.kernel`` (for studies of M; memory!).
         medium : Medium, optional
             Reuse atmosphere tables built before (must hold the same wavelengths).
+        compute_dtype : torch.dtype
+            dtype of the kernel quadrature (float32 is about twice as fast; the tables
+            are stored in float64).
 
         Returns
         -------
@@ -314,10 +318,12 @@ class SkyglowModel(nn.Module):
             for start in range(0, n_distance, block):
                 stop = min(start + block, n_distance)
                 values = kernel_radiance(
-                    medium, azimuth[:half, None], elevation[None, :],
-                    distance[start:stop, None, None, None], source_altitude[:, None, None],
-                    h_o, n_steps=n_steps, chunk_size=chunk_size, **kernel_arguments)
-                table[start:stop] = values[:, :, mirror]
+                    medium, azimuth[:half, None].to(compute_dtype),
+                    elevation[None, :].to(compute_dtype),
+                    distance[start:stop, None, None, None].to(compute_dtype),
+                    source_altitude[:, None, None].to(compute_dtype), h_o.to(compute_dtype),
+                    n_steps=n_steps, chunk_size=chunk_size, **kernel_arguments)
+                table[start:stop] = values[:, :, mirror].to(torch.float64)
                 bar.update(stop - start)
             fits.append(fit_basis(table.reshape(n_distance * n_source_altitude, -1),
                                   n_components, normalize=normalize))
@@ -349,6 +355,7 @@ class SkyglowModel(nn.Module):
             "observer_altitude_range_m": [float(v) for v in observer_altitude_range_m],
             "n_steps": n_steps, "quadrature_tolerance": float(quadrature_tolerance),
             "source_radius_m": float(source_radius_m), "normalize": bool(normalize),
+            "compute_dtype": str(compute_dtype).replace("torch.", ""),
             "atmosphere": atmosphere_parameters,
             "precompute_seconds": time.perf_counter() - started,
         }
@@ -532,6 +539,9 @@ class SkyglowModel(nn.Module):
         for start in range(0, n_obs, step):
             stop = min(start + step, n_obs)
             polar = self.polar_flux(x, y, flux, altitude, observer_xy[start:stop])
+            if self.observer_altitude_m.numel() == 1:
+                pieces.append(self.convolve(polar, 0))
+                continue
             result = torch.zeros(stop - start, n_p, n_t, n_wl, dtype=dtype)
             jj, ww = j[start:stop], w[start:stop].to(dtype)
             for node in torch.unique(torch.cat([jj, jj + 1])).tolist():
@@ -539,8 +549,6 @@ class SkyglowModel(nn.Module):
                     continue
                 weight = torch.where(jj == node, 1 - ww, torch.zeros_like(ww)) + torch.where(
                     jj + 1 == node, ww, torch.zeros_like(ww))
-                if self.observer_altitude_m.numel() == 1:
-                    weight = torch.ones_like(ww)
                 use = weight > 0
                 if not bool(use.any()):
                     continue
