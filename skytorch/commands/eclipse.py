@@ -110,11 +110,28 @@ def nearest_eclipse(date: str, enlargement: str = "danjon"):
 
 def _run_light_curve(args: argparse.Namespace, model) -> int:
     """Single-date mode with the light-curve model: circumstances plus brightness."""
-    if args.png:
-        raise ValueError("--png is not available for the light-curve mode in this version")
-    dataset = model(args.date)
+    dataset = model(args.date, enlargement=args.enlargement)
+    print(_summary(dataset))
     _write(dataset, args.output)
+    if args.png:
+        from skytorch.eclipse.lunar import plot_lunar_eclipse
+
+        plot_lunar_eclipse(dataset, args.png)
+        print(f"wrote {args.png}")
     return 0
+
+
+def _summary(dataset) -> str:
+    """Circumstances and brightness of a light-curve Dataset, one item per line."""
+    attrs = dataset.attrs
+    lines = [f"lunar eclipse {attrs.get('parameter_greatest_eclipse')} UTC "
+             f"({attrs.get('parameter_kind')}, umbral magnitude "
+             f"{float(attrs.get('parameter_umbral_magnitude')):.4f})"]
+    for name in ("p1", "u1", "u2", "u3", "u4", "p4"):
+        lines.append(f"  {name.upper():<9} {attrs.get('parameter_' + name)}")
+    lines.append(f"  V at greatest eclipse {float(attrs['parameter_greatest_v_magnitude']):.2f}"
+                 f" mag; Danjon L estimate {attrs.get('parameter_danjon_l')}")
+    return "\n".join(lines)
 
 
 def _run_circumstances(args: argparse.Namespace) -> int:

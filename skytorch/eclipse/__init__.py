@@ -21,3 +21,4 @@ __all__ = [
     "shadow_radii",
     "sun_visible_fraction",
 ]
+from skytorch.eclipse.lunar import Shadow, ShadowTable, danjon_l, lunar_eclipse  # noqa: E402,F401,I001

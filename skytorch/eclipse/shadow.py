@@ -139,11 +139,11 @@ DEFAULT_ARC_NODES = 8
 #: equal sub-pieces per piece of the ring integral (composite Gauss–Legendre)
 DEFAULT_SPLIT = 2
 #: bisection steps inside a coarse-grid bracket (resolution ~1e-8 of the table coordinate)
-_BISECTION_STEPS = 24
+_BISECTION_STEPS = 18
 #: relative singular-value cut-off of the optical-depth table (reconstruction ~1e-12)
 _RANK_TOLERANCE = 1e-13
 #: stride of the coarse grid that brackets the breakpoints before bisection
-_COARSE_STRIDE = 8
+_COARSE_STRIDE = 4
 #: points per chunk in the ring integral (bounds the temporaries to ~100 MB)
 _CHUNK = 4096
 

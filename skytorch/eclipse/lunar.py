@@ -1,0 +1,434 @@
+r"""Light curve, colour and images of the Moon through a lunar eclipse.
+
+:func:`lunar_eclipse` finds the eclipse nearest to a date
+(:func:`skytorch.eclipse.lunar_eclipses`), follows the Moon from before P1 to after P4 and,
+at each time, integrates over the visible lunar disc
+
+.. math::
+
+    F_\lambda(t) = \Big(\frac{R_M}{d}\Big)^2 \sum_k w_k\,
+        L_\lambda(\mathbf{n}_k, \alpha, \chi)\,\frac{I}{I_\odot}(\mathbf{x}_k, \lambda),
+
+with ``w_k`` the projected-area weights of :func:`skytorch.moon.disc.disc_grid`, ``L`` the
+sunlit radiance of the surface (:func:`skytorch.moon.disc.disc_radiance`, Hapke reflectance
+and lunar albedo colour) and ``I / I_sun`` the Earth's shadow
+(:class:`~skytorch.eclipse.shadow.Shadow`) at the 3-D position ``x_k`` of each surface
+point, expressed as (distance along the anti-Sun axis, offset from it). The shadow is
+evaluated through a (u, v) table restricted to the Moon's distances during the eclipse
+(:class:`~skytorch.eclipse.shadow_table.ShadowTable`, bilinear in ``log I``). From ``F``
+follow the V and B magnitudes (Bessell passbands), B − V and the sRGB colour; the
+magnitude at greatest eclipse gives a Danjon L estimate (:func:`danjon_l`).
+
+References
+----------
+1. Schneegans, S. et al. 2025, "Physically Based Real-Time Rendering of Eclipses",
+   Computer Graphics Forum, doi:10.1111/cgf.70220 (Fig. 11: eclipsed Moon images).
+2. Müller, T., Engel, J., Döllner, J. 2012, "Single-Pass Rendering of Day and Night Sky
+   Phenomena", Proc. VMV, doi:10.2312/PE/VMV/VMV12/055-062 (Fig. 3: eclipse stages).
+3. Hernitschke, N., Schmidt, E., Vollmer, M. 2008, "Lunar eclipse photometry: absolute
+   luminance measurements and modeling", Appl. Opt. 47, H62, doi:10.1364/AO.47.000H62
+   (totality from −3.3 mag for bright eclipses).
+4. Keen, R. A. 1983, "Volcanic aerosols and lunar eclipses", Science 222, 1011,
+   doi:10.1126/science.222.4627.1011.
+5. Danjon, A. 1921, "Relation entre l'éclairement de la Lune éclipsée et l'activité
+   solaire", L'Astronomie 35, 261.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+import torch
+import xarray as xr
+
+from skytorch._validate import as_tensor, check_int
+from skytorch.constants import MOON_RADIUS_M
+from skytorch.dataset import (
+    VariableSpec,
+    build_dataset,
+    coordinate,
+    time_coordinate,
+    to_numpy,
+    variable,
+)
+from skytorch.eclipse.shadow import Shadow  # re-exported by the package
+from skytorch.eclipse.shadow_table import ShadowTable
+
+__all__ = [
+    "DANJON_ANCHORS",
+    "Shadow",
+    "ShadowTable",
+    "danjon_l",
+    "lunar_eclipse",
+    "plot_lunar_eclipse",
+]
+
+logger = logging.getLogger(__name__)
+
+#: totality V magnitude at Danjon L = 0 and L = 4 (the range quoted by Hernitschke et al.
+#: 2008 and Keen 1983: about +2 for the darkest eclipses, -3.3 for the brightest)
+DANJON_ANCHORS = ((0.0, 2.0), (4.0, -3.3))
+#: days around the given date in which the nearest eclipse is looked for
+SEARCH_DAYS = 20
+#: fraction of the P1–P4 duration added before P1 and after P4
+MARGIN = 0.05
+
+_REFERENCES = [
+    "Schneegans, S., Gilg, J., Ahlers, V., Zachmann, G., Gerndt, A. 2025, Physically Based "
+    "Real-Time Rendering of Eclipses, Computer Graphics Forum, doi:10.1111/cgf.70220",
+    "Hernitschke, N., Schmidt, E., Vollmer, M. 2008, Lunar eclipse photometry: absolute "
+    "luminance measurements and modeling, Appl. Opt. 47, H62, doi:10.1364/AO.47.000H62",
+    "Keen, R. A. 1983, Volcanic aerosols and lunar eclipses, Science 222, 1011, "
+    "doi:10.1126/science.222.4627.1011",
+    "Vollmer, M., Gedzelman, S. D. 2008, Simulating irradiance and color of the eclipsed "
+    "moon, Appl. Opt. 47, H52, doi:10.1364/AO.47.000H52",
+]
+
+
+def danjon_l(v_magnitude) -> torch.Tensor:
+    """Danjon L estimated from the V magnitude of the Moon at mid-totality.
+
+    Linear between the anchors :data:`DANJON_ANCHORS` (L = 0 at V = +2, L = 4 at
+    V = −3.3; Hernitschke et al. 2008, Keen 1983), clipped to [0, 4]. The Danjon scale is
+    a visual, colour-and-brightness judgement; this is a brightness proxy only.
+
+    Parameters
+    ----------
+    v_magnitude : Tensor (...)
+        V magnitude at greatest eclipse [mag].
+
+    Returns
+    -------
+    Tensor (...)
+        L in [0, 4].
+
+    Examples
+    --------
+    >>> round(float(danjon_l(-0.65)), 2)
+    2.0
+    """
+    v = as_tensor("v_magnitude", v_magnitude)
+    (l0, v0), (l1, v1) = DANJON_ANCHORS
+    return torch.clamp(l0 + (v - v0) * (l1 - l0) / (v1 - v0), 0.0, 4.0)
+
+
+def _frames(sun: torch.Tensor, moon: torch.Tensor):
+    """Disc-frame axes (x west, y north, z towards the Earth) for each time (n, 3) each."""
+    pole = torch.tensor([0.0, 0.0, 1.0], dtype=moon.dtype)
+    towards_moon = moon / torch.linalg.norm(moon, dim=-1, keepdim=True)
+    east = torch.linalg.cross(pole.expand_as(towards_moon), towards_moon, dim=-1)
+    east = east / torch.linalg.norm(east, dim=-1, keepdim=True)
+    west = -east
+    z = -towards_moon
+    north = torch.linalg.cross(z, west, dim=-1)
+    return west, north, z
+
+
+def _eclipse_times(date, n_times: int, enlargement: str):
+    from skytorch.eclipse import lunar_eclipses
+    from skytorch.ephemeris import parse_times
+
+    (moment,) = parse_times(date)
+    window = np.timedelta64(SEARCH_DAYS, "D")
+    table = lunar_eclipses(moment - window, moment + window, enlargement=enlargement)
+    if table.sizes["eclipse"] == 0:
+        raise ValueError(f"no lunar eclipse within {SEARCH_DAYS} days of {date}")
+    index = int(np.argmin(np.abs(table.time.values - moment)))
+    row = table.isel(eclipse=index)
+    p1, p4 = row.p1.values, row.p4.values
+    span = (p4 - p1).astype("timedelta64[ns]").astype(np.int64)
+    start = p1 - np.timedelta64(int(MARGIN * span), "ns")
+    offsets = np.linspace(0.0, (1 + 2 * MARGIN) * span, n_times).astype(np.int64)
+    times = start + offsets.astype("timedelta64[ns]")
+    return times, row
+
+
+def _disc_images(shadow_fn, sun, moon, wavelength, n_pixels, sun_distance):
+    """sRGB images (n, y, x, 3) of the lunar disc and the flux per pixel."""
+    from skytorch.moon.disc import disc_radiance
+
+    centres = (torch.arange(n_pixels, dtype=torch.float64) + 0.5) * (2.0 / n_pixels) - 1.0
+    yy, xx = torch.meshgrid(centres, centres, indexing="ij")
+    rr = xx * xx + yy * yy
+    inside = (rr < 1.0).reshape(-1)
+    zz = torch.sqrt((1.0 - rr).clamp_min(0.0))
+    normal = torch.stack([xx, yy, zz], dim=-1).reshape(-1, 3)
+    radiance, illuminance = _surface_radiance(shadow_fn, sun, moon, normal, wavelength,
+                                              sun_distance, disc_radiance)
+    radiance = radiance * illuminance * inside[None, :, None].to(radiance.dtype)
+    return radiance.reshape(sun.shape[0], n_pixels, n_pixels, -1)
+
+
+def _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance, disc_radiance):
+    """Sunlit spectral radiance of surface points and their ``I / I_sun``.
+
+    Both (n_time, n_point, n_wavelength).
+    """
+    west, north, z = _frames(sun, moon)
+    axes = torch.stack([west, north, z], dim=-2)  # (n, 3, 3) rows: disc axes in GCRS
+    moon_to_sun = sun - moon
+    s = torch.einsum("nij,nj->ni", axes, moon_to_sun / torch.linalg.norm(
+        moon_to_sun, dim=-1, keepdim=True))
+    phase = torch.acos(torch.clamp(s[:, 2], -1.0, 1.0))
+    limb = torch.atan2(-s[:, 0], s[:, 1])
+    moon_distance = torch.linalg.norm(moon, dim=-1)
+    radiance = disc_radiance(normal, phase, wavelength, limb,
+                             sun_distance_m=torch.linalg.norm(moon_to_sun, dim=-1),
+                             distance_m=moon_distance, earthshine=False)
+    # 3-D positions of the surface points and their shadow coordinates
+    points = moon[:, None, :] + MOON_RADIUS_M * torch.einsum("pk,nkj->npj", normal, axes)
+    anti_sun = -sun / torch.linalg.norm(sun, dim=-1, keepdim=True)
+    along = torch.einsum("npj,nj->np", points, anti_sun)
+    offset = torch.linalg.norm(points - along[..., None] * anti_sun[:, None, :], dim=-1)
+    illuminance = shadow_fn(along, offset)  # (n, p, n_wl)
+    return radiance, illuminance
+
+
+def _display(xyz: torch.Tensor, dims: int) -> torch.Tensor:
+    """Gamma-encoded sRGB with the brightest linear channel over the last ``dims`` dims at 1."""
+    from skytorch.spectrum import xyz_to_linear_srgb, xyz_to_srgb
+
+    linear = xyz_to_linear_srgb(xyz).clamp_min(0.0)
+    peak = linear.flatten(-dims).max(dim=-1).values.clamp_min(torch.finfo(xyz.dtype).tiny)
+    peak = peak.reshape(peak.shape + (1,) * dims)
+    return xyz_to_srgb(xyz / peak, gamma=True, clip=True)
+
+
+def _colour(flux: torch.Tensor, wavelength: torch.Tensor) -> torch.Tensor:
+    """sRGB of a spectrum at constant luminance, brightest channel 1 -> (..., 3)."""
+    from skytorch.spectrum import spectrum_to_xyz
+
+    return _display(spectrum_to_xyz(flux, wavelength), 1)
+
+
+_SPECS = {
+    "v_magnitude": VariableSpec("mag", "V magnitude of the Moon",
+                                "Disc-integrated Johnson V magnitude above the atmosphere "
+                                "(Bessell 1990 passband, Bessell 1998 zero point)"),
+    "b_magnitude": VariableSpec("mag", "B magnitude of the Moon",
+                                "Disc-integrated Johnson B magnitude above the atmosphere"),
+    "b_minus_v": VariableSpec("mag", "B-V colour index of the Moon", "B - V"),
+    "colour": VariableSpec("1", "sRGB colour of the Moon",
+                           "Gamma-encoded sRGB of the disc-integrated spectrum at constant "
+                           "luminance (brightest channel 1)"),
+    "spectral_irradiance": VariableSpec(
+        "W m-2 nm-1", "spectral irradiance from the Moon",
+        "Spectral irradiance from the whole Moon at the Earth (above the atmosphere)"),
+    "relative_brightness": VariableSpec(
+        "1", "brightness relative to the uneclipsed Moon",
+        "V-band flux divided by the flux the Moon would have without the shadow"),
+    "shadow_axis_distance": VariableSpec(
+        "m", "distance of the Moon's centre from the shadow axis",
+        "Distance of the Moon's centre from the anti-Sun axis through the Earth's centre"),
+    "image": VariableSpec("1", "sRGB image of the lunar disc",
+                          "Gamma-encoded sRGB, common exposure per image (brightest pixel "
+                          "of each image scaled to 1); x west, y north"),
+    "image_v_magnitude": VariableSpec("mag", "V magnitude at the image times",
+                                      "Disc-integrated V magnitude at the image times"),
+    "wavelength": VariableSpec("nm", "wavelength", "Vacuum wavelength",
+                               standard_name="radiation_wavelength"),
+    "channel": VariableSpec("1", "sRGB channel", "R, G, B"),
+    "x": VariableSpec("1", "disc x (west)", "Disc coordinate in lunar radii, west positive"),
+    "y": VariableSpec("1", "disc y (north)", "Disc coordinate in lunar radii, north positive"),
+}
+
+
+def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
+                  wavelength_nm=None, n_disc: int = 12, n_images: int = 9,
+                  image_pixels: int = 48, enlargement: str = "danjon", shadow=None,
+                  table_n_v: int = 384, table_n_u: int = 3,
+                  progress: bool = False) -> xr.Dataset:
+    """Brightness, colour and images of the Moon through the lunar eclipse nearest a date.
+
+    Parameters
+    ----------
+    time_or_date : str, datetime or datetime64
+        A date or time within 20 days of the eclipse (UTC).
+    atmosphere : Atmosphere, optional
+        The Earth's atmosphere (default ``Atmosphere.earth()``); ``False`` for none.
+    n_times : int
+        Times from 5 % of the P1–P4 duration before P1 to as much after P4.
+    wavelength_nm : Tensor (wavelength,), optional
+        Wavelength grid (default: the 15 bands of ``wavelength_grid("bands15")``).
+    n_disc : int
+        Radial Gauss nodes on the lunar disc (``2 n_disc`` azimuths).
+    n_images, image_pixels : int
+        Number of disc images (evenly spaced in time) and their size.
+    enlargement : {"danjon", "chauvenet", "none"}
+        Convention for the circumstances (contacts, magnitudes).
+    shadow : Shadow, optional
+        A prepared shadow model (overrides ``atmosphere``).
+    table_n_u, table_n_v : int
+        Size of the (u, v) shadow table over the Moon's distances.
+    progress : bool
+        Progress bar for the shadow table.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``time``, ``wavelength``, ``channel``, ``image_time``, ``y``, ``x``:
+        ``v_magnitude``, ``b_magnitude``, ``b_minus_v``, ``colour``,
+        ``relative_brightness``, ``spectral_irradiance``, ``shadow_axis_distance``,
+        ``image``; attributes: the circumstances, ``greatest_v_magnitude``,
+        ``danjon_l`` and the shadow parameters.
+    """
+    from skytorch.eclipse.shadow import Shadow
+    from skytorch.eclipse.shadow_table import ShadowTable
+    from skytorch.ephemeris import sun_moon_vectors
+    from skytorch.moon.disc import disc_grid, disc_radiance
+    from skytorch.spectrum import spectrum_to_magnitude, wavelength_grid
+
+    n_times = check_int("n_times", n_times, low=2)
+    n_disc = check_int("n_disc", n_disc, low=2)
+    n_images = check_int("n_images", n_images, low=0)
+    image_pixels = check_int("image_pixels", image_pixels, low=4)
+    wavelength = (wavelength_grid("bands15") if wavelength_nm is None
+                  else as_tensor("wavelength_nm", wavelength_nm).reshape(-1))
+    times, row = _eclipse_times(time_or_date, n_times, enlargement)
+    image_index = (np.round(np.linspace(0, n_times - 1, n_images)).astype(int)
+                   if n_images else np.zeros(0, dtype=int))
+    vectors = sun_moon_vectors(times)
+    sun, moon = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
+    sun_distance = float(torch.linalg.norm(sun, dim=-1).mean())
+    if shadow is None:
+        shadow = Shadow.earth(atmosphere, sun_distance_m=sun_distance)
+    distances = torch.linalg.norm(moon, dim=-1)
+    table = ShadowTable.compute(
+        shadow, wavelength, n_u=table_n_u, n_v=table_n_v,
+        min_distance_m=float(distances.min()) - 1.05 * MOON_RADIUS_M,
+        max_distance_m=float(distances.max()) + 1.05 * MOON_RADIUS_M, progress=progress)
+
+    def shadow_fn(along, offset):
+        return table.lookup(along, offset, sun_distance_m=torch.linalg.norm(
+            sun, dim=-1)[:, None].expand_as(along))
+
+    grid = disc_grid(n_disc)
+    solid = (MOON_RADIUS_M / distances) ** 2  # sr per unit disc area
+    radiance, illuminance = _surface_radiance(shadow_fn, sun, moon, grid["normal"],
+                                              wavelength, sun_distance, disc_radiance)
+    weight = grid["weight"] * solid[:, None]  # (n_time, n_point) [sr]
+    flux = torch.einsum("npl,np->nl", radiance * illuminance, weight)
+    flux_full = torch.einsum("npl,np->nl", radiance, weight)
+    v_mag = spectrum_to_magnitude(flux, wavelength, "V")
+    b_mag = spectrum_to_magnitude(flux, wavelength, "B")
+    v_full = spectrum_to_magnitude(flux_full, wavelength, "V")
+    colour = _colour(flux, wavelength)
+    anti_sun = -sun / torch.linalg.norm(sun, dim=-1, keepdim=True)
+    along = (moon * anti_sun).sum(-1)
+    axis_distance = torch.linalg.norm(moon - along[:, None] * anti_sun, dim=-1)
+
+    greatest = int(torch.argmin(axis_distance))
+    greatest_v = float(v_mag[greatest])
+    data_vars = {
+        "v_magnitude": variable(("time",), to_numpy(v_mag), _SPECS["v_magnitude"]),
+        "b_magnitude": variable(("time",), to_numpy(b_mag), _SPECS["b_magnitude"]),
+        "b_minus_v": variable(("time",), to_numpy(b_mag - v_mag), _SPECS["b_minus_v"]),
+        "colour": variable(("time", "channel"), to_numpy(colour), _SPECS["colour"]),
+        "relative_brightness": variable(("time",), to_numpy(10 ** (-0.4 * (v_mag - v_full))),
+                                        _SPECS["relative_brightness"]),
+        "spectral_irradiance": variable(("time", "wavelength"), to_numpy(flux),
+                                        _SPECS["spectral_irradiance"]),
+        "shadow_axis_distance": variable(("time",), to_numpy(axis_distance),
+                                         _SPECS["shadow_axis_distance"]),
+    }
+    coords = {
+        "time": time_coordinate(times),
+        "wavelength": coordinate("wavelength", to_numpy(wavelength), _SPECS["wavelength"]),
+        "channel": coordinate("channel", np.array(["R", "G", "B"]), _SPECS["channel"]),
+    }
+    if n_images:
+        pixels = _disc_images(shadow_fn_at(table, sun[image_index]), sun[image_index],
+                              moon[image_index], wavelength, image_pixels, sun_distance)
+        from skytorch.spectrum import spectrum_to_xyz
+
+        images = _display(spectrum_to_xyz(pixels, wavelength), 3)
+        centres = (np.arange(image_pixels) + 0.5) * (2.0 / image_pixels) - 1.0
+        data_vars["image"] = variable(("image_time", "y", "x", "channel"), to_numpy(images),
+                                      _SPECS["image"])
+        data_vars["image_v_magnitude"] = variable(("image_time",),
+                                                  to_numpy(v_mag[image_index]),
+                                                  _SPECS["image_v_magnitude"])
+        coords["image_time"] = time_coordinate(times[image_index], dim="image_time")
+        coords["x"] = coordinate("x", centres, _SPECS["x"])
+        coords["y"] = coordinate("y", centres, _SPECS["y"])
+
+    def when(name):
+        value = row[name].values
+        return "NaT" if np.isnat(value) else np.datetime_as_string(value, unit="s")
+
+    parameters = {
+        "kind": str(row.kind.values), "umbral_magnitude": float(row.umbral_magnitude),
+        "penumbral_magnitude": float(row.penumbral_magnitude), "gamma": float(row.gamma),
+        "greatest_eclipse": when("time"), **{c: when(c) for c in ("p1", "u1", "u2", "u3",
+                                                                  "u4", "p4")},
+        "enlargement": enlargement, "greatest_v_magnitude": greatest_v,
+        "greatest_time": np.datetime_as_string(times[greatest], unit="s"),
+        "danjon_l": float(danjon_l(greatest_v)) if str(row.kind.values) == "total" else "none",
+        "n_disc": n_disc, "table_n_u": table_n_u, "table_n_v": table_n_v,
+        "shadow": shadow.parameters_dict(),
+    }
+    return build_dataset(data_vars, coords, title="Lunar eclipse light curve",
+                         references=_REFERENCES, parameters=parameters)
+
+
+def shadow_fn_at(table, sun):
+    """Shadow look-up closure for the given Sun vectors (n, 3)."""
+    distance = torch.linalg.norm(sun, dim=-1)
+
+    def function(along, offset):
+        return table.lookup(along, offset, sun_distance_m=distance[:, None].expand_as(along))
+
+    return function
+
+
+def plot_lunar_eclipse(dataset: xr.Dataset, path=None):
+    """Figure: strip of disc images above the V light curve and B − V.
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        Output of :func:`lunar_eclipse`.
+    path : str or Path, optional
+        PNG file to write.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    n_images = dataset.sizes.get("image_time", 0)
+    figure = plt.figure(figsize=(max(8.0, 1.2 * n_images), 6.5))
+    grid = figure.add_gridspec(2, max(n_images, 1), height_ratios=(1, 2.2))
+    for index in range(n_images):
+        axis = figure.add_subplot(grid[0, index])
+        axis.imshow(dataset["image"].isel(image_time=index).values, origin="lower")
+        axis.set_axis_off()
+        stamp = np.datetime_as_string(dataset.image_time.values[index], unit="m")[11:]
+        axis.set_title(f"{stamp}\nV {float(dataset.image_v_magnitude[index]):.1f}",
+                       fontsize=8)
+    axis = figure.add_subplot(grid[1, :])
+    hours = (dataset.time.values - dataset.time.values[0]) / np.timedelta64(1, "h")
+    axis.plot(hours, dataset.v_magnitude.values, color="k", label="V")
+    axis.plot(hours, dataset.b_magnitude.values, color="tab:blue", label="B")
+    axis.invert_yaxis()
+    axis.set_xlabel(f"hours since {np.datetime_as_string(dataset.time.values[0], unit='m')}"
+                    " UTC")
+    axis.set_ylabel("magnitude")
+    axis.legend(loc="lower center")
+    axis.grid(alpha=0.3)
+    attrs = dataset.attrs
+    title = (f"lunar eclipse {attrs.get('parameter_greatest_eclipse', '')}: greatest V "
+             f"{float(attrs.get('parameter_greatest_v_magnitude', math.nan)):.2f}")
+    if attrs.get("parameter_danjon_l", "none") != "none":
+        title += f", Danjon L ≈ {float(attrs['parameter_danjon_l']):.1f}"
+    axis.set_title(title, fontsize=10)
+    figure.tight_layout()
+    if path is not None:
+        figure.savefig(path, dpi=110)
+    return figure
