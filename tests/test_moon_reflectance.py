@@ -146,3 +146,27 @@ def test_bad_inputs():
         rf.reflectance(0.5, 0.5, 4.0)
     with pytest.raises(ValueError, match="unknown Hapke"):
         rf.reflectance(0.5, 0.5, 0.1, parameters={"w": 0.3})
+
+
+def test_tensor_parameters_batch_and_gradients():
+    """Parameter tensors broadcast (sweeps) and carry gradients (fits)."""
+    from skytorch.moon.brightness import disc_integrated_reflectance
+
+    alpha = torch.tensor([0.3, 1.2], dtype=torch.float64)
+    # (case, 1, 1): broadcasts against the quadrature's (phase, point) dimensions
+    w = torch.tensor([0.15, 0.21, 0.3], dtype=torch.float64)[:, None, None]
+    batched = disc_integrated_reflectance(alpha, n_quadrature=12,
+                                          parameters={"single_scattering_albedo": w})
+    assert batched.shape == (3, 2)
+    for k in range(3):
+        single = disc_integrated_reflectance(
+            alpha, n_quadrature=12, parameters={"single_scattering_albedo": float(w[k])})
+        assert torch.allclose(batched[k], single, rtol=1e-12)
+
+    def q(w_value, roughness):
+        return disc_integrated_reflectance(alpha, n_quadrature=8, parameters={
+            "single_scattering_albedo": w_value, "roughness_rad": roughness})
+
+    inputs = (torch.tensor(0.21, dtype=torch.float64, requires_grad=True),
+              torch.tensor(0.35, dtype=torch.float64, requires_grad=True))
+    assert torch.autograd.gradcheck(q, inputs)

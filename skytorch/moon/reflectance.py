@@ -202,21 +202,24 @@ def roughness_correction(mu0, mu, cos_g, roughness_rad):
         Cosines of the incidence and emission angles on the smooth sphere, in [0, 1].
     cos_g : Tensor (...)
         Cosine of the phase angle.
-    roughness_rad : float
-        Mean slope angle θ̄ [rad], in [0, 60°]; 0 returns (μ0, μ, 1).
+    roughness_rad : float or Tensor
+        Mean slope angle θ̄ [rad], in [0, 60°]; a float 0 returns (μ0, μ, 1). Tensors
+        broadcast against the geometry (batched sweeps, gradients).
 
     Returns
     -------
     (mu0e, mue, shadowing) : tuple of Tensor (...)
         Effective cosines μ0e, μe and the shadowing function S (Hapke 2012, eq. 12.46–12.54).
     """
-    if roughness_rad <= 0.0:
+    if not isinstance(roughness_rad, torch.Tensor) and roughness_rad <= 0.0:
         return mu0, mu, torch.ones_like(mu0 * mu)
     dtype = mu0.dtype
     eps = float(torch.finfo(dtype).eps)
-    tan_t = math.tan(roughness_rad)
+    # tensor θ̄ (batched sweeps, gradients): floored at 1e-4 rad, where S = 1 to 1e-8
+    theta = torch.as_tensor(roughness_rad, dtype=dtype).clamp_min(1e-4)
+    tan_t = torch.tan(theta)
     cot_t = 1.0 / tan_t
-    chi = 1.0 / math.sqrt(1.0 + math.pi * tan_t * tan_t)
+    chi = 1.0 / torch.sqrt(1.0 + math.pi * tan_t * tan_t)
 
     one = 1.0 - eps
     mu0c = mu0.clamp(0.0, one)
@@ -282,15 +285,20 @@ def _parameters(parameters):
     return values
 
 
+def _is_zero(value) -> bool:
+    """True for a plain number equal to 0 (tensor parameters always take the full path)."""
+    return not isinstance(value, torch.Tensor) and value == 0.0
+
+
 def _opposition(tan_half_g, amplitude, width):
     """1 + B0 / (1 + tan(g/2)/h), written to stay finite for g -> π (tan -> inf)."""
-    if amplitude == 0.0:
+    if _is_zero(amplitude):
         return torch.ones_like(tan_half_g)
     return 1.0 + amplitude * width / (width + tan_half_g)
 
 
 def _coherent_backscatter(tan_half_g, amplitude, width):
-    if amplitude == 0.0:
+    if _is_zero(amplitude):
         return torch.ones_like(tan_half_g)
     z = tan_half_g / width
     zs = z.clamp_min(1e-6)
@@ -365,7 +373,9 @@ def reflectance(mu0, mu, phase_angle_rad, model: str = "hapke2012", wavelength_n
     parameters : str or dict
         Name of a set in :data:`HAPKE_PARAMETERS` or a dict overriding some of its keys
         (``single_scattering_albedo``, ``asymmetry``, ``shoe_amplitude``, ``shoe_width``,
-        ``cboe_amplitude``, ``cboe_width``, ``roughness_rad``).
+        ``cboe_amplitude``, ``cboe_width``, ``roughness_rad``). Values may be tensors that
+        broadcast against the geometry, e.g. shape (n_case, 1, 1) against disc points of
+        shape (n_phase, n_point), for sweeps and for fitting parameters with autograd.
 
     Returns
     -------
