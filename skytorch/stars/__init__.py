@@ -15,7 +15,7 @@ from skytorch.stars.catalog import (
     propagate_space_motion,
     read_bsc5,
 )
-from skytorch.stars.observe import observe, observe_tensors, refract, refraction_table
+from skytorch.stars.observation import observe, observe_tensors, refract, refraction_table
 from skytorch.stars.photometry import (
     bv_to_srgb,
     extinction,

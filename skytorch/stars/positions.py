@@ -1,12 +1,15 @@
 """Apparent topocentric positions of catalogue stars, thousands at a time.
 
-Every star is described by seven numbers — its unit vector ``u`` at the catalogue epoch,
-its proper-motion vector ``mu`` [rad/yr] and its parallax [rad] — and every instant by one
-3 × 7 matrix that combines the ICRS → horizontal rotation ``M`` (precession–nutation and
-Earth rotation, :func:`skytorch.ephemeris.icrs_to_horizontal_matrices`), the time since
-the catalogue epoch and Earth's barycentric position. One batched matmul per time then
-gives the horizontal vectors of all stars (:func:`horizontal_vectors`); annual and diurnal
-aberration follow with :func:`skytorch.ephemeris.aberrate` in horizontal axes.
+Every star is described by eight numbers — its unit vector ``u`` at the catalogue epoch,
+its proper-motion vector ``mu`` [rad/yr], its parallax [rad] and a constant 1 — and every
+instant by one 3 × 8 matrix that combines the ICRS → horizontal rotation ``M``
+(precession–nutation and Earth rotation, :func:`skytorch.ephemeris.icrs_to_horizontal_
+matrices`), the time since the catalogue epoch and Earth's barycentric position. One
+batched matmul per time gives the horizontal vectors of all stars
+(:func:`horizontal_vectors`, with :func:`skytorch.ephemeris.aberrate` for annual and
+diurnal aberration). Because relativistic aberration is an affine map of the direction
+(up to a scale that ``atan2`` ignores), :func:`aberration_operators` folds it into the
+matrix, so that the fast path (:func:`horizontal_planes`) is a single GEMM.
 
 References
 ----------
@@ -23,7 +26,7 @@ Examples
 >>> from skytorch.stars.positions import star_vectors
 >>> star_vectors(torch.tensor([0.0]), torch.tensor([90.0]), torch.zeros(1), torch.zeros(1),
 ...              torch.zeros(1)).shape
-torch.Size([1, 7])
+torch.Size([1, 8])
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ __all__ = [
     "J2000_UTC",
     "apparent_altaz",
     "epoch_years",
+    "aberration_operators",
     "horizontal_planes",
     "horizontal_vectors",
     "star_vectors",
@@ -74,7 +78,7 @@ def epoch_years(times, epoch_jyear: float = 2000.0) -> torch.Tensor:
 
 def star_vectors(ra_deg, dec_deg, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas,
                  dtype: torch.dtype = torch.float64) -> torch.Tensor:
-    """Per-star vectors ``[u, mu, parallax]`` for :func:`horizontal_vectors`.
+    """Per-star vectors ``[u, mu, parallax, 1]`` for :func:`horizontal_vectors`.
 
     Parameters
     ----------
@@ -89,9 +93,9 @@ def star_vectors(ra_deg, dec_deg, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas,
 
     Returns
     -------
-    torch.Tensor, shape (star, 7)
+    torch.Tensor, shape (star, 8)
         Unit vector u (ICRS axes), proper-motion vector mu = mu_alpha* p + mu_delta q
-        [rad/yr] with p, q the local east and north unit vectors, and parallax [rad].
+        [rad/yr] with p, q the local east and north unit vectors, parallax [rad] and 1.
     """
     ra = torch.deg2rad(check_range("ra_deg", ra_deg, -360.0, 720.0, unit=" deg",
                                    dtype=torch.float64).to(torch.float64))
@@ -107,13 +111,14 @@ def star_vectors(ra_deg, dec_deg, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas,
     east = torch.stack([-sin_ra, cos_ra, torch.zeros_like(ra)], dim=-1)
     north = torch.stack([-sin_dec * cos_ra, -sin_dec * sin_ra, cos_dec], dim=-1)
     motion = (pm_ra[:, None] * east + pm_dec[:, None] * north) * MAS_RAD
-    return torch.cat([unit, motion, (parallax * MAS_RAD)[:, None]], dim=-1).to(dtype)
+    return torch.cat([unit, motion, (parallax * MAS_RAD)[:, None], torch.ones_like(ra)[:, None]],
+                     dim=-1).to(dtype)
 
 
 def time_operators(times, lat_deg: float, lon_deg: float, elevation_m: float = 0.0, *,
                    epoch_jyear: float = 2000.0, aberration: bool = True,
                    parallax: bool = True) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """Per-time 3 × 7 operators and observer velocities for :func:`horizontal_vectors`.
+    """Per-time 3 × 8 operators and observer velocities for :func:`horizontal_vectors`.
 
     Parameters
     ----------
@@ -132,9 +137,10 @@ def time_operators(times, lat_deg: float, lon_deg: float, elevation_m: float = 0
 
     Returns
     -------
-    operators : torch.Tensor, float64, shape (time, 3, 7)
-        ``K = [M, dt M, −M e]`` with ``M`` the ICRS → (north, east, up) rotation, ``dt``
-        the Julian years since the epoch and ``e`` Earth's barycentric position [au].
+    operators : torch.Tensor, float64, shape (time, 3, 8)
+        ``K = [M, dt M, −M e, 0]`` with ``M`` the ICRS → (north, east, up) rotation,
+        ``dt`` the Julian years since the epoch and ``e`` Earth's barycentric position
+        [au].
     velocity : torch.Tensor or None, float64, shape (time, 3)
         Observer's barycentric velocity [m/s] in horizontal axes: Earth's barycentric
         velocity (DE421, as :func:`skytorch.ephemeris.earth_barycentric_velocity`) rotated
@@ -151,6 +157,7 @@ def time_operators(times, lat_deg: float, lon_deg: float, elevation_m: float = 0
         columns.append(-(matrices @ earth_au.unsqueeze(-1)))
     else:
         columns.append(torch.zeros(matrices.shape[0], 3, 1, dtype=torch.float64))
+    columns.append(torch.zeros(matrices.shape[0], 3, 1, dtype=torch.float64))
     operators = torch.cat(columns, dim=-1)
     velocity = None
     if aberration:
@@ -170,9 +177,9 @@ def horizontal_vectors(stars: torch.Tensor, operators: torch.Tensor,
 
     Parameters
     ----------
-    stars : torch.Tensor, shape (star, 7)
+    stars : torch.Tensor, shape (star, 8)
         From :func:`star_vectors`; its dtype sets the computation dtype.
-    operators : torch.Tensor, shape (time, 3, 7)
+    operators : torch.Tensor, shape (time, 3, 8)
         From :func:`time_operators` (cast to the dtype of ``stars``).
     velocity_m_s : torch.Tensor, shape (time, 3), optional
         Observer's barycentric velocity in horizontal axes [m/s]; ``None`` skips
@@ -187,7 +194,7 @@ def horizontal_vectors(stars: torch.Tensor, operators: torch.Tensor,
     -----
     ``h = K s = M (u + mu dt − ϖ e)`` is the direction from the observer to the star's
     linearly moving barycentric position (in units of its distance), one batched matmul
-    ``(time, 3, 7) × (7, star)``; then ``u' ∝ γ⁻¹ h + (1 + h·β/(1 + γ⁻¹)) β`` with
+    ``(time, 3, 8) × (8, star)``; then ``u' ∝ γ⁻¹ h + (1 + h·β/(1 + γ⁻¹)) β`` with
     ``β = v/c`` (relativistic aberration, :func:`skytorch.ephemeris.aberrate`). The
     first-order formula ``u + β − (u·β) u`` would differ by up to β² ≈ 1e-8 rad (2 mas).
     """
@@ -197,44 +204,64 @@ def horizontal_vectors(stars: torch.Tensor, operators: torch.Tensor,
     return aberrate(horizontal, velocity_m_s.to(stars.dtype).unsqueeze(-2))
 
 
-def horizontal_planes(stars_t: torch.Tensor, operators: torch.Tensor,
-                      velocity_m_s: torch.Tensor | None = None
+def aberration_operators(operators: torch.Tensor, velocity_m_s: torch.Tensor) -> torch.Tensor:
+    """Fold relativistic aberration into the per-time operators.
+
+    Parameters
+    ----------
+    operators : torch.Tensor, shape (time, 3, 8)
+        From :func:`time_operators`.
+    velocity_m_s : torch.Tensor, shape (time, 3)
+        Observer's barycentric velocity in the same (horizontal) axes [m/s].
+
+    Returns
+    -------
+    torch.Tensor, float64, shape (time, 3, 8)
+        ``A K + β e_8ᵀ`` with ``A = γ⁻¹ I + β βᵀ/(1 + γ⁻¹)``: applied to a star vector it
+        gives ``γ⁻¹ h + (h·β) β/(1 + γ⁻¹) + β``, the aberrated direction of
+        :func:`skytorch.ephemeris.aberrate` before its normalisation.
+
+    Notes
+    -----
+    Exact for |h| = 1; proper motion and parallax make |h| − 1 ≲ 2e-6 (4″/yr over a
+    century), which changes the aberration by < 1e-9 rad (0.1 mas).
+    """
+    beta = velocity_m_s.to(torch.float64) / SPEED_OF_LIGHT_M_S
+    inverse_gamma = torch.sqrt(1.0 - (beta * beta).sum(-1))[:, None, None]
+    eye = torch.eye(3, dtype=torch.float64)
+    matrix = inverse_gamma * eye + beta[:, :, None] * beta[:, None, :] / (1.0 + inverse_gamma)
+    folded = matrix @ operators.to(torch.float64)
+    folded[:, :, 7] += beta
+    return folded
+
+
+def horizontal_planes(stars_t: torch.Tensor, operators: torch.Tensor
                       ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Fast path of :func:`horizontal_vectors`: (north, east, up) as three contiguous planes.
 
     Parameters
     ----------
-    stars_t : torch.Tensor, shape (7, star)
-        Transposed (contiguous) :func:`star_vectors`.
-    operators : torch.Tensor, shape (time, 3, 7)
-    velocity_m_s : torch.Tensor, shape (time, 3), optional
+    stars_t : torch.Tensor, shape (8, star)
+        Transposed (contiguous) :func:`star_vectors`; sets the dtype.
+    operators : torch.Tensor, shape (time, 3, 8)
+        :func:`time_operators`, or :func:`aberration_operators` to include aberration.
 
     Returns
     -------
     north, east, up : torch.Tensor, each (time, star)
-        Aberrated directions, not normalised (|v| = 1 + O(1e-4)): use them through
-        ``atan2`` as :func:`skytorch.ephemeris.altaz_from_horizontal` does.
+        Directions, not normalised (|v| = 1 + O(1e-4)): use them through ``atan2`` as
+        :func:`skytorch.ephemeris.altaz_from_horizontal` does.
 
     Notes
     -----
-    The same formula as :func:`skytorch.ephemeris.aberrate` (tests assert agreement to
-    1e-12 rad), evaluated component-wise on ``(time, star)`` planes: with the components
-    trailing, elementwise work on strided views is 5–50× slower. One GEMM
-    ``(time·3, 7) × (7, star)`` replaces the batched matmul.
+    One GEMM ``(time·3, 8) × (8, star)``; the planes are contiguous, where elementwise
+    work on the strided components of ``(time, star, 3)`` is 5–50× slower. Tests assert
+    agreement with :func:`horizontal_vectors` to 1e-12.
     """
     n_time = operators.shape[0]
-    planes = (operators.to(stars_t.dtype).reshape(n_time * 3, 7) @ stars_t)
+    planes = operators.to(stars_t.dtype).reshape(n_time * 3, -1) @ stars_t
     planes = planes.view(n_time, 3, -1)
-    north, east, up = planes[:, 0], planes[:, 1], planes[:, 2]
-    if velocity_m_s is None:
-        return north, east, up
-    beta = velocity_m_s.to(stars_t.dtype) / SPEED_OF_LIGHT_M_S  # (time, 3)
-    inverse_gamma = torch.sqrt(1.0 - (beta * beta).sum(-1, keepdim=True))  # (time, 1)
-    b_n, b_e, b_u = beta[:, 0:1], beta[:, 1:2], beta[:, 2:3]
-    dot = north * b_n + east * b_e + up * b_u
-    factor = 1.0 + dot / (1.0 + inverse_gamma)
-    return (inverse_gamma * north + factor * b_n, inverse_gamma * east + factor * b_e,
-            inverse_gamma * up + factor * b_u)
+    return planes[:, 0], planes[:, 1], planes[:, 2]
 
 
 def apparent_altaz(stars: torch.Tensor, operators: torch.Tensor,

@@ -1,0 +1,131 @@
+"""Benchmark of star positions + magnitudes: skytorch vs skyfield, one night at 1-min steps.
+
+Workload: the Hipparcos 2 stars brighter than V = 6.5 (about 8 900) at 1 440 times (one
+night at one-minute steps) from one site. Rows:
+
+* skytorch positions + magnitudes — :func:`skytorch.stars.positions.time_operators`
+  (precession–nutation, Earth rotation, aberration, parallax for every time) and
+  :func:`skytorch.stars.observe_tensors` (one GEMM per 32 times, aberration, ray-traced
+  refraction and V-band extinction through cached tables), float64 and float32;
+* the same with the tables built inside the timed call (first call for an atmosphere);
+* ``skytorch.stars.observe`` — the whole Dataset (adds limiting magnitude, visibility,
+  relative brightness, scintillation index, colours and the xarray assembly);
+* skyfield — ``observer.at(t).observe(stars).apparent().altaz()`` vectorised over the
+  stars, looped over a subset of the times and scaled to 1 440 (it has no magnitudes).
+
+Run: ``python benchmarks/bench_stars.py [--append] [--skyfield-times 12]``. The machine has
+two cores shared with other jobs: medians are noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+
+LAT, LON, ELEVATION = 52.5, 13.4, 34.0
+TARGET_SECONDS = 1.0
+TARGET_RATIO = 20.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
+    parser.add_argument("--skyfield-times", type=int, default=12,
+                        help="times measured with skyfield (scaled to all)")
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads")
+    args = parser.parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+
+    from skyfield.api import Star, wgs84
+
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.ephemeris import load_ephemeris, skyfield_time
+    from skytorch.stars import bright_stars, observe, observe_tensors, photometry
+    from skytorch.stars import observation as observe_module
+    from skytorch.stars.positions import star_vectors, time_operators
+
+    catalog = bright_stars(6.5)
+    n_star = catalog.sizes["star"]
+    times = np.datetime64("2025-09-07T18:00", "ns") + np.arange(1440) * np.timedelta64(60, "s")
+    atmosphere = Atmosphere.earth()
+    refraction = observe_module.refraction_table(atmosphere, ELEVATION)
+    extinction = photometry.extinction_table(atmosphere, ELEVATION, refraction=True)
+
+    def skytorch_core(dtype, cold=False):
+        def run():
+            refr, ext = refraction, extinction
+            if cold:
+                observe_module._REFRACTION_CACHE.clear()
+                photometry._CACHE.clear()
+                refr = observe_module.refraction_table(atmosphere, ELEVATION)
+                ext = photometry.extinction_table(atmosphere, ELEVATION, refraction=True)
+            stars = star_vectors(catalog.ra.values, catalog.dec.values, catalog.pm_ra.values,
+                                 catalog.pm_dec.values, catalog.parallax.values, dtype=dtype)
+            operators, velocity = time_operators(times, LAT, LON, ELEVATION)
+            vmag = torch.as_tensor(catalog.vmag.values, dtype=dtype)
+            bv = torch.as_tensor(catalog.bv.values, dtype=dtype)
+            return observe_tensors(stars, vmag, bv, operators, velocity, refr, ext)
+        return run
+
+    ephemeris = load_ephemeris()
+    observer = ephemeris["earth"] + wgs84.latlon(LAT, LON, ELEVATION)
+    star = Star(ra_hours=catalog.ra.values / 15.0, dec_degrees=catalog.dec.values,
+                ra_mas_per_year=catalog.pm_ra.values, dec_mas_per_year=catalog.pm_dec.values,
+                parallax_mas=np.clip(catalog.parallax.values, 0.0, None))
+    subset = times[:: len(times) // args.skyfield_times][: args.skyfield_times]
+    t_subset = skyfield_time(subset)
+
+    def skyfield_run():
+        for i in range(len(subset)):
+            observer.at(t_subset[i]).observe(star).apparent().altaz()
+
+    rows = []
+    seconds = {}
+    for label, dtype in (("float64", torch.float64), ("float32", torch.float32)):
+        seconds[label] = median_seconds(skytorch_core(dtype), repeat=args.repeat, warmup=1)
+        rows.append({"method": f"skytorch positions + magnitudes ({label}, tables cached)",
+                     "median [s]": seconds[label]})
+    cold = median_seconds(skytorch_core(torch.float64, cold=True), repeat=1, warmup=0)
+    rows.append({"method": "skytorch positions + magnitudes (float64, tables rebuilt)",
+                 "median [s]": cold})
+    dataset = median_seconds(lambda: observe(catalog, times, LAT, LON, ELEVATION,
+                                             atmosphere=atmosphere), repeat=1, warmup=0)
+    rows.append({"method": "skytorch.stars.observe (full Dataset, float64)",
+                 "median [s]": dataset})
+    sky = median_seconds(skyfield_run, repeat=1, warmup=1) * len(times) / len(subset)
+    rows.append({"method": f"skyfield apparent alt/az ({len(subset)} times, scaled x"
+                           f"{len(times) / len(subset):.0f})", "median [s]": sky})
+    for row in rows:
+        row["ratio vs skyfield"] = sky / row["median [s]"]
+    table = markdown_table(rows)
+    best = seconds["float64"]
+    summary = (
+        f"{n_star} stars x {len(times)} times at lat {LAT}, lon {LON}. Target: positions + "
+        f"magnitudes <= {TARGET_SECONDS:.0f} s and >= {TARGET_RATIO:.0f}x skyfield. "
+        f"Measured (float64, cached tables): {best:.2f} s "
+        f"({'meets' if best <= TARGET_SECONDS else 'misses'} the time target), "
+        f"{sky / best:.0f}x skyfield "
+        f"({'meets' if sky / best >= TARGET_RATIO else 'misses'} the ratio target)."
+    )
+    text = (f"\n## Stars: positions and magnitudes ({machine_description()})\n\n{summary}\n\n"
+            f"{table}\n")
+    print(text)
+    if args.append:
+        path = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
+        with path.open("a") as handle:
+            handle.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
