@@ -87,3 +87,14 @@ def test_integrated_disc_radiance_equals_lunar_irradiance():
     radiance = disc.disc_radiance(grid["normal"], alpha, wl)
     sampled = disc.integrate_disc(radiance, grid["weight"])
     assert torch.allclose(sampled, lunar_irradiance(alpha, wl), rtol=1e-3)
+
+
+def test_disc_images_experiment_quick(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
+    experiment = importlib.import_module("experiments.moon_disc_images")
+    assert experiment.main(["--quick", "--output-dir", str(tmp_path)]) == 0
+    ds = open_dataset(tmp_path / "moon_disc_images.nc")
+    luminance = ds.luminance.sum(dim=("x", "y")).values
+    assert (luminance[:-1] > luminance[1:]).all()  # the disc dims monotonically with phase
