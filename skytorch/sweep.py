@@ -123,7 +123,9 @@ def _grid_values(name: str, values) -> np.ndarray:
 
 
 def _python_value(value):
-    """A numpy scalar as the plain Python value passed to ``fn``."""
+    """A numpy scalar as the plain Python value passed to ``fn`` (datetimes stay datetime64)."""
+    if isinstance(value, (np.datetime64, np.timedelta64)):
+        return value
     return value.item() if isinstance(value, np.generic) else value
 
 
@@ -446,7 +448,9 @@ def sweep(
         from suffixes (``_nm`` nm, ``_m`` m, ``_k`` K, ``_deg`` degree, ``_du`` DU, ...),
         otherwise ``"1"``.
     **parameter_grids : sequence
-        One 1-D sequence of distinct values per swept keyword parameter.
+        One 1-D sequence of distinct values per swept keyword parameter (numbers,
+        strings or datetime64). Names of this function's own arguments (``backend``,
+        ``key``, ``units``, ...) cannot be swept directly: wrap ``fn`` to rename them.
 
     Returns
     -------
@@ -509,7 +513,7 @@ def sweep(
                     len(spans))
     todo = [span for span in spans if span not in results]
 
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
 
     bar = tqdm(total=n_points, desc=f"sweep {_function_name(fn)}", unit="point",
                disable=None if progress else True,

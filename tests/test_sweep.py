@@ -228,3 +228,18 @@ def test_cli_sweep(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('function = "skytorch.spectrum:no_such"\n[parameters]\nbv = [0.0]\n')
     assert main(["sweep", str(bad), "-o", str(output)]) == 2
+
+
+def test_datetime_grid_round_trip(tmp_path):
+    times = np.array(["2015-09-28T01:00", "2015-09-28T02:47"], dtype="datetime64[ns]")
+    seen = []
+
+    def hours_since_midnight(time):
+        seen.append(time)
+        return float((time - np.datetime64("2015-09-28T00:00", "ns")) / np.timedelta64(1, "h"))
+
+    ds = st.sweep(hours_since_midnight, progress=False, time=times)
+    assert all(isinstance(t, np.datetime64) for t in seen)
+    np.testing.assert_allclose(ds["result"].values, [1.0, 2.0 + 47 / 60], rtol=1e-12)
+    assert ds["time"].dtype == np.dtype("datetime64[ns]")
+    xr.testing.assert_identical(ds, open_dataset(to_netcdf(ds, tmp_path / "t.nc")))
