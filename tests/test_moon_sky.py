@@ -85,3 +85,20 @@ def test_single_scattering_vs_ks1991_is_lower_bound():
     b = sky.moonlit_sky_ks1991(alpha, torch.acos(cos_rho), zm, zv, k)
     v_ks = sky.nanolambert_to_mag_arcsec2(b)
     assert ((v_ss - v_ks) > 0).all() and ((v_ss - v_ks) < 1.5).all()
+
+
+@pytest.mark.parametrize("case", [(0.0, 0.0, 0.0), (0.0, 90.0, 180.0), (89.0, 89.0, 0.0)])
+def test_single_scattering_hard_cases(dtype, case):
+    """Moon overhead, line of sight on the horizon, Moon on the horizon, full and new Moon."""
+    from skytorch.atmosphere import Atmosphere
+
+    moon_zenith, view_zenith, phase = (torch.tensor(v * DEGREE, dtype=dtype, requires_grad=True)
+                                       for v in case)
+    radiance = sky.moonlit_sky_single_scattering(
+        Atmosphere.earth(), phase, moon_zenith, view_zenith, torch.tensor(0.5, dtype=dtype),
+        torch.tensor([550.0], dtype=dtype), n_steps=16, n_quadrature=8)
+    assert radiance.dtype == dtype and torch.isfinite(radiance).all()
+    assert float(radiance.detach()) > 0.0
+    radiance.sum().backward()
+    for value in (moon_zenith, view_zenith, phase):
+        assert torch.isfinite(value.grad)

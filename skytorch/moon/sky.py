@@ -233,6 +233,7 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
     from skytorch.atmosphere.geometry import distance_to_top
     from skytorch.atmosphere.scattering import rayleigh_phase
     from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM, lunar_irradiance
+    from skytorch.moon.geometry import angle_between
 
     n_steps = check_int("n_steps", n_steps, low=2)
     dtype = common_dtype(phase_angle_rad, moon_zenith_rad, view_zenith_rad,
@@ -258,8 +259,8 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
     position = origin + s.unsqueeze(-1) * view_dir.unsqueeze(-2)  # (..., n_steps, 3)
     radius = position.norm(dim=-1)
     altitude = (radius - atmosphere.planet_radius_m).clamp_min(0.0)
-    cos_moon = ((position / radius.unsqueeze(-1)) * moon_dir.unsqueeze(-2)).sum(-1)
-    zenith_moon = torch.acos(cos_moon.clamp(-1.0, 1.0))
+    # local zenith angle of the Moon at each point (finite gradient with the Moon overhead)
+    zenith_moon = angle_between(position, moon_dir.unsqueeze(-2).expand_as(position))
 
     scattering = atmosphere.scattering_coefficients(altitude, wl)  # (..., n_steps, n_wl)
     extinction = atmosphere.extinction_coefficient(altitude, wl)
