@@ -97,11 +97,16 @@ import numpy as np
 import torch
 
 from skytorch._validate import as_tensor, check_choice, check_int, check_range, common_dtype
+from skytorch.atmosphere.geometry import distance_to_top, safe_sqrt
 
 __all__ = [
     "METHODS",
+    "TABLE_PARAMETRISATIONS",
+    "DeviationTable",
     "apparent_altitude",
     "bent_optical_depth",
+    "deviation_table",
+    "lookup_deviation",
     "refraction_angle",
     "trace_grazing_rays",
 ]
@@ -136,6 +141,34 @@ def _gauss_nodes(n: int, dtype: torch.dtype, ndim: int) -> tuple[torch.Tensor, t
             torch.as_tensor(w, dtype=dtype).reshape(shape))
 
 
+def _needs_grad(atm) -> bool:
+    """Whether any tensor held by the atmosphere (parameters, buffers, attributes) requires
+    gradients, in which case derivatives are propagated to it."""
+    if isinstance(atm, torch.nn.Module):
+        tensors = list(atm.parameters()) + list(atm.buffers())
+    else:
+        tensors = [v for v in vars(atm).values() if isinstance(v, torch.Tensor)]
+    return any(t.requires_grad for t in tensors)
+
+
+def _breakpoints(atm, top: float, dtype: torch.dtype) -> torch.Tensor | None:
+    """Altitudes where the refractivity profile has kinks, strictly inside (0, top) [m].
+
+    Taken from ``atm.refractivity_breakpoints_m`` when the object defines it; for an
+    :class:`~skytorch.atmosphere.Atmosphere` with the U.S. Standard Atmosphere 1976
+    molecules, the layer boundaries of that standard. The Bouguer quadrature is split
+    there (Gauss–Legendre converges slowly across a jump of dn/dr).
+    """
+    levels = getattr(atm, "refractivity_breakpoints_m", None)
+    if levels is None and getattr(atm, "molecule_profile", None) == "us1976":
+        from skytorch.atmosphere.model import _US1976_BREAKS_M as levels
+    if levels is None:
+        return None
+    levels = sorted(float(v) for v in torch.as_tensor(levels).reshape(-1).tolist()
+                    if 0.0 < float(v) < top)
+    return torch.tensor(levels, dtype=dtype) if levels else None
+
+
 class _Geometry:
     """Planet radius, top altitude and the refractive-index profile of an atmosphere.
 
@@ -152,6 +185,8 @@ class _Geometry:
             raise ValueError(
                 f"atmosphere needs planet_radius_m > 0 and top_altitude_m > 0; got "
                 f"{self.radius!r} and {self.top!r}")
+        self.breakpoints = _breakpoints(atm, self.top, dtype)
+        self.parameters_need_grad = _needs_grad(atm)
         zero = torch.zeros((), dtype=dtype)
         self.nu0, slope0 = self.refractivity_and_slope(zero)
         self.nu_top = self.refractivity(zero + self.top)
@@ -175,18 +210,20 @@ class _Geometry:
         derivatives of the bending integrals are exact too.
         """
         clamped = torch.clamp(altitude_m, 0.0, self.top)
-        value = self.atm.refractivity(clamped).to(self.dtype)
-        graph = value.requires_grad  # inputs or profile parameters need derivatives
+        # derivatives of the result are needed: keep the slope's own graph
+        graph = torch.is_grad_enabled() and (clamped.requires_grad or self.parameters_need_grad)
         with torch.enable_grad():
             leaf = clamped if clamped.requires_grad else clamped.detach().requires_grad_(True)
-            if value.shape != leaf.shape:  # a batched profile: one slope per element
-                leaf = leaf.expand(value.shape)
             nu = self.atm.refractivity(leaf).to(self.dtype)
+            if nu.shape != leaf.shape:  # a batched profile: one slope per element
+                leaf = leaf.expand(nu.shape)
+                nu = self.atm.refractivity(leaf).to(self.dtype)
             if nu.requires_grad:
                 (slope,) = torch.autograd.grad(nu, leaf, torch.ones_like(nu), create_graph=graph)
             else:  # constant profile
                 slope = torch.zeros_like(nu)
-        nu = value
+        if not graph:
+            nu = nu.detach()
         # one-sided derivatives at the ground and at the top
         inside = (altitude_m >= 0.0) & (altitude_m <= self.top)
         slope = torch.where(inside, slope, torch.zeros_like(slope))
@@ -266,18 +303,29 @@ class _Rays:
         shrink = torch.where(dh > 0.0, shrink, torch.ones_like(dh))
         return 1.0 + nu + (self.geometry.radius + self.h_p) * dd * shrink
 
-    def integrate(self, t_low, t_high, n_nodes, *, bending=True, extinction=None):
+    def integrate(self, t_low, t_high, n_nodes, *, bending=True, coefficient=None):
         """Quadrature over ``t`` in [t_low, t_high] of the bending and path integrands.
 
-        Returns the bending [rad] (*S,) and, with ``extinction`` = (atm, wavelength_nm),
-        the optical depth (*S, n_wl).
+        Returns the bending [rad] (*S,) and, with ``coefficient`` (a function of altitude
+        returning (..., n) [1/m]), its path integral ``optical_depth`` (*S, n).
         """
         geometry = self.geometry
-        ndim = max(self.h_p.dim(), torch.as_tensor(t_low).dim(), torch.as_tensor(t_high).dim())
+        t_low, t_high = torch.broadcast_tensors(t_low, t_high)
+        if geometry.breakpoints is not None:
+            # composite rule: panels between the t of the profile's kinks
+            levels = geometry.breakpoints.reshape((-1,) + (1,) * self.h_p.dim())
+            depth = torch.clamp(levels - self.h_p, min=torch.finfo(self.h_p.dtype).tiny)
+            cuts = torch.minimum(torch.maximum(torch.sqrt(depth / self.length), t_low), t_high)
+            edges = torch.cat([t_low.unsqueeze(0), cuts, t_high.unsqueeze(0)], dim=0)
+            t_low, t_high = edges[:-1], edges[1:]
+        ndim = t_low.dim()
         x, w = _gauss_nodes(n_nodes, geometry.dtype, ndim)
         span = t_high - t_low
         t = t_low + span * x
         weight = span * w
+        if geometry.breakpoints is not None:  # fold the panel dimension into the nodes
+            t = t.reshape((-1,) + t.shape[2:])
+            weight = weight.reshape((-1,) + weight.shape[2:])
         altitude = self.h_p + self.length * t * t
         nu, slope = geometry.refractivity_and_slope(altitude)
         m = torch.clamp(self.slope_ratio(altitude, nu, slope), min=1e-6)
@@ -287,16 +335,19 @@ class _Rays:
         if bending:
             integrand = -slope * self.b / (1.0 + nu) * jacobian
             result["bending"] = (weight * integrand).sum(0)
-        if extinction is not None:
-            atm, wavelength_nm = extinction
-            k = atm.extinction_coefficient(torch.clamp(altitude, 0.0, geometry.top),
-                                           wavelength_nm).to(geometry.dtype)
+        if coefficient is not None:
+            k = coefficient(torch.clamp(altitude, 0.0, geometry.top)).to(geometry.dtype)
             path = (weight * u * jacobian).unsqueeze(-1)
             result["optical_depth"] = (path * k).sum(0)
         return result
 
 
+#: quadrature names of the straight-ray integrators that mean the Bouguer integrals here
+_METHOD_ALIASES = {"gauss": "bouguer"}
+
+
 def _check_method(method: str) -> str:
+    method = _METHOD_ALIASES.get(method, method)
     return check_choice("method", method, METHODS)
 
 
@@ -304,6 +355,17 @@ def _wavelengths(wavelength_nm, dtype):
     wavelength_nm = check_range("wavelength_nm", wavelength_nm, low=0.0, low_inclusive=False,
                                 unit=" nm", dtype=dtype)
     return wavelength_nm.reshape(-1)
+
+
+def _extinction(atm, wavelength):
+    """Total extinction coefficient as a function of altitude, (..., n_wavelength) [1/m]."""
+    return lambda altitude: atm.extinction_coefficient(altitude, wavelength)
+
+
+def _species_densities(atm, species):
+    """Relative densities of ``species`` stacked on a trailing dimension (..., n_species)."""
+    return lambda altitude: torch.stack([atm.relative_density(s, altitude) for s in species],
+                                        dim=-1)
 
 
 # --- observer rays --------------------------------------------------------------------------
@@ -392,22 +454,53 @@ def refraction_angle(
     >>> float(refraction_angle(Air(), e) * 206264.8).__round__()  # arcseconds
     57
     """
-    _check_method(method)
+    method = _check_method(method)
     dtype = common_dtype(apparent_altitude_rad, altitude_m)
     if method == "rk4":
         return _trace_observer_rk4(atm, apparent_altitude_rad, altitude_m, dtype, step_m,
-                                   max_dh_m)["deviation"]
+                                   max_dh_m)["deviation_rad"]
     n_nodes = check_int("n_nodes", n_nodes, low=2)
+    return _observer_bending(atm, apparent_altitude_rad, altitude_m, dtype, n_nodes)[0]
+
+
+def _observer_bending(atm, apparent_altitude_rad, altitude_m, dtype, n_nodes):
+    """Bouguer bending from an observer to space, with the rays and their t0."""
     geometry, rays, elevation, _, t0 = _observer_rays(atm, apparent_altitude_rad, altitude_m,
                                                       dtype)
-    down_hit = (elevation < 0.0) & rays.hits
-    start = torch.where(down_hit, rays.t_ground, t0)
+    # The integrands are even in t, so a ray that first descends is the single interval
+    # [t0, 1] through the periapsis t = 0 -- or [t_g, 1] + [t_g, -t0] when it hits the
+    # ground (t_g > 0) or when the quadrature is split at the profile's kinks.
+    down = t0 < 0.0
+    split = down & (rays.hits | (geometry.breakpoints is not None))
+    start = torch.where(split, rays.t_ground, t0)
     bending = rays.integrate(start, torch.ones_like(start), n_nodes)["bending"]
-    if bool(down_hit.any()):
-        extra = rays.integrate(rays.t_ground, torch.maximum(-t0, rays.t_ground),
-                               n_nodes)["bending"]
-        bending = bending + torch.where(down_hit, extra, torch.zeros_like(extra))
-    return torch.where(rays.misses, torch.zeros_like(bending), bending)
+    extra = _integrate_where(rays, split, rays.t_ground, torch.maximum(-t0, rays.t_ground),
+                             n_nodes)
+    if extra is not None:
+        bending = bending + extra["bending"]
+    return torch.where(rays.misses, torch.zeros_like(bending), bending), rays, t0
+
+
+def _integrate_where(rays, mask, t_low, t_high, n_nodes, **options):
+    """:meth:`_Rays.integrate` on the rays selected by ``mask`` only, zero elsewhere."""
+    if not bool(mask.any()):
+        return None
+    shape = mask.shape
+    flat = mask.reshape(-1)
+    index = flat.nonzero().squeeze(-1)
+
+    def pick(x):
+        return torch.broadcast_to(x, shape).reshape(-1)[index]
+
+    subset = _Rays(rays.geometry, pick(rays.h_p))
+    result = subset.integrate(pick(t_low), pick(t_high), n_nodes, **options)
+    output = {}
+    for key, value in result.items():
+        trailing = value.shape[1:]
+        full = value.new_zeros((flat.numel(),) + trailing)
+        full = full.index_put((index,), value)
+        output[key] = full.reshape(shape + trailing)
+    return output
 
 
 def apparent_altitude(
@@ -493,7 +586,10 @@ def bent_optical_depth(
     n_nodes: int = DEFAULT_NODES,
     step_m: float = DEFAULT_STEP_M,
     max_dh_m: float = DEFAULT_MAX_DH_M,
-) -> torch.Tensor:
+    n_steps: int | None = None,
+    per_species: bool = False,
+    **unused,
+) -> torch.Tensor | dict[str, torch.Tensor]:
     r"""Optical depth from an observer to space along the refracted ray.
 
     Parameters
@@ -507,11 +603,21 @@ def bent_optical_depth(
     altitude_m : float or Tensor (...)
         Observer altitude [m].
     method, n_nodes, step_m, max_dh_m
-        See :func:`refraction_angle`.
+        See :func:`refraction_angle`; ``method="gauss"`` (the name of the straight-ray
+        Gauss–Legendre integrator) means ``"bouguer"``.
+    n_steps : int, optional
+        Alias of ``n_nodes`` (the straight-ray integrators' name for their resolution).
+    per_species : bool
+        Return ``{"rayleigh", "aerosol", "ozone"}`` optical depths separately; needs an
+        :class:`~skytorch.atmosphere.Atmosphere` (``relative_density`` and its reference
+        coefficients).
+    **unused
+        Options of the straight-ray integrators (``rtol``) have no meaning here and are
+        ignored.
 
     Returns
     -------
-    Tensor (..., n_wavelength)
+    Tensor (..., n_wavelength) or dict of Tensor
         Optical depth [1] along the bent path to the top of the atmosphere; for rays that
         hit the ground (below the horizon) the optical depth to the ground point.
 
@@ -536,23 +642,49 @@ def bent_optical_depth(
     >>> tuple(tau.shape)
     (2, 1)
     """
-    _check_method(method)
+    method = _check_method(method)
+    unused.pop("rtol", None)
+    if unused:
+        raise TypeError(f"bent_optical_depth got unexpected arguments {sorted(unused)}")
+    if n_steps is not None:
+        n_nodes = n_steps
     dtype = common_dtype(zenith_rad, altitude_m)
-    zenith = check_range("zenith_rad", zenith_rad, 0.0, math.pi, unit=" rad", dtype=dtype)
+    limit = math.pi * (1.0 + 4.0 * torch.finfo(dtype).eps)
+    zenith = check_range("zenith_rad", zenith_rad, 0.0, limit, unit=" rad", dtype=dtype)
     wavelength = _wavelengths(wavelength_nm, dtype)
-    elevation = 0.5 * math.pi - zenith
+    elevation = torch.clamp(0.5 * math.pi - zenith, -0.5 * math.pi, 0.5 * math.pi)
+    if per_species:
+        species = ("rayleigh", "aerosol", "ozone")
+        coefficient = _species_densities(atm, species)
+    else:
+        coefficient = _extinction(atm, wavelength)
     if method == "rk4":
-        return _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m,
-                                   extinction=(atm, wavelength))["optical_depth"]
-    n_nodes = check_int("n_nodes", n_nodes, low=2)
-    geometry, rays, elevation, _, t0 = _observer_rays(atm, elevation, altitude_m, dtype)
-    down_hit = (elevation < 0.0) & rays.hits
-    # up to the top: [t0, 1]; rays hitting the ground: from the ground to the observer
-    low = torch.where(down_hit, rays.t_ground, t0)
-    high = torch.where(down_hit, torch.maximum(-t0, rays.t_ground), torch.ones_like(t0))
-    tau = rays.integrate(low, high, n_nodes, bending=False,
-                         extinction=(atm, wavelength))["optical_depth"]
-    return torch.where(rays.misses.unsqueeze(-1), torch.zeros_like(tau), tau)
+        tau = _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m,
+                                  coefficient=coefficient)["optical_depth"]
+    else:
+        n_nodes = check_int("n_nodes", n_nodes, low=2)
+        geometry, rays, elevation, _, t0 = _observer_rays(atm, elevation, altitude_m, dtype)
+        down = t0 < 0.0
+        down_hit = down & rays.hits
+        # up to the top: [t0, 1] (even integrand, through the periapsis t = 0), split into
+        # [0, 1] + [0, -t0] where the quadrature has panels; rays hitting the ground: from
+        # the ground to the observer, [t_g, -t0]
+        split = down & ~rays.hits & (geometry.breakpoints is not None)
+        low = torch.where(down_hit | split, rays.t_ground, t0)
+        high = torch.where(down_hit, torch.maximum(-t0, rays.t_ground), torch.ones_like(t0))
+        tau = rays.integrate(low, high, n_nodes, bending=False,
+                             coefficient=coefficient)["optical_depth"]
+        extra = _integrate_where(rays, split, torch.zeros_like(t0),
+                                 torch.clamp(-t0, min=0.0), n_nodes, bending=False,
+                                 coefficient=coefficient)
+        if extra is not None:
+            tau = tau + extra["optical_depth"]
+        tau = torch.where(rays.misses.unsqueeze(-1), torch.zeros_like(tau), tau)
+    if not per_species:
+        return tau
+    # columns of relative density times the model's reference-level coefficients
+    reference = atm._coefficients(wavelength)
+    return {s: tau[..., i, None] * reference[s].to(dtype) for i, s in enumerate(species)}
 
 
 # --- rays from space through the limb ----------------------------------------------------------
@@ -633,7 +765,7 @@ def trace_grazing_rays(
     >>> [round(v, 2) for v in torch.rad2deg(rays["deviation_rad"]).tolist()]
     [1.24, 0.33]
     """
-    _check_method(method)
+    method = _check_method(method)
     given = [name for name, value in (("impact_parameter_m", impact_parameter_m),
                                       ("impact_altitude_m", impact_altitude_m),
                                       ("periapsis_altitude_m", periapsis_altitude_m))
@@ -665,9 +797,9 @@ def trace_grazing_rays(
         # Bouguer invariant b = n_top * b_geo (the index is continued above the top)
         h_p = geometry.periapsis_altitude(beta_geo + geometry.nu_top * (radius + beta_geo))
     rays = _Rays(geometry, h_p)
-    extinction = None if wavelength is None else (atm, wavelength)
+    extinction = None if wavelength is None else _extinction(atm, wavelength)
     result = rays.integrate(rays.t_ground, torch.ones_like(h_p), n_nodes,
-                            extinction=extinction)
+                            coefficient=extinction)
     zero = torch.zeros_like(h_p)
     output = {
         "deviation_rad": torch.where(rays.misses, zero, 2.0 * result["bending"]),
@@ -690,7 +822,7 @@ def trace_grazing_rays(
 # --- RK4 ray tracing ------------------------------------------------------------------------------
 
 
-def _rk4_trace(geometry, position, direction, extinction, step_m, max_dh_m, max_length,
+def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max_length,
                stop_at_ground=False):
     """Trace rays in the plane with RK4 until they leave the atmosphere upwards.
 
@@ -710,62 +842,59 @@ def _rk4_trace(geometry, position, direction, extinction, step_m, max_dh_m, max_
         return 1.0 + nu, slope.unsqueeze(-1) * p / r.unsqueeze(-1), r
 
     def extinction_at(r):
-        atm, wavelength = extinction
         h = r - radius
         inside = ((h >= 0.0) & (h <= top)).unsqueeze(-1)
-        k = atm.extinction_coefficient(torch.clamp(h, 0.0, top), wavelength).to(dtype)
+        k = coefficient(torch.clamp(h, 0.0, top)).to(dtype)
         return torch.where(inside, k, torch.zeros_like(k))
 
     def derivative(p, v):
         n, grad, r = index_and_gradient(p)
         dp = v / n.unsqueeze(-1)
-        dk = extinction_at(r) if extinction is not None else None
+        dk = extinction_at(r) if coefficient is not None else None
         return dp, grad, dk
 
     n0, _, r0 = index_and_gradient(position)
     v = direction * n0.unsqueeze(-1)  # optical direction n d
-    p = position
+    p = position.clone()
     tau = None
-    if extinction is not None:
-        tau = torch.zeros(position.shape[:-1] + (extinction[1].numel(),), dtype=dtype)
+    if coefficient is not None:
+        tau = torch.zeros_like(extinction_at(r0))
     r_min = r0.clone()
     travelled = torch.zeros_like(r0)
-    done = torch.zeros_like(r0, dtype=torch.bool)
-    for _ in range(1_000_000):
-        r = torch.linalg.vector_norm(p, dim=-1)
-        n, _, _ = index_and_gradient(p)
-        radial = (p * v).sum(-1) / (r * n)  # d r / d s = cos(local zenith angle)
-        done = done | ((r >= r_top) & (radial >= 0.0)) | (travelled >= max_length)
-        if stop_at_ground:
-            done = done | (r < radius)
-        if bool(done.all()):
-            break
-        ds = torch.minimum(torch.full_like(r, step_m),
-                           max_dh_m / torch.clamp(radial.abs(), min=1e-12))
-        ds = torch.where(done, torch.zeros_like(ds), ds)
+    radial = (p * v).sum(-1) / (r0 * n0)  # d r / d s = cos(local zenith angle)
+    active = torch.arange(r0.numel())  # rays still in flight (the others are left alone)
+
+    def finished(r, rad, length):
+        stop = ((r >= r_top) & (rad >= 0.0)) | (length >= max_length)
+        return stop | (r < radius) if stop_at_ground else stop
+
+    active = active[~finished(r0, radial, travelled)]
+    while active.numel():
+        pa, va, rad = p[active], v[active], radial[active]
+        ra = torch.linalg.vector_norm(pa, dim=-1)
+        ds = torch.minimum(torch.full_like(ra, step_m),
+                           max_dh_m / torch.clamp(rad.abs(), min=1e-12))
         h2 = ds.unsqueeze(-1)
-        k1p, k1v, k1k = derivative(p, v)
-        k2p, k2v, k2k = derivative(p + 0.5 * h2 * k1p, v + 0.5 * h2 * k1v)
-        k3p, k3v, k3k = derivative(p + 0.5 * h2 * k2p, v + 0.5 * h2 * k2v)
-        k4p, k4v, k4k = derivative(p + h2 * k3p, v + h2 * k3v)
-        p_new = p + h2 / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
-        v_new = v + h2 / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+        k1p, k1v, k1k = derivative(pa, va)
+        k2p, k2v, k2k = derivative(pa + 0.5 * h2 * k1p, va + 0.5 * h2 * k1v)
+        k3p, k3v, k3k = derivative(pa + 0.5 * h2 * k2p, va + 0.5 * h2 * k2v)
+        k4p, k4v, k4k = derivative(pa + h2 * k3p, va + h2 * k3v)
+        p_new = pa + h2 / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
+        v_new = va + h2 / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
         if tau is not None:
-            tau = tau + h2 / 6.0 * (k1k + 2.0 * k2k + 2.0 * k3k + k4k)
+            tau[active] = tau[active] + h2 / 6.0 * (k1k + 2.0 * k2k + 2.0 * k3k + k4k)
         # minimum radius: a parabola through the radial speeds at both ends of the step
-        r_new = torch.linalg.vector_norm(p_new, dim=-1)
-        n_new, _, _ = index_and_gradient(p_new)
-        radial_new = (p_new * v_new).sum(-1) / (r_new * n_new)
-        curvature = (radial_new - radial) / torch.clamp(ds, min=1e-30)
-        turning = (radial < 0.0) & (radial_new >= 0.0) & (curvature > 0.0) & ~done
+        n_new, _, r_new = index_and_gradient(p_new)
+        rad_new = (p_new * v_new).sum(-1) / (r_new * n_new)
+        curvature = (rad_new - rad) / ds
+        turning = (rad < 0.0) & (rad_new >= 0.0) & (curvature > 0.0)
         safe = torch.where(turning, curvature, torch.ones_like(curvature))
-        vertex = r - radial * radial / (2.0 * safe)
-        candidate = torch.where(turning, vertex, torch.minimum(r, r_new))
-        r_min = torch.where(done, r_min, torch.minimum(r_min, candidate))
-        p, v = p_new, v_new
-        travelled = travelled + ds
-    else:  # pragma: no cover - guarded by max_length
-        raise RuntimeError("RK4 ray tracing did not terminate")
+        vertex = ra - rad * rad / (2.0 * safe)
+        candidate = torch.where(turning, vertex, torch.minimum(ra, r_new))
+        r_min[active] = torch.minimum(r_min[active], candidate)
+        p[active], v[active], radial[active] = p_new, v_new, rad_new
+        travelled[active] = travelled[active] + ds
+        active = active[~finished(r_new, rad_new, travelled[active])]
     direction_out = v / torch.linalg.vector_norm(v, dim=-1, keepdim=True)
     return direction_out, r_min, tau
 
@@ -777,7 +906,7 @@ def _clockwise_angle(d0, d1):
     return torch.atan2(-cross, dot)
 
 
-def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, extinction=None):
+def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coefficient=None):
     elevation = _check_elevation("apparent_altitude_rad", elevation, dtype)
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
     step_m = float(check_range("step_m", step_m, low=0.0, low_inclusive=False, unit=" m"))
@@ -792,11 +921,12 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, ext
     direction = torch.stack([torch.cos(e), torch.sin(e)], dim=-1)
     r_top = geometry.radius + geometry.top
     max_length = 4.0 * math.sqrt(r_top**2 - geometry.radius**2) + 4.0 * geometry.top
-    final, _, tau = _rk4_trace(geometry, position, direction, extinction, step_m, max_dh_m,
-                               max_length, stop_at_ground=extinction is not None)
-    if extinction is not None:
+    final, r_min, tau = _rk4_trace(geometry, position, direction, coefficient, step_m,
+                                   max_dh_m, max_length, stop_at_ground=coefficient is not None)
+    if coefficient is not None:
         return {"optical_depth": tau.reshape(shape + (tau.shape[-1],))}
-    return {"deviation": _clockwise_angle(direction, final).reshape(shape)}
+    return {"deviation_rad": _clockwise_angle(direction, final).reshape(shape),
+            "contact_radius_m": r_min.reshape(shape)}
 
 
 def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
@@ -811,7 +941,7 @@ def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
     chord = torch.sqrt(torch.clamp((r_top - b) * (r_top + b), min=0.0))
     position = torch.stack([-chord, b], dim=-1)
     direction = torch.stack([torch.ones_like(b), torch.zeros_like(b)], dim=-1)
-    extinction = None if wavelength is None else (atm, wavelength)
+    extinction = None if wavelength is None else _extinction(atm, wavelength)
     max_length = 4.0 * math.sqrt(r_top**2 - radius**2) + 4.0 * geometry.top
     final, r_min, tau = _rk4_trace(geometry, position, direction, extinction, step_m,
                                    max_dh_m, max_length)
@@ -826,3 +956,288 @@ def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
     if tau is not None:
         output["optical_depth"] = tau.reshape(shape + (tau.shape[-1],))
     return output
+
+
+# --- deviation / contact-radius table (Schneegans et al. 2025, Fig. 6) --------------------------
+
+
+def _schneegans_rays(x_r, x_mu, planet_radius, top_radius):
+    r"""Observer altitude and view-zenith cosine from the texture coordinates (eq. 2).
+
+    :math:`\rho = x_r H`, :math:`r = \sqrt{\rho^2 + R^2}`, distance to the top
+    :math:`d = d_{min} + x_\mu (d_{max} - d_{min})` with :math:`d_{min} = R_t - r`,
+    :math:`d_{max} = \rho + H` and :math:`\mu = (H^2 - \rho^2 - d^2)/(2 r d)` (1 where
+    :math:`d = 0`), :math:`H = \sqrt{R_t^2 - R^2}` (Bruneton 2017).
+    """
+    horizon = math.sqrt(top_radius**2 - planet_radius**2)
+    rho = x_r * horizon
+    r = torch.sqrt(rho * rho + planet_radius**2)
+    d_min = top_radius - r
+    d_max = rho + horizon
+    d = d_min + x_mu * (d_max - d_min)
+    safe_d = torch.where(d > 0.0, d, torch.ones_like(d))
+    mu = torch.where(d > 0.0, (horizon**2 - rho * rho - d * d) / (2.0 * r * safe_d),
+                     torch.ones_like(d))
+    # altitude r - R without cancellation
+    altitude = rho * rho / (r + planet_radius)
+    return altitude, torch.clamp(mu, -1.0, 1.0)
+
+
+def _schneegans_coordinates(altitude_m, mu, planet_radius, top_radius):
+    """Inverse of :func:`_schneegans_rays`: texture coordinates (x_r, x_mu) in [0, 1]."""
+    horizon = math.sqrt(top_radius**2 - planet_radius**2)
+    r = planet_radius + altitude_m
+    rho = safe_sqrt(altitude_m * (r + planet_radius))
+    d = distance_to_top(r, mu, top_radius)
+    d_min = top_radius - r
+    d_max = rho + horizon
+    span = torch.clamp(d_max - d_min, min=1e-9 * top_radius)
+    return rho / horizon, (d - d_min) / span
+
+
+def _table_specs():
+    from skytorch.dataset import VariableSpec
+
+    return {
+        "x_r": VariableSpec("1", "altitude texture coordinate",
+                            "x_r = rho / H with rho = sqrt(r^2 - R^2), H = sqrt(R_top^2 - R^2) "
+                            "(Schneegans et al. 2025, eq. 2)."),
+        "x_mu": VariableSpec("1", "direction texture coordinate",
+                             "x_mu = (d - d_min) / (d_max - d_min), d the straight-line distance "
+                             "to the top of the atmosphere (Schneegans et al. 2025, eq. 2); "
+                             "0 is the zenith, 1 the ray tangent to the ground."),
+        "altitude": VariableSpec("m", "ray origin altitude",
+                                 "Altitude of the ray's origin above the surface.", "altitude"),
+        "view_zenith_angle": VariableSpec("degree", "view zenith angle",
+                                          "Zenith angle of the ray direction at its origin."),
+        "deviation": VariableSpec("degree", "ray deviation",
+                                  "Angle between the ray direction at its origin and where it "
+                                  "leaves the atmosphere (towards the planet), i.e. the "
+                                  "astronomical refraction for an observer at the origin."),
+        "contact_radius": VariableSpec("m", "contact radius",
+                                       "Smallest distance of the ray from the planet's centre; "
+                                       "for rays hitting the ground the virtual periapsis of "
+                                       "the ray continued through a planet of constant index."),
+        "contact_altitude": VariableSpec("m", "contact altitude",
+                                         "contact_radius minus the planet radius; negative for "
+                                         "rays blocked by the planet."),
+    }
+
+
+def deviation_table(
+    atm,
+    n_altitude: int = 512,
+    n_angle: int = 256,
+    *,
+    parametrisation: str = "schneegans2025",
+    method: str = "bouguer",
+    n_nodes: int = DEFAULT_NODES,
+    step_m: float = DEFAULT_STEP_M,
+    max_dh_m: float = DEFAULT_MAX_DH_M,
+    dtype: torch.dtype = torch.float64,
+    chunk_size: int = 16384,
+    progress: bool = True,
+):
+    r"""Ray deviation and contact radius over ray origins and directions (Fig. 6, ref. 3).
+
+    Parameters
+    ----------
+    atm : Atmosphere or compatible
+        Needs ``planet_radius_m``, ``top_altitude_m`` and ``refractivity``.
+    n_altitude, n_angle : int
+        Samples of :math:`x_r` and :math:`x_\mu` (Schneegans et al. used 512 × 256).
+    parametrisation : {"schneegans2025"}
+        Texture coordinates of eq. 2 of ref. 3 (Bruneton's transmittance texture without
+        the half-texel offsets): grid points at ``linspace(0, 1, n)``.
+    method : {"bouguer", "rk4"}
+        Ray-path algorithm (``"rk4"``: Schneegans' ray marching, ``step_m`` = 10 km).
+    n_nodes, step_m, max_dh_m
+        Resolution, see :func:`refraction_angle`.
+    dtype : torch.dtype
+        Computation dtype.
+    chunk_size : int
+        Rays per batch (memory bound).
+    progress : bool
+        Show a tqdm progress bar (only on a terminal).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimensions ``x_r`` (n_altitude) and ``x_mu`` (n_angle); variables ``deviation``
+        [degree], ``contact_radius`` and ``contact_altitude`` [m] (x_r, x_mu), coordinates
+        ``altitude`` (x_r) [m] and ``view_zenith_angle`` (x_r, x_mu) [degree].
+
+    Notes
+    -----
+    Every ray starts inside the atmosphere and is followed to where it leaves it; rays
+    that hit the ground continue through a planet of constant refractive index (ref. 3),
+    so the table is smooth and the sign of ``contact_altitude`` tells which rays the
+    planet blocks. Look values up with :class:`DeviationTable` or
+    :func:`lookup_deviation`.
+
+    Examples
+    --------
+    >>> import torch
+    >>> class Air:
+    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
+    ...     def refractivity(self, altitude_m, wavelength_nm=None):
+    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> ds = deviation_table(Air(), 8, 4, progress=False)
+    >>> ds.deviation.dims
+    ('x_r', 'x_mu')
+    """
+    from skytorch.dataset import build_dataset, coordinate, variable
+
+    check_choice("parametrisation", parametrisation, TABLE_PARAMETRISATIONS)
+    method = _check_method(method)
+    n_altitude = check_int("n_altitude", n_altitude, low=2)
+    n_angle = check_int("n_angle", n_angle, low=2)
+    chunk_size = check_int("chunk_size", chunk_size, low=1)
+    radius = float(atm.planet_radius_m)
+    top_radius = radius + float(atm.top_altitude_m)
+    x_r = torch.linspace(0.0, 1.0, n_altitude, dtype=dtype)
+    x_mu = torch.linspace(0.0, 1.0, n_angle, dtype=dtype)
+    altitude, mu = _schneegans_rays(x_r[:, None], x_mu[None, :], radius, top_radius)
+    altitude = altitude.expand(n_altitude, n_angle)
+    elevation = torch.asin(mu)
+    deviation = torch.empty_like(mu)
+    contact = torch.empty_like(mu)
+    flat_h, flat_e = altitude.reshape(-1), elevation.reshape(-1)
+    flat_dev, flat_contact = deviation.view(-1), contact.view(-1)
+    starts = range(0, flat_h.numel(), chunk_size)
+    from tqdm.auto import tqdm
+
+    bar = tqdm(starts, desc="deviation table", disable=not progress, leave=False)
+    with torch.no_grad():
+        for start in bar:
+            part = slice(start, start + chunk_size)
+            h, e = flat_h[part], flat_e[part]
+            if method == "rk4":
+                out = _trace_observer_rk4(atm, e, h, dtype, step_m, max_dh_m)
+                flat_dev[part] = out["deviation_rad"]
+                flat_contact[part] = out["contact_radius_m"] - radius
+            else:
+                bending, rays, t0 = _observer_bending(atm, e, h, dtype,
+                                                      check_int("n_nodes", n_nodes, low=2))
+                flat_dev[part] = bending
+                flat_contact[part] = torch.where(t0 < 0.0, rays.h_p, h)
+    logger.info("deviation table %d x %d (%s) computed", n_altitude, n_angle, method)
+    specs = _table_specs()
+    dims = ("x_r", "x_mu")
+    data = {
+        "deviation": variable(dims, torch.rad2deg(deviation), specs["deviation"]),
+        "contact_radius": variable(dims, contact + radius, specs["contact_radius"]),
+        "contact_altitude": variable(dims, contact, specs["contact_altitude"]),
+    }
+    coords = {
+        "x_r": coordinate("x_r", x_r, specs["x_r"]),
+        "x_mu": coordinate("x_mu", x_mu, specs["x_mu"]),
+        "altitude": variable(("x_r",), altitude[:, 0], specs["altitude"]),
+        "view_zenith_angle": variable(dims, torch.rad2deg(torch.acos(mu)),
+                                      specs["view_zenith_angle"]),
+    }
+    parameters = {"parametrisation": parametrisation, "method": method,
+                  "n_nodes": n_nodes if method == "bouguer" else None,
+                  "step_m": step_m if method == "rk4" else None,
+                  "max_dh_m": max_dh_m if method == "rk4" else None,
+                  "planet_radius_m": radius, "top_altitude_m": float(atm.top_altitude_m)}
+    if hasattr(atm, "parameters_dict"):
+        parameters["atmosphere"] = atm.parameters_dict()
+    return build_dataset(
+        data, coords, title="Ray deviation and contact radius of refracted rays",
+        references=[
+            "Schneegans, S. et al. 2025, Physically Based Real-Time Rendering of Eclipses, "
+            "Computer Graphics Forum, doi:10.1111/cgf.70220",
+            "Auer, L. H. & Standish, E. M. 2000, Astron. J. 119, 2472, doi:10.1086/301325",
+        ],
+        parameters=parameters)
+
+
+class DeviationTable(torch.nn.Module):
+    """Batched bilinear look-up in a :func:`deviation_table` (layer 2 of the design).
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        Output of :func:`deviation_table`.
+
+    Examples
+    --------
+    >>> import torch
+    >>> class Air:
+    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
+    ...     def refractivity(self, altitude_m, wavelength_nm=None):
+    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> table = DeviationTable(deviation_table(Air(), 16, 16, progress=False))
+    >>> out = table(torch.tensor([0.0]), torch.tensor([0.5]))
+    >>> sorted(out)
+    ['contact_altitude_m', 'deviation_rad', 'hits_ground']
+    """
+
+    def __init__(self, dataset):
+        super().__init__()
+        self.planet_radius_m = float(dataset.attrs["parameter_planet_radius_m"])
+        self.top_altitude_m = float(dataset.attrs["parameter_top_altitude_m"])
+        self.register_buffer("deviation_rad", torch.deg2rad(
+            torch.as_tensor(dataset["deviation"].values, dtype=torch.float64)))
+        self.register_buffer("contact_altitude_m", torch.as_tensor(
+            dataset["contact_altitude"].values, dtype=torch.float64))
+
+    def forward(self, altitude_m, zenith_rad) -> dict[str, torch.Tensor]:
+        """Deviation [rad], contact altitude [m] and the ground-hit flag (...).
+
+        Parameters
+        ----------
+        altitude_m : Tensor (...)
+            Ray origin altitude, in [0, top] [m].
+        zenith_rad : Tensor (...)
+            Ray zenith angle at the origin [rad]; rays below the geometric horizon (outside
+            the table) get the values of the ray tangent to the ground and
+            ``hits_ground`` True.
+        """
+        dtype = common_dtype(altitude_m, zenith_rad)
+        top = self.top_altitude_m
+        height = check_range("altitude_m", altitude_m, 0.0, top, unit=" m", dtype=dtype)
+        zenith = check_range("zenith_rad", zenith_rad, 0.0, math.pi, unit=" rad", dtype=dtype)
+        height, zenith = torch.broadcast_tensors(height, zenith)
+        x_r, x_mu = _schneegans_coordinates(height, torch.cos(zenith), self.planet_radius_m,
+                                            self.planet_radius_m + top)
+        below = x_mu > 1.0
+        deviation = _bilinear(self.deviation_rad.to(dtype), x_r, x_mu)
+        contact = _bilinear(self.contact_altitude_m.to(dtype), x_r, x_mu)
+        return {"deviation_rad": deviation, "contact_altitude_m": contact,
+                "hits_ground": below | (contact < 0.0)}
+
+
+def _bilinear(grid: torch.Tensor, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+    """Bilinear interpolation of ``grid`` (n_x, n_y) sampled at linspace(0, 1) (clamped)."""
+    n_x, n_y = grid.shape
+    fx = torch.clamp(x, 0.0, 1.0) * (n_x - 1)
+    fy = torch.clamp(y, 0.0, 1.0) * (n_y - 1)
+    ix = torch.clamp(fx.detach().floor().long(), 0, n_x - 2)
+    iy = torch.clamp(fy.detach().floor().long(), 0, n_y - 2)
+    wx, wy = fx - ix, fy - iy
+    g00, g01 = grid[ix, iy], grid[ix, iy + 1]
+    g10, g11 = grid[ix + 1, iy], grid[ix + 1, iy + 1]
+    return (g00 * (1 - wx) * (1 - wy) + g01 * (1 - wx) * wy + g10 * wx * (1 - wy)
+            + g11 * wx * wy)
+
+
+def lookup_deviation(table, altitude_m, zenith_rad) -> dict[str, torch.Tensor]:
+    """Look rays up in a deviation table (Dataset or :class:`DeviationTable`).
+
+    Parameters
+    ----------
+    table : xarray.Dataset or DeviationTable
+        From :func:`deviation_table`.
+    altitude_m, zenith_rad : Tensor (...)
+        Ray origins and zenith angles [m], [rad].
+
+    Returns
+    -------
+    dict of Tensor (...)
+        ``deviation_rad``, ``contact_altitude_m``, ``hits_ground``.
+    """
+    if not isinstance(table, DeviationTable):
+        table = DeviationTable(table)
+    return table(altitude_m, zenith_rad)
