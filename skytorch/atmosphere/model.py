@@ -45,6 +45,7 @@ torch.Size([2, 2, 1])
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 from functools import lru_cache
@@ -316,9 +317,26 @@ class Atmosphere(nn.Module):
         return json.dumps(self.parameters_dict())
 
     def _p(self, key: str, dtype: torch.dtype, trailing: int = 0) -> torch.Tensor:
-        """Buffer ``key`` cast to ``dtype`` with ``trailing`` singleton dimensions."""
+        """Buffer ``key`` cast to ``dtype`` with ``trailing`` singleton dimensions.
+
+        Inside :meth:`_extra_geometry_dims` every parameter gets that many more trailing
+        singletons, so that it broadcasts against geometry with extra trailing dims.
+        """
         value = getattr(self, key).to(dtype)
-        return value.reshape(tuple(value.shape) + (1,) * trailing)
+        if value.ndim == 0:  # a scalar broadcasts against anything
+            return value
+        extra = getattr(self, "_extra_dims", 0)
+        return value.reshape(tuple(value.shape) + (1,) * (trailing + extra))
+
+    @contextlib.contextmanager
+    def _extra_geometry_dims(self, count: int):
+        """Let geometry tensors carry ``count`` trailing dims beyond the batch dims."""
+        previous = getattr(self, "_extra_dims", 0)
+        self._extra_dims = previous + count
+        try:
+            yield self
+        finally:
+            self._extra_dims = previous
 
     # ------------------------------------------------------------------ species
     def _density(self, species: str, dtype: torch.dtype):
@@ -349,9 +367,10 @@ class Atmosphere(nn.Module):
             key = "rayleigh_scale_height_m" if species == "rayleigh" else "aerosol_scale_height_m"
             height = self._p(key, dtype, 1) * factors
             return lambda base: base[..., None] + height
-        center = self._p("ozone_peak_altitude_m", dtype, 1)
-        width = self._p("ozone_half_width_m", dtype, 1)
-        return torch.cat([torch.clamp(center - width, min=0.0), center, center + width], dim=-1)
+        center = self._p("ozone_peak_altitude_m", dtype)
+        width = self._p("ozone_half_width_m", dtype)
+        return torch.stack(torch.broadcast_tensors(torch.clamp(center - width, min=0.0), center,
+                                                   center + width), dim=-1)
 
     def _truncates(self, species: str) -> bool:
         """Whether the last quadrature level of ``species`` ends the integration."""
@@ -593,6 +612,28 @@ class Atmosphere(nn.Module):
         zenith = torch.zeros_like(torch.as_tensor(zenith_rad, dtype=slant.dtype))
         vertical = self.column_integrals(zenith, altitude_m, **kwargs)[species]
         return slant / vertical
+
+    def sky_radiance(self, wavelength_nm, view_zenith_rad, view_azimuth_rad=0.0,
+                     sun_zenith_rad=0.0, sun_azimuth_rad=0.0, altitude_m=0.0, *,
+                     solar_irradiance: bool = False, **kwargs) -> torch.Tensor:
+        """Single-scattering sky radiance (..., wavelength).
+
+        Per unit solar irradiance [sr^-1], or with ``solar_irradiance=True`` times the
+        extraterrestrial solar spectrum (:func:`skytorch.spectrum.solar_irradiance`)
+        [W m^-2 sr^-1 nm^-1]. See
+        :func:`skytorch.atmosphere.scattering.single_scattering_radiance`.
+        """
+        from skytorch.atmosphere.scattering import single_scattering_radiance
+
+        radiance = single_scattering_radiance(self, wavelength_nm, view_zenith_rad,
+                                              view_azimuth_rad, sun_zenith_rad,
+                                              sun_azimuth_rad, altitude_m, **kwargs)
+        if solar_irradiance:
+            from skytorch.spectrum import solar_irradiance as irradiance
+
+            wavelength = self._wavelength(wavelength_nm, radiance.dtype)
+            radiance = radiance * irradiance(wavelength).to(radiance.dtype)
+        return radiance
 
     # ------------------------------------------------------------------ refraction
     def refraction(self, apparent_altitude_rad, altitude_m=0.0, **kwargs) -> torch.Tensor:
