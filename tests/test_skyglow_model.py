@@ -12,6 +12,7 @@ from _skyglow_standin import cached_model
 
 from skytorch.constants import PERCENT
 from skytorch.skyglow import render_naive
+from skytorch.skyglow.naive import kernel_table_sum
 from skytorch.skyglow.model import SkyglowModel
 
 #: issue targets for PCA + FFT against the naive sum on the same grid (mean relative error)
@@ -28,19 +29,6 @@ def _map(x, y, flux, altitude=None):
 
 def _one_cell(x, y, flux=1e6, altitude=None):
     return _map([x], [y], [[flux]], None if altitude is None else [[altitude]])
-
-
-def _direct_sum(model, polar, node=0):
-    """Σ over polar nodes of flux × kernel table shifted in azimuth: the naive sum on the
-    model's grid, from the kernel values themselves (no PCA, no FFT)."""
-    kernel = model.kernel[node]  # (r, hc, θ, φ, λ)
-    n_t = kernel.shape[2]
-    total = torch.zeros(kernel.shape[3], n_t, kernel.shape[4], dtype=torch.float64)
-    it, ir, ih = torch.nonzero(polar, as_tuple=True)
-    for a, j, k in zip(it.tolist(), ir.tolist(), ih.tolist(), strict=True):
-        shifted = torch.roll(kernel[j, k], shifts=a, dims=0)  # b(θ - θ_a)
-        total += polar[a, j, k] * shifted.permute(1, 0, 2)
-    return total
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +53,7 @@ def test_pca_fft_matches_direct_sum_on_the_same_grid(terrain_model):
     polar = terrain_model.polar_flux(cells["x"].reshape(-1), cells["y"].reshape(-1),
                                      cells["flux"].reshape(-1), cells["altitude"].reshape(-1),
                                      torch.zeros(1, 2, dtype=torch.float64))[0]
-    reference = _direct_sum(terrain_model, polar)
+    reference = kernel_table_sum(terrain_model, polar)
     errors = {}
     for m in (8, 32, 128):
         model = terrain_model.refit(m)

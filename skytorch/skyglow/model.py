@@ -450,12 +450,13 @@ class SkyglowModel(nn.Module):
         weighted = flux[None, :] * inside
         r_nodes = ((jr, 1 - wr), (jr + 1, wr)) if n_r > 1 else ((jr, torch.ones_like(wr)),)
         h_nodes = ((jh, 1 - wh), (jh + 1, wh)) if n_h > 1 else ((jh, torch.ones_like(wh)),)
+        indices, values = [], []
         for it, w_t in ((i0, 1 - wt), (i1, wt)):
             for ir, w_r in r_nodes:
                 for ih, w_h in h_nodes:
-                    index = ((observer * n_t + it) * n_r + ir) * n_h + ih
-                    out = out.index_add(0, index.reshape(-1),
-                                        (weighted * w_t * w_r * w_h).reshape(-1))
+                    indices.append((((observer * n_t + it) * n_r + ir) * n_h + ih).reshape(-1))
+                    values.append((weighted * w_t * w_r * w_h).reshape(-1))
+        out = out.index_add(0, torch.cat(indices), torch.cat(values))
         return out.reshape(n_obs, n_t, n_r, n_h)
 
     def convolve(self, polar: torch.Tensor, observer_altitude_index: int) -> torch.Tensor:

@@ -27,7 +27,7 @@ from skytorch._validate import as_tensor, check_choice
 from skytorch.skyglow.kernel import kernel_radiance
 from skytorch.skyglow.model import SkyglowModel, light_map_arrays
 
-__all__ = ["NAIVE_SOURCES", "naive_radiance_per_lumen", "render_naive"]
+__all__ = ["NAIVE_SOURCES", "kernel_table_sum", "naive_radiance_per_lumen", "render_naive"]
 
 #: source placements of the naive reference
 NAIVE_SOURCES = ("cells", "polar")
@@ -150,3 +150,34 @@ def render_naive(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
                         NATURAL_ZENITH_SKY_MAG_ARCSEC2, single)
     ds.attrs["title"] = f"Artificial skyglow panorama, naive reference (sources={sources})"
     return ds
+
+
+def kernel_table_sum(model: SkyglowModel, polar: torch.Tensor, node: int = 0) -> torch.Tensor:
+    """The naive sum on the model's grid from its stored kernel table (no PCA, no FFT).
+
+    ``Σ_{i,j,k} F(θ_i, r_j, h_k) b(θ − θ_i, φ, r_j, h_k, h_o)`` with the kernel values kept
+    by ``SkyglowModel.precompute(..., keep_kernel=True)`` — the same numbers
+    :func:`naive_radiance_per_lumen` integrates with ``sources="polar"``, without
+    integrating them again.
+
+    Parameters
+    ----------
+    model : SkyglowModel
+        With ``model.kernel``.
+    polar : Tensor (azimuth, distance, source_altitude)
+        Flux per polar node (one observer, from :meth:`SkyglowModel.polar_flux`).
+    node : int
+        Observer-altitude node.
+
+    Returns
+    -------
+    Tensor (elevation, azimuth, wavelength)
+    """
+    if model.kernel is None:
+        raise ValueError("kernel_table_sum needs precompute(..., keep_kernel=True)")
+    kernel = model.kernel[node].to(polar.dtype)  # (r, hc, θ, φ, λ)
+    total = torch.zeros(kernel.shape[2:], dtype=polar.dtype)  # (θ, φ, λ)
+    for i in torch.nonzero(polar.abs().sum(dim=(1, 2)))[:, 0].tolist():
+        image = torch.einsum("rh,rhtpw->tpw", polar[i], kernel)
+        total += torch.roll(image, shifts=i, dims=0)  # b(θ − θ_i)
+    return total.permute(1, 0, 2)
