@@ -15,6 +15,10 @@ torch work per grid point. Rows:
 All rows but the first run torch with one intra-op thread, so that workers do not compete
 for the two cores.
 
+A second table times the real job of issue 7: the 2015-09-28 lunar eclipse light curve
+(``lunar_eclipse``, 50 times) swept over a 10 x 10 turbidity x ozone grid, serial and on
+dask with 1 and 2 workers (one run each; ``--eclipse-grid 0`` skips it).
+
 Run: ``python benchmarks/bench_sweep.py [--append]`` (``--append`` adds the table to
 ``docs/benchmarks.md``). Timings on a shared 2-core machine are noisy.
 """
@@ -82,11 +86,64 @@ def torch_threads(count: int | None):
         torch.set_num_threads(previous)
 
 
+def eclipse_light_curve(turbidity, ozone_du):
+    """V magnitude and B-V of the Moon through the 2015-09-28 eclipse (50 times)."""
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.eclipse import lunar_eclipse
+
+    atmosphere = Atmosphere.earth(turbidity=turbidity, ozone_du=ozone_du)
+    ds = lunar_eclipse("2015-09-28", atmosphere=atmosphere, n_times=50, n_images=0)
+    return ds[["v_magnitude", "b_minus_v"]]
+
+
+ECLIPSE_CASES = {
+    "serial": {},
+    "dask, 1 worker": {"backend": "dask", "n_workers": 1},
+    "dask, 2 workers": {"backend": "dask", "n_workers": 2},
+}
+
+
+def eclipse_case(label: str, n: int) -> float:
+    """Seconds for the n x n eclipse light-curve sweep with one backend (after a warm-up
+    call at a point outside the grid: imports, ephemeris and parameter-independent caches)."""
+    import time
+
+    torch.set_num_threads(1)
+    eclipse_light_curve(2.2, 310.0)
+    start = time.perf_counter()
+    st.sweep(eclipse_light_curve, progress=False,
+             turbidity=[1.0 + 0.5 * i for i in range(n)],
+             ozone_du=[200.0 + 20.0 * i for i in range(n)], **ECLIPSE_CASES[label])
+    return time.perf_counter() - start
+
+
+def eclipse_rows(n: int) -> list[dict[str, object]]:
+    """One timing per backend, each in a fresh process so no run reuses another's caches."""
+    import subprocess
+
+    rows = []
+    for label in ECLIPSE_CASES:
+        output = subprocess.run(
+            [sys.executable, __file__, "--eclipse-case", label, "--eclipse-grid", str(n)],
+            check=True, capture_output=True, text=True).stdout
+        rows.append({"eclipse light curve sweep": f"{n} x {n}, {label}",
+                     "torch threads": 1,
+                     "seconds (one run)": float(output.strip().splitlines()[-1])})
+    return rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--eclipse-grid", type=int, default=10,
+                        help="n for the n x n eclipse light-curve sweep (0 skips it)")
+    parser.add_argument("--eclipse-case", choices=tuple(ECLIPSE_CASES),
+                        help="time only this eclipse case and print the seconds")
     args = parser.parse_args(argv)
+    if args.eclipse_case:
+        print(eclipse_case(args.eclipse_case, args.eclipse_grid))
+        return 0
 
     reference = plain_loop()
     # One intra-op torch thread everywhere except the first row: on a shared, oversubscribed
@@ -135,10 +192,17 @@ def main(argv=None) -> int:
         f"Machine: {machine_description()}. Medians of {args.repeat} interleaved rounds "
         f"(one sample for the first row); the machine is shared, so timings are noisy."
         f"\n\n{table}\n\n"
-        f"Dask speed-up with 2 workers vs 1 (one torch thread each): {dask_1 / dask_2:.2f}x. "
-        f"Target (issue 7): a 10 x 10 sweep of the eclipse light curve within 60 s; this "
-        f"toy function stands in for it.\n"
+        f"Dask speed-up with 2 workers vs 1 (one torch thread each): {dask_1 / dask_2:.2f}x.\n"
     )
+    if args.eclipse_grid:
+        eclipse = eclipse_rows(args.eclipse_grid)
+        serial, one, two = (row["seconds (one run)"] for row in eclipse)
+        text += (
+            f"\nThe 2015-09-28 lunar eclipse light curve (`lunar_eclipse`, 50 times, 15 bands, "
+            f"V and B-V) swept over turbidity x ozone:\n\n{markdown_table(eclipse)}\n\n"
+            f"Target (issue 7): 10 x 10 within 60 s. Dask speed-up 2 workers vs 1: "
+            f"{one / two:.2f}x; vs serial: {serial / two:.2f}x.\n"
+        )
     print(text)
     if args.append:
         with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as out:

@@ -153,17 +153,14 @@ def _chunks(n_points: int, chunk_size: int) -> list[tuple[int, int]]:
 
 # --- results to chunk Datasets ------------------------------------------------------------------
 
-def _as_dataset(result) -> xr.Dataset:
-    """One grid point's result as a Dataset (tensors get dims ``<name>_dim_<j>``)."""
+def _as_record(result) -> xr.Dataset | dict[str, np.ndarray]:
+    """One grid point's result: a Dataset, or a dict of numpy arrays for plain values."""
     if isinstance(result, xr.Dataset):
         return result
     if isinstance(result, xr.DataArray):
         return result.to_dataset(name=result.name if result.name is not None else RESULT_NAME)
-    if isinstance(result, Mapping):
-        items = result.items()
-    else:
-        items = [(RESULT_NAME, result)]
-    variables = {}
+    items = result.items() if isinstance(result, Mapping) else [(RESULT_NAME, result)]
+    record = {}
     for name, value in items:
         if isinstance(value, (str, bytes)):
             raise TypeError(f"sweep result {name} must be numeric; got {value!r:.80}")
@@ -173,12 +170,33 @@ def _as_dataset(result) -> xr.Dataset:
                 f"sweep function must return a Dataset, DataArray, tensor, number or a "
                 f"mapping of them; got {type(value).__name__}"
             )
-        dims = tuple(f"{name}_dim_{j}" for j in range(array.ndim))
-        variables[str(name)] = (dims, array)
-    return xr.Dataset(variables)
+        record[str(name)] = array
+    return record
 
 
-def _same_layout(first: xr.Dataset, other: xr.Dataset) -> None:
+def _stack_records(records: Sequence[dict[str, np.ndarray]]) -> xr.Dataset:
+    """Stack plain-value results along :data:`POINT_DIM` (tensors get ``<name>_dim_<j>``)."""
+    first = records[0]
+    for other in records[1:]:
+        if not isinstance(other, dict) or other.keys() != first.keys() or any(
+                other[k].shape != first[k].shape for k in first):
+            raise ValueError(
+                "sweep results change shape or variables between grid points: "
+                f"{ {k: v.shape for k, v in first.items()} } and "
+                f"{ {k: getattr(v, 'shape', type(v).__name__) for k, v in dict(other).items()} }"
+            )
+    return xr.Dataset({
+        name: ((POINT_DIM, *(f"{name}_dim_{j}" for j in range(array.ndim))),
+               np.stack([record[name] for record in records]))
+        for name, array in first.items()
+    })
+
+
+def _same_layout(first: xr.Dataset, other) -> None:
+    if not isinstance(other, xr.Dataset):
+        raise ValueError(
+            f"sweep results change type between grid points: a Dataset and {type(other).__name__}"
+        )
     if set(first.data_vars) != set(other.data_vars):
         raise ValueError(
             f"sweep results differ between grid points: variables {sorted(first.data_vars)} "
@@ -262,7 +280,9 @@ def _compute_chunk(fn: Callable, names: tuple[str, ...], grids: tuple[np.ndarray
     for point in range(stop - start):
         kwargs = {name: _python_value(grid[index[point]])
                   for name, grid, index in zip(names, grids, indices, strict=True)}
-        results.append(_as_dataset(fn(**kwargs)))
+        results.append(_as_record(fn(**kwargs)))
+    if isinstance(results[0], dict):
+        return _stack_records(results)
     return _sanitized(_stack_points(results))
 
 

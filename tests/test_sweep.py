@@ -243,3 +243,11 @@ def test_datetime_grid_round_trip(tmp_path):
     np.testing.assert_allclose(ds["result"].values, [1.0, 2.0 + 47 / 60], rtol=1e-12)
     assert ds["time"].dtype == np.dtype("datetime64[ns]")
     xr.testing.assert_identical(ds, open_dataset(to_netcdf(ds, tmp_path / "t.nc")))
+
+
+def test_results_changing_type_are_rejected():
+    with pytest.raises(ValueError, match="change"):
+        st.sweep(lambda x: {"a": x} if x > 1 else xr.Dataset({"a": ((), x)}), progress=False,
+                 x=[1.0, 2.0])
+    with pytest.raises(ValueError, match="change"):
+        st.sweep(lambda x: {"a": x} if x > 1 else {"b": x}, progress=False, x=[1.0, 2.0])
