@@ -113,7 +113,8 @@ def test_zenith_star_finite_values_and_gradients(dtype, lat):
     time = "2024-03-01T00:00"
     ra, dec = _star_at([0.0, 0.0, 1.0], time, lat, 11.0)
     ra_t, dec_t, stars = _single_star_vectors(ra, dec, dtype)
-    operators, _ = time_operators([time], lat, 11.0, aberration=False, parallax=False)
+    operators, _ = time_operators([time], lat, 11.0, aberration=False, parallax=False,
+                                  anchor_minutes=None)
     from skytorch.stars import observe_tensors
 
     out = observe_tensors(stars, torch.zeros(1), torch.zeros(1), operators, None, None, None)
@@ -178,3 +179,16 @@ def test_time_operators_combine_parallax():
     # -M e with |e| ≈ 1 au
     assert float(torch.linalg.vector_norm(earth)) == pytest.approx(0.983, abs=0.01)
     assert DEGREE > 0
+
+
+def test_anchored_precession_nutation_matches_direct_matrices():
+    """Precession-nutation every 30 min plus Earth rotation about the pole: < 3 mas."""
+    from skytorch.stars.positions import _rotation_matrices
+
+    times = np.array(["2016-12-31T23:40", "2016-12-31T23:59:59", "2017-01-01T00:00:00",
+                      "2017-01-01T00:14:59", "1900-05-01T12:07", "2050-01-01T00:00"],
+                     dtype="datetime64[ns]")
+    for lat in (52.5, -89.9, 0.0):
+        anchored = _rotation_matrices(times, lat, 13.4, 0.0, 30.0)
+        direct = _rotation_matrices(times, lat, 13.4, 0.0, None)
+        assert float((anchored - direct).abs().max()) < 3e-3 * ARCSECOND

@@ -141,3 +141,14 @@ def test_observed_scintillation_grows_towards_horizon():
     altitude = ds.altitude.values[0][above]
     assert np.isfinite(ds.scintillation_index.values).all()
     assert index[np.argmin(altitude)] > 10.0 * index[np.argmax(altitude)]
+
+
+def test_observe_twinkle_on_request_is_seeded():
+    first = observe(bright_stars(1.0), "2025-09-07T22:00", 52.5, 13.4, twinkle_samples=64,
+                    seed=3)
+    again = observe(bright_stars(1.0), "2025-09-07T22:00", 52.5, 13.4, twinkle_samples=64,
+                    seed=3)
+    assert first.twinkle.dims == ("time", "star", "sample")
+    assert np.array_equal(first.twinkle.values, again.twinkle.values)
+    assert (first.twinkle.values > 0).all()
+    assert "twinkle" not in observe(bright_stars(1.0), "2025-09-07T22:00", 52.5, 13.4)

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_range
+from skytorch._validate import check_int, check_range
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.ephemeris import parse_times
 from skytorch.stars.photometry import (
@@ -41,7 +41,7 @@ from skytorch.stars.positions import (
     star_vectors,
     time_operators,
 )
-from skytorch.stars.scintillation import scintillation_index
+from skytorch.stars.scintillation import scintillation_index, twinkle
 from skytorch.stars.visibility import (
     VISIBILITY_MODELS,
     count_visible,
@@ -230,13 +230,18 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
     operators = operators * torch.tensor([-1.0, -1.0, 1.0], dtype=operators.dtype)[:, None]
     stars_t = stars.T.contiguous()
     tables = site_tables(refraction, extinction_tab, dtype)
+    needs_grad = torch.is_grad_enabled() and any(
+        t.requires_grad for t in (stars, vmag, bv, operators))
     values, slopes = tables["values"], tables["slopes"]
     low, inverse_step = tables["low_rad"], 1.0 / tables["step_rad"]
     top = float(tables["count"] - 1)
     for start in range(0, n_time, time_chunk):
         sl = slice(start, min(start + time_chunk, n_time))
         south, west, up = horizontal_planes(stars_t, operators[sl])
-        horizontal = torch.sqrt(torch.addcmul(south * south, west, west) + _TINY)
+        if needs_grad:  # hypot's gradient is NaN at the zenith
+            horizontal = torch.sqrt(torch.addcmul(south * south, west, west) + _TINY)
+        else:
+            horizontal = torch.hypot(south, west)
         true = torch.atan2(up, horizontal)
         out["azimuth"][sl] = torch.atan2(west, south).add_(math.pi)
         x = ((true - low) * inverse_step).clamp_(0.0, top)
@@ -275,6 +280,9 @@ _SPECS = {
         "(Mueller et al. 2012), 0 below the horizon."),
     "scintillation_index": VariableSpec(
         "1", "scintillation index", "Relative intensity variance (Young 1967)."),
+    "twinkle": VariableSpec("1", "relative intensity (twinkling)",
+                            "Seeded log-normal intensity sequence I/<I> with the "
+                            "scintillation index of the star."),
     "limiting_magnitude": VariableSpec(
         "mag", "naked-eye limiting magnitude",
         "Faintest V visible against the sky background (Schaefer 1990)."),
@@ -295,7 +303,9 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
             elevation_m: float = 0.0, atmosphere=None, refraction: bool = True, *,
             sky_brightness_mag_arcsec2=22.0, control_magnitude: float = 6.0,
             visibility: str = "schaefer1990", aperture_m: float = 0.007,
-            exposure_s: float = 0.1, dtype: torch.dtype = torch.float64) -> xr.Dataset:
+            exposure_s: float = 0.1, twinkle_samples: int = 0,
+            twinkle_interval_s: float = 0.01, seed: int = 0,
+            dtype: torch.dtype = torch.float64) -> xr.Dataset:
     """Apparent positions, magnitudes, colours and visibility of catalogue stars.
 
     Parameters
@@ -325,6 +335,14 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         the relative brightness.
     aperture_m, exposure_s : float
         Aperture [m] and exposure [s] of the scintillation index (default: the eye).
+    twinkle_samples : int
+        When > 0, add ``twinkle`` (time, star, sample): a seeded random sequence of
+        relative intensities with the scintillation index of each star
+        (:func:`skytorch.stars.scintillation.twinkle`), ``twinkle_interval_s`` apart.
+    twinkle_interval_s : float
+        Sample spacing of the twinkle sequence [s] (correlation time 10 ms).
+    seed : int
+        Seed of the twinkle sequence.
     dtype : torch.dtype
         Computation dtype of the per-star quantities (float64 or float32).
 
@@ -414,6 +432,14 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     }
     if factor is not None:
         data_vars["day_night_factor"] = variable("time", factor, _SPECS["day_night_factor"])
+    coords_extra = {}
+    if check_int("twinkle_samples", twinkle_samples, 0, 100_000) > 0:
+        sequence = twinkle(scint, twinkle_samples, sample_interval_s=twinkle_interval_s,
+                           seed=seed)
+        data_vars["twinkle"] = variable(("time", "star", "sample"), sequence, _SPECS["twinkle"])
+        coords_extra["sample"] = coordinate(
+            "sample", twinkle_interval_s * np.arange(twinkle_samples),
+            VariableSpec("s", "time within the twinkle sequence", "Seconds from its start."))
     for name in ("hip", "hr", "name"):
         if name in catalog:
             data_vars[name] = catalog[name].variable.copy()
@@ -423,6 +449,7 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
             "star", np.arange(stars.shape[0]), VariableSpec("1", "star index", "Row.")),
         "channel": coordinate("channel", np.array(["R", "G", "B"]),
                               VariableSpec("1", "sRGB channel", "Red, green, blue.")),
+        **coords_extra,
     }
     parameters = {
         "lat_deg": lat, "lon_deg": lon, "elevation_m": elevation,
@@ -430,7 +457,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         if has_atmosphere and hasattr(atmosphere, "parameters_dict") else "none",
         "refraction": bool(refraction and has_atmosphere), "control_magnitude":
         float(control_magnitude), "visibility": visibility, "aperture_m": float(aperture_m),
-        "exposure_s": float(exposure_s), "dtype": str(dtype).replace("torch.", ""),
+        "exposure_s": float(exposure_s), "twinkle_samples": int(twinkle_samples),
+        "seed": int(seed), "dtype": str(dtype).replace("torch.", ""),
         "sky_brightness_mag_arcsec2": np.asarray(sky_brightness_mag_arcsec2, float),
         "catalog": catalog.attrs.get("title", ""),
     }
