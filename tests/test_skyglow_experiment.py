@@ -20,5 +20,5 @@ def test_experiment_quick(tmp_path):
     # more components never make the same-grid error worse in this small case
     error = ds["mean_relative_error"].values[:, 0]
     assert error[-1] <= error[0]
-    assert float(ds["quadrature_max_error"].values[-1]) < float(
-        ds["quadrature_max_error"].values[0])
+    q = ds["quadrature_max_error"].values
+    assert q.shape == (2, 3) and q[0, -1] < q[0, 0] and q[1, -1] < q[1, 0]

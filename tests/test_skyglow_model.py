@@ -12,8 +12,8 @@ from _skyglow_standin import cached_model
 
 from skytorch.constants import PERCENT
 from skytorch.skyglow import render_naive
-from skytorch.skyglow.naive import kernel_table_sum
 from skytorch.skyglow.model import SkyglowModel
+from skytorch.skyglow.naive import kernel_table_sum
 
 #: issue targets for PCA + FFT against the naive sum on the same grid (mean relative error)
 TARGET_ERROR_M32 = 2 * PERCENT

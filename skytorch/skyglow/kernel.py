@@ -58,6 +58,7 @@ __all__ = [
     "GARSTANG_F",
     "GARSTANG_G",
     "Medium",
+    "QUADRATURES",
     "converged_steps",
     "emission_intensity",
     "kernel_radiance",
@@ -68,6 +69,8 @@ logger = logging.getLogger(__name__)
 #: upward emission functions of a lit area, selectable by name
 EMISSION_FUNCTIONS = ("garstang1986", "lambertian", "dobashi2023")
 
+#: view-ray quadratures: one rule over the substituted variable, or Dobashi's split
+QUADRATURES = ("single", "split")
 #: Garstang 1986: fraction of the light emitted directly upwards by the fixtures
 GARSTANG_F = 0.10
 #: Garstang 1986: reflectance of the ground for the downward light
@@ -322,8 +325,8 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
                     source_altitude_m=0.0, observer_altitude_m=0.0, *,
                     emission: str = "garstang1986",
                     emission_parameters: Mapping[str, float] | None = None,
-                    n_steps: int = 16, source_radius_m: float = 10.0,
-                    chunk_size: int = 16384) -> torch.Tensor:
+                    n_steps: int = 8, source_radius_m: float = 10.0,
+                    quadrature: str = "single", chunk_size: int = 16384) -> torch.Tensor:
     """Radiance scattered once towards the observer from a unit-flux ground source.
 
     Parameters
@@ -343,7 +346,13 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     emission_parameters : mapping, optional
         Parameters of the emission function (see :func:`emission_intensity`).
     n_steps : int
-        Gauss–Legendre nodes on each side of the point closest to the source.
+        Half the number of Gauss–Legendre nodes along the view ray.
+    quadrature : {"single", "split"}
+        ``"split"``: ``n_steps`` nodes on each side of the point closest to the source
+        (Dobashi §3.2); ``"single"`` (default): one rule of ``2 n_steps`` nodes over the
+        whole lit interval of the substituted variable ``t`` — the substitution centred on
+        the closest point already makes the integrand smooth there, and one rule is about
+        twice as accurate for the same nodes (measured in ``docs/skyglow.md``).
     source_radius_m : float
         Radius ``a`` of the lit area that replaces the point source's ``1/s^2`` by
         ``1/(s^2 + a^2)`` [m]; keeps the kernel finite for a source at the observer.
@@ -367,6 +376,7 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     >>> from skytorch.skyglow.kernel import Medium, kernel_radiance  # doctest: +SKIP
     """
     check_choice("emission", emission, EMISSION_FUNCTIONS)
+    check_choice("quadrature", quadrature, QUADRATURES)
     n_steps = check_int("n_steps", n_steps, low=1, high=4096)
     chunk_size = check_int("chunk_size", chunk_size, low=1)
     check_positive("source_radius_m", source_radius_m, unit=" m")
@@ -382,18 +392,19 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     shape = torch.broadcast_shapes(*(v.shape for v in values))
     flat = [v.expand(shape).reshape(-1) for v in values]
     n = flat[0].numel()
-    xg, wg = _gauss_legendre(n_steps, dtype)
+    xg, wg = _gauss_legendre(n_steps if quadrature == "split" else 2 * n_steps, dtype)
     out = []
     for start in range(0, max(n, 1), chunk_size):
         part = [v[start:start + chunk_size] for v in flat]
         out.append(_kernel_chunk(medium, *part, xg, wg, emission, emission_parameters,
-                                 float(source_radius_m)))
+                                 float(source_radius_m), quadrature))
     result = torch.cat(out) if out else torch.zeros(0, medium.wavelength_nm.numel(),
                                                      dtype=dtype)
     return result.reshape(*shape, medium.wavelength_nm.numel())
 
 
-def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_parameters, a):
+def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_parameters, a,
+                  quadrature):
     """The quadrature for a flat batch of geometries: returns (n, wavelength)."""
     big_r = medium.planet_radius_m
     # frame: observer above the origin, Earth centre at (0, 0, -R), source in azimuth 0
@@ -435,9 +446,16 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     length_a = (torch.minimum(t_hi, torch.zeros_like(t_hi)) - t_lo).clamp_min(0.0)
     length_b = (t_hi - start_b).clamp_min(0.0)
     # nodes on the parts before and after the point closest to the source
-    t = torch.cat([t_lo[:, None] + length_a[:, None] * xg,
-                   start_b[:, None] + length_b[:, None] * xg], dim=1)
-    wt = torch.cat([length_a[:, None] * wg, length_b[:, None] * wg], dim=1)
+    if quadrature == "split":
+        # n nodes on each side of the point closest to the source (Dobashi §3.2)
+        t = torch.cat([t_lo[:, None] + length_a[:, None] * xg,
+                       start_b[:, None] + length_b[:, None] * xg], dim=1)
+        wt = torch.cat([length_a[:, None] * wg, length_b[:, None] * wg], dim=1)
+    else:
+        # one rule of 2n nodes over the whole lit interval of the substituted variable
+        span = length_a + length_b
+        t = t_lo[:, None] + span[:, None] * xg
+        wt = span[:, None] * wg
     tan_t = torch.tan(t)
     u = (u_c[:, None] + rho_e[:, None] * tan_t).clamp(0.0)
     du = wt * rho_e[:, None] * (1.0 + tan_t**2)

@@ -220,7 +220,7 @@ class SkyglowModel(nn.Module):
                    source_radius_m: float | None = None, distance_spacing: str = "linear",
                    normalize: bool = True, phase_functions=None, progress: bool = True,
                    keep_kernel: bool = False, chunk_size: int = 16384,
-                   medium: Medium | None = None,
+                   medium: Medium | None = None, quadrature: str = "single",
                    compute_dtype: torch.dtype = torch.float64) -> SkyglowModel:
         """Tabulate kernels, fit the PCA basis and transform it over azimuth.
 
@@ -247,8 +247,10 @@ class SkyglowModel(nn.Module):
             Default ``spectrum.wavelength_grid("rgb")``.
         emission_parameters : mapping, optional
             ``{"F": 0.1, "G": 0.15}`` for Garstang, ``{"beam_exponent": 8}`` for Dobashi.
+        quadrature : {"single", "split"}
+            View-ray quadrature (see :func:`~skytorch.skyglow.kernel.kernel_radiance`).
         n_steps : int, optional
-            Gauss nodes per half view ray; default chosen by
+            Half the Gauss nodes per view ray; default chosen by
             :func:`~skytorch.skyglow.kernel.converged_steps` for
             ``quadrature_tolerance``.
         source_radius_m : float, optional
@@ -298,7 +300,8 @@ class SkyglowModel(nn.Module):
         if source_radius_m is None:
             source_radius_m = 0.5 * float(edges[1] - edges[0])
         kernel_arguments = {"emission": emission, "emission_parameters": emission_parameters,
-                            "source_radius_m": float(source_radius_m)}
+                            "source_radius_m": float(source_radius_m),
+                            "quadrature": quadrature}
         if n_steps is None:
             n_steps, change = converged_steps(medium, quadrature_tolerance, **kernel_arguments)
             logger.info("kernel quadrature: %d nodes per half ray (relative change %.2g)",
@@ -354,6 +357,7 @@ class SkyglowModel(nn.Module):
             "source_altitude_range_m": [float(v) for v in source_altitude_range_m],
             "observer_altitude_range_m": [float(v) for v in observer_altitude_range_m],
             "n_steps": n_steps, "quadrature_tolerance": float(quadrature_tolerance),
+            "quadrature": quadrature,
             "source_radius_m": float(source_radius_m), "normalize": bool(normalize),
             "compute_dtype": str(compute_dtype).replace("torch.", ""),
             "atmosphere": atmosphere_parameters,

@@ -36,7 +36,8 @@ NAIVE_SOURCES = ("cells", "polar")
 def _kernel_arguments(model: SkyglowModel) -> dict:
     p = model.parameters_used
     return {"emission": p["emission"], "emission_parameters": p.get("emission_parameters"),
-            "source_radius_m": p["source_radius_m"], "n_steps": int(p["n_steps"])}
+            "source_radius_m": p["source_radius_m"], "n_steps": int(p["n_steps"]),
+            "quadrature": p.get("quadrature", "single")}
 
 
 def _accumulate(model, medium, theta_c, r, h_c, h_o, flux, chunk):
