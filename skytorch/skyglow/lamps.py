@@ -169,6 +169,9 @@ def _hat_matrix(wavelength: torch.Tensor, fine: torch.Tensor) -> torch.Tensor:
     return hat
 
 
+_WEIGHTS_CACHE: dict = {}
+
+
 def luminance_weights(lamp, wavelength_nm) -> tuple[torch.Tensor, torch.Tensor]:
     """Weights turning per-lumen kernel radiances at a few wavelengths into luminance.
 
@@ -183,13 +186,18 @@ def luminance_weights(lamp, wavelength_nm) -> tuple[torch.Tensor, torch.Tensor]:
         ``w_m`` [1] and the lamp's hat-averaged spectral power per lumen at each λ_m
         [W nm^-1 lm^-1] (``∫ h_m s dλ / ∫ h_m dλ``), used for spectral radiance.
     """
+    wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
+    key = (lamp, tuple(wavelength.tolist())) if isinstance(lamp, str) else None
+    if key is not None and key in _WEIGHTS_CACHE:
+        return _WEIGHTS_CACHE[key]
     fine, v = _fine_grid()
     s = per_lumen(lamp)
-    wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
     hat = _hat_matrix(wavelength, fine)
     weights = LUMINOUS_EFFICACY_LM_PER_W * torch.trapezoid(hat * (s * v)[:, None], fine, dim=0)
     band_power = (torch.trapezoid(hat * s[:, None], fine, dim=0)
                   / torch.trapezoid(hat, fine, dim=0))
+    if key is not None:
+        _WEIGHTS_CACHE[key] = (weights, band_power)
     return weights, band_power
 
 
