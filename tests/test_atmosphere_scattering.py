@@ -106,6 +106,11 @@ def test_batched_parameters_and_views():
     assert radiance.shape == (2, 5, 3)
     single = Atmosphere.earth(turbidity=6.0).sky_radiance(WAVELENGTH, view, 0.0, 0.7, 0.0)
     assert torch.allclose(radiance[1], single, rtol=1e-12)
+    # an all-sky grid: zenith (4, 1) x azimuth (6,)
+    grid = Atmosphere.earth().sky_radiance(WAVELENGTH, view[:4, None],
+                                           torch.linspace(0.0, 6.0, 6, dtype=torch.float64),
+                                           0.7, 0.0, n_samples=16)
+    assert grid.shape == (4, 6, 3)
 
 
 def test_table_for_sun_transmittance_agrees():

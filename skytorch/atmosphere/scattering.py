@@ -93,6 +93,7 @@ def phase_function(cos_theta, g, model: str = "cornetteshanks1992") -> torch.Ten
 
 def _direction(zenith, azimuth):
     """Unit vectors (..., 3) in the observer's (north, east, up) frame."""
+    zenith, azimuth = torch.broadcast_tensors(zenith, azimuth)
     sin_z = torch.sin(zenith)
     return torch.stack([sin_z * torch.cos(azimuth), sin_z * torch.sin(azimuth),
                         torch.cos(zenith)], dim=-1)
