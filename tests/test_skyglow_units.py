@@ -80,3 +80,12 @@ def test_synthetic_city_conserves_flux():
     assert lit.sum() == 16
     xx, yy = np.meshgrid(cells["x"].values, cells["y"].values)
     assert np.all(np.hypot(xx, yy)[lit] >= 1000.0)
+
+
+def test_star_overlay_counts():
+    # Allen's Astrophysical Quantities: about 4800 stars brighter than V = 6.0 on the sky
+    whole = float(units.visible_star_count(6.0, hemisphere=False))
+    assert whole == pytest.approx(4800.0, rel=10 * PERCENT)
+    limits = units.naked_eye_limiting_magnitude(torch.tensor([22.0, 20.0, 18.0]))
+    counts = units.visible_star_count(limits)
+    assert bool((torch.diff(limits) < 0).all()) and bool((torch.diff(counts) < 0).all())

@@ -592,9 +592,10 @@ class SkyglowModel(nn.Module):
         xarray.Dataset
             ``radiance`` (observer, elevation, azimuth, wavelength) spectral radiance
             [W m^-2 sr^-1 nm^-1]; ``luminance`` (observer, elevation, azimuth) [cd m^-2];
-            ``artificial_ratio`` [1] (to the natural zenith sky) and ``total_brightness``
-            [mag arcsec^-2] (natural + artificial). The ``observer`` dimension is dropped
-            for a single observer given as ``(2,)``.
+            ``artificial_ratio`` [1] (to the natural zenith sky), ``total_brightness``
+            [mag arcsec^-2] (natural + artificial) and the naked-eye
+            ``limiting_magnitude`` [mag]. The ``observer`` dimension is dropped for a single
+            observer given as ``(2,)``.
         """
         from skytorch.skyglow.lamps import luminance_weights
         from skytorch.skyglow.units import NATURAL_ZENITH_SKY_MAG_ARCSEC2
@@ -619,7 +620,11 @@ class SkyglowModel(nn.Module):
     def _dataset(self, outputs, cells, observer_xy, observer_altitude_m, lamp, natural,
                  single):
         from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
-        from skytorch.skyglow.units import artificial_to_natural_ratio, total_mag_arcsec2
+        from skytorch.skyglow.units import (
+            artificial_to_natural_ratio,
+            naked_eye_limiting_magnitude,
+            total_mag_arcsec2,
+        )
 
         prefix = () if single else ("observer",)
         luminance = outputs["luminance"].detach()
@@ -644,6 +649,11 @@ class SkyglowModel(nn.Module):
                              "Natural zenith sky plus artificial luminance, "
                              "m = -2.5 log10(L / 10.8e4 cd m-2) (Falchi et al. 2016).")),
         }
+        data["limiting_magnitude"] = variable(
+            (*prefix, "elevation", "azimuth"),
+            naked_eye_limiting_magnitude(data["total_brightness"].values), VariableSpec(
+                "mag", "naked-eye limiting magnitude",
+                "Faintest star visible against this sky (Schaefer 1990 threshold model)."))
         coords = self._panorama_coords()
         if not single:
             xy = torch.as_tensor(observer_xy, dtype=torch.float64).reshape(-1, 2)

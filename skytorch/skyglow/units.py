@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from skytorch._validate import as_tensor, check_finite, check_range
@@ -38,8 +39,10 @@ __all__ = [
     "luminance_to_nanolambert",
     "mag_arcsec2_to_luminance",
     "nanolambert_to_luminance",
+    "naked_eye_limiting_magnitude",
     "natural_luminance",
     "total_mag_arcsec2",
+    "visible_star_count",
 ]
 
 #: 1 nL = 1e-9 lambert = 1e-9 · 10^4/π cd m^-2
@@ -118,3 +121,40 @@ def bortle_class(mag_arcsec2) -> torch.Tensor:
     # number of limits the sky is brighter (smaller m) than, plus one
     return 1 + (m[..., None] < limits).sum(dim=-1)
 
+
+
+def naked_eye_limiting_magnitude(mag_arcsec2) -> torch.Tensor:
+    """Naked-eye limiting V magnitude against a sky of ``mag_arcsec2`` [mag].
+
+    Schaefer's (1990) threshold model as implemented by
+    :func:`skytorch.stars.visibility.limiting_magnitude`.
+    """
+    from skytorch.stars.visibility import limiting_magnitude
+
+    return limiting_magnitude(mag_arcsec2)
+
+
+def visible_star_count(limiting_magnitude_mag, *, hemisphere: bool = True) -> torch.Tensor:
+    """Number of catalogue stars brighter than a limiting magnitude.
+
+    Counts Hipparcos stars (:func:`skytorch.stars.bright_stars`, V ≤ 8) brighter than the
+    limit; with ``hemisphere`` half the celestial sphere's count (one observer's sky,
+    ignoring extinction near the horizon and the stars' actual positions).
+
+    Parameters
+    ----------
+    limiting_magnitude_mag : array_like (...)
+        Limiting V magnitude [mag] (e.g. of the zenith).
+
+    Returns
+    -------
+    Tensor (...)
+    """
+    from skytorch.stars import bright_stars
+
+    limit = check_range("limiting_magnitude_mag", limiting_magnitude_mag, -30.0, 8.0,
+                        unit=" mag")
+    vmag = torch.as_tensor(np.sort(bright_stars(8.0)["vmag"].values), dtype=limit.dtype)
+    count = torch.searchsorted(vmag, limit.reshape(-1).contiguous(), right=True).reshape(
+        limit.shape).to(limit.dtype)
+    return 0.5 * count if hemisphere else count
