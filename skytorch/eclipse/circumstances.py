@@ -51,7 +51,7 @@ import xarray as xr
 
 from skytorch.constants import ARCSECOND, ASTRONOMICAL_UNIT_M, EARTH_EQUATORIAL_RADIUS_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
-from skytorch.eclipse.cone import ENLARGEMENTS, shadow_radii
+from skytorch.eclipse.cone import ENLARGEMENTS, _cone
 
 __all__ = [
     "CONTACTS",
@@ -161,29 +161,26 @@ class _Geometry:
         axial = (moon_position * axis).sum(-1)
         offset = moon_position - axial[..., None] * axis
         delta = torch.linalg.vector_norm(offset, dim=-1)
-        umbra, penumbra = shadow_radii(axial, sun_distance, self.sun_radius, self.earth_radius,
-                                       self.enlargement)
+        umbra, penumbra, *_ = _cone(axial, sun_distance, self.sun_radius, self.earth_radius,
+                                    self.enlargement)
         return {"delta": delta, "umbra": umbra, "penumbra": penumbra, "north": offset[..., 2]}
 
 
 def _golden_minimum(function, low: torch.Tensor, high: torch.Tensor, iterations: int = 48):
-    """Vectorised golden-section search of ``function`` (batched) on [low, high]."""
+    """Vectorised golden-section search of a batched ``function`` on ``[low, high]``.
+
+    ``function`` maps times ``(n, 2)`` to values ``(n, 2)``; both interior points of every
+    row are evaluated in one call.
+    """
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
     a, b = low.clone(), high.clone()
-    c = b - ratio * (b - a)
-    d = a + ratio * (b - a)
-    fc, fd = function(c), function(d)
     for _ in range(iterations):
-        left = fc < fd
+        c = b - ratio * (b - a)
+        d = a + ratio * (b - a)
+        values = function(torch.stack((c, d), dim=-1))
+        left = values[:, 0] < values[:, 1]
         b = torch.where(left, d, b)
         a = torch.where(left, a, c)
-        new_c = b - ratio * (b - a)
-        new_d = a + ratio * (b - a)
-        c_next = torch.where(left, new_c, d)
-        d_next = torch.where(left, c, new_d)
-        fc_next = torch.where(left, function(new_c), fd)
-        fd_next = torch.where(left, fc, function(new_d))
-        c, d, fc, fd = c_next, d_next, fc_next, fd_next
     return 0.5 * (a + b)
 
 
@@ -298,8 +295,7 @@ def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
     delta = geometry(grid.expand(n, -1))["delta"]
     best = grid[delta.argmin(dim=1)]
     step = float(grid[1] - grid[0])
-    greatest = _golden_minimum(lambda s: geometry(s[:, None])["delta"][:, 0],
-                               best - step, best + step)
+    greatest = _golden_minimum(lambda s: geometry(s)["delta"], best - step, best + step)
     at_greatest = {key: value[:, 0] for key, value in geometry(greatest[:, None]).items()}
     moon_radius = geometry.moon_radius
     umbral = (at_greatest["umbra"] + moon_radius - at_greatest["delta"]) / (2 * moon_radius)
@@ -309,22 +305,23 @@ def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
             & (greatest_times < end_time))
     rows = torch.as_tensor(np.nonzero(keep)[0])
 
-    # contacts: delta(t) - level(t) changes sign on each side of greatest eclipse
-    levels = {"p": lambda g: g["penumbra"] + moon_radius,
-              "u_outer": lambda g: g["umbra"] + moon_radius,
-              "u_inner": lambda g: g["umbra"] - moon_radius}
+    # contacts: delta(t) - level(t) changes sign on each side of greatest eclipse; the six
+    # contacts of every eclipse are found together by one batched bisection
     t0 = greatest[rows]
-    contacts = {}
-    for (before, after), level in zip((("p1", "p4"), ("u1", "u4"), ("u2", "u3")),
-                                      levels.values(), strict=True):
-        def excess(seconds, level=level):
-            g = geometry(seconds[:, None], rows)
-            return (g["delta"] - level(g))[:, 0]
+    sides = torch.tensor([-1.0, -1.0, -1.0, 1.0, 1.0, 1.0], dtype=torch.float64)  # CONTACTS
+    offsets = torch.tensor([1.0, 1.0, -1.0, -1.0, 1.0, 1.0], dtype=torch.float64) * moon_radius
+    use_umbra = torch.tensor([False, True, True, True, True, False])
 
-        reached = excess(t0) < 0
-        for name, sign in ((before, -1.0), (after, 1.0)):
-            root = _bisect(excess, t0.clone(), t0 + sign * _CONTACT_SPAN_S)
-            contacts[name] = torch.where(reached, root, torch.nan)
+    def excess(seconds):
+        g = geometry(seconds, rows)
+        level = torch.where(use_umbra, g["umbra"], g["penumbra"]) + offsets
+        return g["delta"] - level
+
+    start_points = t0[:, None].expand(-1, len(CONTACTS))
+    reached = excess(start_points) < 0
+    roots = _bisect(excess, start_points.clone(), start_points + sides * _CONTACT_SPAN_S)
+    roots = torch.where(reached, roots, torch.nan)
+    contacts = {name: roots[:, i] for i, name in enumerate(CONTACTS)}
 
     times = greatest_times[keep]
 

@@ -99,6 +99,19 @@ def _occluder_factors(enlargement: str) -> tuple[float, float]:
     return 1.0, 1.0
 
 
+def _cone(x, sun_distance, sun_radius, radius, enlargement: str):
+    """Cone radii without input checks: (umbra, penumbra, sin f_u, sin f_p, radius used)."""
+    radius_factor, shadow_factor = _occluder_factors(enlargement)
+    radius = radius * radius_factor
+    sin_u = (sun_radius - radius) / sun_distance
+    sin_p = (sun_radius + radius) / sun_distance
+    cos_u = torch.sqrt((1.0 - sin_u) * (1.0 + sin_u))
+    cos_p = torch.sqrt((1.0 - sin_p) * (1.0 + sin_p))
+    umbra = shadow_factor * (radius / cos_u - x * sin_u / cos_u)
+    penumbra = shadow_factor * (radius / cos_p + x * sin_p / cos_p)
+    return umbra, penumbra, sin_u, sin_p, radius
+
+
 def shadow_cone(
     distance_m,
     sun_distance_m,
@@ -145,22 +158,16 @@ def shadow_cone(
                              unit=" m", dtype=dtype)
     radius = check_range("occluder_radius_m", occluder_radius_m, 0.0, low_inclusive=False,
                          unit=" m", dtype=dtype)
-    radius_factor, shadow_factor = _occluder_factors(enlargement)
-    radius = radius * radius_factor
     with torch.no_grad():
-        bad = (sun_radius + radius >= sun_distance) | (radius >= sun_radius)
+        effective = radius * _occluder_factors(enlargement)[0]
+        bad = (sun_radius + effective >= sun_distance) | (effective >= sun_radius)
         if bool(bad.any()):
             raise ValueError(
                 "shadow cones need an occluder smaller than the Sun and both well separated "
                 "(occluder_radius_m < sun_radius_m and their sum < sun_distance_m)"
             )
-    sin_u = (sun_radius - radius) / sun_distance
-    sin_p = (sun_radius + radius) / sun_distance
-    cos_u = torch.sqrt((1.0 - sin_u) * (1.0 + sin_u))
-    cos_p = torch.sqrt((1.0 - sin_p) * (1.0 + sin_p))
-    umbra = shadow_factor * (radius / cos_u - x * sin_u / cos_u)
-    penumbra = shadow_factor * (radius / cos_p + x * sin_p / cos_p)
-    umbra, penumbra = torch.broadcast_tensors(umbra, penumbra)
+    umbra, penumbra, sin_u, sin_p, radius = _cone(x, sun_distance, sun_radius, radius,
+                                                  enlargement)
     return {
         "umbra_radius_m": umbra,
         "antumbra_radius_m": torch.clamp(-umbra, min=0.0),

@@ -90,7 +90,7 @@ MIN_SUN_RADIUS_RAD = 1e-8
 #: experiments/eclipse_geometry_accuracy_cost.py)
 DEFAULT_NODES = 8
 #: elements per chunk: keeps the (chunk, n_nodes) temporaries in the CPU cache
-_CHUNK = 16384
+_CHUNK = 16_384
 
 # binomial series of 1/sqrt(1 - b t) = sum_n c_n (b t)^n, c_n = C(2n, n) / 4^n
 _SERIES = tuple(math.comb(2 * n, n) / 4.0**n for n in range(8))
@@ -113,13 +113,17 @@ class _SafeSqrt(torch.autograd.Function):
 
 
 def _safe_sqrt(x: torch.Tensor) -> torch.Tensor:
-    return _SafeSqrt.apply(x)
+    if torch.is_grad_enabled() and x.requires_grad:
+        return _SafeSqrt.apply(x)
+    return torch.sqrt(torch.clamp(x, min=0.0))
 
 
 def _angle_from_haversine(h: torch.Tensor) -> torch.Tensor:
     """Angle ``x`` in [0, pi] with ``hav x = h`` (``h`` clamped to [0, 1]), finite gradient."""
     h = torch.clamp(h, 0.0, 1.0)
-    return 2.0 * torch.atan2(_safe_sqrt(h), _safe_sqrt(1.0 - h))
+    if torch.is_grad_enabled() and h.requires_grad:
+        return 2.0 * torch.atan2(_safe_sqrt(h), _safe_sqrt(1.0 - h))
+    return 2.0 * torch.asin(torch.sqrt(h))
 
 
 def _haversine(x: torch.Tensor) -> torch.Tensor:
@@ -234,16 +238,23 @@ def _series_matrix(n_terms: int) -> np.ndarray:
 
 
 def _radial_coefficients(b, a0, a1, a2) -> torch.Tensor:
-    """Per-element coefficients ``(..., degree + 1)`` of ``(1 + w) K`` in powers of ``w``."""
+    """Coefficients ``(..., degree + 1)`` of ``(1 + w) K`` in powers of ``w``."""
     n_terms = _series_terms(b)
-    matrix = torch.as_tensor(_series_matrix(n_terms), dtype=b.dtype)
-    powers = b.unsqueeze(-1) ** torch.arange(n_terms, dtype=b.dtype)  # (..., n_terms)
-    laws = torch.stack((a0, a1, a2), dim=-1)  # (..., 3)
-    return torch.einsum("...l,...n,lnm->...m", laws, powers, matrix)
+    matrix = torch.as_tensor(_series_matrix(n_terms), dtype=b.dtype)  # (law, n, m)
+    coefficients = 0.0
+    for law, a in enumerate((a0, a1, a2)):
+        series = matrix[law, -1]  # Horner in b
+        for n in range(n_terms - 2, -1, -1):
+            series = matrix[law, n] + b.unsqueeze(-1) * series
+        coefficients = coefficients + a.unsqueeze(-1) * series
+    return coefficients
 
 
 def _visible_fraction_flat(rho_s, rho_o, d, coefficients, v, weight):
-    """Core of :func:`sun_visible_fraction` on 1-D tensors (one chunk)."""
+    """Core of :func:`sun_visible_fraction` on 1-D tensors (one chunk).
+
+    Tensors of length 1 (a scalar Sun radius or limb darkening) broadcast against the chunk.
+    """
     hidden = d <= rho_o - rho_s  # Sun entirely behind the occluder
     clear = d >= rho_o + rho_s  # no overlap
     inside = d <= rho_s - rho_o  # occluder entirely on the disc (transit, antumbra)
@@ -253,23 +264,28 @@ def _visible_fraction_flat(rho_s, rho_o, d, coefficients, v, weight):
     sin_s = torch.sin(rho_s)
     sin_o = torch.sin(rho_o)
     b = sin_s * sin_s
-    # half-angle of the solar limb inside the occluder, seen from the Sun's centre
-    alpha_numerator = torch.sin(0.5 * (rho_o - d + rho_s)) * torch.sin(0.5 * ((rho_o - rho_s) + d))
-    # half-angle of the occluder's rim inside the solar disc, seen from the occluder's centre
-    phi_numerator = torch.sin(0.5 * (rho_s - d + rho_o)) * torch.sin(0.5 * ((rho_s - rho_o) + d))
-    alpha = _angle_from_haversine(
-        torch.where(inside, 0.0, alpha_numerator / (sin_d * sin_s)))
-    phi_max = _angle_from_haversine(
-        torch.where(inside, 1.0, phi_numerator / (sin_d * sin_o)))
-    total = coefficients[:, :1]  # (1 + w) K at w = 0, i.e. C(rho_s) / sin^2(rho_s)
+    # haversines of the half-angles of the solar limb inside the occluder (seen from the
+    # Sun's centre) and of the occluder's rim inside the solar disc (from its centre),
+    # stacked in the last dimension
+    difference = rho_o - rho_s
+    numerators = torch.sin(0.5 * (rho_o + rho_s - d)).unsqueeze(-1) * torch.sin(
+        0.5 * (torch.stack(torch.broadcast_tensors(difference, -difference), dim=-1)
+               + d.unsqueeze(-1)))
+    denominators = torch.stack(torch.broadcast_tensors(sin_s, sin_o), dim=-1) * sin_d.unsqueeze(-1)
+    angles = _angle_from_haversine(
+        torch.where(inside.unsqueeze(-1), torch.tensor([0.0, 1.0], dtype=d.dtype),
+                    numerators / denominators))
+    alpha, phi_max = angles[..., 0], angles[..., 1]
+    total = coefficients[:, 0]  # (1 + w) K at w = 0, i.e. C(rho_s) / sin^2(rho_s)
 
-    # rim of the occluder, phi = phi_max (1 - v^2): hav(theta), projected radius^2 t, w
-    hav_phi = torch.sin((0.5 * phi_max).unsqueeze(-1) * (1.0 - v * v)) ** 2
+    # rim of the occluder, phi = phi_max (1 - v^2): hav(theta), w^2 = 1 - sin^2(theta) / b
+    hav_phi = torch.sin((0.5 * phi_max).unsqueeze(-1) * (1.0 - v * v)).square()
     hav_theta = torch.addcmul(_haversine(d - rho_o).unsqueeze(-1),
                               (sin_d * sin_o).unsqueeze(-1), hav_phi)
-    t = torch.clamp(hav_theta * (1.0 - hav_theta) * (4.0 / b).unsqueeze(-1), max=1.0)
-    w = _safe_sqrt(1.0 - t)
-    radial = coefficients[:, -1:].expand_as(w)
+    hav_theta = torch.addcmul(hav_theta, hav_theta, hav_theta, value=-1.0)  # hav (1 - hav)
+    w = _safe_sqrt(torch.addcmul(torch.ones((), dtype=d.dtype), hav_theta,
+                                 (4.0 / b).unsqueeze(-1), value=-1.0))
+    radial = coefficients[:, -1:]
     for m in range(coefficients.shape[-1] - 2, -1, -1):
         radial = torch.addcmul(coefficients[:, m : m + 1], radial, w)
     # d psi / d phi * sin^2(theta) / sin^2(rho_s) on the rim
@@ -277,7 +293,7 @@ def _visible_fraction_flat(rho_s, rho_o, d, coefficients, v, weight):
                              (2.0 * sin_d * torch.cos(rho_o)).unsqueeze(-1), hav_phi)
     integrand = radial * jacobian / (1.0 + w)
     arc = (integrand @ (2.0 * v * weight)) * phi_max * sin_o / b
-    fraction = 1.0 - (alpha + arc / total.squeeze(-1)) / math.pi
+    fraction = 1.0 - (alpha + arc / total) / math.pi
     fraction = torch.clamp(fraction, 0.0, 1.0)
     return torch.where(hidden, 0.0, torch.where(clear, 1.0, fraction))
 
@@ -344,16 +360,29 @@ def sun_visible_fraction(
                         low_inclusive=False, unit=" rad", dtype=dtype)
     d = check_range("separation_rad", separation_rad, 0.0, math.pi, unit=" rad", dtype=dtype)
     a0, a1, a2 = _law_coefficients(law, limb_darkening, dtype)
-    rho_s, rho_o, d, a0, a1, a2 = torch.broadcast_tensors(rho_s, rho_o, d, a0, a1, a2)
-    shape = rho_s.shape
-    b = torch.sin(rho_s.reshape(-1)) ** 2
-    coefficients = _radial_coefficients(b, a0.reshape(-1), a1.reshape(-1), a2.reshape(-1))
+    shape = torch.broadcast_shapes(rho_s.shape, rho_o.shape, d.shape, a0.shape)
+    n = math.prod(shape)
+
+    def flat(x: torch.Tensor) -> torch.Tensor:
+        # scalars stay of length 1 and broadcast inside the kernel
+        return x.reshape(1) if x.numel() == 1 else x.expand(shape).reshape(-1)
+
+    sun = torch.broadcast_tensors(rho_s, a0, a1, a2)
+    b = torch.sin(sun[0]) ** 2
+    coefficients = _radial_coefficients(b, *sun[1:])
+    coefficients = coefficients.reshape(1, -1) if sun[0].numel() == 1 else \
+        coefficients.expand(*shape, coefficients.shape[-1]).reshape(n, -1)
     nodes, weights = _nodes(n_nodes)
     v = torch.as_tensor(nodes, dtype=dtype)
     weight = torch.as_tensor(weights, dtype=dtype)
-    flat = (rho_s.reshape(-1), rho_o.reshape(-1), d.reshape(-1), coefficients)
+    inputs = (flat(rho_s), flat(rho_o), flat(d), coefficients)
+
+    def piece(x: torch.Tensor, start: int) -> torch.Tensor:
+        return x if x.shape[0] == 1 else x[start : start + _CHUNK]
+
     chunks = [
-        _visible_fraction_flat(*(x[start : start + _CHUNK] for x in flat), v, weight)
-        for start in range(0, max(flat[0].shape[0], 1), _CHUNK)
+        _visible_fraction_flat(*(piece(x, start) for x in inputs), v, weight)
+        for start in range(0, max(n, 1), _CHUNK)
     ]
-    return torch.cat(chunks).reshape(shape)
+    result = torch.cat(chunks) if len(chunks) > 1 else chunks[0]
+    return result.expand(n).reshape(shape) if result.numel() == 1 else result.reshape(shape)

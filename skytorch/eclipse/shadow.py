@@ -52,7 +52,8 @@ disc inside the annulus between the ground and the top of the atmosphere, so the
 is the airless occlusion exactly (tested). Every term is positive, so deep-umbra values
 (``1e-8`` and below) keep their relative accuracy.
 
-Options: a cloud-top altitude below which rays are blocked, terrain attenuation near the
+Options: a cloud-top altitude below which rays are blocked (on a fraction of the limb),
+terrain attenuation near the
 ground (rays with periapsis altitude ``h`` weighted by ``clamp(h / (2 h_terrain), 0, 1)``,
 Schneegans et al. 2025 §5.2, mean land elevation 240 m for Earth). Light scattered into
 the shadow is not included (single scattering by the limb is a higher-order term that
@@ -319,8 +320,10 @@ class RingProfile:
     beta_min_m, beta_top_m : float
         Impact altitudes of the lowest transmitting ray (ground or cloud top) and of the
         top of the atmosphere [m].
-    terrain_beta_m : float or None
-        Impact altitude of the ray grazing at twice the mean terrain height [m].
+    split_betas_m : tuple of float
+        Impact altitudes where the ray weight has a kink (terrain ramp top, cloud top) [m].
+    terrain_height_m, cloud_top_m, cloud_fraction : float or None
+        Ray weights, see :meth:`weight`.
     deviation_rad : Tensor (n,)
         Total bending [rad].
     optical_depth : Tensor (n, n_wavelength)
@@ -330,14 +333,17 @@ class RingProfile:
     """
 
     def __init__(self, beta_min_m, beta_top_m, deviation_rad, optical_depth,
-                 periapsis_altitude_m, terrain_height_m=None, terrain_beta_m=None):
+                 periapsis_altitude_m, terrain_height_m=None, split_betas_m=(),
+                 cloud_top_m=0.0, cloud_fraction=0.0):
         self.beta_min_m = float(beta_min_m)
         self.beta_top_m = float(beta_top_m)
         self.deviation_rad = deviation_rad
         self.optical_depth = optical_depth
         self.periapsis_altitude_m = periapsis_altitude_m
         self.terrain_height_m = terrain_height_m
-        self.terrain_beta_m = terrain_beta_m
+        self.split_betas_m = tuple(float(b) for b in split_betas_m)
+        self.cloud_top_m = float(cloud_top_m)
+        self.cloud_fraction = float(cloud_fraction)
         # the optical depth is a sum over species of (profile integral) x (cross-section):
         # a matrix of low rank; interpolate its few factors instead of every wavelength
         u, sv, vh = torch.linalg.svd(optical_depth.to(torch.float64), full_matrices=False)
@@ -377,10 +383,19 @@ class RingProfile:
         return self._cache[dtype]
 
 
-def _terrain_weight(periapsis_m: torch.Tensor, terrain_height_m) -> torch.Tensor:
-    if terrain_height_m is None:
-        return torch.ones_like(periapsis_m)
-    return torch.clamp(periapsis_m / (2.0 * terrain_height_m), 0.0, 1.0)
+def _ray_weight(periapsis_m: torch.Tensor, profile: RingProfile) -> torch.Tensor:
+    """Fraction of the rays with periapsis altitude ``h`` not blocked by terrain or clouds.
+
+    Terrain: ``clamp(h / (2 h_terrain), 0, 1)`` (Schneegans et al. 2025 §5.2); clouds: a
+    fraction ``f`` of the limb has tops at ``h_c``, so rays below pass with ``1 - f``.
+    """
+    weight = torch.ones_like(periapsis_m)
+    if profile.terrain_height_m is not None:
+        weight = torch.clamp(periapsis_m / (2.0 * profile.terrain_height_m), 0.0, 1.0)
+    if profile.cloud_fraction > 0.0 and profile.cloud_top_m > 0.0:
+        weight = weight * torch.where(periapsis_m < profile.cloud_top_m,
+                                      1.0 - profile.cloud_fraction, 1.0)
+    return weight
 
 
 def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coefficients,
@@ -418,9 +433,8 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
         lo, hi = breaks[:, :-1], breaks[:, 1:]  # (n_point, 3)
         if not bool((separation < sun_radius).any()):  # middle piece empty everywhere
             lo, hi = lo[:, ::2], hi[:, ::2]
-        if profile.terrain_beta_m is not None:
-            cut = torch.clamp(torch.full_like(lo, profile.s_of_beta(profile.terrain_beta_m)),
-                              lo, hi)
+        for split in profile.split_betas_m:
+            cut = torch.clamp(torch.full_like(lo, profile.s_of_beta(split)), lo, hi)
             lo, hi = torch.cat([lo, cut], dim=-1), torch.cat([cut, hi], dim=-1)
         if n_split > 1:  # composite rule: equal sub-pieces
             fraction = torch.arange(n_split + 1, dtype=dtype) / n_split
@@ -443,7 +457,7 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
                              tuple(c[:, None] for c in coefficients), n_nodes=n_arc)
     solid = b / (centre[:, None] * torch.sqrt((centre[:, None] - b) * (centre[:, None] + b)))
     weight = arc * solid * (2.0 * span * s) * ds
-    weight = weight * _terrain_weight(periapsis, profile.terrain_height_m)
+    weight = weight * _ray_weight(periapsis, profile)
     transmittance = torch.exp(-torch.clamp(optical, min=0.0))
     return torch.einsum("pm,pml->pl", weight, transmittance)
 
@@ -521,7 +535,10 @@ class Shadow(nn.Module):
     refraction, extinction : bool
         Switch the bending and the optical depth of the ring on or off.
     cloud_top_altitude_m : float
-        Rays whose lowest point is below this altitude are blocked [m] (0: the ground).
+        Cloud tops [m]: rays whose lowest point is below are blocked (0: the ground).
+    cloud_fraction : float
+        Fraction of the limb covered by those clouds (1: a closed deck; 0.5: half the
+        rays below the cloud tops pass).
     terrain_height_m : float or None
         Mean terrain height for the linear attenuation of rays with periapsis between 0 and
         twice this height [m] (Schneegans et al. 2025 §5.2); ``None``: off.
@@ -546,6 +563,7 @@ class Shadow(nn.Module):
     def __init__(self, *, occluder_radius_m: float, sun_distance_m: float, atmosphere=None,
                  sun_radius_m: float = SUN_RADIUS_M, refraction: bool = True,
                  extinction: bool = True, cloud_top_altitude_m: float = 0.0,
+                 cloud_fraction: float = 1.0,
                  terrain_height_m: float | None = None, limb_darkening=0.6,
                  law: str = "linear", n_altitude: int = DEFAULT_N_ALTITUDE,
                  n_ring: int = DEFAULT_RING_NODES, n_arc: int = DEFAULT_ARC_NODES,
@@ -570,6 +588,7 @@ class Shadow(nn.Module):
         top = atmosphere.top_altitude_m if atmosphere is not None else 0.0
         self.cloud_top_altitude_m = float(check_range(
             "cloud_top_altitude_m", cloud_top_altitude_m, 0.0, max(top, 0.0), unit=" m"))
+        self.cloud_fraction = float(check_range("cloud_fraction", cloud_fraction, 0.0, 1.0))
         if terrain_height_m is not None:
             terrain_height_m = float(check_positive("terrain_height_m", terrain_height_m,
                                                     unit=" m"))
@@ -630,6 +649,7 @@ class Shadow(nn.Module):
             "top_radius_m": self.top_radius_m, "sun_distance_m": self.sun_distance_m,
             "sun_radius_m": self.sun_radius_m, "refraction": self.refraction,
             "extinction": self.extinction, "cloud_top_altitude_m": self.cloud_top_altitude_m,
+            "cloud_fraction": self.cloud_fraction,
             "terrain_height_m": self.terrain_height_m if self.terrain_height_m else "none",
             "limb_darkening": self.limb_darkening.tolist(), "limb_darkening_law": self.law,
             "n_altitude": self.n_altitude, "n_ring": self.n_ring, "n_arc": self.n_arc,
@@ -654,18 +674,23 @@ class Shadow(nn.Module):
 
         atm = self.atmosphere if self.refraction else _NoRefraction(self.atmosphere)
         top = float(atm.top_altitude_m)
+        closed = self.cloud_fraction >= 1.0
+        lowest_altitude = self.cloud_top_altitude_m if closed else 0.0
+
+        def impact_of(periapsis):
+            rays = trace_grazing_rays(atm, periapsis_altitude_m=torch.tensor(
+                periapsis, dtype=torch.float64))
+            return float(rays["impact_altitude_m"])
+
         with torch.no_grad():
-            lowest = trace_grazing_rays(
-                atm, periapsis_altitude_m=torch.tensor(self.cloud_top_altitude_m,
-                                                       dtype=torch.float64))
-            beta_min = float(lowest["impact_altitude_m"])
-            terrain_beta = None
+            beta_min = impact_of(lowest_altitude)
+            splits = []
             if self.terrain_height_m is not None:
                 h_t = min(2.0 * self.terrain_height_m, top)
-                if h_t > self.cloud_top_altitude_m:
-                    terrain = trace_grazing_rays(
-                        atm, periapsis_altitude_m=torch.tensor(h_t, dtype=torch.float64))
-                    terrain_beta = float(terrain["impact_altitude_m"])
+                if h_t > lowest_altitude:
+                    splits.append(impact_of(h_t))
+            if not closed and self.cloud_fraction > 0.0 and self.cloud_top_altitude_m > 0.0:
+                splits.append(impact_of(self.cloud_top_altitude_m))
             s = torch.linspace(0.0, 1.0, self.n_altitude, dtype=torch.float64)
             beta = beta_min + (top - beta_min) * s * s
             logger.info("tracing %d grazing rays x %d wavelengths", beta.numel(),
@@ -678,7 +703,9 @@ class Shadow(nn.Module):
                 optical = torch.zeros_like(optical)
             periapsis = rays["contact_altitude_m"].detach().to(torch.float64)
         profile = RingProfile(beta_min, top, deviation, optical, periapsis,
-                              self.terrain_height_m, terrain_beta)
+                              self.terrain_height_m, splits,
+                              cloud_top_m=0.0 if closed else self.cloud_top_altitude_m,
+                              cloud_fraction=0.0 if closed else self.cloud_fraction)
         self._profiles[key] = profile
         return profile
 
@@ -819,8 +846,8 @@ class Shadow(nn.Module):
         mu = _safe_sqrt(1.0 - r2)
         a0, a1, a2 = _law_coefficients(self.law, self.limb_darkening.to(dtype), dtype)
         radiance = torch.where(inside, a0 + a1 * mu + a2 * mu * mu, 0.0) / (a0 + a1 + a2)
-        transmittance = torch.exp(-torch.clamp(optical, min=0.0)) * _terrain_weight(
-            periapsis, profile.terrain_height_m)[:, None]  # (n_b, n_wl)
+        transmittance = torch.exp(-torch.clamp(optical, min=0.0)) * _ray_weight(
+            periapsis, profile)[:, None]  # (n_b, n_wl)
         image = radiance[..., None] * transmittance[:, None, :]  # (..., n_b, n_p, n_wl)
         image = image.reshape(*shape, n_altitude, oversample, n_azimuth, oversample, -1)
         image = image.mean(dim=(-4, -2))

@@ -157,6 +157,7 @@ def shadow_uv_inverse(u, v, sun_distance_m, sun_radius_m, occluder_radius_m, *,
     previous_residual = update(previous) - previous
     d_s = previous + previous_residual
     iterations = 1
+    tolerance = max(float(tolerance), 4.0 * torch.finfo(dtype).eps)
     while True:
         residual = update(d_s) - d_s
         iterations += 1
@@ -294,8 +295,10 @@ class ShadowTable(nn.Module):
                              f"max_distance_m {high:.6g} m")
         u_low = _u_at_distance(low, big_d, r_s, r_o)
         u_high = _u_at_distance(high, big_d, r_s, r_o)
-        u = torch.linspace(u_low, u_high, n_u, dtype=dtype)
-        v = torch.linspace(0.0, 1.0, n_v, dtype=dtype)
+        # grid and positions in float64 (the inverse mapping converges to 1e-15); the
+        # illuminance is evaluated in ``dtype``
+        u = torch.linspace(u_low, u_high, n_u, dtype=torch.float64)
+        v = torch.linspace(0.0, 1.0, n_v, dtype=torch.float64)
         wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=dtype).reshape(-1)
         position = shadow_uv_inverse(u[:, None].expand(n_u, n_v), v[None, :].expand(n_u, n_v),
                                      big_d, r_s, r_o)
@@ -306,8 +309,8 @@ class ShadowTable(nn.Module):
         with torch.no_grad():
             for start in tqdm(range(0, n_u, step), desc="shadow table", disable=not show):
                 rows.append(shadow.relative_illuminance(
-                    position["distance_m"][start:start + step],
-                    position["offset_m"][start:start + step], wavelength))
+                    position["distance_m"][start:start + step].to(dtype),
+                    position["offset_m"][start:start + step].to(dtype), wavelength))
         values = torch.cat(rows).to(torch.float64)
         attrs = {"min_distance_m": low, "max_distance_m": high, "n_u": n_u, "n_v": n_v,
                  "dtype": str(dtype).replace("torch.", "")}

@@ -1,0 +1,123 @@
+"""Benchmark of the eclipse geometry: occlusion of the Sun and lunar-eclipse circumstances.
+
+Rows:
+
+* :func:`skytorch.eclipse.sun_visible_fraction` on 1e7 random partial overlaps
+  (Sun radius 4.65 mrad, occluder 0.1 to 3.1 Sun radii, separations across the whole
+  overlap) in float64 and float32 and for several Gauss–Legendre node counts, without
+  gradients; and with a backward pass on 1e6 evaluations. Target: 1e7 evaluations <= 1 s.
+* :func:`skytorch.eclipse.lunar_eclipses` over 100 years (1950–2050), with the share spent
+  in the ephemeris (:func:`skytorch.ephemeris.sun_moon_vectors`, skyfield + DE421) measured
+  separately. Target: <= 5 s.
+
+Run: ``python benchmarks/bench_eclipse_geometry.py [--append] [--threads 2]``. The machine
+has two cores shared with other jobs: medians are noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+
+SUN_RADIUS = 4.65e-3
+N_OCCLUSION = 10_000_000
+TARGET_OCCLUSION_S = 1.0
+TARGET_ECLIPSES_S = 5.0
+
+
+def _inputs(n: int, dtype: torch.dtype):
+    generator = torch.Generator().manual_seed(0)
+    ratio = 0.1 + 3.0 * torch.rand(n, generator=generator, dtype=torch.float64)
+    rho_o = SUN_RADIUS * ratio
+    d = (SUN_RADIUS + rho_o) * torch.rand(n, generator=generator, dtype=torch.float64)
+    return rho_o.to(dtype), d.to(dtype)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads")
+    parser.add_argument("--n", type=int, default=N_OCCLUSION, help="occlusion evaluations")
+    args = parser.parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+
+    from skytorch.eclipse import circumstances as circumstances_module
+    from skytorch.eclipse import lunar_eclipses, sun_visible_fraction
+
+    rows = []
+    scale = N_OCCLUSION / args.n
+    for dtype, n_nodes in ((torch.float64, 8), (torch.float32, 8), (torch.float64, 6),
+                           (torch.float64, 12)):
+        rho_o, d = _inputs(args.n, dtype)
+
+        def occlusion(rho_o=rho_o, d=d, n_nodes=n_nodes):
+            with torch.no_grad():
+                sun_visible_fraction(SUN_RADIUS, rho_o, d, 0.6, n_nodes=n_nodes)
+
+        seconds = median_seconds(occlusion, repeat=args.repeat, warmup=1) * scale
+        rows.append({"workload": f"sun_visible_fraction 1e7 ({str(dtype)[6:]}, {n_nodes} nodes)",
+                     "median s": seconds, "target s": TARGET_OCCLUSION_S,
+                     "ratio to target": seconds / TARGET_OCCLUSION_S})
+
+    rho_o, d = _inputs(args.n // 10, torch.float64)
+
+    def with_gradient():
+        separation = d.clone().requires_grad_(True)
+        sun_visible_fraction(SUN_RADIUS, rho_o, separation).sum().backward()
+
+    seconds = median_seconds(with_gradient, repeat=args.repeat, warmup=1) * scale * 10
+    rows.append({"workload": "sun_visible_fraction 1e7 forward + backward (scaled from 1e6)",
+                 "median s": seconds, "target s": float("nan"), "ratio to target": float("nan")})
+
+    # lunar eclipses over a century; the ephemeris share measured by wrapping its call
+    spent = {"ephemeris": 0.0}
+    original = circumstances_module._Geometry.__init__
+
+    def timed_init(self, *a, **k):
+        start = time.perf_counter()
+        original(self, *a, **k)
+        spent["ephemeris"] += time.perf_counter() - start
+
+    circumstances_module._Geometry.__init__ = timed_init
+    try:
+        count = {}
+
+        def century():
+            spent["ephemeris"] = 0.0
+            count["n"] = lunar_eclipses("1950-01-01", "2050-01-01").sizes["eclipse"]
+
+        seconds = median_seconds(century, repeat=args.repeat, warmup=1)
+    finally:
+        circumstances_module._Geometry.__init__ = original
+    rows.append({"workload": f"lunar_eclipses 1950-2050 ({count['n']} eclipses)",
+                 "median s": seconds, "target s": TARGET_ECLIPSES_S,
+                 "ratio to target": seconds / TARGET_ECLIPSES_S})
+    rows.append({"workload": "  of which ephemeris (sun_moon_vectors at Chebyshev nodes)",
+                 "median s": spent["ephemeris"], "target s": float("nan"),
+                 "ratio to target": float("nan")})
+
+    table = markdown_table(rows)
+    text = (f"\n### Eclipse geometry (`benchmarks/bench_eclipse_geometry.py`)\n\n"
+            f"Machine: {machine_description()}.\n\n{table}\n")
+    print(text)
+    if args.append:
+        path = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
+        with path.open("a") as stream:
+            stream.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    np.seterr(all="ignore")
+    raise SystemExit(main())
