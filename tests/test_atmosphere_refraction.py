@@ -388,3 +388,22 @@ def test_lookup(air, small_table):
     assert float(error.median()) < 0.1 * ARCSECOND
     # below the geometric horizon: flagged as hitting the ground
     assert bool(table(torch.tensor(0.0), torch.tensor(math.radians(91.0)))["hits_ground"])
+
+
+def test_accuracy_cost_experiment_quick(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "experiments" / "refraction_accuracy_cost.py"
+    spec = importlib.util.spec_from_file_location("refraction_accuracy_cost", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--quick", "--output-dir", str(tmp_path)]) == 0
+    from skytorch.dataset import open_dataset
+
+    ds = open_dataset(tmp_path / "refraction_accuracy_cost.nc")
+    assert (tmp_path / "refraction_accuracy_cost.png").exists()
+    # more nodes, smaller error (float64); RK4 at 20 km is within 0.01"
+    errors = ds.bouguer_error.sel(dtype="float64").values
+    assert errors[-1] < errors[0]
+    assert float(ds.rk4_error.max()) < 0.01

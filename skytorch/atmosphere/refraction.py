@@ -121,6 +121,7 @@ TABLE_PARAMETRISATIONS = ("schneegans2025",)
 DEFAULT_NODES = 64  #: Gauss–Legendre nodes of the Bouguer integrals
 DEFAULT_STEP_M = 10e3  #: RK4 step along the ray (Schneegans et al. 2025, Seron et al. 2004)
 DEFAULT_MAX_DH_M = 1e3  #: RK4 step limit: altitude change per step [m]
+TABLE_NODES = 32  #: Gauss–Legendre nodes for the deviation table (0.02" from converged)
 
 
 # --- small helpers -------------------------------------------------------------------------
@@ -244,16 +245,17 @@ class _Geometry:
         beta = impact_altitude
         below = (beta - self.nu0 * radius) / (1.0 + self.nu0)
         above = (beta - self.nu_top * radius) / (1.0 + self.nu_top)
-        tol = 1e-9 * top if self.dtype == torch.float64 else 1e-5 * top
+        tol = 1e-9 * top if self.dtype == torch.float64 else 1e-7 * top
         with torch.no_grad():
             h = torch.clamp(beta, 0.0, top)
             for _ in range(60):
                 nu, slope = self.refractivity_and_slope(h)
                 f = h + nu * (radius + h) - beta
                 fprime = 1.0 + nu + (radius + h) * slope
-                step = f / fprime
-                h = torch.clamp(h - step, 0.0, top)
-                if bool((step.abs() <= tol).all()):
+                update = torch.clamp(h - f / fprime, 0.0, top)
+                change = (update - h).abs()
+                h = update
+                if bool((change <= tol).all()):  # (the clamp stops rays outside [0, top])
                     break
             _, slope = self.refractivity_and_slope(h)
             fprime = 1.0 + self.refractivity(h) + (radius + h) * slope
@@ -1031,7 +1033,7 @@ def deviation_table(
     *,
     parametrisation: str = "schneegans2025",
     method: str = "bouguer",
-    n_nodes: int = DEFAULT_NODES,
+    n_nodes: int = TABLE_NODES,
     step_m: float = DEFAULT_STEP_M,
     max_dh_m: float = DEFAULT_MAX_DH_M,
     dtype: torch.dtype = torch.float64,
