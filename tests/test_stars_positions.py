@@ -192,3 +192,14 @@ def test_anchored_precession_nutation_matches_direct_matrices():
         anchored = _rotation_matrices(times, lat, 13.4, 0.0, 30.0)
         direct = _rotation_matrices(times, lat, 13.4, 0.0, None)
         assert float((anchored - direct).abs().max()) < 3e-3 * ARCSECOND
+
+
+def test_several_observers_stack_along_observer(sample):
+    sub = sample.isel(star=slice(0, 8))
+    both = observe(sub, TIMES[:2], [52.5, -24.63], [13.4, -70.40], [34.0, 2635.0],
+                   atmosphere=False)
+    assert both.altitude.dims == ("observer", "time", "star")
+    assert both.lat.attrs["units"] == "degree_north"
+    for i, (lat, lon, elevation) in enumerate(SITES[:2]):
+        single = observe(sub, TIMES[:2], lat, lon, elevation, atmosphere=False)
+        assert np.array_equal(both.altitude.values[i], single.altitude.values)

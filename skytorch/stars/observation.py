@@ -173,6 +173,38 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
             "count": count}
 
 
+def _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere, refraction,
+                     **options) -> xr.Dataset:
+    """:func:`observe` for several observers, stacked along a leading ``observer`` dim."""
+    lat, lon, elevation = np.broadcast_arrays(*(np.asarray(v, dtype=float).reshape(-1)
+                                                for v in (lat_deg, lon_deg, elevation_m)))
+    parts = [observe(catalog, times, float(a), float(b), float(c), atmosphere, refraction,
+                     **options) for a, b, c in zip(lat, lon, elevation, strict=True)]
+    per_observer = [name for name, var in parts[0].data_vars.items() if "time" in var.dims]
+    stacked = xr.concat([part[per_observer] for part in parts], dim="observer",
+                        coords="minimal", compat="override", combine_attrs="override")
+    result = parts[0].drop_vars(per_observer).merge(stacked, combine_attrs="override")
+    specs = {"lat": ("degree_north", "latitude", "Geodetic (WGS84) latitude.", "latitude"),
+             "lon": ("degree_east", "longitude", "East longitude.", "longitude"),
+             "elevation": ("m", "elevation", "Height above the WGS84 ellipsoid.", None)}
+    coords = {"observer": coordinate("observer", np.arange(lat.size), VariableSpec(
+        "1", "observer index", "Position in the list of observers."))}
+    for (name, (units, long_name, text, standard)), values in zip(
+            specs.items(), (lat, lon, elevation), strict=True):
+        coords[name] = variable("observer", values, VariableSpec(units, long_name, text,
+                                                                 standard))
+    result = result.assign_coords(coords)
+    for key in ("parameter_lat_deg", "parameter_lon_deg", "parameter_elevation_m"):
+        result.attrs.pop(key, None)
+    observers = {"lat_deg": lat.tolist(), "lon_deg": lon.tolist(),
+                 "elevation_m": elevation.tolist()}
+    parameters = json.loads(result.attrs.get("parameters", "{}"))
+    parameters.update(observers)
+    result.attrs["parameters"] = json.dumps(parameters, default=str)
+    result.attrs["observers"] = json.dumps(observers)
+    return result
+
+
 def _lerp_take(values: torch.Tensor, slopes: torch.Tensor, index: torch.Tensor,
                weight: torch.Tensor) -> torch.Tensor:
     """``values[i] + w slopes[i]`` with :func:`torch.take` (faster than advanced indexing)."""
@@ -316,9 +348,10 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         :func:`skytorch.stars.read_bsc5`); attribute ``epoch_jyear`` (default 2000.0).
     times : str, datetime, datetime64 or a list/array of them
         UTC instants (dimension ``time``), within DE421 (1899-07-29 … 2053-10-09).
-    lat_deg, lon_deg : float
-        Geodetic latitude and east longitude of one observer [deg].
-    elevation_m : float
+    lat_deg, lon_deg : float or array_like (observer,)
+        Geodetic latitude and east longitude [deg]; arrays (broadcast with
+        ``elevation_m``) give several observers along a leading ``observer`` dimension.
+    elevation_m : float or array_like (observer,)
         Height of the observer [m]; also the altitude of the observer in the atmosphere.
     atmosphere : skytorch.atmosphere.Atmosphere, optional
         Default ``Atmosphere.earth()`` (turbidity 2, 300 DU). Pass ``False`` for no
@@ -367,10 +400,17 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     >>> from skytorch.stars import bright_stars, observe
     >>> ds = observe(bright_stars(2.0), "2025-09-07T20:00", 52.5, 13.4)
     >>> sorted(ds.sizes.items())
-    [('channel', 3), ('star', 95), ('time', 1)]
+    [('channel', 3), ('star', 50), ('time', 1)]
     """
     if visibility not in VISIBILITY_MODELS:
         raise ValueError(f"visibility must be one of {VISIBILITY_MODELS}; got {visibility!r}")
+    if any(np.ndim(v) > 0 for v in (lat_deg, lon_deg, elevation_m)):
+        return _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere,
+                                refraction, sky_brightness_mag_arcsec2=sky_brightness_mag_arcsec2,
+                                control_magnitude=control_magnitude, visibility=visibility,
+                                aperture_m=aperture_m, exposure_s=exposure_s,
+                                twinkle_samples=twinkle_samples,
+                                twinkle_interval_s=twinkle_interval_s, seed=seed, dtype=dtype)
     lat = float(check_range("lat_deg", lat_deg, -90.0, 90.0, unit=" deg"))
     lon = float(check_range("lon_deg", lon_deg, -180.0, 360.0, unit=" deg"))
     elevation = float(check_range("elevation_m", elevation_m, 0.0, 1e4, unit=" m"))

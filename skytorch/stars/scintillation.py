@@ -21,7 +21,7 @@ References
 Examples
 --------
 >>> f"{float(scintillation_index(1.0, aperture_m=1.0, exposure_s=1.0)):.3e}"
-'8.724e-06'
+'8.725e-06'
 """
 
 from __future__ import annotations
