@@ -182,11 +182,11 @@ def main(argv=None) -> int:
             "1", "mean relative error", "PCA + FFT luminance against the naive sum on the "
             "same grid.")),
         "luminance_naive": variable(("elevation", "azimuth"), naive7, spec(
-            "cd m-2 lm-1", "naive panorama", "Exact cell positions, white lamps.")),
+            "cd m-2", "naive panorama", "Exact cell positions, white lamps.")),
         "luminance_pca_fft": variable(("elevation", "azimuth"), ours7, spec(
-            "cd m-2 lm-1", "PCA + FFT panorama", f"M = {m7}.")),
+            "cd m-2", "PCA + FFT panorama", f"M = {m7}.")),
         "luminance_same_grid": variable(("elevation", "azimuth"), same_grid7, spec(
-            "cd m-2 lm-1", "naive panorama on the polar grid", "Kernel table sum.")),
+            "cd m-2", "naive panorama on the polar grid", "Kernel table sum.")),
         "relative_error_panorama": variable(("elevation", "azimuth"), relative7, spec(
             "1", "relative error", "|PCA + FFT − naive (exact positions)| / naive.")),
         "quadrature_mean_error": variable(("quadrature", "gauss_nodes"), q_error_mean, spec(
@@ -211,6 +211,7 @@ def main(argv=None) -> int:
                             parameters=parameters)
 
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     figure, axes = plt.subplots(2, 3, figsize=(15, 8))
     ax = axes[0, 0]
@@ -234,7 +235,7 @@ def main(argv=None) -> int:
         shown = ax.imshow(np.log10(image.numpy()), origin="lower", aspect="auto",
                           extent=extent_deg, cmap="magma")
         ax.set(xlabel="azimuth [deg]", ylabel="elevation [deg]", title=title)
-        figure.colorbar(shown, ax=ax, label="log10 luminance per lm")
+        figure.colorbar(shown, ax=ax, label="log10 luminance [cd m$^{-2}$]")
     shown = axes[1, 2].imshow(relative7.numpy() * 100, origin="lower", aspect="auto",
                               extent=extent_deg, cmap="viridis")
     axes[1, 2].set(xlabel="azimuth [deg]", title="relative error [%]")
@@ -244,8 +245,9 @@ def main(argv=None) -> int:
         inset.loglog(steps, q_error_max[i], "o-", label=f"{scheme} max")
         inset.loglog(steps, q_error_mean[i], "s--", label=f"{scheme} mean")
     inset.legend(fontsize=5)
-    inset.set_title("kernel error vs nodes", fontsize=7)
-    inset.tick_params(labelsize=6)
+    inset.set_title("kernel rel. error vs nodes/2", fontsize=7)
+    inset.tick_params(labelsize=6, which="both")
+    inset.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     figure.tight_layout()
     netcdf, png = save_outputs(dataset, figure, args.output_dir, "skyglow_accuracy_cost")
     print(f"wrote {netcdf} and {png}")
