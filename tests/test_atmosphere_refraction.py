@@ -407,3 +407,26 @@ def test_accuracy_cost_experiment_quick(tmp_path):
     errors = ds.bouguer_error.sel(dtype="float64").values
     assert errors[-1] < errors[0]
     assert float(ds.rk4_error.max()) < 0.01
+
+
+def test_batched_atmosphere_matches_members():
+    """A (2, 1) sweep of surface pressure gives the refraction of each member atmosphere."""
+    from skytorch.atmosphere import Atmosphere
+
+    pressure = torch.tensor([[90_000.0], [101_325.0]], dtype=torch.float64)
+    batched = Atmosphere.earth(turbidity=1.0, ozone_du=0.0, surface_pressure_pa=pressure)
+    elevation = _deg([0.0, 5.0, 30.0])
+    result = rf.refraction_angle(batched, elevation)
+    assert result.shape == (2, 3)
+    for i in range(2):
+        member = Atmosphere.earth(turbidity=1.0, ozone_du=0.0,
+                                  surface_pressure_pa=float(pressure[i, 0]))
+        assert torch.allclose(result[i], rf.refraction_angle(member, elevation), rtol=1e-12)
+    rays = rf.trace_grazing_rays(batched, impact_altitude_m=torch.tensor([3e3, 2e4]),
+                                 wavelength_nm=[550.0])
+    assert rays["deviation_rad"].shape == (2, 2) and rays["optical_depth"].shape == (2, 2, 1)
+
+
+def test_apparent_altitude_gradient(air):
+    true = torch.tensor([0.001, 0.2, 1.0], dtype=torch.float64, requires_grad=True)
+    assert gradcheck(lambda t: rf.apparent_altitude(air, t), (true,), atol=1e-6, rtol=1e-4)

@@ -192,7 +192,7 @@ class _Geometry:
         self.nu0, slope0 = self.refractivity_and_slope(zero)
         self.nu_top = self.refractivity(zero + self.top)
         # m at the ground: u'(R) = 1 + nu0 + R nu'(0) must stay > 0 (no ducting)
-        ground_slope = float(1.0 + self.nu0.detach() + self.radius * slope0.detach())
+        ground_slope = float((1.0 + self.nu0.detach() + self.radius * slope0.detach()).min())
         if not ground_slope > 0.0:
             raise ValueError(
                 "the refractive-index profile traps horizontal rays (d(n r)/dr = "
