@@ -1,0 +1,94 @@
+"""Benchmark of the Earth's shadow with atmosphere and of one lunar-eclipse light curve.
+
+Rows (medians, measured side by side in one run):
+
+* ``ShadowTable.compute`` for the Earth, 256 x 256 (u, v) x 15 wavelengths, refraction +
+  extinction (ring profile traced once, included), in float64 and float32; and the
+  64 x 64 table for scale. Target: <= 10 s (Schneegans et al. 2025 report about two
+  minutes on a GPU for their complete precomputation).
+* ``Shadow.relative_illuminance`` on 65 536 points (no table), float64.
+* ``lunar_eclipse`` for 2015-09-28: 200 times, 15 wavelengths, 12 x 24 disc points (0.01 mag
+  converged, tests/test_eclipse_lunar.py), with a prepared shadow model (its ring profile
+  cached; the per-eclipse (u, v) table is built inside). Target: <= 2 s.
+
+Run: ``python benchmarks/bench_eclipse_shadow.py [--append] [--threads 2] [--quick]``.
+The development machine has two cores shared with other jobs: medians are noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+
+TARGET_TABLE_S = 10.0
+TARGET_CURVE_S = 2.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads")
+    parser.add_argument("--quick", action="store_true", help="64 x 64 table only")
+    args = parser.parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+
+    from skytorch.eclipse.lunar import lunar_eclipse
+    from skytorch.eclipse.shadow import Shadow
+    from skytorch.eclipse.shadow_table import ShadowTable
+    from skytorch.spectrum import wavelength_grid
+
+    wavelength = wavelength_grid("bands15")
+    rows = []
+    sizes = [(64, torch.float64)] if args.quick else [(64, torch.float64),
+                                                      (256, torch.float64),
+                                                      (256, torch.float32)]
+    for n, dtype in sizes:
+        def build(n=n, dtype=dtype):
+            shadow = Shadow.earth()  # fresh: includes tracing the ring profile
+            ShadowTable.compute(shadow, wavelength, n_u=n, n_v=n, dtype=dtype, progress=False)
+
+        seconds = median_seconds(build, repeat=1 if n == 256 else args.repeat, warmup=0)
+        rows.append({"workload": f"Earth shadow table {n}x{n}x15 ({str(dtype)[6:]})",
+                     "median s": seconds, "target s": TARGET_TABLE_S,
+                     "ratio to target": seconds / TARGET_TABLE_S})
+
+    shadow = Shadow.earth()
+    shadow.ring_profile(wavelength)
+    distance = torch.linspace(3.0e8, 5.0e8, 256, dtype=torch.float64)[:, None]
+    offset = torch.linspace(0.0, 1.2e7, 256, dtype=torch.float64)[None, :]
+    if not args.quick:
+        seconds = median_seconds(
+            lambda: shadow.relative_illuminance(distance, offset, wavelength), repeat=1,
+            warmup=0)
+        rows.append({"workload": "relative_illuminance 65536 points x 15 (direct)",
+                     "median s": seconds, "target s": TARGET_TABLE_S,
+                     "ratio to target": seconds / TARGET_TABLE_S})
+
+    def curve():
+        lunar_eclipse("2015-09-28", n_times=200, n_images=0, shadow=shadow)
+
+    seconds = median_seconds(curve, repeat=args.repeat, warmup=1)
+    rows.append({"workload": "lunar_eclipse 2015-09-28, 200 times, 288 disc points x 15",
+                 "median s": seconds, "target s": TARGET_CURVE_S,
+                 "ratio to target": seconds / TARGET_CURVE_S})
+
+    text = (f"\n## Eclipse shadow (`benchmarks/bench_eclipse_shadow.py`)\n\n"
+            f"Machine: {machine_description()}\n\n{markdown_table(rows)}\n")
+    print(text)
+    if args.append:
+        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as f:
+            f.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
