@@ -209,3 +209,11 @@ def test_save_load_round_trip(tmp_path):
 
     attrs = open_dataset(path).attrs
     assert "parameter_n_distance" in attrs and "parameter_source_radius_m" in attrs
+
+
+def test_altitudes_outside_the_tables_warn():
+    model = cached_model()
+    with pytest.warns(UserWarning, match="observer_altitude_m"):
+        model.render(_one_cell(1e3, 0.0), observer_altitude_m=500.0)
+    with pytest.warns(UserWarning, match="source altitude"):
+        model.render(_one_cell(1e3, 0.0, altitude=800.0))

@@ -38,6 +38,7 @@ import logging
 import math
 import sys
 import time
+import warnings
 from collections.abc import Mapping
 
 import numpy as np
@@ -89,6 +90,24 @@ def _linear_weights(grid: torch.Tensor, value: torch.Tensor):
     j = (torch.searchsorted(grid, value.detach().contiguous(), right=True) - 1).clamp(0, n - 2)
     w = ((value - grid[j]) / (grid[j + 1] - grid[j])).clamp(0.0, 1.0)
     return j, w
+
+
+#: tolerance beyond the tabulated altitude range before a warning [m]
+_ALTITUDE_SLACK_M = 1.0
+
+
+def _warn_outside(name: str, values: torch.Tensor, grid: torch.Tensor) -> None:
+    """Warn when altitudes fall outside the tabulated range (they are clamped to it)."""
+    if values.numel() == 0:
+        return
+    with torch.no_grad():
+        low, high = float(grid[0]), float(grid[-1])
+        outside = (values < low - _ALTITUDE_SLACK_M) | (values > high + _ALTITUDE_SLACK_M)
+        if bool(outside.any()):
+            warnings.warn(
+                f"{name}: {int(outside.sum())} value(s) outside the model's tabulated range "
+                f"[{low:g}, {high:g}] m (e.g. {float(values[outside][0]):g} m) are clamped "
+                "to it; precompute with a wider altitude range", UserWarning, stacklevel=4)
 
 
 def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
@@ -447,6 +466,7 @@ class SkyglowModel(nn.Module):
         i1 = torch.remainder(i0 + 1, n_t)
         jr, wr = _linear_weights(self._buffer("distance_m", dtype), r)
         inside = (r <= float(self.distance_edges_m[-1])).to(dtype)
+        _warn_outside("source altitude", altitude_m[flux.detach() != 0], self.source_altitude_m)
         jh, wh = _linear_weights(self._buffer("source_altitude_m", dtype),
                                  altitude_m[None, :].expand_as(r))
         observer = torch.arange(n_obs)[:, None]
@@ -498,6 +518,7 @@ class SkyglowModel(nn.Module):
         """Lower node index and weight of the upper node for each observer altitude."""
         grid = self.observer_altitude_m
         check_range("observer_altitude_m", observer_altitude_m, 0.0, unit=" m")
+        _warn_outside("observer_altitude_m", observer_altitude_m, grid)
         return _linear_weights(grid, observer_altitude_m.to(torch.float64))
 
     def radiance_per_lumen(self, cells: Mapping[str, torch.Tensor], observer_xy,
