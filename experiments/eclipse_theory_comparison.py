@@ -341,6 +341,55 @@ def mars(quick: bool):
     return dataset, figure
 
 
+def limb_views(quick: bool):
+    """The atmosphere ring seen from the Moon: umbra centre, mid-umbra, umbra edge."""
+    from skytorch.eclipse.lunar import _display
+    from skytorch.eclipse.shadow import Shadow
+    from skytorch.spectrum import solar_irradiance, spectrum_to_xyz
+
+    shadow = Shadow.earth(_atmospheres()["aerosols"])
+    step = 40.0 if quick else 20.0
+    wavelength = torch.arange(400.0, 720.0 + 0.5 * step, step, dtype=torch.float64)
+    offset = torch.tensor([0.0, 2.5e6, 4.4e6], dtype=torch.float64)
+    view = shadow.limb_view(torch.tensor(MEAN_EARTH_MOON_DISTANCE_M, dtype=torch.float64),
+                            offset, wavelength, n_azimuth=90 if quick else 360,
+                            n_altitude=8 if quick else 32, oversample=4 if quick else 8)
+    radiance = view["radiance"] * solar_irradiance(wavelength)
+    xyz = spectrum_to_xyz(radiance, wavelength)
+    images = _display(xyz, 3)  # common exposure per view
+    dataset = build_dataset(
+        {"radiance": variable(("offset", "altitude", "azimuth", "wavelength"),
+                              view["radiance"].numpy(),
+                              VariableSpec("1", "relative radiance of the limb",
+                                           "radiance / radiance at the centre of the Sun")),
+         "image": variable(("offset", "altitude", "azimuth", "channel"), images.numpy(),
+                           VariableSpec("1", "sRGB", "common exposure per view"))},
+        {"offset": coordinate("offset", offset.numpy(),
+                              VariableSpec("m", "distance from the shadow axis", "")),
+         "altitude": coordinate("altitude", view["altitude_m"].numpy(),
+                                VariableSpec("m", "impact altitude", "bin centre")),
+         "azimuth": coordinate("azimuth", np.degrees(view["azimuth_rad"].numpy()),
+                               VariableSpec("degree", "ring azimuth", "0 towards the Sun")),
+         "wavelength": coordinate("wavelength", wavelength.numpy(),
+                                  VariableSpec("nm", "wavelength", "")),
+         "channel": coordinate("channel", np.array(["R", "G", "B"]),
+                               VariableSpec("1", "sRGB channel", ""))},
+        title="Limb of the Earth seen from the eclipsed Moon", references=REFERENCES,
+        parameters=shadow.parameters_dict())
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(3, 1, figsize=(10, 5.5))
+    top = float(view["altitude_m"][-1]) / 1e3
+    for axis, image, km in zip(axes, images.numpy(), offset.numpy() / 1e3, strict=True):
+        axis.imshow(image, aspect="auto", origin="lower", extent=(-180, 180, 0, top))
+        axis.set_ylabel("impact alt. [km]")
+        axis.set_title(f"seen from {km:.0f} km off the shadow axis (exposure per view)",
+                       fontsize=9)
+    axes[-1].set_xlabel("ring azimuth from the Sun's direction [degree]")
+    figure.tight_layout()
+    return dataset, figure
+
+
 def main(argv=None) -> int:
     args = parse_arguments(__doc__.splitlines()[0], argv)
     dataset, figure, summary = profiles(args.quick)
@@ -355,6 +404,8 @@ def main(argv=None) -> int:
         print(f"{key}: {value:.6g}")
     dataset, figure = mars(args.quick)
     save_outputs(dataset, figure, args.output_dir, "eclipse_theory_mars")
+    dataset, figure = limb_views(args.quick)
+    save_outputs(dataset, figure, args.output_dir, "eclipse_theory_limb")
     return 0
 
 

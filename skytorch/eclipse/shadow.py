@@ -492,15 +492,31 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
     shape = tensors[0].shape
     flat = [x.reshape(-1) for x in tensors]
     n_wl = profile.optical_depth.shape[-1]
+    centre, sun_radius, separation, scale = flat[:4]
+    with torch.no_grad():
+        # points whose ring cannot see the Sun: the apparent angles of the ring, from
+        # a(beta_min) to a(beta_top), miss the solar disc (both signs of a)
+        deviation = profile.deviation_rad.to(centre.dtype)
+        a_low = (torch.asin((occluder_radius_m + profile.beta_min_m) / centre)
+                 - scale * deviation[0])
+        a_high = (torch.asin((occluder_radius_m + profile.beta_top_m) / centre)
+                  - scale * deviation[-1])
+        gap = (separation - sun_radius).abs()
+        outer = separation + sun_radius
+        dark = (a_low > outer) | (a_high < -outer) | (
+            (separation >= sun_radius) & (a_low > -gap) & (a_high < gap))
+        active = torch.nonzero(~dark).squeeze(-1)
+    result = flat[0].new_zeros((flat[0].shape[0], n_wl))
+    if active.numel() == 0:
+        return result.reshape(*shape, n_wl) + 0.0 * flat[0].reshape(*shape, 1)
+    chosen = [x.index_select(0, active) for x in flat]
     pieces = []
-    for start in range(0, max(flat[0].shape[0], 1), _CHUNK):
-        part = [x[start:start + _CHUNK] for x in flat]
-        if part[0].numel() == 0:
-            pieces.append(flat[0].new_zeros((0, n_wl)))
-            continue
+    for start in range(0, chosen[0].shape[0], _CHUNK):
+        part = [x[start:start + _CHUNK] for x in chosen]
         pieces.append(_ring_chunk(profile, *part[:4], tuple(part[4:]), n_ring, n_arc,
                                   occluder_radius_m, n_split))
-    return torch.cat(pieces).reshape(*shape, n_wl)
+    result = result.index_put((active,), torch.cat(pieces))
+    return result.reshape(*shape, n_wl)
 
 
 class _NoRefraction:
