@@ -57,7 +57,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skyfield-times", type=int, default=12,
                         help="times measured with skyfield (scaled to all)")
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="torch intra-op threads (default 1: on a shared, oversubscribed "
+                             "machine OpenMP threads spin while waiting)")
     args = parser.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
