@@ -126,3 +126,15 @@ def test_observed_magnitudes_at_zenith_and_horizon(atm):
     assert np.all(np.abs((magnitude - vmag)[high] / ds.airmass.values[high] - k) < 0.03 * MAG)
     assert not ds.visible.values[~above].any()
     assert (ds.relative_brightness.values[~above] == 0.0).all()
+
+
+def test_float32_observation_matches_float64(atm):
+    stars = bright_stars(2.0)
+    times = ["2025-09-07T20:00", "2025-09-08T03:30"]
+    single = observe(stars, times, 28.76, -17.88, 2396.0, atmosphere=atm, dtype=torch.float32)
+    double = observe(stars, times, 28.76, -17.88, 2396.0, atmosphere=atm)
+    assert single.magnitude.dtype == np.float32
+    assert np.abs(single.altitude.values - double.altitude.values).max() < 0.5 / 3600.0
+    above = double.above_horizon.values
+    assert np.abs(single.magnitude.values - double.magnitude.values)[above].max() < 1e-3 * MAG
+    assert np.isfinite(single.magnitude.values).all()
