@@ -110,7 +110,7 @@ def emission_intensity(cos_psi: torch.Tensor, emission: str = "garstang1986",
     Examples
     --------
     >>> import torch
-    >>> float(emission_intensity(torch.tensor(1.0), "lambertian")) * math.pi
+    >>> round(float(emission_intensity(torch.tensor(1.0), "lambertian")) * math.pi, 6)
     1.0
     """
     check_choice("emission", emission, EMISSION_FUNCTIONS)
@@ -373,7 +373,11 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
 
     Examples
     --------
-    >>> from skytorch.skyglow.kernel import Medium, kernel_radiance  # doctest: +SKIP
+    >>> from skytorch.atmosphere import Atmosphere
+    >>> medium = Medium(Atmosphere.earth(turbidity=2.0), [550.0])
+    >>> b = kernel_radiance(medium, 0.0, math.pi / 2, 20e3)  # zenith, source 20 km away
+    >>> tuple(b.shape), bool(b > 0)
+    ((1,), True)
     """
     check_choice("emission", emission, EMISSION_FUNCTIONS)
     check_choice("quadrature", quadrature, QUADRATURES)

@@ -131,7 +131,15 @@ def render_naive(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
 
     Examples
     --------
-    >>> # ds = render_naive(model, city)  # doctest: +SKIP
+    >>> from skytorch.atmosphere import Atmosphere
+    >>> from skytorch.skyglow import SkyglowModel
+    >>> from skytorch.skyglow.citymap import point_sources
+    >>> model = SkyglowModel.precompute(Atmosphere.earth(), n_azimuth=8, n_elevation=2,
+    ...                                 n_distance=4, n_components=2, n_steps=4,
+    ...                                 progress=False)
+    >>> ds = render_naive(model, point_sources(2, 20e3, 2e3))
+    >>> ds["luminance"].dims
+    ('elevation', 'azimuth')
     """
     from skytorch.skyglow.lamps import luminance_weights
     from skytorch.skyglow.units import NATURAL_ZENITH_SKY_MAG_ARCSEC2
