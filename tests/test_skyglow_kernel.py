@@ -170,3 +170,16 @@ def test_walker_law_with_garstang_emission(turbidity):
 
 def test_emission_names_tuple():
     assert set(EMISSION_FUNCTIONS) == {"garstang1986", "lambertian", "dobashi2023"}
+
+
+def test_float32_kernel_with_real_atmosphere_phase_function():
+    # the atmosphere's phase functions reject |cos θ| > 1: rounding in float32 must not
+    # produce such cosines (forward and backward scattering directions included)
+    from skytorch.atmosphere import Atmosphere
+
+    m = Medium(Atmosphere.earth(turbidity=3.0), [550.0])
+    theta = torch.linspace(0.0, math.pi, 33, dtype=torch.float32)[:, None, None]
+    phi = torch.linspace(0.001, math.pi / 2, 17, dtype=torch.float32)[None, :, None]
+    r = torch.tensor([0.0, 30.0, 500.0, 5e3, 4e4], dtype=torch.float32)
+    b = kernel_radiance(m, theta, phi, r, n_steps=8)
+    assert b.dtype == torch.float32 and bool(torch.isfinite(b).all())

@@ -477,7 +477,7 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     ex, ey, ez = ex / s_len, ey / s_len, ez / s_len
     cos_psi = ex * nsx[:, None] + ez * nsz[:, None]
     intensity = emission_intensity(cos_psi, emission, emission_parameters)
-    cos_scatter = -(ex * dx[:, None] + ey * dy[:, None] + ez * dz[:, None])
+    cos_scatter = (-(ex * dx[:, None] + ey * dy[:, None] + ez * dz[:, None])).clamp(-1.0, 1.0)
     mu_p_src = (ex * px + ey * py + ez * cz) / rp
     mu_p_view = (dx[:, None] * px + dy[:, None] * py + dz[:, None] * cz) / rp
     rs_b = rs[:, None].expand_as(rp)
