@@ -420,7 +420,7 @@ def plot_lunar_eclipse(dataset: xr.Dataset, path=None):
     axis.set_xlabel(f"hours since {np.datetime_as_string(dataset.time.values[0], unit='m')}"
                     " UTC")
     axis.set_ylabel("magnitude")
-    axis.legend(loc="lower center")
+    axis.legend(loc="upper right")
     axis.grid(alpha=0.3)
     attrs = dataset.attrs
     title = (f"lunar eclipse {attrs.get('parameter_greatest_eclipse', '')}: greatest V "
