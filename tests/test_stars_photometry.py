@@ -138,3 +138,15 @@ def test_float32_observation_matches_float64(atm):
     above = double.above_horizon.values
     assert np.abs(single.magnitude.values - double.magnitude.values)[above].max() < 1e-3 * MAG
     assert np.isfinite(single.magnitude.values).all()
+
+
+def test_hazy_atmosphere_huge_horizon_extinction_stays_finite():
+    """Turbidity 12: ~100 mag of extinction at the horizon, finite and not visible."""
+    hazy = Atmosphere.earth(turbidity=12.0)
+    ds = observe(bright_stars(2.0), "2025-09-07T20:00", 52.5, 13.4, atmosphere=hazy)
+    low = ds.above_horizon.values & (ds.altitude.values < 0.5)
+    assert np.isfinite(ds.magnitude.values).all()
+    assert np.isfinite(ds.relative_brightness.values).all()
+    table = extinction_table(hazy, 0.0)
+    assert float(table["offset"][0]) > 50.0
+    assert not ds.visible.values[low].any()

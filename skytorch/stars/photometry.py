@@ -40,7 +40,7 @@ from collections import OrderedDict
 
 import torch
 
-from skytorch._validate import check_choice, check_int, check_range
+from skytorch._validate import check_choice, check_finite, check_int, check_range
 from skytorch.spectrum import (
     BV_RANGE_MAG,
     blackbody_radiance,
@@ -96,7 +96,7 @@ def relative_brightness(magnitude, control_magnitude: float = 6.0) -> torch.Tens
         ``(...)`` ratio [1]; Müller's 2.512^(m_a − m) with the exact Pogson ratio
         100^(1/5) = 2.51189.
     """
-    m = check_range("magnitude", magnitude, -30.0, 40.0, unit=" mag")
+    m = check_finite("magnitude", magnitude)
     m_a = check_range("control_magnitude", control_magnitude, -30.0, 40.0, unit=" mag")
     return torch.pow(10.0, 0.4 * (m_a.to(m.dtype) - m))
 
