@@ -300,10 +300,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         min_distance_m=float(distances.min()) - 1.05 * MOON_RADIUS_M,
         max_distance_m=float(distances.max()) + 1.05 * MOON_RADIUS_M, progress=progress)
 
-    def shadow_fn(along, offset):
-        return table.lookup(along, offset, sun_distance_m=torch.linalg.norm(
-            sun, dim=-1)[:, None].expand_as(along))
-
+    shadow_fn = _shadow_lookup(table, sun)
     grid = disc_grid(n_disc)
     solid = (MOON_RADIUS_M / distances) ** 2  # sr per unit disc area
     radiance, illuminance = _surface_radiance(shadow_fn, sun, moon, grid["normal"],
@@ -339,7 +336,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         "channel": coordinate("channel", np.array(["R", "G", "B"]), _SPECS["channel"]),
     }
     if n_images:
-        pixels = _disc_images(shadow_fn_at(table, sun[image_index]), sun[image_index],
+        pixels = _disc_images(_shadow_lookup(table, sun[image_index]), sun[image_index],
                               moon[image_index], wavelength, image_pixels, sun_distance)
         from skytorch.spectrum import spectrum_to_xyz
 
@@ -373,8 +370,8 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
                          references=_REFERENCES, parameters=parameters)
 
 
-def shadow_fn_at(table, sun):
-    """Shadow look-up closure for the given Sun vectors (n, 3)."""
+def _shadow_lookup(table, sun):
+    """``I / I_sun`` look-up ``(along, offset) -> (n, p, n_wl)`` for Sun vectors (n, 3)."""
     distance = torch.linalg.norm(sun, dim=-1)
 
     def function(along, offset):
