@@ -110,6 +110,24 @@ def _warn_outside(name: str, values: torch.Tensor, grid: torch.Tensor) -> None:
                 "to it; precompute with a wider altitude range", UserWarning, stacklevel=4)
 
 
+def _stack_fits(fits, image_shape, sample_shape):
+    """Stack per-observer-altitude PCA fits, padding with zero components to a common M.
+
+    Returns basis (ho, K, *image_shape), coefficients (ho, *sample_shape, K) and the
+    explained variance ratio (ho, K - 1).
+    """
+    n_ho, n_k = len(fits), max(f.basis.shape[0] for f in fits)
+    basis = torch.zeros(n_ho, n_k, *image_shape, dtype=torch.float64)
+    coefficients = torch.zeros(n_ho, *sample_shape, n_k, dtype=torch.float64)
+    ratio = torch.zeros(n_ho, n_k - 1, dtype=torch.float64)
+    for j, fit in enumerate(fits):
+        k = fit.basis.shape[0]
+        basis[j, :k] = fit.basis.reshape(k, *image_shape)
+        coefficients[j, ..., :k] = fit.coefficients.reshape(*sample_shape, k)
+        ratio[j, :k - 1] = fit.explained_variance_ratio
+    return basis, coefficients, ratio
+
+
 def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
     """Cell coordinates and fluxes of a light map, validated.
 
@@ -352,17 +370,9 @@ class SkyglowModel(nn.Module):
             if keep_kernel:
                 kernels.append(table)
         bar.close()
-        n_k = max(f.basis.shape[0] for f in fits)
-        basis = torch.zeros(n_observer_altitude, n_k, n_azimuth, n_elevation, wavelength.numel(),
-                            dtype=torch.float64)
-        coefficients = torch.zeros(n_observer_altitude, n_distance, n_source_altitude, n_k,
-                                   dtype=torch.float64)
-        ratio = torch.zeros(n_observer_altitude, n_k - 1, dtype=torch.float64)
-        for j, fit in enumerate(fits):
-            k = fit.basis.shape[0]
-            basis[j, :k] = fit.basis.reshape(k, n_azimuth, n_elevation, -1)
-            coefficients[j, ..., :k] = fit.coefficients.reshape(n_distance, n_source_altitude, k)
-            ratio[j, :k - 1] = fit.explained_variance_ratio
+        basis, coefficients, ratio = _stack_fits(
+            fits, (n_azimuth, n_elevation, wavelength.numel()), (n_distance, n_source_altitude))
+        n_k = basis.shape[1]
         atmosphere_parameters = (atmosphere.parameters_dict()
                                  if hasattr(atmosphere, "parameters_dict") else
                                  {"description": repr(atmosphere)})
@@ -403,15 +413,8 @@ class SkyglowModel(nn.Module):
         n_ho, n_r, n_hc, n_t, n_p, n_wl = self.kernel.shape
         fits = [fit_basis(k.reshape(n_r * n_hc, -1), n_components, normalize=normalize)
                 for k in self.kernel]
-        n_k = max(f.basis.shape[0] for f in fits)
-        basis = torch.zeros(n_ho, n_k, n_t, n_p, n_wl, dtype=torch.float64)
-        coefficients = torch.zeros(n_ho, n_r, n_hc, n_k, dtype=torch.float64)
-        ratio = torch.zeros(n_ho, n_k - 1, dtype=torch.float64)
-        for j, fit in enumerate(fits):
-            k = fit.basis.shape[0]
-            basis[j, :k] = fit.basis.reshape(k, n_t, n_p, n_wl)
-            coefficients[j, ..., :k] = fit.coefficients.reshape(n_r, n_hc, k)
-            ratio[j, :k - 1] = fit.explained_variance_ratio
+        basis, coefficients, ratio = _stack_fits(fits, (n_t, n_p, n_wl), (n_r, n_hc))
+        n_k = basis.shape[1]
         parameters = dict(self.parameters_used, n_components_requested=n_components,
                           n_components=n_k - 1, normalize=bool(normalize))
         model = type(self)(
