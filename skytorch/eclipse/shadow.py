@@ -236,12 +236,15 @@ def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
     x, w = _unit_gauss(n_nodes)
     v = torch.as_tensor(x, dtype=alpha.dtype)
     weight = torch.as_tensor(2.0 * x * w, dtype=alpha.dtype)
-    hav_psi = torch.sin(0.5 * psi_max.unsqueeze(-1) * (1.0 - v * v)) ** 2
+    hav_psi = torch.sin(0.5 * psi_max.unsqueeze(-1) * (1.0 - v * v)).square()
     hav_gamma = torch.addcmul(hav_offset.unsqueeze(-1), product.unsqueeze(-1), hav_psi)
-    r2 = 4.0 * hav_gamma * (1.0 - hav_gamma) / (torch.sin(rho_s) ** 2).unsqueeze(-1)
-    mu = _safe_sqrt(1.0 - r2)
-    radiance = a0.unsqueeze(-1) + mu * (a1.unsqueeze(-1) + a2.unsqueeze(-1) * mu)
-    return 2.0 * psi_max * (radiance @ weight)
+    scale = (4.0 / torch.sin(rho_s).square()).unsqueeze(-1)
+    mu = _safe_sqrt(1.0 - (hav_gamma - hav_gamma.square()) * scale)
+    # the weights of v sum to 1 (int_0^1 2v dv): the constant term needs no quadrature
+    mean = a0 + a1 * (mu @ weight)
+    if bool((a2 != 0).any()):
+        mean = mean + a2 * (mu.square() @ weight)
+    return 2.0 * psi_max * mean
 
 
 def shadow_angles(distance_m, offset_m, sun_distance_m, sun_radius_m, occluder_radius_m):
