@@ -62,7 +62,7 @@ import numpy as np
 import torch
 
 from skytorch._validate import check_choice, check_int
-from skytorch.atmosphere.geometry import ray_segment, safe_sqrt
+from skytorch.atmosphere.geometry import _safe_divide, ray_segment, safe_sqrt
 
 __all__ = [
     "DEFAULT_STEPS",
@@ -98,12 +98,6 @@ def _altitude(c_lo, lo, u, planet_radius):
     return excess / (torch.sqrt(excess + planet_radius ** 2) + planet_radius)
 
 
-def _safe_ratio(numerator, denominator):
-    zero = denominator == 0
-    return torch.where(zero, torch.zeros_like(numerator),
-                       numerator / torch.where(zero, torch.ones_like(denominator), denominator))
-
-
 def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, torch.Tensor]]:
     """The ascending and descending legs of a ray inside the atmosphere.
 
@@ -129,7 +123,7 @@ def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, t
     from_observer = inside & (mu >= 0)
     up_lo = torch.where(from_observer, r * mu, zero)
     up_c = torch.where(from_observer, c_obs + zero, excess)
-    up_len = _safe_ratio(c_top - up_c, t_top + up_lo)
+    up_len = _safe_divide(c_top - up_c, t_top + up_lo)
     up_len = torch.where(up_exists, torch.clamp(up_len, min=0.0), zero)
     # empty legs start at the observer so that every sample stays above the ground
     up_lo = torch.where(up_exists, up_lo, zero)
@@ -140,7 +134,7 @@ def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, t
     down_c_hi = torch.where(inside, c_obs + zero, c_top + zero)
     down_lo = torch.where(hits, t_ground, zero)
     down_c = torch.where(hits, zero, excess)
-    down_len = _safe_ratio(down_c_hi - down_c, down_hi + down_lo)
+    down_len = _safe_divide(down_c_hi - down_c, down_hi + down_lo)
     down_len = torch.where(down_exists, torch.clamp(down_len, min=0.0), zero)
     down_lo = torch.where(down_exists, down_lo, zero)
     down_c = torch.where(down_exists, down_c, c_obs + zero)
@@ -166,7 +160,7 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support
         levels = levels_m.to(dtype)
     c_levels = levels * (2.0 * planet_radius + levels)  # (R + h)^2 - R^2
     tau_levels = safe_sqrt(c_levels - leg["excess"][..., None])
-    u_levels = _safe_ratio(c_levels - c_lo[..., None], tau_levels + lo[..., None])
+    u_levels = _safe_divide(c_levels - c_lo[..., None], tau_levels + lo[..., None])
     u_levels = torch.minimum(torch.clamp(u_levels, min=0.0), length[..., None])
     shape = torch.broadcast_shapes(u_levels.shape[:-1], lo.shape)
     u_levels = u_levels.expand(*shape, -1)
@@ -310,16 +304,13 @@ def chapman(x, zenith_rad) -> torch.Tensor:
 
     Notes
     -----
-    For :math:`z \\le 90°`, with :math:`y = \\sqrt{x/2}\\,\\cos z`:
-    :math:`\\mathrm{Ch} \\approx \\sqrt{\\pi x/2}\\; e^{y^2}\\mathrm{erfc}(y)\\,
-    (1 + \\tfrac{3}{8x}(1 - \\ldots))` — here the leading term with the
-    :math:`1 + (3/8x)\\sin^2 z`-type correction is replaced by the exact horizontal value
-    :math:`x e^x K_1(x)` scaling, i.e.
-    :math:`\\mathrm{Ch}(x,z) \\approx \\sqrt{\\pi x/2}\\,\\mathrm{erfcx}(y)\\,
-    \\frac{\\mathrm{Ch}(x, 90°)}{\\sqrt{\\pi x / 2}}` at :math:`z = 90°`, relative error
-    :math:`O(1/x)` elsewhere (about 1e-3 for the Earth). For :math:`z > 90°`:
-    :math:`\\mathrm{Ch}(x, z) = 2 e^{x - x\\sin z}\\mathrm{Ch}(x \\sin z, 90°) -
-    \\mathrm{Ch}(x, \\pi - z)`.
+    For :math:`z \\le 90°`, with :math:`y = \\sqrt{x/2}\\,\\cos z`, Chapman's leading-order
+    form :math:`\\mathrm{Ch} \\approx \\sqrt{\\pi x/2}\\; e^{y^2}\\mathrm{erfc}(y)`, times a
+    correction :math:`1 + (c - 1)\\sin^2 z` with :math:`c = \\mathrm{Ch}(x, 90°) /
+    \\sqrt{\\pi x/2}` from the exact horizontal value, so that it is exact at 90°; the
+    relative error elsewhere is :math:`O(1/x)`, at most 2e-3 for the Earth (tested against
+    quadrature). For :math:`z > 90°`: :math:`\\mathrm{Ch}(x, z) = 2 e^{x - x\\sin z}
+    \\mathrm{Ch}(x \\sin z, 90°) - \\mathrm{Ch}(x, \\pi - z)` (ref. 2).
     """
     zenith = torch.as_tensor(zenith_rad, dtype=torch.float64) \
         if not isinstance(zenith_rad, torch.Tensor) else zenith_rad

@@ -56,6 +56,7 @@ import torch
 from torch import nn
 
 from skytorch._validate import check_finite, check_int, common_dtype
+from skytorch.atmosphere.geometry import distance_to_ground, distance_to_top, ray_hits_ground
 from skytorch.dataset import (
     VariableSpec,
     build_dataset,
@@ -109,8 +110,7 @@ def _coordinates(r, mu, planet_radius, top_radius):
     """Texture coordinates (x_r, x_mu) in [0, 1] of (r, mu) for rays that miss the ground."""
     horizon = math.sqrt(top_radius ** 2 - planet_radius ** 2)
     rho = torch.sqrt(torch.clamp((r - planet_radius) * (r + planet_radius), min=0.0))
-    disc = (r * mu) ** 2 + (top_radius - r) * (top_radius + r)
-    d = torch.clamp(-r * mu + torch.sqrt(torch.clamp(disc, min=0.0)), min=0.0)
+    d = distance_to_top(r, mu, top_radius)
     d_min = top_radius - r
     d_max = rho + horizon
     span = d_max - d_min
@@ -332,8 +332,6 @@ class TransmittanceTable(nn.Module):
         Rays meeting the ground at :math:`(R, \\mu_g)`:
         :math:`\\tau = \\tau_{top}(R, -\\mu_g) - \\tau_{top}(r, -\\mu)` (ref. 1).
         """
-        from skytorch.atmosphere.geometry import distance_to_ground, ray_hits_ground
-
         dtype = common_dtype(zenith_rad, altitude_m)
         zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
         altitude = check_finite("altitude_m", altitude_m, dtype=dtype)
