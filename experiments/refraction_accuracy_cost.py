@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -57,6 +58,16 @@ def _error(value, reference) -> float:
     return float((value - reference).abs().max() / ARCSECOND)
 
 
+def _measure(function, reference, repeat: int) -> tuple[float, float]:
+    """Largest error [arcsec] and median wall time [s] (one timed run when repeat is 1)."""
+    start = time.perf_counter()
+    error = _error(function(), reference)
+    seconds = time.perf_counter() - start
+    if repeat > 1:
+        seconds = median_seconds(function, repeat=repeat, warmup=0)
+    return error, seconds
+
+
 def main(argv=None) -> int:
     args = parse_arguments(__doc__.splitlines()[0], argv)
     quick = args.quick
@@ -70,20 +81,16 @@ def main(argv=None) -> int:
     node_time = np.zeros_like(node_error)
     for i, n in enumerate(nodes):
         for j, dtype in enumerate(dtypes):
-            node_error[i, j] = _error(_evaluate(atm, dtype, n_nodes=n), reference)
-            node_time[i, j] = median_seconds(
-                lambda dtype=dtype, n=n: _evaluate(atm, dtype, n_nodes=n),
-                repeat=repeat, warmup=0)
+            node_error[i, j], node_time[i, j] = _measure(
+                lambda dtype=dtype, n=n: _evaluate(atm, dtype, n_nodes=n), reference, repeat)
 
     steps = [20e3] if quick else [40e3, 20e3, 10e3, 5e3, 2e3]
     step_error = np.zeros(len(steps))
     step_time = np.zeros(len(steps))
     for i, step in enumerate(steps):
         options = {"method": "rk4", "step_m": step, "max_dh_m": step / 10.0}
-        step_error[i] = _error(_evaluate(atm, torch.float64, **options), reference)
-        step_time[i] = median_seconds(
-            lambda options=options: _evaluate(atm, torch.float64, **options),
-            repeat=1, warmup=0)
+        step_error[i], step_time[i] = _measure(
+            lambda options=options: _evaluate(atm, torch.float64, **options), reference, 1)
 
     sizes = [(16, 8)] if quick else [(32, 16), (64, 32), (128, 64), (256, 128),
                                                 (512, 256)]
@@ -100,8 +107,9 @@ def main(argv=None) -> int:
         def build(n_alt=n_alt, n_ang=n_ang):
             return rf.deviation_table(atm, n_alt, n_ang, progress=False)
 
-        table_time[i] = median_seconds(build, repeat=1, warmup=0)
+        start = time.perf_counter()
         table = build()
+        table_time[i] = time.perf_counter() - start
         error = (rf.lookup_deviation(table, height, zenith)["deviation_rad"] - direct).abs()
         table_max[i] = float(error.max() / ARCSECOND)
         table_median[i] = float(error.median() / ARCSECOND)
