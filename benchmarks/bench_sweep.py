@@ -10,7 +10,7 @@ torch work per grid point. Rows:
 * sweep serial, chunks of 10 — chunking overhead;
 * sweep broadcast — one batched call per slab of 10 points ((1, 1) turbidity, (1, 10) ozone);
 * sweep dask, 1 and 2 workers — LocalCluster threads (torch releases the GIL), chunks of 10
-  points.
+  points; started by each sweep (the default) or an existing client reused across sweeps.
 
 All rows but the first run torch with one intra-op thread, so that workers do not compete
 for the two cores.
@@ -146,6 +146,14 @@ def main(argv=None) -> int:
         return 0
 
     reference = plain_loop()
+    from distributed import Client, LocalCluster
+
+    stack = contextlib.ExitStack()
+    clients = {}
+    for workers in (1, 2):
+        cluster = stack.enter_context(LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=False, dashboard_address=None))
+        clients[workers] = stack.enter_context(Client(cluster))
     # One intra-op torch thread everywhere except the first row: on a shared, oversubscribed
     # 2-core machine OpenMP's barriers make 2-thread torch calls up to 10x slower.
     cases = [
@@ -159,6 +167,10 @@ def main(argv=None) -> int:
                                                       chunk_size=10)),
         ("sweep dask, 2 workers", 1, lambda: run_sweep(backend="dask", n_workers=2,
                                                        chunk_size=10)),
+        ("sweep dask, 1 worker, reused client", 1,
+         lambda: run_sweep(backend="dask", client=clients[1], chunk_size=10)),
+        ("sweep dask, 2 workers, reused client", 1,
+         lambda: run_sweep(backend="dask", client=clients[2], chunk_size=10)),
     ]
     # Cases are timed round-robin (one run of each per round) so that load from other
     # processes on the shared machine affects every case alike; medians over rounds.
@@ -176,6 +188,7 @@ def main(argv=None) -> int:
                 continue  # the oversubscribed row is slow: one sample is enough
             with torch_threads(threads):
                 samples[label].append(median_seconds(function, repeat=1, warmup=0))
+    stack.close()
     rows = []
     baseline = statistics.median(samples["plain loop"])
     for label, threads, _ in cases:
@@ -184,15 +197,17 @@ def main(argv=None) -> int:
                      "torch threads": threads or torch.get_num_threads(),
                      "median [s]": seconds, "vs plain loop": seconds / baseline,
                      "identical to loop": "yes" if identical[label] else "no"})
-    dask_1 = rows[-2]["median [s]"]
-    dask_2 = rows[-1]["median [s]"]
+    dask_1, dask_2 = rows[-4]["median [s]"], rows[-3]["median [s]"]
+    reused_1, reused_2 = rows[-2]["median [s]"], rows[-1]["median [s]"]
     table = markdown_table(rows)
     text = (
         f"\n## Parameter sweeps (`benchmarks/bench_sweep.py`)\n\n"
         f"Machine: {machine_description()}. Medians of {args.repeat} interleaved rounds "
         f"(one sample for the first row); the machine is shared, so timings are noisy."
         f"\n\n{table}\n\n"
-        f"Dask speed-up with 2 workers vs 1 (one torch thread each): {dask_1 / dask_2:.2f}x.\n"
+        f"Dask speed-up with 2 workers vs 1 (one torch thread each): {dask_1 / dask_2:.2f}x "
+        f"with a LocalCluster started per sweep, {reused_1 / reused_2:.2f}x with a reused "
+        f"client.\n"
     )
     if args.eclipse_grid:
         eclipse = eclipse_rows(args.eclipse_grid)

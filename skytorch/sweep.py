@@ -324,7 +324,7 @@ def _load_chunk(path: Path) -> xr.Dataset | None:
 # --- dask -----------------------------------------------------------------------------------------
 
 @contextlib.contextmanager
-def _dask_client(client, scheduler_address, n_workers) -> Iterator[object]:
+def _dask_client(client, scheduler_address, n_workers, cluster_options) -> Iterator[object]:
     if client is not None:
         yield client
         return
@@ -334,16 +334,18 @@ def _dask_client(client, scheduler_address, n_workers) -> Iterator[object]:
         with Client(scheduler_address) as remote:
             yield remote
         return
-    workers = DEFAULT_WORKERS if n_workers is None else n_workers
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as cluster, Client(cluster) as local:
+    options = {"n_workers": DEFAULT_WORKERS if n_workers is None else n_workers,
+               "threads_per_worker": 1, "processes": False, "dashboard_address": None}
+    options.update(cluster_options or {})
+    with LocalCluster(**options) as cluster, Client(cluster) as local:
         yield local
 
 
-def _run_dask(todo, compute, client, scheduler_address, n_workers, on_done) -> None:
+def _run_dask(todo, compute, client, scheduler_address, n_workers, cluster_options,
+              on_done) -> None:
     from distributed import as_completed
 
-    with _dask_client(client, scheduler_address, n_workers) as active:
+    with _dask_client(client, scheduler_address, n_workers, cluster_options) as active:
         futures = {active.submit(compute, start, stop, pure=False): (start, stop)
                    for start, stop in todo}
         failure = None
@@ -431,6 +433,7 @@ def sweep(
     client=None,
     scheduler_address: str | None = None,
     n_workers: int | None = None,
+    cluster_options: Mapping[str, object] | None = None,
     units: Mapping[str, str] | None = None,
     **parameter_grids,
 ) -> xr.Dataset:
@@ -463,6 +466,12 @@ def sweep(
         Address of a dask scheduler (e.g. ``"tcp://10.0.0.1:8786"``) for ``"dask"``.
     n_workers : int, optional
         Workers of the LocalCluster started for ``"dask"`` (default 2).
+    cluster_options : mapping, optional
+        Further ``distributed.LocalCluster`` arguments, overriding the defaults
+        ``threads_per_worker=1, processes=False, dashboard_address=None`` (e.g.
+        ``{"processes": True}`` for worker processes, free of GIL contention but slower
+        to start). Starting a LocalCluster costs about a second; pass ``client=`` to reuse
+        one across sweeps.
     units : mapping of str to str, optional
         Units of the swept parameters for the coordinates' metadata; by default inferred
         from suffixes (``_nm`` nm, ``_m`` m, ``_k`` K, ``_deg`` degree, ``_du`` DU, ...),
@@ -548,7 +557,8 @@ def sweep(
     compute = functools.partial(_compute_chunk, fn, names, grids, broadcast=broadcast)
     try:
         if backend == "dask" and todo:
-            _run_dask(todo, compute, client, scheduler_address, n_workers, done)
+            _run_dask(todo, compute, client, scheduler_address, n_workers, cluster_options,
+                      done)
         else:
             for start, stop in todo:
                 done(start, stop, compute(start, stop))

@@ -88,6 +88,21 @@ def test_dask_local_cluster_identical():
     serial = run()
     ds = run(backend="dask", n_workers=2, chunk_size=3)
     xr.testing.assert_identical(serial.drop_attrs(), ds.drop_attrs())
+    ds = run(backend="dask", n_workers=1, cluster_options={"threads_per_worker": 2})
+    xr.testing.assert_identical(serial.drop_attrs(), ds.drop_attrs())
+
+
+def test_dask_existing_client():
+    from distributed import Client, LocalCluster
+
+    serial = run()
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        first = run(backend="dask", client=client, chunk_size=4)
+        second = run(backend="broadcast")
+        assert client.status == "running"  # the sweep leaves a given client open
+    xr.testing.assert_identical(serial.drop_attrs(), first.drop_attrs())
+    xr.testing.assert_identical(serial.drop_attrs(), second.drop_attrs())
 
 
 def test_resume_after_interruption(tmp_path):
