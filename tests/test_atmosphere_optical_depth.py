@@ -210,3 +210,15 @@ def test_us1976_profile_rayleigh_depth_matches_bodhaine():
     assert tau == pytest.approx(0.0971, rel=1 * PERCENT)
     slant = atm.air_mass(torch.tensor(80 * DEGREE, dtype=torch.float64))
     assert abs(float(slant / kasten_young_air_mass(torch.tensor(80 * DEGREE))) - 1) <= PERCENT
+
+
+def test_refraction_delegation_and_refracted_air_mass():
+    from skytorch.atmosphere import refraction
+
+    atm = Atmosphere.earth(turbidity=1.0, ozone_du=0.0)
+    altitude = torch.tensor([5.0, 30.0], dtype=torch.float64) * DEGREE
+    assert torch.equal(atm.refraction(altitude), refraction.refraction_angle(atm, altitude))
+    # relative air mass along refracted rays vs Kasten & Young 1989: <= 1 % at 85 deg
+    zenith = torch.tensor(85.0 * DEGREE, dtype=torch.float64)
+    bent = atm.air_mass(zenith, refraction=True)
+    assert abs(float(bent / kasten_young_air_mass(zenith)) - 1.0) <= 1 * PERCENT
