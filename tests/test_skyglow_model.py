@@ -34,7 +34,7 @@ def _one_cell(x, y, flux=1e6, altitude=None):
 @pytest.fixture(scope="module")
 def terrain_model():
     # 144 samples (24 distances × 6 source altitudes) allow up to 128 components
-    return cached_model(n_source_altitude=6, source_altitude_range_m=(0.0, 1400.0),
+    return cached_model(n_elevation=8, n_source_altitude=6, source_altitude_range_m=(0.0, 1400.0),
                         n_components=128)
 
 
