@@ -135,3 +135,12 @@ def test_sky_radiance_gradients(dtype):
                                        0.0, z, 0.0, n_samples=16),
             (torch.tensor(1.3, dtype=torch.float64, requires_grad=True),), eps=1e-5,
             atol=1e-8, rtol=1e-4)
+
+
+def test_sky_radiance_in_physical_units():
+    from skytorch.spectrum import solar_irradiance
+
+    atm = Atmosphere.earth(turbidity=2.0, ozone_du=300.0)
+    relative = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 0.5, 0.0)
+    physical = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 0.5, 0.0, solar_irradiance=True)
+    assert torch.allclose(physical, relative * solar_irradiance(WAVELENGTH), rtol=1e-12)
