@@ -157,6 +157,14 @@ class Atmosphere(nn.Module):
     name : str
         Label stored in Datasets.
 
+    Notes
+    -----
+    Parameters given as tensors that require gradients stay differentiable (buffers are
+    not detached), e.g. to fit a turbidity to observed extinction. The conversion from
+    the given parameters (e.g. turbidity to Ångström β) is part of the autograd graph:
+    rebuild the module for every optimisation step (or backward with
+    ``retain_graph=True``).
+
     Examples
     --------
     >>> import torch
