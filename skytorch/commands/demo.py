@@ -1,13 +1,34 @@
 """``skytorch demo``: the end-to-end demonstration job run by ``make demo``.
 
-The job follows the night of the 2015-09-28 total lunar eclipse: Sun and Moon over the
-night seen from a European site, written as netCDF with a PNG of the Moon's altitude.
+The 2015-09-28 total lunar eclipse, end to end:
+
+1. ephemeris of the night from Berlin;
+2. circumstances (:func:`skytorch.eclipse.lunar_eclipses`);
+3. the Moon's light curve and colour for a typical atmosphere and a Calbuco-like
+   volcanic one (:func:`skytorch.eclipse.lunar_eclipse`);
+4. the Earth's shadow profile at the Moon's distance against lunar-eclipse theory:
+   the geometric umbra/penumbra radii (Danjon enlargement) and the umbra centre of a
+   molecular atmosphere, 1/2400 of sunlight (Vollmer & Gedzelman 2008);
+5. all-sky renders at three phases from Berlin with stars, the Moon and a city's
+   skyglow (:class:`skytorch.Scene`): U1 + 30 min, greatest eclipse, U4 − 20 min;
+6. a 3 × 3 turbidity × ozone sweep of the Moon's colour at totality
+   (:func:`skytorch.sweep`).
+
+Every part writes netCDF and PNG files into ``--output-dir`` and one line or two of the
+summary. A part whose module cannot be imported is skipped with the reason printed.
+``--quick`` runs everything at reduced resolution (for tests).
+
+The Calbuco-like case follows the volcanic case of ``experiments/eclipse_theory_comparison.py``:
+the typical aerosol (Preetham turbidity 2) with twice the density and a scale height of
+3 km instead of 1.2 km, i.e. five times the column (Keen 2016 reports the 2015 eclipse
+33 % dimmer than expected for a clear stratosphere after the April 2015 eruption).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import time
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +38,19 @@ logger = logging.getLogger(__name__)
 #: the demonstration site (Berlin) and night
 SITE = {"lat_deg": 52.52, "lon_deg": 13.40, "elevation_m": 34.0}
 NIGHT = ("2015-09-27T18:00", "2015-09-28T06:00")
+ECLIPSE_DATE = "2015-09-28"
+#: umbra centre of a molecular atmosphere without ozone, 400–700 nm (Vollmer & Gedzelman
+#: 2008, Appl. Opt. 47, H52, doi:10.1364/AO.47.000H52)
+VG2008_UMBRA_CENTRE = 1.0 / 2400.0
+#: the volcanic case: aerosol density and scale height relative to the typical one
+CALBUCO_DENSITY_FACTOR = 2.0
+CALBUCO_SCALE_HEIGHT_M = 3000.0
+TYPICAL_AEROSOL_SCALE_HEIGHT_M = 1200.0
+#: the city of the all-sky renders: centre 12 km south-east of the observer
+CITY = {"population": 1_000_000.0, "scale_length_m": 4_000.0, "centre_xy": (8_000.0, -9_000.0)}
+#: sweep grid of the Moon's colour at totality
+SWEEP_TURBIDITY = (1.5, 3.0, 6.0)
+SWEEP_OZONE_DU = (0.0, 300.0, 450.0)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -26,12 +60,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="reduced resolution (tests)")
 
 
-def _ephemeris_part(output_dir: Path, quick: bool) -> list[str]:
+def _plt():
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def ephemeris_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    from skytorch import plot
     from skytorch.dataset import to_netcdf
     from skytorch.ephemeris import parse_times, sun_moon
 
@@ -40,30 +79,310 @@ def _ephemeris_part(output_dir: Path, quick: bool) -> list[str]:
     times = np.arange(start, end + step, step)
     ds = sun_moon(times, **SITE)
     path = to_netcdf(ds, output_dir / "eclipse_night_ephemeris.nc")
-    figure, axes = plt.subplots(figsize=(7, 3.5))
-    axes.plot(ds["time"].values, ds["moon_altitude"].values, label="Moon")
-    axes.plot(ds["time"].values, ds["sun_altitude"].values, label="Sun")
+    axes = plot.profile(ds["time"].values, {"Moon": ds["moon_altitude"].values,
+                                            "Sun": ds["sun_altitude"].values},
+                        ylabel="altitude [degree]",
+                        title="Berlin, night of the 2015-09-28 lunar eclipse")
     axes.axhline(0.0, color="grey", lw=0.5)
-    axes.set_ylabel("altitude [degree]")
-    axes.set_title("Berlin, night of the 2015-09-28 lunar eclipse")
-    axes.legend()
-    figure.autofmt_xdate()
-    png = output_dir / "eclipse_night_ephemeris.png"
-    figure.savefig(png, dpi=110, bbox_inches="tight")
-    plt.close(figure)
+    axes.figure.autofmt_xdate()
+    png = plot.savefig(axes.figure, output_dir / "eclipse_night_ephemeris.png")
     highest = int(np.argmax(ds["moon_altitude"].values))
     return [
-        f"ephemeris: {ds.sizes['time']} times -> {path}, {png}",
+        f"ephemeris: {ds.sizes['time']} times -> {path.name}, {png.name}",
         f"  Moon highest at {str(ds['time'].values[highest])[:16]} UTC, "
         f"altitude {float(ds['moon_altitude'][highest]):.1f} deg",
     ]
 
 
+def circumstances_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    from skytorch.dataset import to_netcdf
+    from skytorch.eclipse import lunar_eclipses
+
+    ds = lunar_eclipses("2015-09-01", "2015-10-31")
+    path = to_netcdf(ds, output_dir / "eclipse_circumstances.nc")
+    row = ds.isel(eclipse=0)
+    state["circumstances"] = row
+    return [
+        f"circumstances -> {path.name}",
+        f"  {str(row['kind'].values)} eclipse, greatest {str(row['time'].values)[:19]} UTC, "
+        f"umbral magnitude {float(row['umbral_magnitude']):.4f}, gamma "
+        f"{float(row['gamma']):.4f}, totality {float(row['total_duration']):.1f} min",
+    ]
+
+
+def _atmospheres():
+    import torch
+
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.atmosphere.aerosol import (
+        ANGSTROM_REFERENCE_NM,
+        PREETHAM_ANGSTROM_ALPHA,
+        preetham_angstrom_beta,
+    )
+
+    beta = float(preetham_angstrom_beta(torch.tensor(2.0, dtype=torch.float64)))
+    aod_550 = beta * (550.0 / ANGSTROM_REFERENCE_NM) ** (-PREETHAM_ANGSTROM_ALPHA)
+    column = CALBUCO_DENSITY_FACTOR * CALBUCO_SCALE_HEIGHT_M / TYPICAL_AEROSOL_SCALE_HEIGHT_M
+    return {
+        "typical": Atmosphere.earth(turbidity=2.0, ozone_du=300.0),
+        "calbuco": Atmosphere.earth(aerosol_optical_depth=aod_550 * column, ozone_du=300.0,
+                                    aerosol_scale_height_m=CALBUCO_SCALE_HEIGHT_M),
+    }
+
+
+def _eclipse_options(quick: bool) -> dict:
+    if quick:
+        return {"n_times": 24, "n_images": 5, "n_disc": 4, "image_pixels": 24,
+                "table_n_v": 48}
+    return {"n_times": 120, "n_images": 9, "n_disc": 10, "image_pixels": 48,
+            "table_n_v": 256}
+
+
+def light_curve_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    from skytorch import plot
+    from skytorch.dataset import to_netcdf
+    from skytorch.eclipse import lunar_eclipse
+
+    lines = []
+    curves = {}
+    for name, atm in _atmospheres().items():
+        ds = lunar_eclipse(ECLIPSE_DATE, atmosphere=atm, **_eclipse_options(quick))
+        to_netcdf(ds, output_dir / f"eclipse_light_curve_{name}.nc")
+        curves[name] = ds
+        greatest = int(np.argmax(ds["v_magnitude"].values))
+        lines.append(f"  {name:8s}: greatest V {float(ds['v_magnitude'][greatest]):+.2f}, "
+                     f"B-V {float(ds['b_minus_v'][greatest]):.2f}, Danjon L ~ "
+                     f"{float(ds.attrs['parameter_danjon_l']):.1f}, sRGB "
+                     + " ".join(f"{v:.2f}" for v in ds["colour"].values[greatest]))
+    state["curves"] = curves
+    plt = _plt()
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    first = next(iter(curves.values()))
+    events = {key: first.attrs[f"parameter_{key}"] for key in ("p1", "u1", "u2", "u3", "u4",
+                                                               "p4")
+              if f"parameter_{key}" in first.attrs and first.attrs[f"parameter_{key}"] != ""}
+    plot.light_curve(first["time"].values, {n: c["v_magnitude"].values
+                                            for n, c in curves.items()}, axes=top,
+                     title="Moon's V magnitude, 2015-09-28", events=events)
+    plot.profile((first["time"].values - first["time"].values[0]) / np.timedelta64(1, "h"),
+                 {n: c["b_minus_v"].values for n, c in curves.items()}, axes=bottom,
+                 xlabel="hours", ylabel="B - V [mag]")
+    png = plot.savefig(figure, output_dir / "eclipse_light_curve.png")
+    strip = plot.eclipse_strip(curves["typical"]["image"].values,
+                               [np.datetime_as_string(t, unit="m")[11:]
+                                for t in curves["typical"]["image_time"].values])
+    plot.savefig(strip, output_dir / "eclipse_moon_strip.png")
+    return [f"light curve -> eclipse_light_curve_{{typical,calbuco}}.nc, {png.name}, "
+            "eclipse_moon_strip.png", *lines]
+
+
+def shadow_profile_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    import torch
+
+    from skytorch import plot
+    from skytorch.constants import SUN_RADIUS_M
+    from skytorch.dataset import VariableSpec, build_dataset, coordinate, to_netcdf, variable
+    from skytorch.eclipse import Shadow, shadow_radii
+    from skytorch.spectrum import solar_irradiance, v_band_response
+
+    row = state.get("circumstances")
+    distance = float(row["moon_distance"]) if row is not None else 3.569e8
+    atmospheres = _atmospheres()
+    from skytorch.atmosphere import Atmosphere
+
+    cases = {
+        "geometry only": Shadow.earth(atmospheres["typical"], refraction=False,
+                                      extinction=False),
+        "molecules": Shadow.earth(Atmosphere.earth(aerosol_optical_depth=0.0, ozone_du=0.0)),
+        "typical": Shadow.earth(atmospheres["typical"]),
+        "calbuco": Shadow.earth(atmospheres["calbuco"]),
+    }
+    step = 40.0 if quick else 10.0
+    wavelength = torch.arange(400.0, 700.0 + 0.5 * step, step, dtype=torch.float64)
+    offset = torch.linspace(0.0, 1.0e7, 21 if quick else 201, dtype=torch.float64)
+    weight = solar_irradiance(wavelength) * v_band_response(wavelength)
+    weight = weight / weight.sum()
+    energy = solar_irradiance(wavelength)
+    energy = energy / energy.sum()
+    spectra = torch.stack([c.relative_illuminance(torch.tensor(distance, dtype=torch.float64),
+                                                  offset, wavelength)
+                           for c in cases.values()])
+    v_band = spectra @ weight
+    centre_energy = float(spectra[1, 0] @ energy)
+    sun_distance = 1.496e11
+    umbra, penumbra = shadow_radii(torch.tensor(distance, dtype=torch.float64), sun_distance,
+                                   SUN_RADIUS_M, 6.371e6, enlargement="danjon")
+    names = list(cases)
+    ds = build_dataset(
+        {"relative_illuminance": variable(("case", "offset", "wavelength"), spectra,
+                                          VariableSpec("1", "relative illuminance",
+                                                       "I / I_sun at the Moon's distance")),
+         "v_band": variable(("case", "offset"), v_band, VariableSpec(
+             "1", "V-band relative illuminance", "Solar x V-passband weighted I / I_sun"))},
+        {"case": coordinate("case", np.array(names), VariableSpec("1", "shadow case",
+                                                                  "atmosphere case")),
+         "offset": coordinate("offset", offset, VariableSpec(
+             "m", "distance from the shadow axis", "At the Moon's distance")),
+         "wavelength": coordinate("wavelength", wavelength, VariableSpec(
+             "nm", "wavelength", "Vacuum wavelength", "radiation_wavelength"))},
+        title="Earth's shadow at the Moon, 2015-09-28",
+        references=["Vollmer, M., Gedzelman, S. D. 2008, Appl. Opt. 47, H52, "
+                    "doi:10.1364/AO.47.000H52"],
+        parameters={"moon_distance_m": distance, "umbra_radius_m": float(umbra),
+                    "penumbra_radius_m": float(penumbra),
+                    "molecular_umbra_centre_400_700": centre_energy,
+                    "vg2008_umbra_centre": VG2008_UMBRA_CENTRE})
+    to_netcdf(ds, output_dir / "eclipse_shadow_profile.nc")
+    axes = plot.profile(offset / 1e3, {n: v_band[i].clamp(min=1e-12)
+                                       for i, n in enumerate(names)}, log=True,
+                        xlabel="distance from the shadow axis [km]",
+                        ylabel="I / I_sun (V band)",
+                        title="Earth's shadow at the Moon's distance, 2015-09-28")
+    for radius, label in ((umbra, "umbra (Danjon)"), (penumbra, "penumbra (Danjon)")):
+        axes.axvline(float(radius) / 1e3, color="0.5", ls="--", lw=0.8)
+        axes.text(float(radius) / 1e3, 2e-9, label, rotation=90, fontsize=7, va="bottom")
+    axes.axhline(VG2008_UMBRA_CENTRE, color="r", ls=":", lw=0.8,
+                 label="1/2400 (Vollmer & Gedzelman 2008)")
+    axes.set_ylim(1e-9, 2)
+    axes.legend(fontsize=7)
+    png = plot.savefig(axes.figure, output_dir / "eclipse_shadow_profile.png")
+    # where the geometric shadow (no atmosphere) reaches half light: the penumbra's middle
+    geometric = v_band[0]
+    return [f"shadow profile -> eclipse_shadow_profile.nc, {png.name}",
+            f"  umbra {float(umbra) / 1e3:.0f} km, penumbra {float(penumbra) / 1e3:.0f} km "
+            f"(Danjon); geometric shadow at the umbra edge "
+            f"{float(np.interp(float(umbra), offset.numpy(), geometric.numpy())):.3f}",
+            f"  molecular umbra centre {centre_energy:.2e} of sunlight "
+            f"(Vollmer & Gedzelman 2008: {VG2008_UMBRA_CENTRE:.2e}, ratio "
+            f"{centre_energy / VG2008_UMBRA_CENTRE:.2f})"]
+
+
+def _phases(state: dict) -> dict[str, np.datetime64]:
+    """Partial ingress (U1 + 30 min), greatest eclipse, partial egress (U4 - 20 min)."""
+    row = state.get("circumstances")
+    if row is None:
+        from skytorch.ephemeris import parse_times
+
+        u1, greatest, u4 = parse_times(["2015-09-28T01:07", "2015-09-28T02:47",
+                                        "2015-09-28T04:27"])
+    else:
+        u1, greatest, u4 = row["u1"].values, row["time"].values, row["u4"].values
+    return {"partial ingress": u1 + np.timedelta64(30, "m"),
+            "totality": greatest,
+            "partial egress": u4 - np.timedelta64(20, "m")}
+
+
+def all_sky_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    from skytorch import plot
+    from skytorch.dataset import to_netcdf
+    from skytorch.scene import Scene
+    from skytorch.skyglow.citymap import synthetic_city
+
+    city = synthetic_city(extent_m=60_000.0, cell_m=1_000.0 if quick else 500.0, **CITY)
+    plt = _plt()
+    phases = _phases(state)
+    figure, axes = plt.subplots(1, len(phases), figsize=(4.2 * len(phases), 4.6))
+    figure.patch.set_facecolor("black")
+    lines = []
+    exposure = None
+    for index, (label, when) in enumerate(phases.items()):
+        scene = Scene(time=str(when)[:19], **SITE, size=96 if quick else 384,
+                      light_map=city, fidelity="fast" if quick else "default",
+                      star_limit_mag=5.0 if quick else 6.5)
+        start = time.perf_counter()
+        ds = scene.render()
+        seconds = time.perf_counter() - start
+        stem = f"allsky_{index + 1}_{label.split()[0]}"
+        to_netcdf(ds, output_dir / f"{stem}.nc")
+        exposure = float(ds.attrs["parameter_exposure"]) if exposure is None else exposure
+        plot.all_sky(ds, axes[index], exposure=exposure, night=True,
+                     title=f"{label}\n{str(when)[:16]} UTC")
+        axes[index].title.set_color("white")
+        zenith = float(ds["v_mag_arcsec2"].sel(x=0.0, y=0.0, method="nearest"))
+        lines.append(f"  {label:24s} zenith {zenith:.2f} mag/arcsec2, computed "
+                     f"[{ds.attrs['effects_computed']}], {seconds:.1f} s -> {stem}.nc")
+        lines.append(f"    skipped: {ds.attrs['effects_skipped']}")
+    png = plot.savefig(figure, output_dir / "allsky_three_phases.png")
+    return [f"all-sky renders (Berlin, city 12 km SE) -> {png.name}", *lines]
+
+
+def moon_colour_at_totality(turbidity, ozone_du, quick: bool = False):
+    """Moon's V, B−V and sRGB colour at greatest eclipse for one atmosphere (a sweep point)."""
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.eclipse import lunar_eclipse
+
+    options = ({"n_disc": 4, "table_n_v": 32} if quick else {"n_disc": 6, "table_n_v": 64})
+    ds = lunar_eclipse(ECLIPSE_DATE, atmosphere=Atmosphere.earth(
+        turbidity=float(turbidity), ozone_du=float(ozone_du)), n_times=3, n_images=0,
+        **options)
+    middle = ds.isel(time=1)
+    return {"v_magnitude": float(middle["v_magnitude"]),
+            "b_minus_v": float(middle["b_minus_v"]),
+            "colour": np.asarray(middle["colour"].values)}
+
+
+def sweep_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    from functools import partial
+
+    from skytorch import plot
+    from skytorch.dataset import to_netcdf
+    from skytorch.sweep import sweep
+
+    turbidity = SWEEP_TURBIDITY[::2] if quick else SWEEP_TURBIDITY
+    ozone = SWEEP_OZONE_DU[::2] if quick else SWEEP_OZONE_DU
+    ds = sweep(partial(moon_colour_at_totality, quick=quick), turbidity=list(turbidity),
+               ozone_du=list(ozone), progress=False,
+               units={"turbidity": "1", "ozone_du": "DU"})
+    path = to_netcdf(ds, output_dir / "sweep_moon_colour.nc")
+    plt = _plt()
+    figure, (left, right) = plt.subplots(1, 2, figsize=(9, 3.8))
+    colours = np.clip(ds["colour"].transpose("turbidity", "ozone_du", ...).values, 0, 1)
+    right.imshow(colours, origin="lower", aspect="auto")
+    right.set_xticks(range(len(ozone)), [f"{v:.0f}" for v in ozone])
+    right.set_yticks(range(len(turbidity)), [f"{v:g}" for v in turbidity])
+    right.set_xlabel("ozone [DU]")
+    right.set_ylabel("turbidity")
+    right.set_title("Moon's colour at totality (sRGB)", fontsize=10)
+    for t in turbidity:
+        plot.profile(list(ozone), {f"T = {t:g}": ds["b_minus_v"].sel(turbidity=t).values},
+                     axes=left, xlabel="ozone [DU]", ylabel="B - V [mag]")
+    left.set_title("B - V at totality", fontsize=10)
+    left.legend(fontsize=8)
+    png = plot.savefig(figure, output_dir / "sweep_moon_colour.png")
+    bv = ds["b_minus_v"].values
+    vmag = ds["v_magnitude"].values
+    return [f"sweep {len(turbidity)} x {len(ozone)} turbidity x ozone -> {path.name}, "
+            f"{png.name}",
+            f"  totality V {vmag.min():+.2f} .. {vmag.max():+.2f}, "
+            f"B-V {bv.min():.2f} .. {bv.max():.2f}"]
+
+
+PARTS = (
+    ("ephemeris", ephemeris_part),
+    ("circumstances", circumstances_part),
+    ("light curve", light_curve_part),
+    ("shadow profile", shadow_profile_part),
+    ("all-sky renders", all_sky_part),
+    ("sweep", sweep_part),
+)
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the demonstration job and print a short summary."""
+    """Run the demonstration job and print a one-screen summary."""
     output_dir = Path(args.output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
-    lines = ["skytorch demo: the 2015-09-28 total lunar eclipse"]
-    lines += _ephemeris_part(output_dir, args.quick)
+    lines = ["skytorch demo: the 2015-09-28 total lunar eclipse"
+             + (" (quick)" if args.quick else "")]
+    state: dict = {}
+    start = time.perf_counter()
+    for name, part in PARTS:
+        began = time.perf_counter()
+        try:
+            lines += part(output_dir, args.quick, state)
+        except ImportError as error:
+            lines.append(f"{name}: SKIPPED ({error})")
+            continue
+        logger.info("%s: %.1f s", name, time.perf_counter() - began)
+    lines.append(f"done in {time.perf_counter() - start:.0f} s; files in {output_dir}")
     print("\n".join(lines))
     return 0

@@ -1,0 +1,24 @@
+"""Scenes: describe a sky, plan what matters, render it, tone-map it.
+
+* :class:`Scene` — observer, time, view, spectral grid, atmosphere, lights, tolerance;
+* :func:`plan` — the effects that can change the image beyond the tolerance
+  (:data:`EFFECTS`, :data:`FIDELITY`);
+* :func:`render` — per-component spectral radiance, XYZ, sRGB, V mag arcsec^-2;
+* :func:`tonemap`, :func:`scene_png` — exposure, night vision, PNG.
+
+Examples
+--------
+>>> import skytorch as st
+>>> ds = st.Scene(time="2015-06-21T12:00", lat_deg=48.85, lon_deg=2.35, size=16,
+...               fidelity="fast").render()
+>>> ds.attrs["effects_computed"]
+'sky,sun'
+"""
+
+from skytorch.scene.planner import EFFECTS, FIDELITY, Plan, plan
+from skytorch.scene.render import COMPONENTS, render
+from skytorch.scene.scene import OUTPUTS, VIEWS, Scene, View
+from skytorch.scene.tonemap import scene_png, tonemap
+
+__all__ = ["COMPONENTS", "EFFECTS", "FIDELITY", "OUTPUTS", "VIEWS", "Plan", "Scene", "View",
+           "plan", "render", "scene_png", "tonemap"]

@@ -1,0 +1,477 @@
+"""Composition of a scene's components into spectral radiance images.
+
+Every component is a spectral radiance image ``(*view, wavelength)``
+[W m^-2 sr^-1 nm^-1]; the image is their sum (Müller et al. 2012, §5: atmosphere,
+then stars, Moon and Sun added as light sources; the Moon's disc and the stars behind it
+overlap in at most one pixel and are not occluded here):
+
+* ``natural`` — airglow, zodiacal light and unresolved stars: a constant background
+  of ``scene.natural_mag_arcsec2`` (22.0 V mag arcsec^-2 at the zenith, Falchi et al.
+  2016) with the solar spectral shape (zodiacal light is scattered sunlight). The
+  van Rhijn brightening of airglow towards the horizon is not modelled.
+* ``sky`` — single-scattered sunlight (:meth:`Atmosphere.sky_radiance`), tabulated on a
+  (view zenith, relative azimuth) grid for the scene's Sun and interpolated bilinearly;
+  the zenith nodes are denser towards the horizon (:math:`z = \\tfrac{\\pi}{2}\\sin
+  \\tfrac{\\pi u}{2}`).
+* ``moon`` — the disc's irradiance (:func:`skytorch.moon.lunar_irradiance`) times the
+  transmittance along the line of sight, spread over the pixel that holds it, plus the
+  moonlit sky (:func:`skytorch.moon.sky.moonlit_sky_single_scattering`) tabulated
+  like the sky; during an eclipse both are multiplied by the relative illuminance of
+  the Earth's shadow (:meth:`skytorch.eclipse.Shadow.relative_illuminance`) at the
+  Moon's centre.
+* ``sun`` — the solar irradiance times the transmittance, spread over its pixel.
+* ``stars`` — catalogue stars (:func:`skytorch.stars.observe`, magnitudes after
+  extinction) with black-body spectra of their B−V temperature
+  (:func:`skytorch.spectrum.bv_to_temperature`) scaled to their V magnitudes.
+* ``skyglow`` — :meth:`skytorch.skyglow.SkyglowModel.render` panorama interpolated to
+  the view (model cached on disk).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+import time as _time
+from functools import lru_cache
+
+import numpy as np
+import torch
+
+from skytorch.constants import ASTRONOMICAL_UNIT_M, MOON_RADIUS_M, SUN_RADIUS_M
+
+logger = logging.getLogger(__name__)
+
+#: components of an image, in composition order
+COMPONENTS = ("natural", "sky", "skyglow", "stars", "moon", "sun")
+#: largest view zenith angle of the moonlit-sky table [rad] (its valid range is < 90°)
+_MAX_MOONLIT_ZENITH = math.radians(89.9)
+
+
+@lru_cache(maxsize=8)
+def cached_atmosphere(turbidity: float, ozone_du: float):
+    """``Atmosphere.earth(turbidity, ozone_du)``, shared by scenes with those parameters."""
+    from skytorch.atmosphere import Atmosphere
+
+    return Atmosphere.earth(turbidity=turbidity, ozone_du=ozone_du)
+
+
+@lru_cache(maxsize=8)
+def _transmittance_table(turbidity: float, ozone_du: float, wavelengths: tuple, n_mu: int,
+                         n_r: int):
+    from skytorch.atmosphere.tables import TransmittanceTable
+
+    return TransmittanceTable.build(cached_atmosphere(turbidity, ozone_du),
+                                    torch.tensor(wavelengths, dtype=torch.float64),
+                                    cache=True, n_mu=n_mu, n_r=n_r)
+
+
+def _zenith_nodes(n: int, dtype) -> torch.Tensor:
+    u = torch.linspace(0.0, 1.0, n, dtype=dtype)
+    return 0.5 * math.pi * torch.sin(0.5 * math.pi * u)
+
+
+def _zenith_coordinate(zenith: torch.Tensor) -> torch.Tensor:
+    """Inverse of :func:`_zenith_nodes` in [0, 1]."""
+    return (2.0 / math.pi) * torch.asin((zenith / (0.5 * math.pi)).clamp(0.0, 1.0))
+
+
+def _lookup(table: torch.Tensor, zenith: torch.Tensor, relative_azimuth: torch.Tensor):
+    """Bilinear look-up of a (zenith node, |relative azimuth| in [0, π], wl) table."""
+    n_z, n_a, n_wl = table.shape
+    u = _zenith_coordinate(zenith.reshape(-1)) * 2.0 - 1.0
+    phi = torch.remainder(relative_azimuth.reshape(-1) + math.pi, 2 * math.pi) - math.pi
+    v = phi.abs() / math.pi * 2.0 - 1.0
+    grid = torch.stack([v, u], dim=-1).to(table.dtype)[None, None]  # (1, 1, P, 2)
+    image = table.permute(2, 0, 1)[None]  # (1, wl, z, a)
+    out = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
+                                          padding_mode="border", align_corners=True)
+    return out[0, :, 0, :].T.reshape(*zenith.shape, n_wl)
+
+
+def sky_table(scene, geometry, knobs, wavelength):
+    """Sunlit-sky spectral radiance on the (zenith, relative azimuth) grid (z, a, wl)."""
+    atm = scene.atmosphere()
+    n_z, n_a = knobs["sky_lut"]
+    zenith = _zenith_nodes(n_z, torch.float64)
+    azimuth = torch.linspace(0.0, math.pi, n_a, dtype=torch.float64)
+    z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
+    sun_zenith = torch.full_like(z, math.radians(90.0 - geometry.sun_altitude_deg))
+    table = _transmittance_table(float(scene.turbidity), float(scene.ozone_du),
+                                 tuple(wavelength.tolist()), *knobs["transmittance"])
+    return atm.sky_radiance(wavelength.to(torch.float64), z, a, sun_zenith,
+                            torch.zeros_like(z), scene.elevation_m, solar_irradiance=True,
+                            n_samples=knobs["sky_samples"], table=table)
+
+
+def moon_table(scene, geometry, knobs, wavelength):
+    """Moonlit-sky spectral radiance on the (zenith, relative azimuth) grid (z, a, wl)."""
+    from skytorch.moon.sky import moonlit_sky_single_scattering
+
+    n_z, n_a = knobs["moon_lut"]
+    zenith = _zenith_nodes(n_z, torch.float64).clamp(max=_MAX_MOONLIT_ZENITH)
+    azimuth = torch.linspace(0.0, math.pi, n_a, dtype=torch.float64)
+    z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
+    moon_zenith = min(math.radians(90.0 - geometry.moon_altitude_deg), _MAX_MOONLIT_ZENITH)
+    return moonlit_sky_single_scattering(
+        scene.atmosphere(), torch.tensor(geometry.phase_angle_rad, dtype=torch.float64),
+        torch.tensor(moon_zenith, dtype=torch.float64), z, a,
+        wavelength_nm=wavelength.to(torch.float64), distance_m=geometry.moon_distance_m,
+        altitude_m=scene.elevation_m, n_steps=knobs["moon_steps"],
+        n_quadrature=knobs["moon_quadrature"])
+
+
+def eclipse_factor(scene, geometry, wavelength) -> torch.Tensor:
+    """Relative illuminance of the Earth's shadow at the Moon's centre (n_wavelength,)."""
+    from skytorch.eclipse import Shadow
+
+    shadow = Shadow.earth(scene.atmosphere(), sun_distance_m=geometry.sun_distance_m)
+    return shadow.relative_illuminance(
+        torch.tensor(geometry.shadow_distance_m, dtype=torch.float64),
+        torch.tensor(geometry.shadow_offset_m, dtype=torch.float64),
+        wavelength.to(torch.float64))
+
+
+def _splat(view, altitude_rad, azimuth_rad, flux, n_wavelength, dtype) -> torch.Tensor:
+    """Spread point fluxes (n, wl) [W m^-2 nm^-1] over their pixels as radiance."""
+    image = torch.zeros(math.prod(view.shape), n_wavelength, dtype=dtype)
+    index = view.pixel_index(altitude_rad, azimuth_rad)
+    keep = index >= 0
+    if bool(keep.any()):
+        image.index_add_(0, index[keep], flux[keep].to(dtype))
+    solid = view.solid_angle_sr.reshape(-1, 1).to(dtype)
+    image = torch.where(solid > 0, image / solid.clamp(min=1e-300), torch.zeros_like(image))
+    return image.reshape(*view.shape, n_wavelength)
+
+
+def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux,
+          dtype) -> torch.Tensor:
+    """A uniform disc of angular radius ``radius_rad`` and total flux (wl,) as radiance.
+
+    Pixels whose centres lie within the radius share the flux in proportion to their
+    solid angle; a disc smaller than a pixel falls in the pixel that holds its centre.
+    """
+    n_wavelength = flux.shape[-1]
+    if view.kind == "directions" or altitude_rad + radius_rad < 0.0:
+        return torch.zeros(*view.shape, n_wavelength, dtype=dtype)
+    zenith = view.zenith_rad.to(torch.float64)
+    azimuth = view.azimuth_rad.to(torch.float64)
+    point_zenith = 0.5 * math.pi - altitude_rad
+    cos_distance = (math.cos(point_zenith) * torch.cos(zenith) + math.sin(point_zenith)
+                    * torch.sin(zenith) * torch.cos(azimuth - azimuth_rad))
+    inside = (cos_distance >= math.cos(radius_rad)) & (view.solid_angle_sr > 0)
+    if not bool(inside.any()):
+        return _splat(view, torch.tensor([altitude_rad]), torch.tensor([azimuth_rad]),
+                      flux[None], n_wavelength, dtype)
+    weight = torch.where(inside, torch.ones_like(zenith), torch.zeros_like(zenith))
+    radiance = flux.to(torch.float64) / float((weight * view.solid_angle_sr).sum())
+    return (weight[..., None] * radiance).to(dtype)
+
+
+def _apparent(scene, altitude_deg: float, refraction: bool) -> float:
+    true = math.radians(altitude_deg)
+    if not refraction:
+        return true
+    atm = scene.atmosphere()
+    value = atm.apparent_altitude(torch.tensor(max(true, math.radians(-1.0)),
+                                               dtype=torch.float64), scene.elevation_m)
+    return float(value)
+
+
+def _point_transmittance(scene, altitude_rad: float, wavelength) -> torch.Tensor:
+    zenith = min(0.5 * math.pi - altitude_rad, 0.5 * math.pi)
+    return scene.atmosphere().transmittance(wavelength.to(torch.float64),
+                                            torch.tensor(zenith, dtype=torch.float64),
+                                            scene.elevation_m)
+
+
+def natural_component(scene, view, wavelength) -> torch.Tensor:
+    """Constant natural background of ``scene.natural_mag_arcsec2`` (solar shape)."""
+    from skytorch.moon.sky import radiance_to_mag_arcsec2
+    from skytorch.spectrum import solar_irradiance
+
+    shape = solar_irradiance(wavelength.to(torch.float64))
+    mag = float(radiance_to_mag_arcsec2(shape, wavelength.to(torch.float64)))
+    spectrum = shape * 10.0 ** (-0.4 * (scene.natural_mag_arcsec2 - mag))
+    valid = view.valid[..., None].to(scene.dtype)
+    return valid * spectrum.to(scene.dtype)
+
+
+def sun_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
+    from skytorch.spectrum import solar_irradiance
+
+    altitude = _apparent(scene, geometry.sun_altitude_deg, refraction)
+    flux = (solar_irradiance(wavelength.to(torch.float64))
+            * _point_transmittance(scene, max(altitude, 0.0), wavelength))
+    flux = flux * (ASTRONOMICAL_UNIT_M / geometry.sun_distance_m) ** 2
+    radius = math.asin(SUN_RADIUS_M / geometry.sun_distance_m)
+    return _disc(view, altitude, math.radians(geometry.sun_azimuth_deg), radius, flux,
+                 scene.dtype)
+
+
+def moon_component(scene, view, geometry, wavelength, knobs, *, earthshine: bool,
+                   eclipse, refraction: bool) -> torch.Tensor:
+    from skytorch.moon import lunar_irradiance
+
+    wl = wavelength.to(torch.float64)
+    altitude = _apparent(scene, geometry.moon_altitude_deg, refraction)
+    irradiance = lunar_irradiance(torch.tensor(geometry.phase_angle_rad, dtype=torch.float64),
+                                  wl, distance_m=geometry.moon_distance_m,
+                                  sun_distance_m=geometry.sun_distance_m,
+                                  earthshine=earthshine,
+                                  n_quadrature=knobs["moon_disc_quadrature"])
+    factor = torch.ones_like(wl) if eclipse is None else eclipse
+    flux = irradiance * _point_transmittance(scene, max(altitude, 0.0), wavelength) * factor
+    radius = math.asin(MOON_RADIUS_M / geometry.moon_distance_m)
+    disc = _disc(view, altitude, math.radians(geometry.moon_azimuth_deg), radius, flux,
+                 scene.dtype)
+    if altitude < 0.0:  # below the horizon: single scattering of a set Moon is omitted
+        return disc
+    table = moon_table(scene, geometry, knobs, wavelength) * factor
+    relative = view.azimuth_rad.to(torch.float64) - math.radians(geometry.moon_azimuth_deg)
+    sky = _lookup(table, view.zenith_rad.to(torch.float64).clamp(max=_MAX_MOONLIT_ZENITH),
+                  relative)
+    return disc + sky.to(scene.dtype) * view.valid[..., None].to(scene.dtype)
+
+
+def sky_component(scene, view, geometry, wavelength, knobs) -> torch.Tensor:
+    table = sky_table(scene, geometry, knobs, wavelength)
+    relative = view.azimuth_rad.to(torch.float64) - math.radians(geometry.sun_azimuth_deg)
+    sky = _lookup(table, view.zenith_rad.to(torch.float64), relative)
+    return sky.to(scene.dtype) * view.valid[..., None].to(scene.dtype)
+
+
+def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tensor:
+    """Black-body spectral irradiance (star, wl) [W m^-2 nm^-1] with V magnitudes ``vmag``."""
+    from skytorch.spectrum import blackbody_radiance, bv_to_temperature, spectrum_to_magnitude
+
+    wl = wavelength.to(torch.float64)
+    temperature = bv_to_temperature(bv.clamp(-0.4, 2.0))
+    shape = blackbody_radiance(wl, temperature[:, None])
+    mag = spectrum_to_magnitude(shape, wl, band="V")
+    return shape * (10.0 ** (-0.4 * (vmag - mag)))[:, None]
+
+
+def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
+    from skytorch.scene.planner import catalogue
+    from skytorch.stars import observe
+
+    cat = catalogue(float(scene.star_limit_mag))
+    ds = observe(cat, [scene.time], scene.lat_deg, scene.lon_deg, scene.elevation_m,
+                 atmosphere=scene.atmosphere(), refraction=refraction)
+    altitude = torch.as_tensor(np.deg2rad(ds["altitude"].values[0]))
+    azimuth = torch.as_tensor(np.deg2rad(ds["azimuth"].values[0]))
+    up = altitude > 0
+    mag = torch.as_tensor(ds["magnitude"].values[0])[up]
+    bv = torch.as_tensor(ds["bv"].values)[up]
+    flux = star_spectra(mag, bv, wavelength)
+    return _splat(view, altitude[up], azimuth[up], flux, wavelength.numel(), scene.dtype)
+
+
+def _skyglow_key(scene, wavelength, settings) -> str:
+    text = json.dumps({"turbidity": float(scene.turbidity), "ozone_du": float(scene.ozone_du),
+                       "wavelength": [float(v) for v in wavelength.tolist()],
+                       "settings": settings, "format": 1}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def skyglow_model(scene, wavelength, settings):
+    """The skyglow model for the scene's atmosphere and fidelity (disk-cached)."""
+    from skytorch.atmosphere.tables import cache_directory
+    from skytorch.skyglow import SkyglowModel
+
+    path = cache_directory() / f"skyglow_{_skyglow_key(scene, wavelength, settings)}.nc"
+    if path.exists():
+        try:
+            return SkyglowModel.load(path)
+        except (OSError, ValueError, KeyError) as error:  # rebuilt below
+            logger.warning("skyglow cache %s unreadable (%s); rebuilding", path, error)
+    model = SkyglowModel.precompute(scene.atmosphere(), wavelength_nm=wavelength.to(
+        torch.float64), progress=False, **settings)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        model.save(path)
+    except OSError as error:
+        logger.warning("could not cache the skyglow model at %s: %s", path, error)
+    return model
+
+
+def skyglow_component(scene, view, wavelength, knobs) -> torch.Tensor:
+    model = skyglow_model(scene, wavelength, knobs["skyglow"])
+    out = model.render(scene.light_map, observer_xy=tuple(scene.observer_xy),
+                       lamp=scene.lamp, as_dataset=False)
+    panorama = out["radiance"].to(torch.float64)  # (elevation, azimuth, wl)
+    elevation = model.elevation_rad.to(torch.float64)
+    azimuth = model.azimuth_rad.to(torch.float64)
+    # periodic in azimuth: append the first column after the last
+    panorama = torch.cat([panorama, panorama[:, :1]], dim=1)
+    azimuth = torch.cat([azimuth, azimuth[:1] + 2 * math.pi])
+    alt = (0.5 * math.pi - view.zenith_rad.to(torch.float64)).reshape(-1)
+    az = torch.remainder(view.azimuth_rad.to(torch.float64).reshape(-1) - azimuth[0],
+                         2 * math.pi) + azimuth[0]
+    u = _fractional(elevation, alt)
+    v = _fractional(azimuth, az)
+    grid = torch.stack([v, u], -1)[None, None]
+    image = panorama.permute(2, 0, 1)[None]
+    sampled = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
+                                              padding_mode="border", align_corners=True)
+    sampled = sampled[0, :, 0, :].T.reshape(*view.shape, -1)
+    return sampled.to(scene.dtype) * view.valid[..., None].to(scene.dtype)
+
+
+def _fractional(nodes: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+    """Normalised [-1, 1] grid coordinate of values on increasing nodes (linear inside)."""
+    index = torch.searchsorted(nodes, values.contiguous()).clamp(1, nodes.numel() - 1)
+    left, right = nodes[index - 1], nodes[index]
+    position = (index - 1) + ((values - left) / (right - left)).clamp(0.0, 1.0)
+    position = torch.where(values < nodes[0], torch.zeros_like(position), position)
+    return position / (nodes.numel() - 1) * 2.0 - 1.0
+
+
+def render_components(scene, plan, view) -> tuple[dict, dict]:
+    """Spectral radiance of each component (*view, wl) and the seconds each took."""
+    from skytorch.scene.planner import FIDELITY
+
+    knobs = FIDELITY[scene.fidelity]
+    wavelength = scene.wavelength_nm()
+    g = plan.geometry
+    refraction = "refraction" in plan.computed
+    components, seconds = {}, {}
+
+    def timed(name, fn):
+        start = _time.perf_counter()
+        components[name] = fn()
+        seconds[name] = _time.perf_counter() - start
+
+    timed("natural", lambda: natural_component(scene, view, wavelength))
+    if "sky" in plan.computed:
+        timed("sky", lambda: sky_component(scene, view, g, wavelength, knobs))
+    if "skyglow" in plan.computed:
+        timed("skyglow", lambda: skyglow_component(scene, view, wavelength, knobs))
+    if "stars" in plan.computed:
+        timed("stars", lambda: stars_component(scene, view, g, wavelength, refraction))
+    if "moon" in plan.computed:
+        eclipse = None
+        if "eclipse" in plan.computed:
+            eclipse = (plan.eclipse_factor if plan.eclipse_factor is not None
+                       else eclipse_factor(scene, g, wavelength))
+        timed("moon", lambda: moon_component(
+            scene, view, g, wavelength, knobs, earthshine="earthshine" in plan.computed,
+            eclipse=eclipse, refraction=refraction))
+    if "sun" in plan.computed:
+        timed("sun", lambda: sun_component(scene, view, g, wavelength, refraction))
+    return components, seconds
+
+
+def render(scene, plan=None):
+    """Render ``scene`` to a Dataset (see :func:`skytorch.scene.dataset.scene_dataset`)."""
+    from skytorch.scene.planner import plan as make_plan
+
+    view = scene.make_view()
+    plan = make_plan(scene, view) if plan is None else plan
+    start = _time.perf_counter()
+    components, seconds = render_components(scene, plan, view)
+    total = sum(components.values())
+    seconds["total"] = _time.perf_counter() - start
+    return scene_dataset(scene, view, plan, components, total, seconds)
+
+
+def scene_dataset(scene, view, plan, components, total, seconds):
+    """Dataset of a rendered scene: per-component and total radiance, XYZ, sRGB, V mag."""
+    from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
+    from skytorch.moon.sky import radiance_to_mag_arcsec2
+    from skytorch.scene.tonemap import tonemap
+    from skytorch.spectrum import spectrum_to_xyz
+
+    wavelength = scene.wavelength_nm()
+    dims = view.dims
+    coords = {name: coordinate(name, values, _COORD_SPECS[name])
+              for name, values in view.coords.items()}
+    coords["wavelength"] = coordinate("wavelength", wavelength, VariableSpec(
+        "nm", "wavelength", "Vacuum wavelength.", "radiation_wavelength"))
+    coords["component"] = coordinate("component", np.array(list(components)), VariableSpec(
+        "1", "image component", "Light source of the component (see docs/scene.md)."))
+    data = {
+        "altitude": variable(dims, 90.0 - torch.rad2deg(view.zenith_rad), VariableSpec(
+            "degree", "altitude of the view direction", "Above the horizon.")),
+        "azimuth_of_view": variable(dims, torch.rad2deg(view.azimuth_rad), VariableSpec(
+            "degree", "azimuth of the view direction", "From north through east.")),
+        "solid_angle": variable(dims, view.solid_angle_sr, VariableSpec(
+            "sr", "pixel solid angle", "Solid angle of each pixel (0 off the sky).")),
+    }
+    outputs = scene.outputs
+    if "spectral" in outputs:
+        data["radiance"] = variable((*dims, "wavelength"), total, VariableSpec(
+            "W m-2 sr-1 nm-1", "sky spectral radiance", "Sum of the components."))
+        data["component_radiance"] = variable(
+            ("component", *dims, "wavelength"), torch.stack(list(components.values())),
+            VariableSpec("W m-2 sr-1 nm-1", "spectral radiance of each component",
+                         "Radiance of each light source; the sum is radiance."))
+    xyz = spectrum_to_xyz(total, wavelength, luminous=True)
+    if "xyz" in outputs:
+        coords["tristimulus"] = coordinate("tristimulus", np.array(["X", "Y", "Z"]), VariableSpec(
+            "1", "CIE 1931 tristimulus", "X, Y, Z"))
+        data["xyz"] = variable((*dims, "tristimulus"), xyz, VariableSpec(
+            "cd m-2", "CIE 1931 XYZ", "Tristimulus values with K_m = 683 lm/W (Y is "
+            "luminance)."))
+        data["luminance"] = variable(dims, xyz[..., 1], VariableSpec(
+            "cd m-2", "luminance", "Photopic luminance of the sky.",
+            "surface_photopic_radiance"))
+    if "srgb" in outputs:
+        coords["channel"] = coordinate("channel", np.array(["R", "G", "B"]), VariableSpec(
+            "1", "sRGB channel", "R, G, B"))
+        rgb, exposure = tonemap(xyz, view.valid)
+        data["srgb"] = variable((*dims, "channel"), rgb, VariableSpec(
+            "1", "tone-mapped sRGB", "Display sRGB in [0, 1] (exposure and Reinhard "
+            "operator, skytorch.scene.tonemap)."))
+    if "v_mag" in outputs:
+        mags = radiance_to_mag_arcsec2(total.to(torch.float64).clamp(min=1e-300),
+                                       wavelength.to(torch.float64))
+        mags = torch.where(view.valid, mags, torch.full_like(mags, float("nan")))
+        data["v_mag_arcsec2"] = variable(dims, mags, VariableSpec(
+            "mag arcsec-2", "V surface brightness", "Johnson V surface brightness of the "
+            "sky (NaN off the sky)."))
+    g = plan.geometry
+    parameters = scene.parameters()
+    parameters.update({f"seconds_{k}": round(v, 4) for k, v in seconds.items()})
+    parameters["seconds_plan"] = round(plan.seconds, 4)
+    parameters.update({
+        "sun_altitude_deg": g.sun_altitude_deg, "sun_azimuth_deg": g.sun_azimuth_deg,
+        "moon_altitude_deg": g.moon_altitude_deg, "moon_azimuth_deg": g.moon_azimuth_deg,
+        "moon_phase_angle_deg": math.degrees(g.phase_angle_rad),
+        "moon_shadow_offset_km": g.shadow_offset_m / 1e3,
+        "penumbra_radius_km": g.penumbra_radius_m / 1e3,
+    })
+    if "srgb" in outputs:
+        parameters["exposure"] = exposure
+    ds = build_dataset(data, coords, title=f"Sky scene at {str(scene.time)[:19]} UTC",
+                       references=list(REFERENCES), parameters=parameters)
+    ds.attrs.update(plan.attrs())
+    return ds
+
+
+REFERENCES = (
+    "Müller, Engel & Döllner 2012, Single-Pass Rendering of Day and Night Sky Phenomena, "
+    "VMV 2012, doi:10.2312/PE/VMV/VMV12/055-062",
+    "Falchi et al. 2016, The new world atlas of artificial night sky brightness, "
+    "Sci. Adv. 2, e1600377, doi:10.1126/sciadv.1600377",
+    "Reinhard et al. 2002, Photographic tone reproduction for digital images, "
+    "ACM TOG 21, 267, doi:10.1145/566654.566575",
+)
+
+
+def _coord_spec(units, name, description):
+    from skytorch.dataset import VariableSpec
+
+    return VariableSpec(units, name, description)
+
+
+_COORD_SPECS = {
+    "x": _coord_spec("1", "fisheye x", "Image x in units of the horizon radius (west +)."),
+    "y": _coord_spec("1", "fisheye y", "Image y in units of the horizon radius (north +)."),
+    "elevation": _coord_spec("degree", "elevation", "Elevation of the pixel centre."),
+    "azimuth": _coord_spec("degree", "azimuth", "Azimuth of the pixel centre from north "
+                                                "through east."),
+    "direction": _coord_spec("1", "direction index", "Index of the view direction."),
+}

@@ -1,0 +1,413 @@
+"""Scene description: observer, time, view, spectral grid, atmosphere, lights, tolerance.
+
+A :class:`Scene` holds what a user asks for; :meth:`Scene.plan` decides which effects
+can change the image beyond the tolerance (:mod:`skytorch.scene.planner`) and
+:meth:`Scene.render` composes the components (:mod:`skytorch.scene.render`) into an
+``xarray.Dataset``.
+
+Views
+-----
+``"fisheye"``
+    All-sky azimuthal-equidistant image of ``size × size`` pixels, north up and east to
+    the left (as seen looking up); the zenith distance grows linearly with the radius
+    to 90° at the rim. Dimensions ``(y, x)``.
+``"panorama"``
+    Equirectangular ``size × 2 size`` grid of elevation (0–90°) by azimuth (0–360°,
+    from north through east). Dimensions ``(elevation, azimuth)``.
+directions
+    A mapping or pair of arrays of altitude and azimuth [degree]: dimension
+    ``direction``. Point sources (Sun disc, Moon disc, stars) occupy no direction of
+    such a view and are not drawn.
+
+Examples
+--------
+>>> import skytorch as st
+>>> scene = st.Scene(time="2015-09-28T02:47", lat_deg=52.52, lon_deg=13.40, size=32)
+>>> plan = scene.plan()
+>>> "eclipse" in plan.computed
+True
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from skytorch._validate import check_choice, check_int, check_positive, check_range
+
+#: view kinds of a scene
+VIEWS = ("fisheye", "panorama", "directions")
+#: outputs a scene can produce
+OUTPUTS = ("spectral", "xyz", "srgb", "v_mag")
+#: fidelity presets (see :data:`skytorch.scene.planner.FIDELITY`)
+FIDELITY_PRESETS = ("fast", "default", "reference")
+
+
+@dataclass
+class View:
+    """Directions of the pixels of a scene and their solid angles.
+
+    Attributes
+    ----------
+    dims : tuple of str
+        Dataset dimensions of the image.
+    coords : dict
+        Coordinate arrays of those dimensions.
+    zenith_rad, azimuth_rad : Tensor (*dims)
+        Direction of each pixel centre [rad] (azimuth from north through east).
+    solid_angle_sr : Tensor (*dims)
+        Solid angle of each pixel [sr] (zero outside a fisheye's circle or for a
+        directions view).
+    valid : Tensor (*dims) bool
+        Pixels that show the sky.
+    pixel_rad : float
+        Angular size of a pixel at its centre [rad] (0 for directions).
+    """
+
+    kind: str
+    dims: tuple[str, ...]
+    coords: dict
+    zenith_rad: torch.Tensor
+    azimuth_rad: torch.Tensor
+    solid_angle_sr: torch.Tensor
+    valid: torch.Tensor
+    pixel_rad: float
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(self.zenith_rad.shape)
+
+    def pixel_index(self, altitude_rad: torch.Tensor, azimuth_rad: torch.Tensor) -> torch.Tensor:
+        """Flat index of the pixel holding each point (-1 outside the image).
+
+        Parameters
+        ----------
+        altitude_rad, azimuth_rad : Tensor (n,)
+            Directions of point sources [rad].
+
+        Returns
+        -------
+        Tensor (n,) int64
+        """
+        altitude = torch.as_tensor(altitude_rad, dtype=torch.float64)
+        azimuth = torch.as_tensor(azimuth_rad, dtype=torch.float64)
+        outside = torch.full(altitude.shape, -1, dtype=torch.int64)
+        if self.kind == "directions":
+            return outside
+        zenith = 0.5 * math.pi - altitude
+        if self.kind == "fisheye":
+            n = self.shape[0]
+            radius = zenith / (0.5 * math.pi)
+            x = -radius * torch.sin(azimuth)
+            y = radius * torch.cos(azimuth)
+            column = torch.floor((x + 1.0) * 0.5 * n).long()
+            row = torch.floor((1.0 - y) * 0.5 * n).long()
+            index = row * n + column
+            inside = (altitude >= 0.0) & (column >= 0) & (column < n) & (row >= 0) & (row < n)
+        else:
+            n_el, n_az = self.shape
+            row = torch.floor(altitude / (0.5 * math.pi) * n_el).long()
+            column = torch.floor(torch.remainder(azimuth, 2 * math.pi) / (2 * math.pi)
+                                 * n_az).long().clamp(max=n_az - 1)
+            index = row * n_az + column
+            inside = (altitude >= 0.0) & (row < n_el)
+        index = torch.where(inside, index, outside)
+        if self.kind == "fisheye":
+            flat_valid = self.valid.reshape(-1)
+            index = torch.where(index >= 0, torch.where(flat_valid[index.clamp(min=0)], index,
+                                                        outside), outside)
+        return index
+
+
+def fisheye_view(size: int, dtype=torch.float64) -> View:
+    """All-sky azimuthal-equidistant view of ``size × size`` pixels (north up, east left).
+
+    The solid angle of a pixel is :math:`\\sin z\\,(\\pi/2)/r\\,\\Delta x\\,\\Delta y` with
+    :math:`z = r\\pi/2` (the Jacobian of the equidistant projection).
+    """
+    size = check_int("size", size, 2)
+    centres = (torch.arange(size, dtype=dtype) + 0.5) / size * 2.0 - 1.0
+    y, x = torch.meshgrid(-centres, centres, indexing="ij")
+    radius = torch.sqrt(x * x + y * y)
+    zenith = radius * (0.5 * math.pi)
+    azimuth = torch.remainder(torch.atan2(-x, y), 2 * math.pi)
+    valid = radius <= 1.0
+    pixel_area = (2.0 / size) ** 2
+    jacobian = (0.5 * math.pi) ** 2 * torch.sinc(zenith / math.pi)  # sin z (pi/2) / r
+    solid_angle = torch.where(valid, jacobian * pixel_area, torch.zeros_like(zenith))
+    coords = {"y": np.asarray(-centres), "x": np.asarray(centres)}
+    return View("fisheye", ("y", "x"), coords, zenith.clamp(max=0.5 * math.pi), azimuth,
+                solid_angle, valid, math.pi / size)
+
+
+def panorama_view(size: int, dtype=torch.float64) -> View:
+    """Equirectangular view: ``size`` elevations (0–90°) by ``2 size`` azimuths."""
+    size = check_int("size", size, 2)
+    d_el = 0.5 * math.pi / size
+    d_az = 2 * math.pi / (2 * size)
+    elevation = (torch.arange(size, dtype=dtype) + 0.5) * d_el
+    azimuth = (torch.arange(2 * size, dtype=dtype) + 0.5) * d_az
+    el, az = torch.meshgrid(elevation, azimuth, indexing="ij")
+    solid_angle = torch.cos(el) * d_el * d_az
+    coords = {"elevation": np.degrees(elevation.numpy()), "azimuth": np.degrees(azimuth.numpy())}
+    return View("panorama", ("elevation", "azimuth"), coords, 0.5 * math.pi - el, az,
+                solid_angle, torch.ones_like(el, dtype=torch.bool), d_el)
+
+
+def directions_view(altitude_deg, azimuth_deg, dtype=torch.float64) -> View:
+    """A list of view directions (altitude, azimuth) [degree] (dimension ``direction``)."""
+    altitude = torch.as_tensor(np.asarray(altitude_deg, dtype=float), dtype=dtype).reshape(-1)
+    azimuth = torch.as_tensor(np.asarray(azimuth_deg, dtype=float), dtype=dtype).reshape(-1)
+    if altitude.shape != azimuth.shape:
+        raise ValueError("directions: altitude_deg and azimuth_deg must have the same length; "
+                         f"got {altitude.numel()} and {azimuth.numel()}")
+    check_range("directions altitude_deg", altitude, 0.0, 90.0, unit="degree")
+    n = altitude.numel()
+    coords = {"direction": np.arange(n)}
+    return View("directions", ("direction",), coords, torch.deg2rad(90.0 - altitude),
+                torch.deg2rad(azimuth), torch.zeros(n, dtype=dtype),
+                torch.ones(n, dtype=torch.bool), 0.0)
+
+
+def _tuple(value) -> tuple[str, ...]:
+    if value is None:
+        return ()
+    if isinstance(value, str):
+        return tuple(v.strip() for v in value.split(",") if v.strip())
+    return tuple(value)
+
+
+@dataclass
+class Scene:
+    """A sky to render: observer, time, view, spectral grid, atmosphere, lights, tolerance.
+
+    Parameters
+    ----------
+    time : str, datetime or datetime64
+        UTC instant of the scene.
+    lat_deg, lon_deg : float
+        Geodetic latitude and east longitude of the observer [degree].
+    elevation_m : float
+        Observer height above the ellipsoid [m].
+    view : {"fisheye", "panorama", "directions"}
+        Image geometry (module docstring).
+    size : int
+        Pixels across a fisheye (``size × size``) or elevations of a panorama.
+    directions : mapping, optional
+        ``{"altitude_deg": [...], "azimuth_deg": [...]}`` for ``view="directions"``.
+    wavelengths : str or sequence of float
+        A preset of :func:`skytorch.spectrum.wavelength_grid` ("rgb", "bands15",
+        "cie5") or wavelengths [nm].
+    turbidity, ozone_du : float
+        Atmosphere parameters (:meth:`skytorch.atmosphere.Atmosphere.earth`).
+    light_map : xarray.Dataset, optional
+        City lights (``flux`` [lm] on ``(y, x)`` [m] around the observer), see
+        :meth:`skytorch.skyglow.SkyglowModel.render`.
+    observer_xy : (float, float)
+        Observer position in the light map's frame [m].
+    lamp : str
+        Lamp spectrum of the lights (:data:`skytorch.skyglow.lamps.LAMPS`).
+    tolerance : float
+        Largest relative change of the image's V-band flux (L1 over the pixels) an
+        omitted effect may cause; see :mod:`skytorch.scene.planner`.
+    fidelity : {"fast", "default", "reference"}
+        Knob preset of the modules (:data:`skytorch.scene.planner.FIDELITY`).
+    force, exclude : sequence of str
+        Effects always computed / never computed (planner vocabulary).
+    outputs : sequence of str
+        Any of "spectral", "xyz", "srgb", "v_mag".
+    star_limit_mag : float
+        Faintest catalogue star drawn [V mag].
+    natural_mag_arcsec2 : float
+        Natural sky background at the zenith (airglow + zodiacal light + faint stars)
+        [V mag arcsec^-2]; 22.0 after Falchi et al. (2016).
+    dtype : torch.dtype
+        Floating type of the computation.
+    """
+
+    time: object = "2015-09-28T02:47:00"
+    lat_deg: float = 52.52
+    lon_deg: float = 13.40
+    elevation_m: float = 0.0
+    view: str = "fisheye"
+    size: int = 256
+    directions: Mapping | None = None
+    wavelengths: object = "rgb"
+    turbidity: float = 2.0
+    ozone_du: float = 300.0
+    light_map: object = None
+    observer_xy: tuple = (0.0, 0.0)
+    lamp: str = "white"
+    tolerance: float = 0.01
+    fidelity: str = "default"
+    force: Sequence[str] = field(default_factory=tuple)
+    exclude: Sequence[str] = field(default_factory=tuple)
+    outputs: Sequence[str] = ("spectral", "xyz", "srgb", "v_mag")
+    star_limit_mag: float = 6.5
+    natural_mag_arcsec2: float = 22.0
+    dtype: torch.dtype = torch.float64
+
+    def __post_init__(self):
+        from skytorch.ephemeris import parse_times
+        from skytorch.scene.planner import EFFECTS
+
+        self.time = parse_times(self.time)
+        if self.time.shape != (1,):
+            raise ValueError(f"time: one instant per scene; got {self.time.size}")
+        self.time = self.time[0]
+        check_range("lat_deg", self.lat_deg, -90.0, 90.0, unit="degree")
+        check_range("lon_deg", self.lon_deg, -180.0, 360.0, unit="degree")
+        check_range("elevation_m", self.elevation_m, -500.0, 20_000.0, unit="m")
+        check_choice("view", self.view, VIEWS)
+        self.size = check_int("size", self.size, 2)
+        check_range("tolerance", self.tolerance, 0.0, 1.0)
+        check_choice("fidelity", self.fidelity, FIDELITY_PRESETS)
+        check_positive("turbidity", self.turbidity)
+        check_range("ozone_du", self.ozone_du, 0.0, 1000.0, unit="DU")
+        self.force = _tuple(self.force)
+        self.exclude = _tuple(self.exclude)
+        self.outputs = _tuple(self.outputs)
+        for name in (*self.force, *self.exclude):
+            check_choice("force/exclude effect", name, EFFECTS)
+        for name in self.outputs:
+            check_choice("outputs", name, OUTPUTS)
+        both = set(self.force) & set(self.exclude)
+        if both:
+            raise ValueError(f"force and exclude both name {sorted(both)}")
+        if self.view == "directions" and self.directions is None:
+            raise ValueError("view='directions' needs directions={'altitude_deg': [...], "
+                             "'azimuth_deg': [...]}")
+        if self.dtype not in (torch.float32, torch.float64):
+            raise TypeError(f"dtype must be torch.float32 or torch.float64; got {self.dtype}")
+
+    # ------------------------------------------------------------------ pieces
+    def wavelength_nm(self) -> torch.Tensor:
+        """The scene's wavelength grid (n_wavelength,) [nm]."""
+        from skytorch.spectrum import wavelength_grid
+
+        if isinstance(self.wavelengths, str):
+            return wavelength_grid(self.wavelengths, dtype=self.dtype)
+        return torch.as_tensor(np.asarray(self.wavelengths, dtype=float), dtype=self.dtype)
+
+    def make_view(self) -> View:
+        """The :class:`View` of the scene."""
+        if self.view == "fisheye":
+            return fisheye_view(self.size, self.dtype)
+        if self.view == "panorama":
+            return panorama_view(self.size, self.dtype)
+        return directions_view(self.directions["altitude_deg"], self.directions["azimuth_deg"],
+                               self.dtype)
+
+    def atmosphere(self):
+        """The scene's :class:`skytorch.atmosphere.Atmosphere` (cached per parameters)."""
+        from skytorch.scene.render import cached_atmosphere
+
+        return cached_atmosphere(float(self.turbidity), float(self.ozone_du))
+
+    def replace(self, **changes) -> Scene:
+        """A copy with some fields changed."""
+        return replace(self, **changes)
+
+    def parameters(self) -> dict:
+        """The scene's parameters as netCDF-safe values (Dataset attributes)."""
+        out = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name == "light_map":
+                value = "none" if value is None else "given"
+            elif f.name == "time":
+                value = str(value)[:26]
+            elif f.name == "dtype":
+                value = str(value).replace("torch.", "")
+            elif f.name == "wavelengths" and not isinstance(value, str):
+                value = [float(v) for v in np.asarray(value).reshape(-1)]
+            elif f.name in ("force", "exclude", "outputs"):
+                value = ",".join(value)
+            elif f.name == "directions":
+                value = "none" if value is None else "given"
+            elif isinstance(value, tuple):
+                value = list(value)
+            out[f.name] = value
+        return out
+
+    # ------------------------------------------------------------------ actions
+    def plan(self):
+        """Decide the effects to compute (:func:`skytorch.scene.planner.plan`)."""
+        from skytorch.scene.planner import plan
+
+        return plan(self)
+
+    def render(self, plan=None):
+        """Render the scene to a Dataset (:func:`skytorch.scene.render.render`)."""
+        from skytorch.scene.render import render
+
+        return render(self, plan)
+
+    # ------------------------------------------------------------------ TOML
+    @classmethod
+    def from_dict(cls, config: Mapping, base_dir: Path | None = None) -> Scene:
+        """Build a scene from a mapping (the TOML scene format, see ``docs/scene.md``).
+
+        Tables ``[observer]`` (lat_deg, lon_deg, elevation_m), ``[view]`` (kind, size,
+        altitude_deg, azimuth_deg), ``[atmosphere]`` (turbidity, ozone_du), ``[lights]``
+        (``file`` = a netCDF light map, or ``synthetic_city`` = keyword table of
+        :func:`skytorch.skyglow.citymap.synthetic_city`; observer_xy, lamp),
+        ``[planner]`` (tolerance, fidelity, force, exclude) and top-level time,
+        wavelengths, outputs, star_limit_mag, natural_mag_arcsec2.
+        """
+        config = dict(config)
+        kwargs: dict = {}
+        observer = dict(config.pop("observer", {}))
+        kwargs.update(observer)
+        view = dict(config.pop("view", {}))
+        if "kind" in view:
+            kwargs["view"] = view.pop("kind")
+        if "size" in view:
+            kwargs["size"] = view.pop("size")
+        if "altitude_deg" in view or "azimuth_deg" in view:
+            kwargs["directions"] = {"altitude_deg": view.pop("altitude_deg"),
+                                    "azimuth_deg": view.pop("azimuth_deg")}
+        kwargs.update(dict(config.pop("atmosphere", {})))
+        kwargs.update(dict(config.pop("planner", {})))
+        lights = dict(config.pop("lights", {}))
+        if "file" in lights:
+            from skytorch.dataset import open_dataset
+
+            path = Path(lights.pop("file"))
+            if base_dir is not None and not path.is_absolute():
+                path = base_dir / path
+            kwargs["light_map"] = open_dataset(path)
+        if "synthetic_city" in lights:
+            from skytorch.skyglow.citymap import synthetic_city
+
+            options = dict(lights.pop("synthetic_city"))
+            if "centre_xy" in options:
+                options["centre_xy"] = tuple(options["centre_xy"])
+            kwargs["light_map"] = synthetic_city(**options)
+        if "observer_xy" in lights:
+            kwargs["observer_xy"] = tuple(lights.pop("observer_xy"))
+        if "lamp" in lights:
+            kwargs["lamp"] = lights.pop("lamp")
+        if "dtype" in config:
+            kwargs["dtype"] = {"float64": torch.float64, "float32": torch.float32}[
+                check_choice("dtype", config.pop("dtype"), ("float64", "float32"))]
+        kwargs.update(config)
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(kwargs) - names)
+        if unknown:
+            raise ValueError(f"scene: unknown keys {unknown}; valid: {sorted(names)}")
+        return cls(**kwargs)
+
+    @classmethod
+    def from_toml(cls, path) -> Scene:
+        """Read a scene from a TOML file (format in ``docs/scene.md``)."""
+        from skytorch.commands.sweep import _toml_loads
+
+        path = Path(path)
+        return cls.from_dict(_toml_loads(path.read_text(encoding="utf-8")),
+                             base_dir=path.parent)

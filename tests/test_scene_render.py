@@ -1,0 +1,119 @@
+"""Scene renders: energy, colour of the day and sunset sky, the natural night background.
+
+References: CIE D65 white point (0.3127, 0.3290) (CIE 15:2004); clear-sky zenith
+chromaticities measured bluer than D65 (Hernández-Andrés, Romero & Lee 2001, JOSA A 18,
+412, doi:10.1364/JOSAA.18.000412: x ≈ 0.25–0.30); the sunset sky towards the Sun is red
+near the horizon; natural zenith background 22.0 V mag arcsec^-2 (Falchi et al. 2016,
+doi:10.1126/sciadv.1600377).
+"""
+
+import numpy as np
+import pytest
+import torch
+
+import skytorch as st
+from skytorch.constants import MAG
+
+D65 = (0.3127, 0.3290)
+#: largest clear-sky zenith x measured by Hernández-Andrés et al. (2001)
+CLEAR_SKY_ZENITH_MAX_X = 0.30
+NATURAL_ZENITH_MAG = 22.0
+PARIS = {"lat_deg": 48.85, "lon_deg": 2.35}
+ALTITUDES = [90.0, 45.0, 20.0, 10.0, 5.0, 2.0, 0.5]
+
+
+def chromaticity(ds):
+    xyz = ds["xyz"].values
+    return xyz[..., :2] / xyz.sum(-1, keepdims=True)
+
+
+def towards_sun(time, dtype=torch.float64):
+    base = st.Scene(time=time, **PARIS, view="directions", fidelity="fast", dtype=dtype,
+                    directions={"altitude_deg": [90.0], "azimuth_deg": [0.0]})
+    azimuth = base.plan().geometry.sun_azimuth_deg
+    return base.replace(directions={"altitude_deg": ALTITUDES,
+                                    "azimuth_deg": [azimuth] * len(ALTITUDES)})
+
+
+def test_day_sky_is_blue_at_the_zenith():
+    ds = towards_sun("2015-06-21T12:00").render()
+    x, y = chromaticity(ds)[0]
+    assert x < D65[0] and y < D65[1]
+    assert x < CLEAR_SKY_ZENITH_MAX_X
+
+
+def test_sunset_sky_reddens_towards_the_horizon():
+    scene = towards_sun("2015-06-21T19:45")  # Sun 0.8 deg above the horizon
+    assert 0.0 < scene.plan().geometry.sun_altitude_deg < 2.0
+    xy = chromaticity(scene.render())
+    assert np.all(np.diff(xy[:, 0]) > 0.0)  # x grows from the zenith to the horizon
+    assert xy[0, 0] < D65[0] < xy[-1, 0]  # bluish zenith, reddish horizon
+    assert xy[-1, 0] > 0.5
+
+
+def test_night_sky_without_lights_reaches_the_natural_background():
+    scene = st.Scene(time="2015-09-13T23:00", lat_deg=52.52, lon_deg=13.40,
+                     view="directions", fidelity="fast",
+                     directions={"altitude_deg": ALTITUDES, "azimuth_deg": [0.0] * 7})
+    ds = scene.render()
+    assert ds.attrs["effects_computed"] == ""
+    np.testing.assert_allclose(ds["v_mag_arcsec2"].values, NATURAL_ZENITH_MAG,
+                               atol=0.01 * MAG)
+
+
+@pytest.mark.parametrize("time", ["2015-06-21T12:00", "2015-09-28T02:47"])
+def test_energy_is_finite_and_non_negative(time, dtype):
+    ds = st.Scene(time=time, lat_deg=52.52, lon_deg=13.40, size=24, fidelity="fast",
+                  dtype=dtype, star_limit_mag=4.0).render()
+    radiance = ds["component_radiance"].values
+    assert np.isfinite(radiance).all() and (radiance >= 0.0).all()
+    assert ds["radiance"].dtype == (np.float64 if dtype == torch.float64 else np.float32)
+    srgb = ds["srgb"].values
+    assert (srgb >= 0.0).all() and (srgb <= 1.0).all()
+    # the components add up to the total
+    np.testing.assert_allclose(radiance.sum(0), ds["radiance"].values, rtol=1e-5)
+
+
+def test_point_sources_keep_their_flux():
+    """The Sun's disc integrates back to the solar spectrum times the transmittance."""
+    from skytorch.spectrum import solar_irradiance
+
+    scene = st.Scene(time="2015-06-21T12:00", **PARIS, size=64, fidelity="fast")
+    ds = scene.render()
+    sun = ds["component_radiance"].sel(component="sun").values
+    flux = (sun * ds["solid_angle"].values[..., None]).sum((0, 1))
+    g = scene.plan().geometry
+    zenith = torch.tensor(np.radians(90.0 - g.sun_altitude_deg), dtype=torch.float64)
+    wl = scene.wavelength_nm()
+    expected = (solar_irradiance(wl) * scene.atmosphere().transmittance(wl, zenith)
+                * (1.495978707e11 / g.sun_distance_m) ** 2)
+    np.testing.assert_allclose(flux, expected.numpy(), rtol=1e-3)
+
+
+def test_panorama_and_png(tmp_path):
+    ds = st.Scene(time="2015-06-21T19:45", **PARIS, view="panorama", size=12,
+                  fidelity="fast").render()
+    assert ds["radiance"].dims == ("elevation", "azimuth", "wavelength")
+    # a panorama's solid angles cover the hemisphere
+    np.testing.assert_allclose(ds["solid_angle"].values.sum(), 2 * np.pi, rtol=1e-3)
+    path = st.scene.scene_png(ds, tmp_path / "pano.png", night=True)
+    assert path.stat().st_size > 200
+
+
+def test_fisheye_solid_angles_cover_the_hemisphere():
+    from skytorch.scene.scene import fisheye_view
+
+    view = fisheye_view(256)
+    # pixelisation of the rim: error ~ perimeter/area of the disc in pixels
+    np.testing.assert_allclose(float(view.solid_angle_sr.sum()), 2 * np.pi, rtol=1e-2)
+
+
+def test_night_vision_desaturates_dark_skies():
+    from skytorch.scene.tonemap import night_vision
+
+    dark = torch.tensor([0.8e-3, 1.0e-3, 0.3e-3], dtype=torch.float64)  # reddish, dim
+    bright = dark * 1e5
+    out_dark, out_bright = night_vision(dark), night_vision(bright)
+    torch.testing.assert_close(out_bright, bright)  # photopic: unchanged
+    xy = out_dark[:2] / out_dark.sum()
+    torch.testing.assert_close(xy, torch.tensor([0.25, 0.25], dtype=torch.float64))
