@@ -409,6 +409,7 @@ def refraction_angle(
     n_nodes: int = DEFAULT_NODES,
     step_m: float = DEFAULT_STEP_M,
     max_dh_m: float = DEFAULT_MAX_DH_M,
+    n_steps: int | None = None,
 ) -> torch.Tensor:
     r"""Astronomical refraction :math:`R` = apparent − true altitude [rad].
 
@@ -428,6 +429,8 @@ def refraction_angle(
         Gauss–Legendre nodes (``"bouguer"``).
     step_m, max_dh_m : float
         RK4 step along the ray and largest altitude change per step [m] (``"rk4"``).
+    n_steps : int, optional
+        Alias of ``n_nodes`` (the name the straight-ray integrators use).
 
     Returns
     -------
@@ -457,6 +460,7 @@ def refraction_angle(
     57
     """
     method = _check_method(method)
+    n_nodes = n_nodes if n_steps is None else n_steps
     dtype = common_dtype(apparent_altitude_rad, altitude_m)
     if method == "rk4":
         return _trace_observer_rk4(atm, apparent_altitude_rad, altitude_m, dtype, step_m,
