@@ -260,6 +260,12 @@ def test_hard_cases_refraction_dtype(air, dtype):
         assert torch.isfinite(result).all()
         assert torch.allclose(result.double(), reference, rtol=0, atol=0.05 * ARCSECOND)
     assert abs(float(rf.refraction_angle(air, elevation[0]))) < 1e-9 * ARCSECOND
+    # finite gradients in this dtype, also for an observer high up
+    leaf = elevation.clone().requires_grad_(True)
+    height = torch.tensor(10e3, dtype=dtype, requires_grad=True)
+    (d_e, d_h) = torch.autograd.grad(rf.refraction_angle(air, leaf, height).sum(),
+                                     (leaf, height))
+    assert torch.isfinite(d_e).all() and torch.isfinite(d_h).all()
     # below the horizon from a mountain: the ray dips to a periapsis and comes back
     high = rf.refraction_angle(air, _deg([-1.0], dtype), 3000.0)
     rk4 = rf.refraction_angle(air, _deg([-1.0]), 3000.0, method="rk4", step_m=10e3,
@@ -285,6 +291,10 @@ def test_hard_cases_grazing_dtype(air, dtype):
                           rtol=1e-4)
     assert float(rays["deviation_rad"][-2]) == 0.0 and float(rays["deviation_rad"][-1]) == 0.0
     assert torch.all(rays["optical_depth"][-2:] == 0.0)
+    leaf = impact.clone().requires_grad_(True)
+    out = rf.trace_grazing_rays(air, impact_altitude_m=leaf, wavelength_nm=[440.0, 680.0])
+    (grad,) = torch.autograd.grad(out["deviation_rad"].sum() + out["optical_depth"].sum(), leaf)
+    assert grad.dtype == dtype and torch.isfinite(grad).all()
 
 
 def test_gradients_refraction(air):
@@ -316,6 +326,12 @@ def test_gradients_grazing(air):
     (grad,) = torch.autograd.grad(rays["deviation_rad"].sum() + rays["optical_depth"].sum(),
                                   edge)
     assert torch.isfinite(grad).all()
+    # exactly tangent to the ground (periapsis 0) and exactly at the top
+    periapsis = torch.tensor([0.0, EARTH_TOP_M], dtype=torch.float64, requires_grad=True)
+    rays = rf.trace_grazing_rays(air, periapsis_altitude_m=periapsis, wavelength_nm=[500.0])
+    (grad,) = torch.autograd.grad(rays["deviation_rad"].sum() + rays["optical_depth"].sum(),
+                                  periapsis)
+    assert torch.isfinite(grad).all() and float(grad[0]) < 0.0
 
 
 def test_invalid_inputs(air):
