@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 import torch
 
 #: Rayleigh optical depth at 550 nm, sea level (Bodhaine et al. 1999, eq. 30)
@@ -70,3 +71,16 @@ def cached_model(**kwargs):
             atm, phase_functions={"rayleigh": rayleigh_phase, "aerosol": atm.aerosol_phase},
             **settings)
     return _CACHE[key]
+
+
+@pytest.fixture(autouse=True, scope="module")
+def single_torch_thread():
+    """Run the skyglow tests on one intra-op thread, restoring the setting afterwards.
+
+    The tensors here are small; on a shared 2-core machine two OpenMP threads that
+    busy-wait for each other made the same tests 3-4 times slower.
+    """
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)

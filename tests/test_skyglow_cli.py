@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from _skyglow_standin import single_torch_thread  # noqa: F401
 
 from skytorch.cli import main
 from skytorch.dataset import open_dataset

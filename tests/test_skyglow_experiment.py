@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+from _skyglow_standin import single_torch_thread  # noqa: F401
+
 from skytorch.dataset import open_dataset
 
 SCRIPT = Path(__file__).resolve().parents[1] / "experiments" / "skyglow_accuracy_cost.py"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 import xarray as xr
-from _skyglow_standin import cached_model
+from _skyglow_standin import cached_model, single_torch_thread  # noqa: F401
 from scipy.optimize import linprog
 
 from skytorch.constants import PERCENT

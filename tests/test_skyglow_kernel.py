@@ -7,6 +7,7 @@ import math
 import pytest
 import torch
 from _skyglow_standin import medium as standin_medium
+from _skyglow_standin import single_torch_thread  # noqa: F401
 from scipy.integrate import quad
 
 from skytorch.constants import PERCENT

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 import xarray as xr
-from _skyglow_standin import cached_model
+from _skyglow_standin import cached_model, single_torch_thread  # noqa: F401
 
 from skytorch.constants import PERCENT
 from skytorch.skyglow import render_naive

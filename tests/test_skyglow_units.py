@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from _skyglow_standin import single_torch_thread  # noqa: F401
 
 from skytorch.constants import MAG, PERCENT
 from skytorch.skyglow import lamps, units
