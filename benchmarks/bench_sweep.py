@@ -152,7 +152,7 @@ def main(argv=None) -> int:
     clients = {}
     for workers in (1, 2):
         cluster = stack.enter_context(LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=False, dashboard_address=None))
+            n_workers=workers, threads_per_worker=1, processes=False, dashboard_address=":0"))
         clients[workers] = stack.enter_context(Client(cluster))
     # One intra-op torch thread everywhere except the first row: on a shared, oversubscribed
     # 2-core machine OpenMP's barriers make 2-thread torch calls up to 10x slower.

@@ -335,7 +335,7 @@ def _dask_client(client, scheduler_address, n_workers, cluster_options) -> Itera
             yield remote
         return
     options = {"n_workers": DEFAULT_WORKERS if n_workers is None else n_workers,
-               "threads_per_worker": 1, "processes": False, "dashboard_address": None}
+               "threads_per_worker": 1, "processes": False, "dashboard_address": ":0"}
     options.update(cluster_options or {})
     with LocalCluster(**options) as cluster, Client(cluster) as local:
         yield local
@@ -468,7 +468,7 @@ def sweep(
         Workers of the LocalCluster started for ``"dask"`` (default 2).
     cluster_options : mapping, optional
         Further ``distributed.LocalCluster`` arguments, overriding the defaults
-        ``threads_per_worker=1, processes=False, dashboard_address=None`` (e.g.
+        ``threads_per_worker=1, processes=False, dashboard_address=":0"`` (a free port; e.g.
         ``{"processes": True}`` for worker processes, free of GIL contention but slower
         to start). Starting a LocalCluster costs about a second; pass ``client=`` to reuse
         one across sweeps.

@@ -97,7 +97,7 @@ def test_dask_existing_client():
 
     serial = run()
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+                      dashboard_address=":0") as cluster, Client(cluster) as client:
         first = run(backend="dask", client=client, chunk_size=4)
         second = run(backend="broadcast")
         assert client.status == "running"  # the sweep leaves a given client open
