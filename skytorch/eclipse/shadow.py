@@ -37,7 +37,8 @@ disc has half-angle ``psi_max``, ``hav psi_max = (hav rho_s - hav(alpha - sigma)
 (sin alpha sin sigma)``, and the substitution ``psi = psi_max (1 - v^2)`` removes the
 square-root behaviour at the limb (Gauss–Legendre in ``v``). ``a(beta)`` is monotone, so
 the breakpoints of ``F`` (``|a| = |sigma - rho_s|`` and ``sigma + rho_s``) are found by
-bisection in ``beta`` and the ``beta`` integral is split there; each piece is integrated
+bracketing plus Newton steps in ``beta``, the ``beta`` integral is split there (only
+the non-empty pieces are integrated); each piece is integrated
 with a Gauss–Legendre rule after the substitution ``s = (1 - cos pi t)/2`` that absorbs
 the square roots at both ends. ``delta(beta)`` and ``T(beta, lambda) = exp(-tau)`` come from
 :func:`skytorch.atmosphere.refraction.trace_grazing_rays`, tabulated once per atmosphere
@@ -139,11 +140,11 @@ DEFAULT_RING_NODES = 12
 DEFAULT_ARC_NODES = 8
 #: equal sub-pieces per piece of the ring integral (composite Gauss–Legendre)
 DEFAULT_SPLIT = 2
-#: bisection steps inside a coarse-grid bracket (resolution ~1e-8 of the table coordinate)
-_BISECTION_STEPS = 18
+#: Newton steps for the breakpoints inside a coarse-grid bracket (converged to ~1e-12)
+_NEWTON_STEPS = 3
 #: relative singular-value cut-off of the optical-depth table (reconstruction ~1e-12)
 _RANK_TOLERANCE = 1e-13
-#: stride of the coarse grid that brackets the breakpoints before bisection
+#: stride of the coarse grid that brackets the breakpoints before the Newton steps
 _COARSE_STRIDE = 4
 #: points per chunk in the ring integral (bounds the temporaries to ~100 MB)
 _CHUNK = 4096
@@ -401,68 +402,106 @@ def _ray_weight(periapsis_m: torch.Tensor, profile: RingProfile) -> torch.Tensor
     return weight
 
 
+def _spline_slope(coefficients: torch.Tensor, s: torch.Tensor):
+    """Value and derivative d/ds of :func:`_spline_coefficients` at ``s`` -> (*s.shape, C)."""
+    n = coefficients.shape[0]
+    x = torch.clamp(s, 0.0, 1.0) * n
+    i = torch.clamp(torch.floor(x), 0, n - 1).long()
+    t = (x - i.to(x.dtype)).unsqueeze(-1)
+    rows = coefficients.index_select(0, i.reshape(-1)).reshape(*i.shape, 4, -1)
+    c0, c1, c2, c3 = rows.unbind(-2)
+    return c0 + t * (c1 + t * (c2 + t * c3)), n * (c1 + t * (2.0 * c2 + 3.0 * t * c3))
+
+
+def _breakpoints(profile: RingProfile, tables, centre, separation, sun_radius, scale,
+                 radius: float) -> torch.Tensor:
+    """Table coordinates ``s`` where ``a(beta(s))`` crosses the edges of ``F`` -> (n, 4).
+
+    ``a`` is increasing in ``s``: the crossing is bracketed on a coarse grid, started by
+    linear inverse interpolation in the bracket and refined by Newton steps on the cubic
+    spline, kept inside the bracket (converged to ~1e-12 in ``s``; edges outside the
+    range of ``a`` give 0 or 1).
+    """
+    span = profile.beta_top_m - profile.beta_min_m
+    edges = torch.stack([-(separation + sun_radius), -(separation - sun_radius).abs(),
+                         (separation - sun_radius).abs(), separation + sun_radius], dim=-1)
+    nodes_s = tables["nodes_s"]
+    coarse = (torch.asin((radius + profile.beta(nodes_s)) / centre[:, None])
+              - scale[:, None] * tables["nodes"])
+    index = torch.searchsorted(coarse.contiguous(), edges.contiguous())
+    last = nodes_s.shape[0] - 1
+    below = torch.clamp(index - 1, 0, last)
+    above = torch.clamp(index, 0, last)
+    low, high = nodes_s[below], nodes_s[above]
+    a_low, a_high = coarse.gather(1, below), coarse.gather(1, above)
+    width = a_high - a_low
+    fraction = torch.where(width > 0, (edges - a_low) / torch.where(width > 0, width, 1.0),
+                           0.0)
+    s = low + (high - low) * fraction.clamp(0.0, 1.0)
+    centre, scale = centre[:, None], scale[:, None]
+    for _ in range(_NEWTON_STEPS):
+        value, slope = _spline_slope(tables["deviation"], s)
+        beta = profile.beta(s)
+        b = radius + beta
+        a = torch.asin(b / centre) - scale * value[..., 0]
+        da = (2.0 * span * s) / torch.sqrt((centre - b) * (centre + b)) - scale * slope[..., 0]
+        step = (a - edges) / torch.where(da > 0, da, 1.0)
+        s = torch.minimum(torch.maximum(s - step, low), high)
+    s = torch.where(index > last, 1.0, s)
+    return torch.where(index == 0, 0.0, s)
+
+
 def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coefficients,
                 n_ring: int, n_arc: int, radius: float, n_split: int = 1) -> torch.Tensor:
-    """Ring integral for 1-D tensors of points -> (n_point, n_wavelength), unnormalised."""
+    """Ring integral for 1-D tensors of points -> (n_point, n_wavelength), unnormalised.
+
+    Only the non-empty pieces of the ``beta`` integral (between breakpoints of ``F``, the
+    terrain and cloud kinks) are integrated: (point, piece) pairs are gathered, integrated
+    and summed back per point.
+    """
     dtype = centre.dtype
     tables = profile.tables(dtype)
     span = profile.beta_top_m - profile.beta_min_m
-
-    def apparent(s):  # a(beta(s)) for broadcastable s (…, m) with per-point (…, 1) inputs
-        beta = profile.beta(s)
-        deviation = _spline(tables["deviation"], s)[..., 0]
-        return torch.asin((radius + beta) / centre[:, None]) - scale[:, None] * deviation
-
+    n_point = centre.shape[0]
     with torch.no_grad():
-        edges = torch.stack([-(separation + sun_radius), -(separation - sun_radius).abs(),
-                             (separation - sun_radius).abs(), separation + sun_radius], dim=-1)
-        # bracket on the coarse grid (a is increasing), then bisect inside the bracket
-        nodes_s = tables["nodes_s"]
-        coarse = (torch.asin((radius + profile.beta(nodes_s)) / centre[:, None])
-                  - scale[:, None] * tables["nodes"])
-        index = torch.searchsorted(coarse.contiguous(), edges.contiguous())
-        last = nodes_s.shape[0] - 1
-        low = nodes_s[torch.clamp(index - 1, 0, last)]
-        high = torch.where(index > last, 1.0, nodes_s[torch.clamp(index, 0, last)])
-        high = torch.where(index == 0, 0.0, high)
-        for _ in range(_BISECTION_STEPS):
-            middle = 0.5 * (low + high)
-            above = apparent(middle) > edges
-            high = torch.where(above, middle, high)
-            low = torch.where(above, low, middle)
+        breaks = _breakpoints(profile, tables, centre, separation, sun_radius, scale, radius)
         # pieces between the breakpoints of F: [e0, e1], [e1, e2] (zero unless the Sun
         # covers the occluder's centre, sigma < rho_s), [e2, e3]
-        breaks = 0.5 * (low + high)
         lo, hi = breaks[:, :-1], breaks[:, 1:]  # (n_point, 3)
-        if not bool((separation < sun_radius).any()):  # middle piece empty everywhere
-            lo, hi = lo[:, ::2], hi[:, ::2]
         for split in profile.split_betas_m:
             cut = torch.clamp(torch.full_like(lo, profile.s_of_beta(split)), lo, hi)
             lo, hi = torch.cat([lo, cut], dim=-1), torch.cat([cut, hi], dim=-1)
+        point, piece = torch.nonzero(hi > lo, as_tuple=True)
+        lo, hi = lo[point, piece], hi[point, piece]  # (n_pair,)
         if n_split > 1:  # composite rule: equal sub-pieces
             fraction = torch.arange(n_split + 1, dtype=dtype) / n_split
             edges_s = lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * fraction
-            lo, hi = edges_s[..., :-1].flatten(1), edges_s[..., 1:].flatten(1)
+            lo, hi = edges_s[..., :-1], edges_s[..., 1:]  # (n_pair, n_split)
+        else:
+            lo, hi = lo[:, None], hi[:, None]
         x, w = _unit_gauss(n_ring)
         t = torch.as_tensor(x, dtype=dtype)
         wt = torch.as_tensor(w, dtype=dtype)
         shape = 0.5 * (1.0 - torch.cos(math.pi * t))
         slope = 0.5 * math.pi * torch.sin(math.pi * t) * wt
-        s = (lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * shape).flatten(1)  # (n_point, m)
+        s = (lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * shape).flatten(1)  # (n_pair, m)
         ds = ((hi - lo).unsqueeze(-1) * slope).flatten(1)
-    values = _spline(tables["all"], s)  # (n_point, m, 2 + rank)
+    centre, sun_radius, separation, scale = (x.index_select(0, point)[:, None] for x in
+                                             (centre, sun_radius, separation, scale))
+    coefficients = tuple(c.index_select(0, point)[:, None] for c in coefficients)
+    values = _spline(tables["all"], s)  # (n_pair, m, 2 + rank)
     deviation, periapsis = values[..., 0], values[..., 1]
-    optical = values[..., 2:] @ tables["basis"]  # (n_point, m, n_wl)
     beta = profile.beta(s)
     b = radius + beta
-    a = torch.asin(b / centre[:, None]) - scale[:, None] * deviation
-    arc = solar_arc_integral(a.abs(), sun_radius[:, None], separation[:, None],
-                             tuple(c[:, None] for c in coefficients), n_nodes=n_arc)
-    solid = b / (centre[:, None] * torch.sqrt((centre[:, None] - b) * (centre[:, None] + b)))
+    a = torch.asin(b / centre) - scale * deviation
+    arc = solar_arc_integral(a.abs(), sun_radius, separation, coefficients, n_nodes=n_arc)
+    solid = b / (centre * torch.sqrt((centre - b) * (centre + b)))
     weight = arc * solid * (2.0 * span * s) * ds
     weight = weight * _ray_weight(periapsis, profile)
-    transmittance = torch.exp(-torch.clamp(optical, min=0.0))
-    return torch.einsum("pm,pml->pl", weight, transmittance)
+    # exp(-max(tau, 0)) in place on the (n_pair, m, n_wl) temporary
+    transmittance = (values[..., 2:] @ -tables["basis"]).clamp_(max=0.0).exp_()
+    pairs = torch.einsum("pm,pml->pl", weight, transmittance)
+    return pairs.new_zeros((n_point, pairs.shape[-1])).index_add(0, point, pairs)
 
 
 def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, separation_rad,
@@ -484,6 +523,8 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
         Planet radius ``R`` [m].
     n_ring, n_arc : int
         Gauss–Legendre nodes per ring piece and on the solar arc.
+    n_split : int
+        Equal sub-pieces per piece (composite rule).
 
     Returns
     -------
