@@ -145,15 +145,19 @@ def test_negative_and_nan_flux_name_the_cell():
 
 def test_source_at_observer_and_float32(dtype):
     model = cached_model()
-    flux = torch.tensor([[1e6]], dtype=dtype)
+    flux = torch.tensor([[1e6]], dtype=dtype, requires_grad=True)
     out = model.render(flux, x_m=torch.zeros(1, dtype=dtype), y_m=torch.zeros(1, dtype=dtype),
                        as_dataset=False)
+    (gradient,) = torch.autograd.grad(out["luminance"].sum(), flux)
+    # linear in the flux: the gradient is the per-lumen panorama sum
+    assert torch.isfinite(gradient).all()
+    assert float(gradient) == pytest.approx(float(out["luminance"].sum()) / 1e6, rel=1e-5)
     assert out["luminance"].dtype == dtype
     assert torch.all(torch.isfinite(out["luminance"])) and torch.all(out["luminance"] > 0)
-    reference = model.render(flux.double(), x_m=torch.zeros(1, dtype=torch.float64),
+    reference = model.render(flux.detach().double(), x_m=torch.zeros(1, dtype=torch.float64),
                              y_m=torch.zeros(1, dtype=torch.float64),
                              as_dataset=False)["luminance"]
-    assert torch.allclose(out["luminance"].double(), reference, rtol=1e-4)
+    assert torch.allclose(out["luminance"].detach().double(), reference, rtol=1e-4)
 
 
 def test_sources_at_the_integration_limit():
