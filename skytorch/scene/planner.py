@@ -219,9 +219,13 @@ def _sky_flux(scene, geometry: Geometry) -> float:
     """Hemisphere V flux of single-scattered sunlight from 9 sample directions."""
     from skytorch.moon.sky import radiance_to_mag_arcsec2
 
-    if geometry.sun_altitude_deg < -30.0:
-        return 0.0  # the whole atmosphere below 300 km lies in the planet's shadow
     atm = scene.atmosphere()
+    # every point of the atmosphere the observer can see lies within the angle
+    # acos(R / R_top) of the observer's zenith (seen from the planet's centre); with the
+    # Sun deeper than twice that angle below the horizon all of it is in the shadow
+    visible = math.acos(atm.planet_radius_m / atm.top_radius_m)
+    if -math.radians(geometry.sun_altitude_deg) > 2.0 * visible:
+        return 0.0
     wl = scene.wavelength_nm().to(torch.float64)
     sun_zenith = math.radians(90.0 - geometry.sun_altitude_deg)
     sun_azimuth = math.radians(geometry.sun_azimuth_deg)

@@ -155,12 +155,12 @@ def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux
     n_wavelength = flux.shape[-1]
     if view.kind == "directions" or altitude_rad + radius_rad < 0.0:
         return torch.zeros(*view.shape, n_wavelength, dtype=dtype)
-    zenith = view.zenith_rad.to(torch.float64)
-    azimuth = view.azimuth_rad.to(torch.float64)
-    point_zenith = 0.5 * math.pi - altitude_rad
-    cos_distance = (math.cos(point_zenith) * torch.cos(zenith) + math.sin(point_zenith)
-                    * torch.sin(zenith) * torch.cos(azimuth - azimuth_rad))
+    point = torch.tensor([math.cos(altitude_rad) * math.cos(azimuth_rad),
+                          math.cos(altitude_rad) * math.sin(azimuth_rad),
+                          math.sin(altitude_rad)], dtype=torch.float64)
+    cos_distance = view.unit_vectors() @ point
     inside = (cos_distance >= math.cos(radius_rad)) & (view.solid_angle_sr > 0)
+    zenith = view.zenith_rad.to(torch.float64)
     if not bool(inside.any()):
         return _splat(view, torch.tensor([altitude_rad]), torch.tensor([azimuth_rad]),
                       flux[None], n_wavelength, dtype)
@@ -253,6 +253,17 @@ def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tens
     return shape * (10.0 ** (-0.4 * (vmag - mag)))[:, None]
 
 
+@lru_cache(maxsize=4)
+def _catalogue_spectra(limit_magnitude: float, wavelengths: tuple) -> torch.Tensor:
+    """Spectra of V = 0 for every catalogue star (star, wl), cached."""
+    from skytorch.scene.planner import catalogue
+
+    bv = torch.as_tensor(catalogue(limit_magnitude)["bv"].values, dtype=torch.float64)
+    bv = torch.nan_to_num(bv, nan=0.65)  # stars without B-V: solar colour
+    return star_spectra(torch.zeros_like(bv), bv, torch.tensor(wavelengths,
+                                                               dtype=torch.float64))
+
+
 def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
     from skytorch.scene.planner import catalogue
     from skytorch.stars import observe
@@ -264,8 +275,8 @@ def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tens
     azimuth = torch.as_tensor(np.deg2rad(ds["azimuth"].values[0]))
     up = altitude > 0
     mag = torch.as_tensor(ds["magnitude"].values[0])[up]
-    bv = torch.as_tensor(ds["bv"].values)[up]
-    flux = star_spectra(mag, bv, wavelength)
+    unit = _catalogue_spectra(float(scene.star_limit_mag), tuple(wavelength.tolist()))[up]
+    flux = unit * (10.0 ** (-0.4 * mag))[:, None]
     return _splat(view, altitude[up], azimuth[up], flux, wavelength.numel(), scene.dtype)
 
 

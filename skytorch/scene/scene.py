@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -82,6 +83,16 @@ class View:
     def shape(self) -> tuple[int, ...]:
         return tuple(self.zenith_rad.shape)
 
+    def unit_vectors(self) -> torch.Tensor:
+        """Unit vectors (*dims, 3) of the pixel directions in (north, east, up), float64."""
+        if getattr(self, "_unit", None) is None:
+            zenith = self.zenith_rad.to(torch.float64)
+            azimuth = self.azimuth_rad.to(torch.float64)
+            self._unit = torch.stack([torch.sin(zenith) * torch.cos(azimuth),
+                                      torch.sin(zenith) * torch.sin(azimuth),
+                                      torch.cos(zenith)], dim=-1)
+        return self._unit
+
     def pixel_index(self, altitude_rad: torch.Tensor, azimuth_rad: torch.Tensor) -> torch.Tensor:
         """Flat index of the pixel holding each point (-1 outside the image).
 
@@ -124,6 +135,7 @@ class View:
         return index
 
 
+@lru_cache(maxsize=8)
 def fisheye_view(size: int, dtype=torch.float64) -> View:
     """All-sky azimuthal-equidistant view of ``size × size`` pixels (north up, east left).
 
@@ -145,6 +157,7 @@ def fisheye_view(size: int, dtype=torch.float64) -> View:
                 solid_angle, valid, math.pi / size)
 
 
+@lru_cache(maxsize=8)
 def panorama_view(size: int, dtype=torch.float64) -> View:
     """Equirectangular view: ``size`` elevations (0–90°) by ``2 size`` azimuths."""
     size = check_int("size", size, 2)
@@ -295,7 +308,8 @@ class Scene:
         return torch.as_tensor(np.asarray(self.wavelengths, dtype=float), dtype=self.dtype)
 
     def make_view(self) -> View:
-        """The :class:`View` of the scene."""
+        """The :class:`View` of the scene (fisheye and panorama views are cached and shared;
+        do not modify their tensors)."""
         if self.view == "fisheye":
             return fisheye_view(self.size, self.dtype)
         if self.view == "panorama":

@@ -1,0 +1,83 @@
+"""Benchmark of scene renders against the targets of the scenes issue.
+
+Rows (512 × 512 fisheye, RGB, default fidelity, float64; medians after one warm-up run
+that fills the caches — transmittance and skyglow tables, star catalogue):
+
+* night — Berlin at the greatest phase of the 2015-09-28 eclipse with a synthetic city
+  of one million inhabitants 12 km away: Moon (eclipsed), stars, skyglow, refraction;
+  target ≤ 2 s;
+* day — Paris, 2015-06-21 12:00 UTC: single-scattering sky (look-up table over view
+  zenith and relative azimuth) and the Sun; target ≤ 3 s;
+* planner — the planning alone, as a fraction of the night render; target ≤ 5 %.
+
+Run: ``python benchmarks/bench_scene.py [--size N] [--repeat R] [--append]``
+(``--append`` adds the table to ``docs/benchmarks.md``). Timings on a shared 2-core
+machine are noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import skytorch as st  # noqa: E402
+from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+
+TARGET_NIGHT_S = 2.0
+TARGET_DAY_S = 3.0
+TARGET_PLANNER_FRACTION = 0.05
+
+
+def scenes(size: int, fidelity: str = "default"):
+    from skytorch.commands.demo import CITY, SITE
+    from skytorch.skyglow.citymap import synthetic_city
+
+    city = synthetic_city(extent_m=60_000.0, cell_m=500.0, **CITY)
+    night = st.Scene(time="2015-09-28T02:47", **SITE, size=size, light_map=city,
+                     fidelity=fidelity, outputs=("xyz", "srgb"))
+    day = st.Scene(time="2015-06-21T12:00", lat_deg=48.85, lon_deg=2.35, size=size,
+                   fidelity=fidelity, outputs=("xyz", "srgb"))
+    return night, day
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=512)
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--append", action="store_true")
+    args = parser.parse_args(argv)
+    night, day = scenes(args.size)
+    night_plan = night.plan()
+    rows = []
+    t_night = median_seconds(lambda: night.render(night_plan), repeat=args.repeat)
+    rows.append({"case": f"night {args.size}² ({night_plan.attrs()['effects_computed']})",
+                 "median [s]": f"{t_night:.3f}", "target": f"≤ {TARGET_NIGHT_S} s",
+                 "met": "yes" if t_night <= TARGET_NIGHT_S else "no"})
+    day_plan = day.plan()
+    t_day = median_seconds(lambda: day.render(day_plan), repeat=args.repeat)
+    rows.append({"case": f"day {args.size}² ({day_plan.attrs()['effects_computed']})",
+                 "median [s]": f"{t_day:.3f}", "target": f"≤ {TARGET_DAY_S} s",
+                 "met": "yes" if t_day <= TARGET_DAY_S else "no"})
+    t_plan = median_seconds(night.plan, repeat=args.repeat)
+    fraction = t_plan / t_night
+    rows.append({"case": "planner (night scene)", "median [s]": f"{t_plan:.3f}",
+                 "target": f"≤ {TARGET_PLANNER_FRACTION:.0%} of a render",
+                 "met": f"{fraction:.1%} of the night render; "
+                        + ("yes" if fraction <= TARGET_PLANNER_FRACTION else "no")})
+    table = (f"\n### Scenes ({machine_description()})\n\n"
+             "`python benchmarks/bench_scene.py` — 512 × 512 fisheye, RGB, default "
+             "fidelity, float64, caches warm; shared 2-core machine, noisy.\n\n"
+             + markdown_table(rows) + "\n")
+    print(table)
+    if args.append:
+        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a",
+                  encoding="utf-8") as handle:
+            handle.write(table)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,40 @@
+"""The TOML scene format and ``skytorch render``."""
+
+import numpy as np
+import pytest
+
+import skytorch as st
+from skytorch._data import data_path
+from skytorch.cli import main
+from skytorch.dataset import open_dataset
+
+
+def test_example_scene_reads_every_table():
+    scene = st.Scene.from_toml(data_path("scene_example.toml"))
+    assert (scene.lat_deg, scene.lon_deg, scene.elevation_m) == (52.52, 13.40, 34.0)
+    assert scene.view == "fisheye" and scene.size == 256
+    assert scene.light_map is not None and float(scene.light_map["flux"].sum()) > 0.0
+    assert scene.tolerance == 0.01 and scene.fidelity == "default"
+    assert str(scene.time).startswith("2015-09-28T02:47")
+
+
+def test_unknown_keys_are_rejected(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('time = "2015-09-28T02:47"\nbrightness = 3\n')
+    with pytest.raises(ValueError, match="brightness"):
+        st.Scene.from_toml(path)
+
+
+def test_render_command_writes_netcdf_and_png(tmp_path, capsys):
+    path = tmp_path / "scene.toml"
+    path.write_text('time = "2015-06-21T19:45"\n[observer]\nlat_deg = 48.85\n'
+                    'lon_deg = 2.35\n[view]\nkind = "panorama"\nsize = 8\n')
+    out, png = tmp_path / "sky.nc", tmp_path / "sky.png"
+    assert main(["render", str(path), "-o", str(out), "--png", str(png),
+                 "--fidelity", "fast", "--night"]) == 0
+    ds = open_dataset(out)
+    assert ds.attrs["effects_computed"] == "sky,sun"
+    assert "stars:" in ds.attrs["effects_skipped"]
+    assert np.isfinite(ds["radiance"].values).all()
+    assert png.stat().st_size > 200
+    assert "computed: sky,sun" in capsys.readouterr().out
