@@ -21,6 +21,19 @@ References
 ----------
 1. Dobashi, Y., Ishikawa, N. & Iwasaki, K. 2023, ACM Trans. Graph. 42, 219,
    doi:10.1145/3618337.
+
+Examples
+--------
+>>> from skytorch.atmosphere import Atmosphere
+>>> from skytorch.skyglow import SkyglowModel, synthetic_city
+>>> model = SkyglowModel.precompute(Atmosphere.earth(), n_azimuth=16, n_elevation=4,
+...                                 n_distance=8, n_components=4, n_steps=4, progress=False)
+>>> city = synthetic_city(20e3, 2e3, centre_xy=(6e3, 0.0))
+>>> east = sky_region(model, elevation_deg=(0, 30), azimuth_deg=(45, 135))
+>>> plan = minimal_reduction(model, city, east, target_fraction=0.5)
+>>> round(plan.attrs["parameter_final_luminance_cd_m2"]
+...       / plan.attrs["parameter_initial_luminance_cd_m2"], 3)
+0.5
 """
 
 from __future__ import annotations

@@ -207,6 +207,19 @@ class SkyglowModel(nn.Module):
     source_altitude, component) [1]; basis_fft (observer_altitude, frequency, component,
     elevation · wavelength), the real Fourier transform of the bases over azimuth;
     pollution_level (observer_altitude, distance, source_altitude), Q of eq. 10.
+
+    Examples
+    --------
+    >>> from skytorch.atmosphere import Atmosphere
+    >>> from skytorch.skyglow.citymap import synthetic_city
+    >>> model = SkyglowModel.precompute(Atmosphere.earth(turbidity=2.0), n_azimuth=16,
+    ...                                 n_elevation=4, n_distance=8, n_components=4,
+    ...                                 n_steps=4, progress=False)
+    >>> sky = model.render(synthetic_city(20e3, 1e3), observer_xy=(5e3, 0.0))
+    >>> sky["luminance"].dims
+    ('elevation', 'azimuth')
+    >>> bool(sky["total_brightness"].max() < 22.0)
+    True
     """
 
     def __init__(self, *, azimuth_rad, elevation_rad, distance_m, distance_edges_m,
