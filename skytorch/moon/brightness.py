@@ -206,6 +206,16 @@ def magnitude(phase_angle_rad, *, distance_m=MEAN_EARTH_MOON_DISTANCE_M,
         V magnitude [mag] above the atmosphere. About −12.9 at α = 0 with the default
         Hapke parameters (opposition surge included); see docs/moon.md for the comparison
         with Krisciunas & Schaefer (1991).
+
+    Examples
+    --------
+    >>> import math, torch
+    >>> from skytorch.moon import magnitude, magnitude_ks1991
+    >>> alpha = torch.tensor([0.0, math.pi / 2])  # full and quarter Moon
+    >>> magnitude(alpha)
+    tensor([-12.9..., -10.0...])
+    >>> magnitude_ks1991(alpha)  # the observed phase curve, for comparison
+    tensor([-12.7300, -10.1276])
     """
     from skytorch.spectrum import spectrum_to_magnitude
 

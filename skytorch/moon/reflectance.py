@@ -388,6 +388,14 @@ def reflectance(mu0, mu, phase_angle_rad, model: str = "hapke2012", wavelength_n
     ------
     ValueError
         Unknown model, phase angle outside [0, π], NaN inputs.
+
+    Examples
+    --------
+    >>> import math, torch
+    >>> from skytorch.moon import reflectance
+    >>> mu0, mu, g = torch.tensor(0.5), torch.tensor(1.0), torch.tensor(math.pi / 3)
+    >>> reflectance(mu0, mu, g, wavelength_nm=torch.tensor([440.0, 550.0, 680.0]))
+    tensor([0.0070, 0.0087, 0.0101])
     """
     check_choice("model", model, REFLECTANCE_MODELS)
     if model == "hapke2012":
