@@ -222,3 +222,19 @@ def test_altitudes_outside_the_tables_warn():
         model.render(_one_cell(1e3, 0.0), observer_altitude_m=500.0)
     with pytest.warns(UserWarning, match="source altitude"):
         model.render(_one_cell(1e3, 0.0, altitude=800.0))
+
+
+def test_observer_altitude_interpolation_and_mixed_batches():
+    model = cached_model(n_azimuth=16, n_elevation=4, n_distance=8, n_components=8,
+                         n_observer_altitude=2, observer_altitude_range_m=(0.0, 1000.0))
+    city = _map([-3e3, 4e3], [2e3], [[2e5, 6e5]])
+    low = model.render(city, observer_altitude_m=0.0, as_dataset=False)["luminance"]
+    high = model.render(city, observer_altitude_m=1000.0, as_dataset=False)["luminance"]
+    # an observer 1 km up sees a different sky (less air above, sources seen from above)
+    assert not torch.allclose(low, high, rtol=1e-3)
+    middle = model.render(city, observer_altitude_m=250.0, as_dataset=False)["luminance"]
+    torch.testing.assert_close(middle, 0.75 * low + 0.25 * high, rtol=1e-12, atol=0.0)
+    xy = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]
+    batch = model.render(city, observer_xy=xy, observer_altitude_m=[1000.0, 0.0, 250.0],
+                         as_dataset=False)["luminance"]
+    torch.testing.assert_close(batch, torch.stack([high, low, middle]), rtol=1e-12, atol=0.0)
