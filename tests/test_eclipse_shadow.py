@@ -284,10 +284,3 @@ def test_mars_shadow_at_phobos_and_deimos():
         distance, torch.zeros(2, dtype=torch.float64), RGB)
     assert bool((airless == 0).all())
     assert bool((value >= 0).all()) and bool(torch.isfinite(value).all())
-
-
-def test_batched_atmosphere_rejected():
-    from skytorch.atmosphere import Atmosphere
-
-    with pytest.raises(ValueError, match="unbatched"):
-        Shadow.earth(Atmosphere.earth(turbidity=torch.tensor([2.0, 3.0])))

@@ -15,10 +15,16 @@ from skytorch.eclipse.occlusion import (  # noqa: F401
 __all__ = [
     "ENLARGEMENTS",
     "LIMB_DARKENING_LAWS",
+    "Shadow",
+    "ShadowTable",
+    "danjon_l",
+    "lunar_eclipse",
+    "lunar_light_curve",
     "limb_darkening_profile",
     "lunar_eclipses",
     "shadow_cone",
     "shadow_radii",
     "sun_visible_fraction",
 ]
-from skytorch.eclipse.lunar import Shadow, ShadowTable, danjon_l, lunar_eclipse  # noqa: E402,F401,I001
+from skytorch.eclipse.lunar import (  # noqa: E402,F401,I001
+    Shadow, ShadowTable, danjon_l, lunar_eclipse, lunar_light_curve)

@@ -62,6 +62,7 @@ __all__ = [
     "ShadowTable",
     "danjon_l",
     "lunar_eclipse",
+    "lunar_light_curve",
     "plot_lunar_eclipse",
 ]
 
@@ -74,6 +75,9 @@ DANJON_ANCHORS = ((0.0, 2.0), (4.0, -3.3))
 SEARCH_DAYS = 20
 #: fraction of the P1–P4 duration added before P1 and after P4
 MARGIN = 0.05
+#: elements of the largest shadow look-up temporary (times x disc points x members x
+#: wavelengths) in the light curve (~32 MB in float64)
+_LOOKUP_ELEMENTS = 4_000_000
 
 _REFERENCES = [
     "Schneegans, S., Gilg, J., Ahlers, V., Zachmann, G., Gerndt, A. 2025, Physically Based "
@@ -235,6 +239,117 @@ _SPECS = {
 }
 
 
+def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement,
+                 shadow, table_n_u, table_n_v, progress) -> dict:
+    """Geometry, shadow table and disc-integrated fluxes shared by the light-curve APIs.
+
+    ``flux`` is (n_time, *B, n_wavelength) for a shadow with atmosphere batch shape ``B``;
+    ``flux_full`` (the uneclipsed Moon) is (n_time, n_wavelength).
+    """
+    from skytorch.ephemeris import sun_moon_vectors
+    from skytorch.moon.disc import disc_grid, disc_radiance
+    from skytorch.spectrum import wavelength_grid
+
+    n_times = check_int("n_times", n_times, low=2)
+    n_disc = check_int("n_disc", n_disc, low=2)
+    wavelength = (wavelength_grid("bands15") if wavelength_nm is None
+                  else as_tensor("wavelength_nm", wavelength_nm).reshape(-1))
+    times, row = _eclipse_times(time_or_date, n_times, enlargement)
+    vectors = sun_moon_vectors(times)
+    sun, moon = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
+    sun_distance = float(torch.linalg.norm(sun, dim=-1).mean())
+    if shadow is None:
+        shadow = Shadow.earth(atmosphere, sun_distance_m=sun_distance)
+    distances = torch.linalg.norm(moon, dim=-1)
+    table = ShadowTable.compute(
+        shadow, wavelength, n_u=table_n_u, n_v=table_n_v,
+        min_distance_m=float(distances.min()) - 1.05 * MOON_RADIUS_M,
+        max_distance_m=float(distances.max()) + 1.05 * MOON_RADIUS_M, progress=progress)
+    grid = disc_grid(n_disc)
+    solid = (MOON_RADIUS_M / distances) ** 2  # sr per unit disc area
+    weight = grid["weight"] * solid[:, None]  # (n_time, n_point) [sr]
+    batch = table.batch_shape
+    # times in chunks: the look-up temporaries are (times, points, members, wavelengths)
+    size = grid["weight"].numel() * math.prod(batch) * wavelength.numel()
+    step = max(1, _LOOKUP_ELEMENTS // size)
+    fluxes, fulls = [], []
+    for start in range(0, n_times, step):
+        part = slice(start, start + step)
+        radiance, illuminance = _surface_radiance(
+            _shadow_lookup(table, sun[part]), sun[part], moon[part], grid["normal"],
+            wavelength, sun_distance, disc_radiance)
+        members = illuminance.reshape(*illuminance.shape[:2], -1, illuminance.shape[-1])
+        fluxes.append(torch.einsum("npl,npbl,np->nbl", radiance, members, weight[part]))
+        fulls.append(torch.einsum("npl,np->nl", radiance, weight[part]))
+    flux = torch.cat(fluxes).reshape(n_times, *batch, -1)
+    flux_full = torch.cat(fulls)
+    anti_sun = -sun / torch.linalg.norm(sun, dim=-1, keepdim=True)
+    along = (moon * anti_sun).sum(-1)
+    axis_distance = torch.linalg.norm(moon - along[:, None] * anti_sun, dim=-1)
+    return {"times": times, "row": row, "sun": sun, "moon": moon, "wavelength": wavelength,
+            "sun_distance": sun_distance, "shadow": shadow, "table": table, "flux": flux,
+            "flux_full": flux_full, "axis_distance": axis_distance}
+
+
+def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
+                      wavelength_nm=None, n_disc: int = 12, enlargement: str = "danjon",
+                      shadow=None, table_n_v: int = 384, table_n_u: int = 3,
+                      progress: bool = False) -> dict[str, torch.Tensor]:
+    """Light curve of the Moon through a lunar eclipse for a batch of atmospheres.
+
+    The tensor form of :func:`lunar_eclipse` (same times, disc integration and shadow
+    table, no images): for a batched atmosphere, e.g.
+    ``Atmosphere.earth(turbidity=t[:, None], ozone_du=o[None, :])`` with batch shape
+    ``B``, the rays are traced and the ring geometry evaluated once and only the
+    transmittances differ per member. Batch dimensions lead, as
+    :func:`skytorch.sweep` with ``backend="broadcast"`` expects.
+
+    Parameters
+    ----------
+    time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement, shadow,
+    table_n_v, table_n_u, progress
+        As in :func:`lunar_eclipse`; ``atmosphere`` (or ``shadow``) may be batched.
+
+    Returns
+    -------
+    dict of Tensor
+        ``v_magnitude``, ``b_magnitude``, ``b_minus_v``, ``relative_brightness``
+        (*B, time) [mag], [mag], [mag], [1]; ``spectral_irradiance`` (*B, time, wavelength)
+        [W m-2 nm-1]; ``greatest_v_magnitude`` and ``danjon_l`` (*B) at the time closest
+        to the shadow axis. The times are those of ``lunar_eclipse(...).time``.
+
+    Examples
+    --------
+    >>> import torch
+    >>> from skytorch.atmosphere import Atmosphere
+    >>> atm = Atmosphere.earth(turbidity=torch.tensor([[1.5], [3.0]], dtype=torch.float64),
+    ...                        ozone_du=torch.tensor([[250.0, 350.0]], dtype=torch.float64))
+    >>> curve = lunar_light_curve("2015-09-28", atm, n_times=8, table_n_v=96)
+    >>> tuple(curve["v_magnitude"].shape), tuple(curve["danjon_l"].shape)
+    ((2, 2, 8), (2, 2))
+    """
+    from skytorch.spectrum import spectrum_to_magnitude
+
+    curve = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
+                         enlargement, shadow, table_n_u, table_n_v, progress)
+    wavelength = curve["wavelength"]
+    batch = curve["table"].batch_shape
+    flux = curve["flux"].movedim(0, len(batch))  # (*B, time, wavelength)
+    v_mag = spectrum_to_magnitude(flux, wavelength, "V")
+    b_mag = spectrum_to_magnitude(flux, wavelength, "B")
+    v_full = spectrum_to_magnitude(curve["flux_full"], wavelength, "V")
+    greatest = int(torch.argmin(curve["axis_distance"]))
+    return {
+        "v_magnitude": v_mag,
+        "b_magnitude": b_mag,
+        "b_minus_v": b_mag - v_mag,
+        "relative_brightness": 10 ** (-0.4 * (v_mag - v_full)),
+        "spectral_irradiance": flux,
+        "greatest_v_magnitude": v_mag[..., greatest],
+        "danjon_l": danjon_l(v_mag[..., greatest]),
+    }
+
+
 def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
                   wavelength_nm=None, n_disc: int = 12, n_images: int = 9,
                   image_pixels: int = 48, enlargement: str = "danjon", shadow=None,
@@ -274,47 +389,24 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         ``image``; attributes: the circumstances, ``greatest_v_magnitude``,
         ``danjon_l`` and the shadow parameters.
     """
-    from skytorch.eclipse.shadow import Shadow
-    from skytorch.eclipse.shadow_table import ShadowTable
-    from skytorch.ephemeris import sun_moon_vectors
-    from skytorch.moon.disc import disc_grid, disc_radiance
-    from skytorch.spectrum import spectrum_to_magnitude, wavelength_grid
+    from skytorch.spectrum import spectrum_to_magnitude
 
-    n_times = check_int("n_times", n_times, low=2)
-    n_disc = check_int("n_disc", n_disc, low=2)
     n_images = check_int("n_images", n_images, low=0)
     image_pixels = check_int("image_pixels", image_pixels, low=4)
-    wavelength = (wavelength_grid("bands15") if wavelength_nm is None
-                  else as_tensor("wavelength_nm", wavelength_nm).reshape(-1))
-    times, row = _eclipse_times(time_or_date, n_times, enlargement)
+    curve = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
+                         enlargement, shadow, table_n_u, table_n_v, progress)
+    if curve["shadow"].batch_shape:
+        raise ValueError("lunar_eclipse needs an unbatched atmosphere; use "
+                         "lunar_light_curve (or skytorch.sweep) for batched atmospheres")
+    times, row, shadow, table = curve["times"], curve["row"], curve["shadow"], curve["table"]
+    sun, moon, wavelength = curve["sun"], curve["moon"], curve["wavelength"]
+    sun_distance = curve["sun_distance"]
+    flux, flux_full, axis_distance = curve["flux"], curve["flux_full"], curve["axis_distance"]
     image_index = (np.round(np.linspace(0, n_times - 1, n_images)).astype(int)
                    if n_images else np.zeros(0, dtype=int))
-    vectors = sun_moon_vectors(times)
-    sun, moon = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
-    sun_distance = float(torch.linalg.norm(sun, dim=-1).mean())
-    if shadow is None:
-        shadow = Shadow.earth(atmosphere, sun_distance_m=sun_distance)
-    distances = torch.linalg.norm(moon, dim=-1)
-    table = ShadowTable.compute(
-        shadow, wavelength, n_u=table_n_u, n_v=table_n_v,
-        min_distance_m=float(distances.min()) - 1.05 * MOON_RADIUS_M,
-        max_distance_m=float(distances.max()) + 1.05 * MOON_RADIUS_M, progress=progress)
-
-    shadow_fn = _shadow_lookup(table, sun)
-    grid = disc_grid(n_disc)
-    solid = (MOON_RADIUS_M / distances) ** 2  # sr per unit disc area
-    radiance, illuminance = _surface_radiance(shadow_fn, sun, moon, grid["normal"],
-                                              wavelength, sun_distance, disc_radiance)
-    weight = grid["weight"] * solid[:, None]  # (n_time, n_point) [sr]
-    flux = torch.einsum("npl,np->nl", radiance * illuminance, weight)
-    flux_full = torch.einsum("npl,np->nl", radiance, weight)
-    v_mag = spectrum_to_magnitude(flux, wavelength, "V")
-    b_mag = spectrum_to_magnitude(flux, wavelength, "B")
-    v_full = spectrum_to_magnitude(flux_full, wavelength, "V")
+    v_mag, b_mag, v_full = (spectrum_to_magnitude(f, wavelength, band)
+                            for f, band in ((flux, "V"), (flux, "B"), (flux_full, "V")))
     colour = _colour(flux, wavelength)
-    anti_sun = -sun / torch.linalg.norm(sun, dim=-1, keepdim=True)
-    along = (moon * anti_sun).sum(-1)
-    axis_distance = torch.linalg.norm(moon - along[:, None] * anti_sun, dim=-1)
 
     greatest = int(torch.argmin(axis_distance))
     greatest_v = float(v_mag[greatest])

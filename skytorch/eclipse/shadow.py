@@ -330,8 +330,8 @@ class RingProfile:
         Ray weights, see :meth:`weight`.
     deviation_rad : Tensor (n,)
         Total bending [rad].
-    optical_depth : Tensor (n, n_wavelength)
-        Optical depth along the bent path [1].
+    optical_depth : Tensor (n, n_wavelength) or (n, n_batch, n_wavelength)
+        Optical depth along the bent path [1], per member of a batch of atmospheres.
     periapsis_altitude_m : Tensor (n,)
         Lowest altitude of each ray [m].
     """
@@ -349,10 +349,18 @@ class RingProfile:
         self.cloud_top_m = float(cloud_top_m)
         self.cloud_fraction = float(cloud_fraction)
         # the optical depth is a sum over species of (profile integral) x (cross-section):
-        # a matrix of low rank; interpolate its few factors instead of every wavelength
-        u, sv, vh = torch.linalg.svd(optical_depth.to(torch.float64), full_matrices=False)
+        # a matrix of low rank; interpolate its few factors instead of every wavelength.
+        # A batch of atmospheres (n, n_batch, n_wl) shares the wavelength basis: the
+        # factors of all members become columns of one interpolation table
+        optical = optical_depth.to(torch.float64)
+        if optical.dim() == 2:
+            optical = optical[:, None, :]
+        n_rows, self.n_batch, n_wl = optical.shape
+        u, sv, vh = torch.linalg.svd(optical.reshape(n_rows * self.n_batch, n_wl),
+                                     full_matrices=False)
         rank = int((sv > _RANK_TOLERANCE * sv[:1].clamp_min(1e-300)).sum()) if sv.numel() else 0
-        self.optical_factors = u[:, :rank] * sv[:rank]
+        self.rank = rank
+        self.optical_factors = (u[:, :rank] * sv[:rank]).reshape(n_rows, self.n_batch * rank)
         self.optical_basis = vh[:rank]
         self._cache: dict = {}
 
@@ -453,7 +461,7 @@ def _breakpoints(profile: RingProfile, tables, centre, separation, sun_radius, s
 
 def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coefficients,
                 n_ring: int, n_arc: int, radius: float, n_split: int = 1) -> torch.Tensor:
-    """Ring integral for 1-D tensors of points -> (n_point, n_wavelength), unnormalised.
+    """Ring integral for 1-D tensors of points -> (n_point, n_batch, n_wl), unnormalised.
 
     Only the non-empty pieces of the ``beta`` integral (between breakpoints of ``F``, the
     terrain and cloud kinks) are integrated: (point, piece) pairs are gathered, integrated
@@ -498,10 +506,11 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     solid = b / (centre * torch.sqrt((centre - b) * (centre + b)))
     weight = arc * solid * (2.0 * span * s) * ds
     weight = weight * _ray_weight(periapsis, profile)
-    # exp(-max(tau, 0)) in place on the (n_pair, m, n_wl) temporary
-    transmittance = (values[..., 2:] @ -tables["basis"]).clamp_(max=0.0).exp_()
-    pairs = torch.einsum("pm,pml->pl", weight, transmittance)
-    return pairs.new_zeros((n_point, pairs.shape[-1])).index_add(0, point, pairs)
+    # exp(-max(tau, 0)) in place on the (n_pair, m, n_batch, n_wl) temporary
+    factors = values[..., 2:].reshape(*values.shape[:-1], profile.n_batch, profile.rank)
+    transmittance = (factors @ -tables["basis"]).clamp_(max=0.0).exp_()
+    pairs = torch.einsum("pm,pmbl->pbl", weight, transmittance)
+    return pairs.new_zeros((n_point, *pairs.shape[1:])).index_add(0, point, pairs)
 
 
 def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, separation_rad,
@@ -528,8 +537,9 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
 
     Returns
     -------
-    Tensor (..., n_wavelength)
-        Ring irradiance [sr] (divide by :func:`solar_normalisation` for I / I_sun).
+    Tensor (..., n_batch, n_wavelength)
+        Ring irradiance [sr] (divide by :func:`solar_normalisation` for I / I_sun), per
+        member of the profile's batch of atmospheres (``n_batch = 1`` for one).
     """
     tensors = torch.broadcast_tensors(centre_distance_m, sun_radius_rad, separation_rad,
                                       deviation_scale, *coefficients)
@@ -550,9 +560,10 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
         dark = (a_low > outer) | (a_high < -outer) | (
             (separation >= sun_radius) & (a_low > -gap) & (a_high < gap))
         active = torch.nonzero(~dark).squeeze(-1)
-    result = flat[0].new_zeros((flat[0].shape[0], n_wl))
+    n_batch = profile.n_batch
+    result = flat[0].new_zeros((flat[0].shape[0], n_batch, n_wl))
     if active.numel() == 0:
-        return result.reshape(*shape, n_wl) + 0.0 * flat[0].reshape(*shape, 1)
+        return result.reshape(*shape, n_batch, n_wl) + 0.0 * flat[0].reshape(*shape, 1, 1)
     chosen = [x.index_select(0, active) for x in flat]
     pieces = []
     for start in range(0, chosen[0].shape[0], _CHUNK):
@@ -560,7 +571,21 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
         pieces.append(_ring_chunk(profile, *part[:4], tuple(part[4:]), n_ring, n_arc,
                                   occluder_radius_m, n_split))
     result = result.index_put((active,), torch.cat(pieces))
-    return result.reshape(*shape, n_wl)
+    return result.reshape(*shape, n_batch, n_wl)
+
+
+def _broadcast_batch(values: torch.Tensor, batch_shape: tuple[int, ...]) -> torch.Tensor:
+    """``(*G, n_batch, n_wl)`` per point and member -> ``(*broadcast(G, B), n_wl)``.
+
+    Picks, for every element of the broadcast shape, the point and the member that torch's
+    broadcasting pairs there.
+    """
+    points = values.shape[:-2]
+    shape = torch.broadcast_shapes(points, batch_shape)
+    flat = values.reshape(-1, *values.shape[-2:])
+    point = torch.arange(flat.shape[0]).reshape(points).expand(shape)
+    member = torch.arange(flat.shape[1]).reshape(batch_shape).expand(shape)
+    return flat[point, member]
 
 
 class _NoRefraction:
@@ -589,7 +614,10 @@ class Shadow(nn.Module):
     sun_distance_m : float
         Default Sun–occluder distance [m].
     atmosphere : Atmosphere or None or False
-        The occluder's atmosphere (unbatched); ``None`` or ``False``: airless.
+        The occluder's atmosphere; ``None`` or ``False``: airless. A batched atmosphere
+        (e.g. ``Atmosphere.earth(turbidity=t[:, None], ozone_du=o[None, :])``, batch shape
+        ``B``) is evaluated for all members at once; its members must share the
+        refractivity (parameters of the extinction only, such as turbidity and ozone).
     sun_radius_m : float
         Solar radius [m].
     refraction, extinction : bool
@@ -631,10 +659,8 @@ class Shadow(nn.Module):
         super().__init__()
         if atmosphere is False:
             atmosphere = None
-        if atmosphere is not None and tuple(getattr(atmosphere, "batch_shape", ())) != ():
-            raise ValueError("Shadow needs an unbatched atmosphere (batch_shape ()); got "
-                             f"batch_shape {tuple(atmosphere.batch_shape)}: build one Shadow "
-                             "per parameter set")
+        self.batch_shape = (tuple(getattr(atmosphere, "batch_shape", ()))
+                            if atmosphere is not None else ())
         self.atmosphere = atmosphere
         radius = atmosphere.planet_radius_m if atmosphere is not None else occluder_radius_m
         self.occluder_radius_m = float(check_positive("occluder_radius_m", radius, unit=" m"))
@@ -755,13 +781,24 @@ class Shadow(nn.Module):
             beta = beta_min + (top - beta_min) * s * s
             logger.info("tracing %d grazing rays x %d wavelengths", beta.numel(),
                         wavelength.numel())
-            rays = trace_grazing_rays(atm, impact_altitude_m=beta, wavelength_nm=wavelength,
-                                      n_nodes=self.trace_nodes)
-            deviation = rays["deviation_rad"].detach().to(torch.float64)
-            optical = rays["optical_depth"].detach().to(torch.float64)
+            batch = self.batch_shape
+            rays = trace_grazing_rays(atm, impact_altitude_m=beta.reshape(-1, *(1,) * len(batch)),
+                                      wavelength_nm=wavelength, n_nodes=self.trace_nodes)
+            deviation = rays["deviation_rad"].detach().to(torch.float64).reshape(
+                beta.shape[0], -1)
+            periapsis = rays["contact_altitude_m"].detach().to(torch.float64).reshape(
+                beta.shape[0], -1)
+            if deviation.shape[1] > 1 and not bool(
+                    (deviation == deviation[:, :1]).all() & (periapsis == periapsis[:, :1]).all()):
+                raise ValueError("the members of the batched atmosphere bend light differently; "
+                                 "Shadow batches atmospheres that differ in extinction only "
+                                 "(turbidity, ozone): build one Shadow per refractivity")
+            deviation, periapsis = deviation[:, 0], periapsis[:, 0]
+            optical = rays["optical_depth"].detach().to(torch.float64).expand(
+                beta.shape[0], *batch, wavelength.shape[0]).reshape(
+                beta.shape[0], -1, wavelength.shape[0])
             if not self.extinction:
                 optical = torch.zeros_like(optical)
-            periapsis = rays["contact_altitude_m"].detach().to(torch.float64)
         profile = RingProfile(beta_min, top, deviation, optical, periapsis,
                               self.terrain_height_m, splits,
                               cloud_top_m=0.0 if closed else self.cloud_top_altitude_m,
@@ -810,6 +847,12 @@ class Shadow(nn.Module):
         -------
         Tensor (..., n_wavelength)
             ``I / I_sun`` in [0, 1] (1 outside the penumbra), dtype of the geometry inputs.
+            With a batched atmosphere (batch shape ``B``) the geometry broadcasts with
+            ``B`` by torch rules: ``(*broadcast(..., B), n_wavelength)``; give the
+            geometry trailing singleton dims (``distance_m[..., None, None]`` for a 2-D
+            ``B``) to get every point for every member, ``(..., *B, n_wavelength)``, at the
+            cost of one geometry evaluation per point (the ring weights are shared by the
+            members, only the transmittances differ).
 
         Raises
         ------
@@ -835,7 +878,10 @@ class Shadow(nn.Module):
         ring = ring_illuminance(profile, centre, rho_s, sigma, scale, coefficients,
                                 self.occluder_radius_m, self.n_ring, self.n_arc, self.n_split)
         normalisation = solar_normalisation(rho_s, limb, self.law)
-        return direct.unsqueeze(-1) + ring / normalisation.unsqueeze(-1)
+        total = direct[..., None, None] + ring / normalisation[..., None, None]
+        if not self.batch_shape:
+            return total.squeeze(-2)
+        return _broadcast_batch(total, self.batch_shape)
 
     forward = relative_illuminance
 
@@ -880,6 +926,9 @@ class Shadow(nn.Module):
         profile = self.ring_profile(wavelength)
         if profile is None:
             raise ValueError("limb_view needs an occluder with an atmosphere")
+        if self.batch_shape:
+            raise ValueError("limb_view needs an unbatched atmosphere; got batch shape "
+                             f"{self.batch_shape}")
         tables = profile.tables(dtype)
         span = profile.beta_top_m - profile.beta_min_m
         shape = angles["centre_distance_m"].shape

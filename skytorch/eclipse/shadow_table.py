@@ -227,8 +227,9 @@ class ShadowTable(nn.Module):
         Uniform grids of the table coordinates.
     wavelength_nm : Tensor (wavelength,)
         Wavelengths [nm].
-    values : Tensor (u, v, wavelength)
-        ``I / I_sun``.
+    values : Tensor (u, v, wavelength) or (u, v, *B, wavelength)
+        ``I / I_sun``, optionally for a batch (shape ``B``) of atmospheres; look-ups then
+        return ``(..., *B, wavelength)``.
     sun_distance_m, sun_radius_m, occluder_radius_m : float
         Geometry of the table (``occluder_radius_m`` is the top of the atmosphere) [m].
     interpolation : {"log", "linear"}
@@ -250,6 +251,7 @@ class ShadowTable(nn.Module):
         self.register_buffer("wavelength_nm", as_tensor("wavelength_nm", wavelength_nm,
                                                         dtype=torch.float64))
         self.register_buffer("values", as_tensor("values", values, dtype=torch.float64))
+        self.batch_shape = tuple(self.values.shape[2:-1])
         self.sun_distance_m = float(sun_distance_m)
         self.sun_radius_m = float(sun_radius_m)
         self.occluder_radius_m = float(occluder_radius_m)
@@ -306,11 +308,15 @@ class ShadowTable(nn.Module):
         rows = []
         show = progress and _is_terminal()
         step = max(1, 4096 // n_v)
+        batch = tuple(getattr(shadow, "batch_shape", ()))
+        ones = (1,) * len(batch)
         with torch.no_grad():
             for start in tqdm(range(0, n_u, step), desc="shadow table", disable=not show):
-                rows.append(shadow.relative_illuminance(
-                    position["distance_m"][start:start + step].to(dtype),
-                    position["offset_m"][start:start + step].to(dtype), wavelength))
+                distance = position["distance_m"][start:start + step].to(dtype)
+                offset = position["offset_m"][start:start + step].to(dtype)
+                rows.append(shadow.relative_illuminance(distance.reshape(*distance.shape, *ones),
+                                                        offset.reshape(*offset.shape, *ones),
+                                                        wavelength))
         values = torch.cat(rows).to(torch.float64)
         attrs = {"min_distance_m": low, "max_distance_m": high, "n_u": n_u, "n_v": n_v,
                  "dtype": str(dtype).replace("torch.", "")}
@@ -323,7 +329,7 @@ class ShadowTable(nn.Module):
 
     # ------------------------------------------------------------------ look-up
     def lookup_uv(self, u, v) -> torch.Tensor:
-        """Bilinear look-up at table coordinates -> (..., wavelength).
+        """Bilinear look-up at table coordinates -> (..., *B, wavelength).
 
         ``v >= 1`` gives exactly 1 (outside the penumbra); ``u`` is clamped to the grid.
         """
@@ -342,13 +348,15 @@ class ShadowTable(nn.Module):
         y = torch.clamp(v, 0.0, 1.0) * (n_v - 1)
         i = torch.clamp(torch.floor(x.detach()), 0, n_u - 2).long()
         j = torch.clamp(torch.floor(y.detach()), 0, n_v - 2).long()
-        fx = (x - i.to(dtype)).unsqueeze(-1)
-        fy = (y - j.to(dtype)).unsqueeze(-1)
+        trailing = (1,) * (len(self.batch_shape) + 1)  # batch members, wavelength
+        fx = (x - i.to(dtype)).reshape(*x.shape, *trailing)
+        fy = (y - j.to(dtype)).reshape(*y.shape, *trailing)
         result = ((1 - fx) * (1 - fy) * values[i, j] + fx * (1 - fy) * values[i + 1, j]
                   + (1 - fx) * fy * values[i, j + 1] + fx * fy * values[i + 1, j + 1])
         if self.interpolation == "log":
             result = torch.exp(result)
-        return torch.where((v >= 1.0).unsqueeze(-1), torch.ones_like(result), result)
+        return torch.where((v >= 1.0).reshape(*v.shape, *trailing), torch.ones_like(result),
+                           result)
 
     def lookup(self, distance_m, offset_m, sun_distance_m=None) -> torch.Tensor:
         """``I / I_sun`` at points given along and across the anti-Sun axis [m].
@@ -362,7 +370,7 @@ class ShadowTable(nn.Module):
 
         Returns
         -------
-        Tensor (..., wavelength)
+        Tensor (..., wavelength) or (..., *B, wavelength) for a batched table
         """
         from skytorch.eclipse.shadow import shadow_angles
 
@@ -385,8 +393,9 @@ class ShadowTable(nn.Module):
 
     # ------------------------------------------------------------------ Dataset
     def to_dataset(self) -> xr.Dataset:
-        """The table as a CF Dataset (dims u, v, wavelength)."""
-        data_vars = {"relative_illuminance": variable(("u", "v", "wavelength"),
+        """The table as a CF Dataset (dims u, v, [atmosphere_k ...,] wavelength)."""
+        batch_dims = tuple(f"atmosphere_{k}" for k in range(len(self.batch_shape)))
+        data_vars = {"relative_illuminance": variable(("u", "v", *batch_dims, "wavelength"),
                                                       to_numpy(self.values),
                                                       _SPECS["relative_illuminance"])}
         positions = getattr(self, "_positions", None)
@@ -399,6 +408,9 @@ class ShadowTable(nn.Module):
                   "v": coordinate("v", to_numpy(self.v), _SPECS["v"]),
                   "wavelength": coordinate("wavelength", to_numpy(self.wavelength_nm),
                                            _SPECS["wavelength"])}
+        for dim, size in zip(batch_dims, self.batch_shape, strict=True):
+            coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
+                "1", "atmosphere batch index", f"Index of the atmosphere along {dim}"))
         parameters = dict(self.attrs)
         parameters.update({"table_sun_distance_m": self.sun_distance_m,
                            "table_sun_radius_m": self.sun_radius_m,
