@@ -59,8 +59,8 @@ def timed(function, quick: bool) -> float:
 
 
 def run(quick: bool = False):
-    n_config = 2_000 if quick else 100_000
-    n_timing = 20_000 if quick else 1_000_000
+    n_config = 500 if quick else 100_000
+    n_timing = 5_000 if quick else 1_000_000
     nodes = NODES[::3] if quick else NODES
     config = configurations(n_config)
     reference = sun_visible_fraction(config["rho_s"], config["rho_o"], config["d"],

@@ -266,3 +266,19 @@ def test_gradient_matches_finite_difference_of_reference():
     expected = (ring_reference(SUN_RADIUS, rho_o, d + step)
                 - ring_reference(SUN_RADIUS, rho_o, d - step)) / (2 * step)
     assert separation.grad.item() == pytest.approx(expected, rel=1e-5)
+
+
+def test_accuracy_cost_experiment_quick(tmp_path):
+    import runpy
+    from pathlib import Path
+
+    from skytorch.dataset import open_dataset
+
+    script = Path(__file__).resolve().parents[1] / "experiments" / "eclipse_geometry_accuracy_cost.py"
+    module = runpy.run_path(str(script))
+    assert module["main"](["--quick", "--output-dir", str(tmp_path)]) == 0
+    dataset = open_dataset(tmp_path / "eclipse_geometry_accuracy_cost.nc")
+    assert (tmp_path / "eclipse_geometry_accuracy_cost.png").stat().st_size > 0
+    # float64 error falls with the node count and is below 1e-6 at the default
+    errors = dataset.max_error.sel(dtype="float64").values
+    assert errors[-1] < 1e-6 and errors[0] > errors[-1]
