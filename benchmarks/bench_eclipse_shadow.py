@@ -10,6 +10,11 @@ Rows (medians, measured side by side in one run):
 * ``lunar_eclipse`` for 2015-09-28: 200 times, 15 wavelengths, 12 x 24 disc points (0.01 mag
   converged, tests/test_eclipse_lunar.py), with a prepared shadow model (its ring profile
   cached; the per-eclipse (u, v) table is built inside). Target: <= 2 s.
+* ``--sweep``: a 10 x 10 turbidity x ozone sweep of the 2015-09-28 light curve (200 times,
+  15 wavelengths), as one batched ``lunar_light_curve`` call and through
+  ``skytorch.sweep(backend="broadcast")`` (both include tracing the rays of all 100
+  atmospheres), and ``backend="serial"`` on a 2 x 2 corner scaled to 100 points. Target
+  (issue 7): <= 60 s.
 
 Run: ``python benchmarks/bench_eclipse_shadow.py [--append] [--threads 2] [--quick]``.
 The development machine has two cores shared with other jobs: medians are noisy.
@@ -29,6 +34,7 @@ from benchmarks._harness import machine_description, markdown_table, median_seco
 
 TARGET_TABLE_S = 10.0
 TARGET_CURVE_S = 2.0
+TARGET_SWEEP_S = 60.0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,9 +43,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads")
     parser.add_argument("--quick", action="store_true", help="64 x 64 table only")
+    parser.add_argument("--sweep", action="store_true",
+                        help="only the 10 x 10 turbidity x ozone light-curve sweep")
     args = parser.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.sweep:
+        return _sweep(args)
 
     from skytorch.eclipse.lunar import lunar_eclipse
     from skytorch.eclipse.shadow import Shadow
@@ -82,6 +92,54 @@ def main(argv: list[str] | None = None) -> int:
                  "ratio to target": seconds / TARGET_CURVE_S})
 
     text = (f"\n## Eclipse shadow (`benchmarks/bench_eclipse_shadow.py`)\n\n"
+            f"Machine: {machine_description()}\n\n{markdown_table(rows)}\n")
+    print(text)
+    if args.append:
+        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as f:
+            f.write(text)
+    return 0
+
+
+def _curve(turbidity, ozone_du):
+    """2015-09-28 light curve for scalar or broadcastable (turbidity, ozone) [mag]."""
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.eclipse.lunar import lunar_light_curve
+
+    out = lunar_light_curve("2015-09-28", Atmosphere.earth(turbidity=turbidity,
+                                                           ozone_du=ozone_du))
+    return {"v_magnitude": out["v_magnitude"],
+            "greatest_v_magnitude": out["greatest_v_magnitude"]}
+
+
+def _sweep(args) -> int:
+    import time
+
+    import numpy as np
+
+    import skytorch as st
+
+    turbidity = np.linspace(1.5, 4.0, 10)
+    ozone = np.linspace(200.0, 400.0, 10)
+    t = torch.as_tensor(turbidity)[:, None]
+    o = torch.as_tensor(ozone)[None, :]
+    rows = []
+
+    def row(name, seconds):
+        rows.append({"workload": name, "median s": seconds, "target s": TARGET_SWEEP_S,
+                     "ratio to target": seconds / TARGET_SWEEP_S})
+
+    row("10x10 light curves, one batched lunar_light_curve",
+        median_seconds(lambda: _curve(t, o), repeat=1, warmup=0))
+    row("10x10 light curves, st.sweep(backend='broadcast')",
+        median_seconds(lambda: st.sweep(_curve, turbidity=turbidity, ozone_du=ozone,
+                                        backend="broadcast", progress=False),
+                       repeat=1, warmup=0))
+    start = time.perf_counter()
+    st.sweep(_curve, turbidity=turbidity[:2], ozone_du=ozone[:2], backend="serial",
+             progress=False)
+    row("10x10 light curves, st.sweep(backend='serial'), 2x2 scaled x25",
+        25.0 * (time.perf_counter() - start))
+    text = (f"\n## Eclipse light-curve sweep (`benchmarks/bench_eclipse_shadow.py --sweep`)\n\n"
             f"Machine: {machine_description()}\n\n{markdown_table(rows)}\n")
     print(text)
     if args.append:
