@@ -2,7 +2,7 @@
 
 References: the uneclipsed Moon from skytorch.moon.brightness.magnitude (a different
 quadrature: photometric coordinates over the lit disc); the totality range V = -3.3 ... +2
-(Hernitschke et al. 2008, Appl. Opt. 47, H62; Keen 1983, Science 222, 1011); the greatest
+(Hernitschek et al. 2008, Appl. Opt. 47, H62; Keen 1983, Science 222, 1011); the greatest
 eclipse time from the circumstances (Five Millennium Canon validated); a converged
 high-resolution disc sampling for the 0.01 mag requirement.
 """

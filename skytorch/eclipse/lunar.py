@@ -25,7 +25,7 @@ References
    Computer Graphics Forum, doi:10.1111/cgf.70220 (Fig. 11: eclipsed Moon images).
 2. Müller, T., Engel, J., Döllner, J. 2012, "Single-Pass Rendering of Day and Night Sky
    Phenomena", Proc. VMV, doi:10.2312/PE/VMV/VMV12/055-062 (Fig. 3: eclipse stages).
-3. Hernitschke, N., Schmidt, E., Vollmer, M. 2008, "Lunar eclipse photometry: absolute
+3. Hernitschek, N., Schmidt, E., Vollmer, M. 2008, "Lunar eclipse photometry: absolute
    luminance measurements and modeling", Appl. Opt. 47, H62, doi:10.1364/AO.47.000H62
    (totality from −3.3 mag for bright eclipses).
 4. Keen, R. A. 1983, "Volcanic aerosols and lunar eclipses", Science 222, 1011,
@@ -68,8 +68,10 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: totality V magnitude at Danjon L = 0 and L = 4 (the range quoted by Hernitschke et al.
-#: 2008 and Keen 1983: about +2 for the darkest eclipses, -3.3 for the brightest)
+#: (L, V) anchors of the Danjon-L proxy [1], [mag]: L = 4 at V = -3.3, the brightest
+#: totality measured photometrically by Hernitschek et al. 2008 (-3.32 mag, 1990-02-09,
+#: a bright eclipse without stratospheric aerosol), and L = 0 at V = +2, the faint end of
+#: the totality range the project adopts from Keen 1983 (not a fitted relation)
 DANJON_ANCHORS = ((0.0, 2.0), (4.0, -3.3))
 #: days around the given date in which the nearest eclipse is looked for
 SEARCH_DAYS = 20
@@ -82,7 +84,7 @@ _LOOKUP_ELEMENTS = 4_000_000
 _REFERENCES = [
     "Schneegans, S., Gilg, J., Ahlers, V., Zachmann, G., Gerndt, A. 2025, Physically Based "
     "Real-Time Rendering of Eclipses, Computer Graphics Forum, doi:10.1111/cgf.70220",
-    "Hernitschke, N., Schmidt, E., Vollmer, M. 2008, Lunar eclipse photometry: absolute "
+    "Hernitschek, N., Schmidt, E., Vollmer, M. 2008, Lunar eclipse photometry: absolute "
     "luminance measurements and modeling, Appl. Opt. 47, H62, doi:10.1364/AO.47.000H62",
     "Keen, R. A. 1983, Volcanic aerosols and lunar eclipses, Science 222, 1011, "
     "doi:10.1126/science.222.4627.1011",
@@ -94,9 +96,14 @@ _REFERENCES = [
 def danjon_l(v_magnitude) -> torch.Tensor:
     """Danjon L estimated from the V magnitude of the Moon at mid-totality.
 
-    Linear between the anchors :data:`DANJON_ANCHORS` (L = 0 at V = +2, L = 4 at
-    V = −3.3; Hernitschke et al. 2008, Keen 1983), clipped to [0, 4]. The Danjon scale is
-    a visual, colour-and-brightness judgement; this is a brightness proxy only.
+    A brightness proxy, not a published L–magnitude relation: ``L`` is linear in V
+    between the anchors :data:`DANJON_ANCHORS`,
+    ``L = 4 (V - 2) / (-3.3 - 2)``, clipped to [0, 4]. No fitted relation between L and
+    the magnitude of the eclipsed Moon was found in the literature at hand (Danjon 1921
+    defines L by colour and visibility; Hernitschek et al. 2008 give magnitudes, -3.32 and
+    -1.7 mag for 1990-02-09 and 2007-03-03, but no L relation). One magnitude corresponds
+    to about 0.75 in L; the visual L also weighs colour and the umbral rim, which this
+    proxy ignores.
 
     Parameters
     ----------
