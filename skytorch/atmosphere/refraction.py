@@ -875,11 +875,21 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
         return stop | (r < radius) if stop_at_ground else stop
 
     active = active[~finished(r0, radial, travelled)]
+    limit = torch.full_like(r0, math.inf)  # step limit after a rejected step
     while active.numel():
         pa, va, rad = p[active], v[active], radial[active]
         ra = torch.linalg.vector_norm(pa, dim=-1)
         ds = torch.minimum(torch.full_like(ra, step_m),
                            max_dh_m / torch.clamp(rad.abs(), min=1e-12))
+        # land on the ground rather than step across it (dn/dr jumps there): the
+        # straight-line distance to the sphere r = R, in a form without cancellation
+        # (stop 0.1 % short first, so that no RK4 stage falls below the ground, where
+        # dn/dr = 0; the last stretch, <= 1 m, is then a negligible first-order error)
+        ds = torch.minimum(ds, limit[active])
+        meets, to_ground = _straight_to_ground(pa, va, ra, radius)
+        meets = meets & (to_ground <= ds)
+        lands = meets & (to_ground <= 1.0)
+        ds = torch.where(lands, to_ground, torch.where(meets, 0.999 * to_ground, ds))
         h2 = ds.unsqueeze(-1)
         k1p, k1v, k1k = derivative(pa, va)
         k2p, k2v, k2k = derivative(pa + 0.5 * h2 * k1p, va + 0.5 * h2 * k1v)
@@ -887,22 +897,79 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
         k4p, k4v, k4k = derivative(pa + h2 * k3p, va + h2 * k3v)
         p_new = pa + h2 / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
         v_new = va + h2 / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+        # a curved ray can cross the ground where the straight line misses it: reject the
+        # step and retry shorter (linear interpolation of the radius, 0.1 % short)
+        r_trial = torch.linalg.vector_norm(p_new, dim=-1)
+        crossed = (r_trial < radius) & (ra >= radius) & ~lands
+        accept = ~crossed
+        limit[active] = torch.where(
+            crossed, 0.999 * ds * (ra - radius) / torch.clamp(ra - r_trial, min=1e-30),
+            torch.full_like(ds, math.inf))
+        p_new = torch.where(accept.unsqueeze(-1), p_new, pa)
+        v_new = torch.where(accept.unsqueeze(-1), v_new, va)
+        ds = torch.where(accept, ds, torch.zeros_like(ds))
         if tau is not None:
-            tau[active] = tau[active] + h2 / 6.0 * (k1k + 2.0 * k2k + 2.0 * k3k + k4k)
+            increment = h2 / 6.0 * (k1k + 2.0 * k2k + 2.0 * k3k + k4k)
+            tau[active] = tau[active] + increment * accept.unsqueeze(-1)
         # minimum radius: a parabola through the radial speeds at both ends of the step
+        if bool(lands.any()) and not stop_at_ground:
+            # through the planet, where the index is constant: a straight chord
+            p_new, chord, closest = _chord_through_ground(p_new, v_new, radius, lands)
+            r_min[active] = torch.minimum(r_min[active], closest)
+            ds = ds + chord
         n_new, _, r_new = index_and_gradient(p_new)
         rad_new = (p_new * v_new).sum(-1) / (r_new * n_new)
-        curvature = (rad_new - rad) / ds
-        turning = (rad < 0.0) & (rad_new >= 0.0) & (curvature > 0.0)
+        curvature = (rad_new - rad) / torch.clamp(ds, min=1e-30)
+        turning = (rad < 0.0) & (rad_new >= 0.0) & (curvature > 0.0) & accept
         safe = torch.where(turning, curvature, torch.ones_like(curvature))
         vertex = ra - rad * rad / (2.0 * safe)
         candidate = torch.where(turning, vertex, torch.minimum(ra, r_new))
         r_min[active] = torch.minimum(r_min[active], candidate)
         p[active], v[active], radial[active] = p_new, v_new, rad_new
         travelled[active] = travelled[active] + ds
-        active = active[~finished(r_new, rad_new, travelled[active])]
+        stop = finished(r_new, rad_new, travelled[active])
+        if stop_at_ground:
+            stop = stop | lands
+        active = active[~stop]
     direction_out = v / torch.linalg.vector_norm(v, dim=-1, keepdim=True)
     return direction_out, r_min, tau
+
+
+def _straight_to_ground(position, velocity, r, radius):
+    """Whether a straight ray from above the ground meets the sphere r = R, and where.
+
+    Returns (bool, distance [m]); the near root is written as c / (-p.d + sqrt(disc)).
+    """
+    direction = velocity / torch.linalg.vector_norm(velocity, dim=-1, keepdim=True)
+    along = (position * direction).sum(-1)
+    excess = (r - radius) * (r + radius)
+    disc = along * along - excess
+    meets = (along < 0.0) & (disc >= 0.0) & (excess >= 0.0)
+    root = torch.sqrt(torch.clamp(disc, min=0.0))
+    denominator = torch.where(meets, root - along, torch.ones_like(root))
+    return meets, torch.where(meets, excess / denominator, torch.full_like(r, math.inf))
+
+
+def _chord_through_ground(position, velocity, radius, mask):
+    """Move the rays in ``mask`` straight through the sphere r = R to where they leave it.
+
+    Returns the new positions, the chord lengths and the chords' closest approach to the
+    centre (the virtual periapsis; +inf where not moved).
+    """
+    direction = velocity / torch.linalg.vector_norm(velocity, dim=-1, keepdim=True)
+    along = (position * direction).sum(-1)
+    r2 = (position * position).sum(-1)
+    disc = torch.clamp(along * along - (r2 - radius * radius), min=0.0)
+    chord = torch.where(mask, torch.clamp(-along + torch.sqrt(disc), min=0.0),
+                        torch.zeros_like(along))
+    closest = torch.sqrt(torch.clamp(r2 - along * along, min=0.0))
+    closest = torch.where(mask, closest, torch.full_like(closest, math.inf))
+    moved = position + chord.unsqueeze(-1) * direction
+    # put the exit point on (a micrometre above) the ground, not below it by rounding,
+    # so that the next step sees the index gradient at the ground
+    r_exit = torch.linalg.vector_norm(moved, dim=-1, keepdim=True)
+    moved = torch.where(mask.unsqueeze(-1), moved * ((radius + 1e-6) / r_exit), moved)
+    return moved, chord, closest
 
 
 def _clockwise_angle(d0, d1):
