@@ -447,3 +447,18 @@ def test_batched_atmosphere_matches_members():
 def test_apparent_altitude_gradient(air):
     true = torch.tensor([0.001, 0.2, 1.0], dtype=torch.float64, requires_grad=True)
     assert gradcheck(lambda t: rf.apparent_altitude(air, t), (true,), atol=1e-6, rtol=1e-4)
+
+
+def test_rays_hitting_the_ground_bouguer_vs_rk4(air):
+    """Below the horizon from 20 km: rays that hit the ground and, continued through the
+    planet of constant index, come out again (RK4 lands on the ground and crosses the
+    planet on a straight chord)."""
+    elevation = _deg([-4.5, -6.0, -10.0])
+    bouguer = rf.refraction_angle(air, elevation, 20e3)
+    rk4 = rf.refraction_angle(air, elevation, 20e3, method="rk4", step_m=10e3)
+    assert torch.allclose(bouguer, rk4, rtol=0, atol=0.01 * ARCSECOND)
+    # optical depth to the ground point
+    zenith = math.pi / 2 - elevation
+    tau = rf.bent_optical_depth(air, [550.0], zenith, 20e3)
+    tau_rk4 = rf.bent_optical_depth(air, [550.0], zenith, 20e3, method="rk4", step_m=2e3)
+    assert torch.allclose(tau, tau_rk4, rtol=1e-4)
