@@ -61,8 +61,6 @@ import hashlib
 import json
 import logging
 import math
-import sys
-import types
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
@@ -70,6 +68,8 @@ import numpy as np
 import torch
 import xarray as xr
 
+from skytorch import __version__
+from skytorch._modules import make_callable
 from skytorch._validate import check_choice, check_int
 from skytorch.dataset import (
     VariableSpec,
@@ -393,10 +393,14 @@ def _assemble(chunks: list[xr.Dataset], names, grids, units, fn):
         coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
             "1", f"index along {dim}", f"Position along the result dimension {dim}."))
     references = first.attrs.get("references", ())
+    references = [r for r in (references.split("\n") if isinstance(references, str)
+                              else references) if r]
     return build_dataset(
         data_vars, coords,
         title=f"parameter sweep of {_function_name(fn)}",
-        references=references.split("\n") if isinstance(references, str) else references,
+        # a function without references of its own: the method is the sweep itself
+        references=references or [f"skytorch {__version__}: skytorch.sweep.sweep, Cartesian "
+                                  f"parameter sweep of {_function_name(fn)}"],
         parameters={"function": _function_name(fn),
                     "swept_parameters": list(names),
                     "grid": {n: g.tolist() for n, g in zip(names, grids, strict=True)}},
@@ -568,11 +572,5 @@ def sweep(
     return _assemble(ordered, names, grids, units or {}, fn)
 
 
-class _CallableModule(types.ModuleType):
-    """This module, callable as :func:`sweep` (so ``st.sweep(...)`` always works)."""
-
-    def __call__(self, *args, **kwargs):
-        return sweep(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule
+# this module is callable as :func:`sweep`, so ``st.sweep(...)`` always works
+make_callable(__name__)

@@ -18,6 +18,7 @@ import pytest
 CORE_MODULES = (
     "skytorch",
     "skytorch._data",
+    "skytorch._modules",
     "skytorch._validate",
     "skytorch.cli",
     "skytorch.commands.ephemeris",

@@ -12,7 +12,7 @@ import torch
 from skytorch.constants import DEGREE, PERCENT
 from skytorch.moon.disc import disc_grid, disc_reflectance, lit_disc_quadrature, sun_direction
 
-# the module (skytorch.moon.reflectance is also the name of the function in skytorch.moon)
+# the module (also callable as its function reflectance, see skytorch._modules)
 rf = importlib.import_module("skytorch.moon.reflectance")
 
 #: Chandrasekhar (1960, Radiative Transfer, Table XI): H(1) for conservative scattering

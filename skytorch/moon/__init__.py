@@ -5,7 +5,8 @@ Tensor functions (batched, differentiable, dtype following the inputs):
 * :mod:`~skytorch.moon.geometry` — phase angle, illuminated fraction, bright-limb position
   angle, optical libration, parallactic angle, apparent diameter (Meeus 1998).
 * :mod:`~skytorch.moon.reflectance` — Hapke (2012) and Lommel–Seeliger reflectance with
-  published lunar parameters; the reddish albedo spectrum (Müller et al. 2012).
+  published lunar parameters; the reddish albedo spectrum (Müller et al. 2012). The
+  module is callable as its function: ``skytorch.moon.reflectance(mu0, mu, g)``.
 * :mod:`~skytorch.moon.disc` — sample points on the visible disc, exact quadrature of the
   sunlit part, radiance images (reused by the eclipse light curve).
 * :mod:`~skytorch.moon.brightness` — disc-integrated irradiance and V magnitude from
@@ -29,6 +30,9 @@ True
 
 from __future__ import annotations
 
+# the submodule, callable as its function ``reflectance(mu0, mu, phase_angle_rad, ...)``
+# (skytorch._modules), so that neither hides the other
+from skytorch.moon import reflectance
 from skytorch.moon.brightness import (
     disc_integrated_reflectance,
     geometric_albedo,
@@ -69,7 +73,6 @@ from skytorch.moon.reflectance import (
     REFLECTANCE_MODELS,
     albedo,
     lommel_seeliger,
-    reflectance,
 )
 from skytorch.moon.sky import (
     moonlit_sky_ks1991,

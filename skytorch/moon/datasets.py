@@ -54,11 +54,10 @@ _SPECS = {
                                         "without physical libration), geocentric."),
     "apparent_diameter": VariableSpec("degree", "apparent angular diameter of the Moon",
                                       "2 asin(R_moon / d) with d the observer-Moon distance."),
-    "magnitude": VariableSpec("1", "V magnitude of the Moon",
+    "magnitude": VariableSpec("mag", "V magnitude of the Moon",
                               "Disc-integrated Johnson V magnitude above the atmosphere from "
                               "the Hapke reflectance law, solar spectrum and actual distances "
-                              "(earthshine included), at the observer-Moon distance; unit: "
-                              "mag."),
+                              "(earthshine included), at the observer-Moon distance."),
     "parallactic_angle": VariableSpec("degree", "parallactic angle of the Moon",
                                       "Angle at the Moon from the north celestial pole to the "
                                       "zenith, positive west (Meeus eq. 14.1), topocentric."),

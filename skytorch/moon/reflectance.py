@@ -82,6 +82,7 @@ from types import MappingProxyType
 
 import torch
 
+from skytorch._modules import make_callable
 from skytorch._validate import as_tensor, check_choice, check_finite, check_range, common_dtype
 from skytorch.constants import DEGREE
 
@@ -406,3 +407,7 @@ def reflectance(mu0, mu, phase_angle_rad, model: str = "hapke2012", wavelength_n
         return r
     colour = albedo(as_tensor("wavelength_nm", wavelength_nm, dtype=r.dtype))
     return r.unsqueeze(-1) * colour
+
+
+# ``skytorch.moon.reflectance`` is this module, callable as :func:`reflectance`
+make_callable(__name__)

@@ -69,10 +69,10 @@ SATURATED_HP_MAG = 0.0
 _SPECS = {
     "ra": VariableSpec("degree", "right ascension",
                        "ICRS right ascension at epoch J2000.0 (barycentric, catalogue "
-                       "direction).", "right_ascension"),
+                       "direction)."),
     "dec": VariableSpec("degree", "declination",
                         "ICRS declination at epoch J2000.0 (barycentric, catalogue "
-                        "direction).", "declination"),
+                        "direction)."),
     "pm_ra": VariableSpec("mas yr-1", "proper motion in right ascension",
                           "mu_alpha* = mu_alpha cos(delta) at epoch J2000.0."),
     "pm_dec": VariableSpec("mas yr-1", "proper motion in declination",

@@ -294,9 +294,9 @@ _SPECS = {
     "altitude": VariableSpec("degree", "apparent altitude",
                              "Topocentric altitude above the horizontal plane: proper motion, "
                              "parallax, annual + diurnal aberration, precession-nutation, "
-                             "and refraction when enabled.", "altitude"),
+                             "and refraction when enabled."),
     "azimuth": VariableSpec("degree", "azimuth",
-                            "Azimuth from north through east.", "sensor_azimuth_angle"),
+                            "Azimuth from north through east."),
     "magnitude": VariableSpec("mag", "apparent V magnitude after extinction",
                               "V magnitude seen through the atmosphere along the refracted "
                               "path; below the horizon the horizon value (see visible)."),
