@@ -264,17 +264,47 @@ def _catalogue_spectra(limit_magnitude: float, wavelengths: tuple) -> torch.Tens
                                                                dtype=torch.float64))
 
 
-def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
+@lru_cache(maxsize=4)
+def _star_vectors(limit_magnitude: float):
     from skytorch.scene.planner import catalogue
-    from skytorch.stars import observe
+    from skytorch.stars import star_vectors
 
-    cat = catalogue(float(scene.star_limit_mag))
-    ds = observe(cat, [scene.time], scene.lat_deg, scene.lon_deg, scene.elevation_m,
-                 atmosphere=scene.atmosphere(), refraction=refraction)
-    altitude = torch.as_tensor(np.deg2rad(ds["altitude"].values[0]))
-    azimuth = torch.as_tensor(np.deg2rad(ds["azimuth"].values[0]))
+    cat = catalogue(limit_magnitude)
+    vectors = star_vectors(cat["ra"].values, cat["dec"].values, cat["pm_ra"].values,
+                           cat["pm_dec"].values, cat["parallax"].values, dtype=torch.float64)
+    return (vectors, torch.as_tensor(cat["vmag"].values, dtype=torch.float64),
+            torch.as_tensor(cat["bv"].values, dtype=torch.float64),
+            float(cat.attrs.get("epoch_jyear", 2000.0)))
+
+
+@lru_cache(maxsize=8)
+def _star_site_tables(turbidity: float, ozone_du: float, elevation_m: float,
+                      refraction: bool):
+    from skytorch.stars import extinction_table, refraction_table
+
+    atm = cached_atmosphere(turbidity, ozone_du)
+    return (refraction_table(atm, elevation_m) if refraction else None,
+            extinction_table(atm, elevation_m, refraction=refraction))
+
+
+def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
+    """Catalogue stars at their apparent places with extincted magnitudes (tensor layer of
+    :func:`skytorch.stars.observe`: positions, refraction and extinction tables cached)."""
+    from skytorch.ephemeris import parse_times
+    from skytorch.stars import observe_tensors, time_operators
+
+    vectors, vmag, bv, epoch = _star_vectors(float(scene.star_limit_mag))
+    operators, velocity = time_operators(parse_times([scene.time]), float(scene.lat_deg),
+                                         float(scene.lon_deg), float(scene.elevation_m),
+                                         epoch_jyear=epoch)
+    refraction_tab, extinction_tab = _star_site_tables(
+        float(scene.turbidity), float(scene.ozone_du), float(scene.elevation_m),
+        bool(refraction))
+    result = observe_tensors(vectors, vmag, bv, operators, velocity, refraction_tab,
+                             extinction_tab)
+    altitude, azimuth = result["altitude"][0], result["azimuth"][0]
     up = altitude > 0
-    mag = torch.as_tensor(ds["magnitude"].values[0])[up]
+    mag = result["magnitude"][0][up]
     unit = _catalogue_spectra(float(scene.star_limit_mag), tuple(wavelength.tolist()))[up]
     flux = unit * (10.0 ** (-0.4 * mag))[:, None]
     return _splat(view, altitude[up], azimuth[up], flux, wavelength.numel(), scene.dtype)
