@@ -474,30 +474,36 @@ class SkyglowModel(nn.Module):
         dx = x_m[None, :] - observer_xy[:, :1]
         dy = y_m[None, :] - observer_xy[:, 1:2]
         r = torch.sqrt(dx**2 + dy**2)
-        theta = torch.remainder(torch.atan2(dx, dy), 2 * math.pi)
-        ft = theta * (n_t / (2 * math.pi))
-        i0 = ft.floor()
+        ft = torch.remainder(torch.atan2(dx, dy), 2 * math.pi) * (n_t / (2 * math.pi))
+        i0 = ft.detach().floor().clamp(0, n_t - 1)
         wt = ft - i0
-        i0 = torch.remainder(i0.long(), n_t)
-        i1 = torch.remainder(i0 + 1, n_t)
-        jr, wr = _linear_weights(self._buffer("distance_m", dtype), r)
+        if self.parameters_used.get("distance_spacing", "linear") == "linear" and n_r > 1:
+            # evenly spaced nodes: the cell index without a search
+            u = r * (n_r / float(self.distance_edges_m[-1])) - 0.5
+            jr = u.detach().floor().clamp(0, n_r - 2)
+            wr = (u - jr).clamp(0.0, 1.0)
+            jr = jr.long()
+        else:
+            jr, wr = _linear_weights(self._buffer("distance_m", dtype), r)
         inside = (r <= float(self.distance_edges_m[-1])).to(dtype)
         _warn_outside("source altitude", altitude_m[flux.detach() != 0], self.source_altitude_m)
         jh, wh = _linear_weights(self._buffer("source_altitude_m", dtype),
                                  altitude_m[None, :].expand_as(r))
-        observer = torch.arange(n_obs)[:, None]
-        out = torch.zeros(n_obs * n_t * n_r * n_h, dtype=dtype)
-        weighted = flux[None, :] * inside
-        r_nodes = ((jr, 1 - wr), (jr + 1, wr)) if n_r > 1 else ((jr, torch.ones_like(wr)),)
-        h_nodes = ((jh, 1 - wh), (jh + 1, wh)) if n_h > 1 else ((jh, torch.ones_like(wh)),)
-        indices, values = [], []
-        for it, w_t in ((i0, 1 - wt), (i1, wt)):
-            for ir, w_r in r_nodes:
-                for ih, w_h in h_nodes:
-                    indices.append((((observer * n_t + it) * n_r + ir) * n_h + ih).reshape(-1))
-                    values.append((weighted * w_t * w_r * w_h).reshape(-1))
-        out = out.index_add(0, torch.cat(indices), torch.cat(values))
-        return out.reshape(n_obs, n_t, n_r, n_h)
+        # one flat index per cell into an azimuth-padded grid (observer, n_t + 1, r, h_c);
+        # the corners are fixed offsets from it and row n_t is folded onto row 0 (wrap)
+        base = (((torch.arange(n_obs)[:, None] * (n_t + 1) + i0.long()) * n_r + jr) * n_h
+                + jh).reshape(-1)
+        corners = [(0, (flux[None, :] * inside).reshape(-1))]
+        for stride, w, n in ((n_r * n_h, wt, 2), (n_h, wr, n_r), (1, wh, n_h)):
+            if n > 1:
+                w = w.reshape(-1)
+                corners = [item for offset, value in corners for item in (
+                    (offset, value * (1 - w)), (offset + stride, value * w))]
+        out = torch.zeros(n_obs * (n_t + 1) * n_r * n_h, dtype=dtype)
+        for offset, value in corners:
+            out = out.index_add(0, base + offset if offset else base, value)
+        out = out.reshape(n_obs, n_t + 1, n_r, n_h)
+        return torch.cat([out[:, :1] + out[:, n_t:], out[:, 1:n_t]], dim=1)
 
     def convolve(self, polar: torch.Tensor, observer_altitude_index: int) -> torch.Tensor:
         """Per-unit-flux radiance from polar node fluxes for one observer altitude node.
@@ -520,15 +526,18 @@ class SkyglowModel(nn.Module):
         coefficients = self._buffer("coefficients", dtype)[observer_altitude_index]
         basis_fft = self._buffer("basis_fft", dtype)[observer_altitude_index]
         n_k = coefficients.shape[-1]
-        h = polar.reshape(n_obs, n_t, n_r * n_h) @ coefficients.reshape(n_r * n_h, n_k)
-        h_fft = torch.fft.rfft(h, dim=1)  # (observer, frequency, K)
-        n_f = h_fft.shape[1]
-        stacked = torch.stack([h_fft.real, h_fft.imag], dim=0).permute(2, 0, 1, 3)
-        product = torch.bmm(stacked.reshape(n_f, 2 * n_obs, n_k), basis_fft)
-        product = product.reshape(n_f, 2, n_obs, n_p * n_wl)
-        spectrum = torch.complex(product[:, 0], product[:, 1])
-        radiance = torch.fft.irfft(spectrum, n=n_t, dim=0)  # (azimuth, observer, φ·λ)
-        return radiance.reshape(n_t, n_obs, n_p, n_wl).permute(1, 2, 0, 3)
+        # H_k(θ) with azimuth last, so that the FFT runs over contiguous memory
+        h = torch.matmul(coefficients.reshape(n_r * n_h, n_k).T,
+                         polar.reshape(n_obs, n_t, n_r * n_h).transpose(1, 2))
+        h_fft = torch.view_as_real(torch.fft.rfft(h, dim=-1))  # (observer, K, frequency, 2)
+        n_f = h_fft.shape[2]
+        # the bases' spectra are real: real and imaginary parts of H multiply them alike
+        stacked = h_fft.permute(2, 0, 3, 1).reshape(n_f, 2 * n_obs, n_k)
+        product = torch.bmm(stacked, basis_fft)  # (frequency, observer · 2, φ·λ)
+        product = product.reshape(n_f, n_obs, 2, n_p * n_wl).permute(1, 3, 0, 2)
+        spectrum = torch.view_as_complex(product.contiguous())  # (observer, φ·λ, frequency)
+        radiance = torch.fft.irfft(spectrum, n=n_t, dim=-1)  # (observer, φ·λ, azimuth)
+        return radiance.reshape(n_obs, n_p, n_wl, n_t).transpose(2, 3)
 
     def observer_altitude_weights(self, observer_altitude_m: torch.Tensor):
         """Lower node index and weight of the upper node for each observer altitude."""
@@ -558,14 +567,14 @@ class SkyglowModel(nn.Module):
         -------
         Tensor (observer, elevation, azimuth, wavelength)
         """
-        flux = cells["flux"].reshape(-1)
+        flux = cells["flux"]
         dtype = flux.dtype
-        x = cells["x"].reshape(-1).to(dtype)
-        y = cells["y"].reshape(-1).to(dtype)
-        altitude = cells["altitude"].reshape(-1).to(dtype)
-        if not flux.requires_grad:
-            keep = flux != 0
-            flux, x, y, altitude = flux[keep], x[keep], y[keep], altitude[keep]
+        if flux.requires_grad:
+            lit = (slice(None),) * flux.ndim
+        else:  # only the lit cells (the coordinates are often expanded views: no copies)
+            lit = torch.unravel_index(torch.nonzero(flux.reshape(-1))[:, 0], flux.shape)
+        flux, x, y, altitude = (cells[k].expand_as(flux)[lit].reshape(-1).to(dtype)
+                                for k in ("flux", "x", "y", "altitude"))
         observer_xy = as_tensor("observer_xy", observer_xy, dtype=dtype).reshape(-1, 2)
         n_obs = observer_xy.shape[0]
         h_o = as_tensor("observer_altitude_m", observer_altitude_m, dtype=dtype)
