@@ -42,8 +42,9 @@ Two independent algorithms are provided:
     = \nabla n` in the plane of the ray with the classical Runge–Kutta scheme (the
     approach of Seron et al. 2004 and van der Werf 2008 that Schneegans et al. 2025 use,
     10 km steps), with the step also limited so that the altitude changes by at most
-    ``max_dh_m`` per step. It shares no formula with the Bouguer integrals and serves as
-    the independent check.
+    ``max_dh_m`` per step. Rays land on the ground (no RK4 stage across the jump of
+    :math:`\mathrm{d}n/\mathrm{d}r` there) and cross the planet on a straight chord. It
+    shares no formula with the Bouguer integrals and serves as the independent check.
 
 Model conventions (both methods): the refractive index is :math:`1 + \nu(h)` with
 :math:`\nu` = ``atm.refractivity(h)`` inside the atmosphere, continued as a constant below
