@@ -112,3 +112,37 @@ def test_cli_single_date(tmp_path, capsys, monkeypatch, shadow):
     out = capsys.readouterr().out
     assert "2015-09-28T02:47" in out and "Danjon" in out
     assert open_dataset(nc).sizes["time"] == 9 and png.stat().st_size > 10_000
+
+
+#: the shadow weights the disc non-uniformly, so the disc-integrated phase curve predicts
+#: the ring-phase dimming only to a few mmag
+RING_PHASE_TOLERANCE = 0.01 * MAG
+
+
+def test_ring_phase_dims_totality_like_the_phase_curve():
+    """Refracted light reflected at the ring's phase angle: the change at greatest eclipse
+    equals the lunar phase curve (skytorch.moon.magnitude, an independent disc
+    integration) between the Sun's and the ring's phase angles; no change outside."""
+    import math
+
+    import numpy as np
+
+    from skytorch.constants import EARTH_MEAN_RADIUS_M
+    from skytorch.ephemeris import sun_moon_vectors
+    from skytorch.moon import magnitude
+
+    kwargs = {"n_times": 31, "table_n_v": 128, "n_images": 0}
+    ring = lunar_eclipse("2015-09-28", **kwargs)
+    sun_only = lunar_eclipse("2015-09-28", ring_phase=False, **kwargs)
+    g = int(np.argmin(ring.shadow_axis_distance.values))
+    vectors = sun_moon_vectors(ring.time.values[g:g + 1])
+    sun, moon = vectors["sun_gcrs_m"][0], vectors["moon_gcrs_m"][0]
+    alpha_sun = torch.acos(torch.dot(sun - moon, -moon) / torch.linalg.norm(sun - moon)
+                           / torch.linalg.norm(moon))
+    alpha_ring = torch.tensor(math.asin(EARTH_MEAN_RADIUS_M / float(torch.linalg.norm(moon))),
+                              dtype=torch.float64)
+    expected = float(magnitude(alpha_ring) - magnitude(alpha_sun))
+    change = float(ring.v_magnitude[g] - sun_only.v_magnitude[g])
+    assert expected > 0.03 * MAG
+    assert abs(change - expected) < RING_PHASE_TOLERANCE
+    assert float(abs(ring.v_magnitude[0] - sun_only.v_magnitude[0])) < 1e-9 * MAG

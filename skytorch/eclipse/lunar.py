@@ -44,7 +44,7 @@ import torch
 import xarray as xr
 
 from skytorch._validate import as_tensor, check_int
-from skytorch.constants import MOON_RADIUS_M
+from skytorch.constants import EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
 from skytorch.dataset import (
     VariableSpec,
     build_dataset,
@@ -156,7 +156,7 @@ def _eclipse_times(date, n_times: int, enlargement: str):
     return times, row
 
 
-def _disc_images(shadow_fn, sun, moon, wavelength, n_pixels, sun_distance):
+def _disc_images(shadow_fn, sun, moon, wavelength, n_pixels, sun_distance, ring_phase=True):
     """sRGB images (n, y, x, 3) of the lunar disc and the flux per pixel."""
     from skytorch.moon.disc import disc_radiance
 
@@ -166,16 +166,24 @@ def _disc_images(shadow_fn, sun, moon, wavelength, n_pixels, sun_distance):
     inside = (rr < 1.0).reshape(-1)
     zz = torch.sqrt((1.0 - rr).clamp_min(0.0))
     normal = torch.stack([xx, yy, zz], dim=-1).reshape(-1, 3)
-    radiance, illuminance = _surface_radiance(shadow_fn, sun, moon, normal, wavelength,
-                                              sun_distance, disc_radiance)
-    radiance = radiance * illuminance * inside[None, :, None].to(radiance.dtype)
-    return radiance.reshape(sun.shape[0], n_pixels, n_pixels, -1)
+    _, lit = _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance,
+                               disc_radiance, ring_phase)
+    lit = lit * inside[None, :, None].to(lit.dtype)
+    return lit.reshape(sun.shape[0], n_pixels, n_pixels, -1)
 
 
-def _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance, disc_radiance):
-    """Sunlit spectral radiance of surface points and their ``I / I_sun``.
+def _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance, disc_radiance,
+                      ring_phase: bool = True):
+    """Uneclipsed and eclipsed spectral radiance of surface points.
 
-    Both (n_time, n_point, n_wavelength).
+    Returns ``(radiance, lit)``: the sunlit radiance (n_time, n_point, n_wavelength) and
+    the radiance in the shadow (n_time, n_point, *B, n_wavelength). The direct sunlight
+    (fraction ``f`` of the solar disc above the atmosphere) is reflected at the Sun's phase
+    angle; the light refracted through the atmosphere ring, ``I / I_sun - f``, arrives from
+    the ring around the Earth, which the (geocentric) observer sees at the ring's angular
+    radius from the Moon, ``asin(R / d)``, so it is reflected at that phase angle (same
+    bright-limb orientation; within a degree of the Sun's direction, the incidence angles
+    barely change, but the opposition surge does).
     """
     west, north, z = _frames(sun, moon)
     axes = torch.stack([west, north, z], dim=-2)  # (n, 3, 3) rows: disc axes in GCRS
@@ -193,8 +201,17 @@ def _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance, di
     anti_sun = -sun / torch.linalg.norm(sun, dim=-1, keepdim=True)
     along = torch.einsum("npj,nj->np", points, anti_sun)
     offset = torch.linalg.norm(points - along[..., None] * anti_sun[:, None, :], dim=-1)
-    illuminance = shadow_fn(along, offset)  # (n, p, n_wl)
-    return radiance, illuminance
+    illuminance, direct = shadow_fn(along, offset)  # (n, p, *B, n_wl), (n, p)
+    ring_radiance = radiance if not ring_phase else disc_radiance(
+        normal, torch.asin(EARTH_MEAN_RADIUS_M / moon_distance), wavelength, limb,
+        sun_distance_m=torch.linalg.norm(moon_to_sun, dim=-1), distance_m=moon_distance,
+        earthshine=False)
+    extra = illuminance.dim() - radiance.dim()  # batch dims of the atmosphere
+    shape = (*radiance.shape[:2], *(1,) * extra, radiance.shape[-1])
+    direct = direct.reshape(*direct.shape, *(1,) * (extra + 1))
+    lit = (radiance.reshape(shape) * direct
+           + ring_radiance.reshape(shape) * (illuminance - direct).clamp_min(0.0))
+    return radiance, lit
 
 
 def _display(xyz: torch.Tensor, dims: int) -> torch.Tensor:
@@ -247,7 +264,7 @@ _SPECS = {
 
 
 def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement,
-                 shadow, table_n_u, table_n_v, progress) -> dict:
+                 shadow, table_n_u, table_n_v, progress, ring_phase) -> dict:
     """Geometry, shadow table and disc-integrated fluxes shared by the light-curve APIs.
 
     ``flux`` is (n_time, *B, n_wavelength) for a shadow with atmosphere batch shape ``B``;
@@ -282,11 +299,11 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     fluxes, fulls = [], []
     for start in range(0, n_times, step):
         part = slice(start, start + step)
-        radiance, illuminance = _surface_radiance(
+        radiance, lit = _surface_radiance(
             _shadow_lookup(table, sun[part]), sun[part], moon[part], grid["normal"],
-            wavelength, sun_distance, disc_radiance)
-        members = illuminance.reshape(*illuminance.shape[:2], -1, illuminance.shape[-1])
-        fluxes.append(torch.einsum("npl,npbl,np->nbl", radiance, members, weight[part]))
+            wavelength, sun_distance, disc_radiance, ring_phase)
+        members = lit.reshape(*lit.shape[:2], -1, lit.shape[-1])
+        fluxes.append(torch.einsum("npbl,np->nbl", members, weight[part]))
         fulls.append(torch.einsum("npl,np->nl", radiance, weight[part]))
     flux = torch.cat(fluxes).reshape(n_times, *batch, -1)
     flux_full = torch.cat(fulls)
@@ -301,7 +318,7 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
 def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
                       wavelength_nm=None, n_disc: int = 12, enlargement: str = "danjon",
                       shadow=None, table_n_v: int = 384, table_n_u: int = 3,
-                      progress: bool = False) -> dict[str, torch.Tensor]:
+                      progress: bool = False, ring_phase: bool = True) -> dict[str, torch.Tensor]:
     """Light curve of the Moon through a lunar eclipse for a batch of atmospheres.
 
     The tensor form of :func:`lunar_eclipse` (same times, disc integration and shadow
@@ -314,7 +331,7 @@ def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
     Parameters
     ----------
     time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement, shadow,
-    table_n_v, table_n_u, progress
+    table_n_v, table_n_u, progress, ring_phase
         As in :func:`lunar_eclipse`; ``atmosphere`` (or ``shadow``) may be batched.
 
     Returns
@@ -338,7 +355,7 @@ def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
     from skytorch.spectrum import spectrum_to_magnitude
 
     curve = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
-                         enlargement, shadow, table_n_u, table_n_v, progress)
+                         enlargement, shadow, table_n_u, table_n_v, progress, ring_phase)
     wavelength = curve["wavelength"]
     batch = curve["table"].batch_shape
     flux = curve["flux"].movedim(0, len(batch))  # (*B, time, wavelength)
@@ -361,7 +378,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
                   wavelength_nm=None, n_disc: int = 12, n_images: int = 9,
                   image_pixels: int = 48, enlargement: str = "danjon", shadow=None,
                   table_n_v: int = 384, table_n_u: int = 3,
-                  progress: bool = False) -> xr.Dataset:
+                  progress: bool = False, ring_phase: bool = True) -> xr.Dataset:
     """Brightness, colour and images of the Moon through the lunar eclipse nearest a date.
 
     Parameters
@@ -386,6 +403,11 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         Size of the (u, v) shadow table over the Moon's distances.
     progress : bool
         Progress bar for the shadow table.
+    ring_phase : bool
+        Reflect the light refracted through the atmosphere at the phase angle of the
+        Earth's limb ring (``asin(R_earth / d)``, about 1°) instead of the Sun's (0.2–0.5°
+        at mid-totality); the lunar opposition surge makes totality about 0.05 mag
+        fainter (2015-09-28). ``False``: the Sun's phase angle for all light.
 
     Returns
     -------
@@ -401,7 +423,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     n_images = check_int("n_images", n_images, low=0)
     image_pixels = check_int("image_pixels", image_pixels, low=4)
     curve = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
-                         enlargement, shadow, table_n_u, table_n_v, progress)
+                         enlargement, shadow, table_n_u, table_n_v, progress, ring_phase)
     if curve["shadow"].batch_shape:
         raise ValueError("lunar_eclipse needs an unbatched atmosphere; use "
                          "lunar_light_curve (or skytorch.sweep) for batched atmospheres")
@@ -436,7 +458,8 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     }
     if n_images:
         pixels = _disc_images(_shadow_lookup(table, sun[image_index]), sun[image_index],
-                              moon[image_index], wavelength, image_pixels, sun_distance)
+                              moon[image_index], wavelength, image_pixels, sun_distance,
+                              ring_phase)
         from skytorch.spectrum import spectrum_to_xyz
 
         images = _display(spectrum_to_xyz(pixels, wavelength), 3)
@@ -463,6 +486,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         "greatest_time": np.datetime_as_string(times[greatest], unit="s"),
         "danjon_l": float(danjon_l(greatest_v)) if str(row.kind.values) == "total" else "none",
         "n_disc": n_disc, "table_n_u": table_n_u, "table_n_v": table_n_v,
+        "ring_phase": str(bool(ring_phase)),
         "shadow": shadow.parameters_dict(),
     }
     return build_dataset(data_vars, coords, title="Lunar eclipse light curve",
@@ -470,11 +494,26 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
 
 
 def _shadow_lookup(table, sun):
-    """``I / I_sun`` look-up ``(along, offset) -> (n, p, n_wl)`` for Sun vectors (n, 3)."""
+    """Shadow look-up ``(along, offset) -> (I / I_sun (n, p, *B, n_wl), direct (n, p))``.
+
+    ``direct`` is the fraction of the limb-darkened solar disc seen above the atmosphere
+    (:func:`sun_visible_fraction` with the top of the atmosphere as occluder), for Sun
+    vectors (n, 3).
+    """
+    from skytorch.eclipse.occlusion import sun_visible_fraction
+    from skytorch.eclipse.shadow import shadow_angles
+
     distance = torch.linalg.norm(sun, dim=-1)
 
     def function(along, offset):
-        return table.lookup(along, offset, sun_distance_m=distance[:, None].expand_as(along))
+        sun_distance = distance[:, None].expand_as(along)
+        angles = shadow_angles(along, offset, sun_distance, table.sun_radius_m,
+                               table.occluder_radius_m)
+        direct = sun_visible_fraction(angles["sun_radius_rad"], angles["occluder_radius_rad"],
+                                      angles["separation_rad"],
+                                      table.attrs.get("limb_darkening", 0.6),
+                                      table.attrs.get("limb_darkening_law", "linear"))
+        return table.lookup(along, offset, sun_distance_m=sun_distance), direct
 
     return function
 
