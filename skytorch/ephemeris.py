@@ -66,7 +66,7 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import as_tensor, check_range
+from skytorch._validate import as_tensor, check_finite, check_range
 from skytorch.constants import SPEED_OF_LIGHT_M_S
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 
@@ -75,6 +75,7 @@ __all__ = [
     "TIME_MAX",
     "TIME_MIN",
     "aberrate",
+    "aberration_matrix",
     "altaz_from_horizontal",
     "earth_barycentric_velocity",
     "icrs_to_horizontal_matrices",
@@ -465,6 +466,24 @@ def observer_gcrs_velocity(times, lat_deg, lon_deg, elevation_m=0.0) -> torch.Te
     return (earth.transpose(-1, -2) @ velocity.to(torch.float64).unsqueeze(-1)).squeeze(-1)
 
 
+def _aberrated(direction: torch.Tensor, beta: torch.Tensor) -> torch.Tensor:
+    """``γ⁻¹ u + (1 + (u·β)/(1 + γ⁻¹)) β``: the aberrated direction before normalisation."""
+    inverse_gamma = torch.sqrt(1.0 - (beta * beta).sum(-1, keepdim=True))
+    dot = (direction * beta).sum(-1, keepdim=True)
+    return inverse_gamma * direction + (1.0 + dot / (1.0 + inverse_gamma)) * beta
+
+
+def _beta(velocity_m_s, dtype: torch.dtype | None = None) -> torch.Tensor:
+    """``β = v/c``, checked: a speed of light or more would give NaN (γ⁻¹ = √(1 − β²))."""
+    velocity = check_finite("velocity_m_s", velocity_m_s, dtype=dtype)
+    with torch.no_grad():
+        speed = torch.linalg.vector_norm(velocity, dim=-1)
+        if speed.numel() and float(speed.max()) >= SPEED_OF_LIGHT_M_S:
+            raise ValueError(f"velocity_m_s must have a speed below c = {SPEED_OF_LIGHT_M_S} "
+                             f"m/s; got {float(speed.max())} m/s")
+    return velocity / SPEED_OF_LIGHT_M_S
+
+
 def aberrate(direction: torch.Tensor, velocity_m_s: torch.Tensor) -> torch.Tensor:
     """Apply relativistic stellar aberration to unit directions.
 
@@ -485,13 +504,55 @@ def aberrate(direction: torch.Tensor, velocity_m_s: torch.Tensor) -> torch.Tenso
     With ``beta = v / c`` and ``gamma^-1 = sqrt(1 - beta^2)`` (ref. 4, eq. 7.40)::
 
         u' ∝ gamma^-1 u + (1 + (u . beta) / (1 + gamma^-1)) beta
+
+    The map before normalisation is affine in ``u``: :func:`aberration_matrix`.
+
+    Examples
+    --------
+    >>> import torch
+    >>> u = torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64)
+    >>> moved = aberrate(u, torch.tensor([0.0, 29.8e3, 0.0], dtype=torch.float64))
+    >>> round(float(torch.rad2deg(torch.atan2(moved[1], moved[0]))) * 3600.0, 2)  # [arcsec]
+    20.5
     """
     direction = as_tensor("direction", direction)
-    beta = as_tensor("velocity_m_s", velocity_m_s, dtype=direction.dtype) / SPEED_OF_LIGHT_M_S
-    inverse_gamma = torch.sqrt(1.0 - (beta * beta).sum(-1, keepdim=True))
-    dot = (direction * beta).sum(-1, keepdim=True)
-    moved = inverse_gamma * direction + (1.0 + dot / (1.0 + inverse_gamma)) * beta
+    moved = _aberrated(direction, _beta(velocity_m_s, dtype=direction.dtype))
     return moved / torch.linalg.vector_norm(moved, dim=-1, keepdim=True)
+
+
+def aberration_matrix(velocity_m_s: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Affine form of :func:`aberrate`: ``u' ∝ A u + β``.
+
+    Parameters
+    ----------
+    velocity_m_s : torch.Tensor, shape (..., 3)
+        Observer's barycentric velocity [m/s].
+
+    Returns
+    -------
+    matrix : torch.Tensor, shape (..., 3, 3)
+        ``A = γ⁻¹ I + β βᵀ / (1 + γ⁻¹)``, dtype of ``velocity_m_s``.
+    beta : torch.Tensor, shape (..., 3)
+        ``β = v/c``.
+
+    Notes
+    -----
+    The columns of ``A`` are the unnormalised images of the basis vectors less ``β``, so
+    ``A u + β`` is exactly the vector that :func:`aberrate` normalises; folded into linear
+    operators it applies aberration with one matrix product
+    (:func:`skytorch.stars.positions.aberration_operators`).
+
+    Examples
+    --------
+    >>> import torch
+    >>> matrix, beta = aberration_matrix(torch.tensor([0.0, 29.8e3, 0.0], dtype=torch.float64))
+    >>> tuple(matrix.shape), round(float(beta[1]) * 1e4, 3)
+    ((3, 3), 0.994)
+    """
+    beta = _beta(velocity_m_s)
+    eye = torch.eye(3, dtype=beta.dtype)
+    images = _aberrated(eye, beta.unsqueeze(-2))  # row i: A e_i + β
+    return (images - beta.unsqueeze(-2)).transpose(-1, -2), beta
 
 
 # --- Sun and Moon ----------------------------------------------------------------------------

@@ -274,6 +274,27 @@ def test_aberration_gradcheck():
     assert torch.autograd.gradcheck(eph.aberrate, (direction, velocity))
 
 
+def test_aberration_matrix_closed_form():
+    """A = γ⁻¹ I + β βᵀ/(1 + γ⁻¹) (Lorentz transformation of directions, ref. of aberrate)."""
+    velocity = torch.tensor([[12e3, -25e3, 4e3], [0.0, 0.0, 2e8]], dtype=torch.float64)
+    matrix, beta = eph.aberration_matrix(velocity)
+    b = velocity / SPEED_OF_LIGHT_M_S
+    g = torch.sqrt(1.0 - (b * b).sum(-1))[:, None, None]
+    expected = g * torch.eye(3, dtype=torch.float64) + b[:, :, None] * b[:, None, :] / (1.0 + g)
+    torch.testing.assert_close(matrix, expected, rtol=1e-15, atol=1e-16)
+    torch.testing.assert_close(beta, b, rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("speed_m_s", [SPEED_OF_LIGHT_M_S, 3e8, float("nan")])
+def test_aberration_rejects_impossible_velocity(speed_m_s):
+    """v ≥ c (or NaN) would make γ⁻¹ = √(1 − β²) NaN: a clear error instead."""
+    velocity = torch.tensor([0.0, speed_m_s, 0.0], dtype=torch.float64)
+    with pytest.raises(ValueError, match="velocity_m_s"):
+        eph.aberrate(torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64), velocity)
+    with pytest.raises(ValueError, match="velocity_m_s"):
+        eph.aberration_matrix(velocity)
+
+
 # --- almanac references ------------------------------------------------------------------------
 
 # USNO "Earth's Seasons and Apsides" 2024 (UT, rounded to the minute)

@@ -90,9 +90,27 @@ def _angle(name, value, dtype=None, high=math.pi):
     return check_range(name, as_tensor(name, value, dtype=dtype), 0.0, high, unit=" rad")
 
 
-def mag_arcsec2_to_nanolambert(v_mag_arcsec2) -> torch.Tensor:
-    """Surface brightness V [mag/arcsec²] to nanolamberts (K&S 1991, eq. 1)."""
-    v = as_tensor("v_mag_arcsec2", v_mag_arcsec2)
+def mag_arcsec2_to_nanolambert(sky_mag_arcsec2) -> torch.Tensor:
+    """Sky surface brightness V [mag arcsec⁻²] → B [nL], B = 34.08 exp(20.7233 − 0.92104 V).
+
+    Krisciunas & Schaefer (1991, eq. 1); 22.0 mag arcsec⁻² is 54 nL.
+
+    Parameters
+    ----------
+    sky_mag_arcsec2 : array_like
+        ``(...)`` surface brightness in V [mag arcsec⁻²], within [−20, 40].
+
+    Returns
+    -------
+    torch.Tensor
+        ``(...)`` surface brightness [nL].
+
+    Examples
+    --------
+    >>> round(float(mag_arcsec2_to_nanolambert(22.0)), 1)
+    54.0
+    """
+    v = check_range("sky_mag_arcsec2", sky_mag_arcsec2, -20.0, 40.0, unit=" mag/arcsec^2")
     return 34.08 * torch.exp(20.7233 - 0.92104 * v)
 
 

@@ -127,7 +127,7 @@ def propagate_space_motion(ra_rad, dec_rad, pm_ra_mas_yr, pm_dec_mas_yr, paralla
     values = [torch.as_tensor(v, dtype=torch.float64) for v in
               (ra_rad, dec_rad, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas)]
     ra, dec, pm_ra, pm_dec, parallax = values
-    unit, east, north = _direction_and_tangents(ra, dec)
+    unit, east, north = direction_and_tangents(ra, dec)
     motion = (pm_ra[..., None] * east + pm_dec[..., None] * north) * MAS  # [rad/yr]
     position = unit + motion * float(dt_years)
     scale = torch.linalg.vector_norm(position, dim=-1)
@@ -135,14 +135,17 @@ def propagate_space_motion(ra_rad, dec_rad, pm_ra_mas_yr, pm_dec_mas_yr, paralla
     motion = (motion - (motion * direction).sum(-1, keepdim=True) * direction) / scale[..., None]
     new_ra = torch.remainder(torch.atan2(direction[..., 1], direction[..., 0]), 2.0 * np.pi)
     new_dec = torch.asin(direction[..., 2].clamp(-1.0, 1.0))
-    _, new_east, new_north = _direction_and_tangents(new_ra, new_dec)
+    _, new_east, new_north = direction_and_tangents(new_ra, new_dec)
     new_pm_ra = (motion * new_east).sum(-1) / MAS
     new_pm_dec = (motion * new_north).sum(-1) / MAS
     return new_ra, new_dec, new_pm_ra, new_pm_dec, parallax / scale
 
 
-def _direction_and_tangents(ra, dec):
-    """Unit vector and the local east (p) and north (q) unit vectors, each (..., 3)."""
+def direction_and_tangents(ra, dec):
+    """Unit vector and the local east (p) and north (q) unit vectors, each (..., 3).
+
+    ``ra``, ``dec`` [rad]; the frame of proper motion ``mu = mu_alpha* p + mu_delta q``.
+    """
     cos_ra, sin_ra = torch.cos(ra), torch.sin(ra)
     cos_dec, sin_dec = torch.cos(dec), torch.sin(dec)
     unit = torch.stack([cos_dec * cos_ra, cos_dec * sin_ra, sin_dec], dim=-1)

@@ -37,9 +37,10 @@ import numpy as np
 import torch
 
 from skytorch._validate import check_finite, check_range
-from skytorch.constants import ASTRONOMICAL_UNIT_M, DEGREE, SPEED_OF_LIGHT_M_S
+from skytorch.constants import ASTRONOMICAL_UNIT_M, DEGREE
 from skytorch.ephemeris import (
     aberrate,
+    aberration_matrix,
     altaz_from_horizontal,
     icrs_to_horizontal_matrices,
     load_ephemeris,
@@ -47,6 +48,7 @@ from skytorch.ephemeris import (
     parse_times,
     skyfield_time,
 )
+from skytorch.stars.catalog import direction_and_tangents
 
 __all__ = [
     "J2000_UTC",
@@ -107,11 +109,7 @@ def star_vectors(ra_deg, dec_deg, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas,
     pm_dec = check_finite("pm_dec_mas_yr", pm_dec_mas_yr, dtype=torch.float64).to(torch.float64)
     parallax = check_finite("parallax_mas", parallax_mas,
                             dtype=torch.float64).to(torch.float64).clamp_min(0.0)
-    cos_ra, sin_ra = torch.cos(ra), torch.sin(ra)
-    cos_dec, sin_dec = torch.cos(dec), torch.sin(dec)
-    unit = torch.stack([cos_dec * cos_ra, cos_dec * sin_ra, sin_dec], dim=-1)
-    east = torch.stack([-sin_ra, cos_ra, torch.zeros_like(ra)], dim=-1)
-    north = torch.stack([-sin_dec * cos_ra, -sin_dec * sin_ra, cos_dec], dim=-1)
+    unit, east, north = direction_and_tangents(ra, dec)
     motion = (pm_ra[:, None] * east + pm_dec[:, None] * north) * MAS_RAD
     return torch.cat([unit, motion, (parallax * MAS_RAD)[:, None], torch.ones_like(ra)[:, None]],
                      dim=-1).to(dtype)
@@ -273,10 +271,7 @@ def aberration_operators(operators: torch.Tensor, velocity_m_s: torch.Tensor) ->
     Exact for |h| = 1; proper motion and parallax make |h| − 1 ≲ 2e-6 (4″/yr over a
     century), which changes the aberration by < 1e-9 rad (0.1 mas).
     """
-    beta = velocity_m_s.to(torch.float64) / SPEED_OF_LIGHT_M_S
-    inverse_gamma = torch.sqrt(1.0 - (beta * beta).sum(-1))[:, None, None]
-    eye = torch.eye(3, dtype=torch.float64)
-    matrix = inverse_gamma * eye + beta[:, :, None] * beta[:, None, :] / (1.0 + inverse_gamma)
+    matrix, beta = aberration_matrix(velocity_m_s.to(torch.float64))
     folded = matrix @ operators.to(torch.float64)
     folded[:, :, 7] += beta
     return folded

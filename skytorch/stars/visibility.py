@@ -32,6 +32,7 @@ import math
 import torch
 
 from skytorch._validate import check_choice, check_range
+from skytorch.moon.sky import mag_arcsec2_to_nanolambert  # K&S 1991 eq. 1, shared
 
 __all__ = [
     "VISIBILITY_MODELS",
@@ -52,15 +53,6 @@ SCHAEFER_SWITCH_NL = 1500.0
 SCHAEFER_ZERO_POINT_MAG = -16.57
 #: pupil diameter of the dark-adapted eye in Schaefer's calibration [mm]
 REFERENCE_PUPIL_MM = 7.0
-
-
-def mag_arcsec2_to_nanolambert(sky_mag_arcsec2) -> torch.Tensor:
-    """Sky surface brightness V [mag arcsec⁻²] → B [nL], B = 34.08 exp(20.7233 − 0.92104 V).
-
-    Krisciunas & Schaefer (1991, eq. 1); 22.0 mag arcsec⁻² is 54 nL.
-    """
-    v = check_range("sky_mag_arcsec2", sky_mag_arcsec2, -20.0, 40.0, unit=" mag/arcsec^2")
-    return 34.08 * torch.exp(20.7233 - 0.92104 * v)
 
 
 def limiting_magnitude(sky_mag_arcsec2, *, pupil_diameter_mm: float = REFERENCE_PUPIL_MM,
