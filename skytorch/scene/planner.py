@@ -26,7 +26,8 @@ Estimates
 * stars: half the integrated V flux of the catalogue above ``star_limit_mag``;
 * skyglow: the brightest sky measured by Falchi et al. (2016), 14.0 V mag arcsec^-2,
   over the hemisphere (a bound, since the planner cannot afford the skyglow model);
-* refraction: the Sun's and Moon's pixels with and without refraction; with stars in a
+* refraction: the Sun's and Moon's pixels with and without refraction (table of
+  :func:`skytorch.stars.refraction_table`); with stars in a
   fisheye or panorama, stars near the horizon always move by more than a pixel;
 * scintillation: a still image records the mean flux of a twinkling star, so it is
   skipped unless forced.
@@ -261,9 +262,11 @@ def _above_horizon(altitude_deg: float) -> bool:
 
 def _pixel_moves(scene, view, altitude_deg: float, azimuth_deg: float) -> tuple[bool, float]:
     """Whether refraction moves a point to another pixel, and the shift [rad]."""
-    atm = scene.atmosphere()
+    from skytorch.scene.render import refracted_altitude
+
     true = torch.tensor([math.radians(altitude_deg)], dtype=torch.float64)
-    apparent = atm.apparent_altitude(true.clamp(min=math.radians(-1.0)), scene.elevation_m)
+    apparent = torch.tensor([refracted_altitude(scene, math.radians(altitude_deg))],
+                            dtype=torch.float64)
     azimuth = torch.tensor([math.radians(azimuth_deg)], dtype=torch.float64)
     before = view.pixel_index(true, azimuth)
     after = view.pixel_index(apparent, azimuth)

@@ -169,14 +169,20 @@ def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux
     return (weight[..., None] * radiance).to(dtype)
 
 
+def refracted_altitude(scene, true_altitude_rad: float) -> float:
+    """Apparent altitude [rad] from a cached refraction table of the scene's site
+    (:func:`skytorch.stars.refraction_table`, ray-traced refraction of the atmosphere)."""
+    from skytorch.stars import refract
+
+    table, _ = _star_site_tables(float(scene.turbidity), float(scene.ozone_du),
+                                 float(scene.elevation_m), True)
+    true = torch.tensor([max(true_altitude_rad, math.radians(-1.0))], dtype=torch.float64)
+    return float(refract(true, table)[0])
+
+
 def _apparent(scene, altitude_deg: float, refraction: bool) -> float:
     true = math.radians(altitude_deg)
-    if not refraction:
-        return true
-    atm = scene.atmosphere()
-    value = atm.apparent_altitude(torch.tensor(max(true, math.radians(-1.0)),
-                                               dtype=torch.float64), scene.elevation_m)
-    return float(value)
+    return refracted_altitude(scene, true) if refraction else true
 
 
 def _point_transmittance(scene, altitude_rad: float, wavelength) -> torch.Tensor:
