@@ -158,6 +158,12 @@ def test_bad_inputs():
         g.phase_angle(torch.tensor([1.0, 2.0]), torch.tensor([1.0, 2.0, 3.0]))
     with pytest.raises(ValueError, match="finite"):
         g.illuminated_fraction(torch.tensor(float("nan")))
+    # Moon at the Sun or at the observer: undefined angle, an error rather than NaN
+    moon = torch.tensor([3.844e8, 0.0, 0.0], dtype=torch.float64)
+    with pytest.raises(ValueError, match="moon_vec coincides with the Sun"):
+        g.phase_angle(moon, moon)
+    with pytest.raises(ValueError, match="moon_vec coincides with the observer"):
+        g.phase_angle(torch.tensor([1.5e11, 0.0, 0.0]), torch.zeros(3))
 
 
 def test_moon_geometry_topocentric():

@@ -71,7 +71,7 @@ V_BAND_WAVELENGTHS_NM = tuple(float(w) for w in range(470, 705, 5))
 
 def _phase(phase_angle_rad):
     alpha = as_tensor("phase_angle_rad", phase_angle_rad)
-    alpha = check_range("phase_angle_rad", alpha.abs(), 0.0, math.pi)
+    alpha = check_range("phase_angle_rad", alpha.abs(), 0.0, math.pi, unit=" rad")
     return alpha
 
 

@@ -171,7 +171,7 @@ def moon_disc_image(phase_angle_deg: float, bright_limb_angle_deg: float = 270.0
     n_pixels : int
         Pixels across the lunar diameter.
     wavelength_nm : sequence of float, optional
-        Default (680, 550, 440) nm.
+        Wavelengths [nm]; default (680, 550, 440).
     **kwargs
         Passed to :func:`skytorch.moon.disc.disc_radiance`.
 

@@ -149,7 +149,7 @@ def sun_direction(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi) -> torch
     """
     dtype = common_dtype(phase_angle_rad, bright_limb_angle_rad)
     alpha = check_range("phase_angle_rad", as_tensor("phase_angle_rad", phase_angle_rad,
-                                                     dtype=dtype), 0.0, math.pi)
+                                                     dtype=dtype), 0.0, math.pi, unit=" rad")
     chi = as_tensor("bright_limb_angle_rad", bright_limb_angle_rad, dtype=dtype)
     alpha, chi = torch.broadcast_tensors(alpha, chi)
     s = torch.sin(alpha)
@@ -174,7 +174,7 @@ def disc_reflectance(normal, sun_dir, model: str = "hapke2012", wavelength_nm=No
     sun_dir : Tensor (..., 3)
         Unit vectors towards the Sun in the disc frame (:func:`sun_direction`).
     model, wavelength_nm, parameters
-        As in :func:`skytorch.moon.reflectance.reflectance`.
+        As in :func:`skytorch.moon.reflectance.reflectance` (``wavelength_nm`` [nm]).
 
     Returns
     -------
@@ -224,7 +224,7 @@ def dark_disc_quadrature(phase_angle_rad, n: int = 48):
 
 
 def _photometric_quadrature(alpha, low, high, n, lit_by_sun):
-    check_range("phase_angle_rad", alpha, 0.0, math.pi)
+    check_range("phase_angle_rad", alpha, 0.0, math.pi, unit=" rad")
     dtype = alpha.dtype
     longitude, w_lon = gauss_legendre(n, low, high, dtype=dtype)  # (..., n)
     latitude, w_lat = gauss_legendre(n, 0.0, 0.5 * math.pi, dtype=dtype)  # (n,)
@@ -335,7 +335,7 @@ def disc_image(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi, n_pixels: i
     n_pixels : int
         Pixels across the lunar diameter.
     wavelength_nm : Tensor (n_wavelength,), optional
-        Default: the RGB wavelengths (680, 550, 440) nm.
+        Wavelengths [nm]; default: the RGB wavelengths (680, 550, 440).
     **kwargs
         Passed to :func:`disc_radiance` (distances, earthshine, model, parameters).
 

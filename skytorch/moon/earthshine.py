@@ -69,7 +69,7 @@ MULLER2012_EARTHSHINE_COLOUR = (0.88, 0.96, 1.00)
 
 def _phase(phase_angle_rad, dtype=None):
     return check_range("phase_angle_rad", as_tensor("phase_angle_rad", phase_angle_rad,
-                                                    dtype=dtype), 0.0, math.pi)
+                                                    dtype=dtype), 0.0, math.pi, unit=" rad")
 
 
 def earthshine_muller2012(phase_angle_rad) -> torch.Tensor:

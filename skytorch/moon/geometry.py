@@ -131,6 +131,11 @@ def phase_angle(sun_vec, moon_vec, observer_vec=None) -> torch.Tensor:
         observer = check_shape_last("observer_vec", _tensor("observer_vec", observer_vec,
                                                             dtype), 3)
         to_observer = observer - moon
+    with torch.no_grad():
+        for what, vector in (("the Sun", to_sun), ("the observer", to_observer)):
+            if bool((torch.linalg.vector_norm(vector, dim=-1) == 0.0).any()):
+                raise ValueError(f"moon_vec coincides with {what} (distance 0 m): the phase "
+                                 "angle is undefined; the Moon must be at distance > 0 m")
     return angle_between(to_sun, to_observer)
 
 

@@ -282,7 +282,7 @@ def _parameters(parameters):
     check_range("single_scattering_albedo", values["single_scattering_albedo"], 0.0, 1.0)
     check_range("asymmetry", values["asymmetry"], -1.0, 1.0, low_inclusive=False,
                 high_inclusive=False)
-    check_range("roughness_rad", values["roughness_rad"], 0.0, 60.0 * DEGREE)
+    check_range("roughness_rad", values["roughness_rad"], 0.0, 60.0 * DEGREE, unit=" rad")
     return values
 
 
@@ -312,7 +312,8 @@ def _prepare(mu0, mu, phase_angle_rad):
     mu0 = check_finite("mu0", as_tensor("mu0", mu0, dtype=dtype))
     mu = check_finite("mu", as_tensor("mu", mu, dtype=dtype))
     g = check_range("phase_angle_rad", as_tensor("phase_angle_rad", phase_angle_rad,
-                                                 dtype=dtype), 0.0, math.pi + 1e-6)
+                                                 dtype=dtype), 0.0, math.pi + 1e-6,
+                    unit=" rad")
     g = g.clamp(0.0, math.pi)
     mu0, mu, g = torch.broadcast_tensors(mu0, mu, g)
     lit = (mu0 > 0.0) & (mu > 0.0)
@@ -369,8 +370,8 @@ def reflectance(mu0, mu, phase_angle_rad, model: str = "hapke2012", wavelength_n
     model : {"hapke2012", "lommel_seeliger"}
         Reflectance law (see the module docstring).
     wavelength_nm : Tensor (n_wavelength,), optional
-        When given, the result is multiplied by :func:`albedo` and gains a trailing
-        ``wavelength`` dimension.
+        Wavelengths [nm]; when given, the result is multiplied by :func:`albedo` and gains a
+        trailing ``wavelength`` dimension.
     parameters : str or dict
         Name of a set in :data:`HAPKE_PARAMETERS` or a dict overriding some of its keys
         (``single_scattering_albedo``, ``asymmetry``, ``shoe_amplitude``, ``shoe_width``,

@@ -232,7 +232,7 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
     relative_azimuth_rad : Tensor (...)
         Azimuth of the line of sight minus azimuth of the Moon [rad].
     wavelength_nm : Tensor (n_wavelength,), optional
-        Default: the V-band grid of :mod:`skytorch.moon.brightness`.
+        Wavelengths [nm]; default: the V-band grid of :mod:`skytorch.moon.brightness`.
     distance_m : float or Tensor (...)
         Observer–Moon distance [m].
     altitude_m : float

@@ -226,7 +226,8 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
         V magnitude and B−V [mag].
     operators : torch.Tensor, shape (time, 3, 8)
     velocity_m_s : torch.Tensor or None, shape (time, 3)
-        From :func:`skytorch.stars.positions.time_operators`; ``None`` skips aberration.
+        Observer's barycentric velocity [m/s] from
+        :func:`skytorch.stars.positions.time_operators`; ``None`` skips aberration.
     refraction : dict or None
         :func:`refraction_table`; ``None`` for geometric altitudes.
     extinction_tab : dict or None

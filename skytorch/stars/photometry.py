@@ -289,7 +289,8 @@ def extinction_coefficient(atmosphere, altitude_m: float = 0.0, bv: float = 0.65
     bv : float
         B−V of the star [mag] (V-band integral with a black body of that colour).
     wavelength_nm : float, optional
-        Monochromatic coefficient 1.0857 τ(λ) at this wavelength instead of the V band.
+        Wavelength [nm]: the monochromatic coefficient 1.0857 τ(λ) there instead of the
+        V band.
 
     Returns
     -------
