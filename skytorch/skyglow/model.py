@@ -49,12 +49,15 @@ from skytorch._validate import as_tensor, check_choice, check_int, check_positiv
 from skytorch.skyglow.basis import fit_basis, resolve_components
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
 
-__all__ = ["DISTANCE_SPACINGS", "SkyglowModel", "light_map_arrays"]
+__all__ = ["DISTANCE_SPACINGS", "RESAMPLINGS", "SkyglowModel", "light_map_arrays"]
 
 logger = logging.getLogger(__name__)
 
 #: how the distance nodes are spaced
 DISTANCE_SPACINGS = ("linear", "quadratic")
+
+#: how a light map is resampled to the polar grid (see ``SkyglowModel.radiance_per_lumen``)
+RESAMPLINGS = ("splat", "sample")
 
 REFERENCES = (
     "Dobashi, Y., Ishikawa, N. & Iwasaki, K. 2023, Efficient Visualization of Light "
@@ -489,21 +492,93 @@ class SkyglowModel(nn.Module):
         _warn_outside("source altitude", altitude_m[flux.detach() != 0], self.source_altitude_m)
         jh, wh = _linear_weights(self._buffer("source_altitude_m", dtype),
                                  altitude_m[None, :].expand_as(r))
-        # one flat index per cell into an azimuth-padded grid (observer, n_t + 1, r, h_c);
-        # the corners are fixed offsets from it and row n_t is folded onto row 0 (wrap)
-        base = (((torch.arange(n_obs)[:, None] * (n_t + 1) + i0.long()) * n_r + jr) * n_h
-                + jh).reshape(-1)
+        # one flat index per cell into (observer, azimuth, r, h_c); the other corners are
+        # offsets from it (the azimuth offset wraps around from the last node to the first)
+        i0 = i0.long()
+        base = (((torch.arange(n_obs)[:, None] * n_t + i0) * n_r + jr) * n_h + jh).reshape(-1)
+        wrap = n_r * n_h * torch.where(i0 == n_t - 1, 1 - n_t, 1).reshape(-1)
         corners = [(0, (flux[None, :] * inside).reshape(-1))]
-        for stride, w, n in ((n_r * n_h, wt, 2), (n_h, wr, n_r), (1, wh, n_h)):
+        for stride, w, n in ((wrap, wt, 2), (n_h, wr, n_r), (1, wh, n_h)):
             if n > 1:
                 w = w.reshape(-1)
                 corners = [item for offset, value in corners for item in (
                     (offset, value * (1 - w)), (offset + stride, value * w))]
-        out = torch.zeros(n_obs * (n_t + 1) * n_r * n_h, dtype=dtype)
+        out = torch.zeros(n_obs * n_t * n_r * n_h, dtype=dtype)
         for offset, value in corners:
-            out = out.index_add(0, base + offset if offset else base, value)
-        out = out.reshape(n_obs, n_t + 1, n_r, n_h)
-        return torch.cat([out[:, :1] + out[:, n_t:], out[:, 1:n_t]], dim=1)
+            out = out.index_add(0, base + offset, value)
+        return out.reshape(n_obs, n_t, n_r, n_h)
+
+    def polar_sample(self, cells: Mapping[str, torch.Tensor], observer_xy,
+                     oversampling: int = 1) -> torch.Tensor:
+        """Flux of a gridded light map on the polar nodes by sampling its flux density.
+
+        The map's flux per unit area is interpolated bilinearly (one ``grid_sample``) at
+        ``oversampling²`` points in each polar cell (the azimuth cell around θ_i times the
+        distance cell), and multiplied by the points' areas r δr δθ. The cost depends on
+        the polar grid and the number of observers only, not on the number of lighting
+        cells; unlike :meth:`polar_flux` the flux is conserved only as well as the polar
+        cells resolve the map (maps much finer than the polar cells are undersampled).
+
+        Parameters
+        ----------
+        cells : mapping
+            From :func:`light_map_arrays`: ``flux`` (y, x) on the evenly spaced
+            coordinates ``x_coord`` (x,), ``y_coord`` (y,) [m], and ``altitude`` (y, x).
+        observer_xy : Tensor (observer, 2)
+            Observer positions east/north [m].
+        oversampling : int
+            Sample points per polar cell along azimuth and along distance.
+
+        Returns
+        -------
+        Tensor (observer, azimuth, distance, source_altitude)
+            Flux per polar node [lm].
+        """
+        flux = cells["flux"]
+        dtype = flux.dtype
+        s = check_int("oversampling", oversampling, low=1)
+        if "x_coord" not in cells or flux.ndim != 2:
+            raise ValueError("resampling='sample' needs a gridded light map (y, x)")
+        x_c, y_c = cells["x_coord"].to(dtype), cells["y_coord"].to(dtype)
+        spacing = []
+        for name, c in (("x", x_c), ("y", y_c)):
+            step = torch.diff(c)
+            if c.numel() < 2 or not bool(torch.allclose(step, step[0], rtol=1e-6, atol=0.0)):
+                raise ValueError(f"resampling='sample' needs an evenly spaced increasing '{name}' "
+                                 "coordinate with at least two cells")
+            spacing.append(step[0])
+        dx, dy = spacing
+        n_t, n_r, n_h = (self.azimuth_rad.numel(), self.distance_m.numel(),
+                         self.source_altitude_m.numel())
+        n_obs = observer_xy.shape[0]
+        d_theta = 2 * math.pi / n_t
+        sub = (torch.arange(s, dtype=dtype) + 0.5) / s - 0.5
+        theta = (self._buffer("azimuth_rad", dtype)[:, None] + d_theta * sub).reshape(-1)
+        edges = self._buffer("distance_edges_m", dtype)
+        width = edges[1:] - edges[:-1]
+        r = (edges[:-1, None] + width[:, None] * (sub + 0.5)).reshape(-1)  # (R·s,)
+        area = (r * torch.repeat_interleave(width / s, s) * (d_theta / s))  # (R·s,)
+        px = observer_xy[:, :1, None] + r * torch.sin(theta)[:, None]  # (obs, T·s, R·s)
+        py = observer_xy[:, 1:, None] + r * torch.cos(theta)[:, None]
+        gx = (px - x_c[0]) * (2 / (dx * x_c.numel())) + (1 / x_c.numel() - 1)
+        gy = (py - y_c[0]) * (2 / (dy * y_c.numel())) + (1 / y_c.numel() - 1)
+        grid = torch.stack([gx, gy], dim=-1).reshape(1, n_obs * n_t * s, n_r * s, 2)
+        channels = [flux / (dx * dy)]
+        if n_h > 1:
+            channels.append(cells["altitude"].to(dtype))
+        image = torch.stack(channels)[None]
+        sampled = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
+                                                  padding_mode="zeros", align_corners=False)
+        sampled = sampled[0].reshape(len(channels), n_obs, n_t, s, n_r, s)
+        weight = sampled[0] * area.reshape(n_r, s)[None, None, None]
+        if n_h == 1:
+            return weight.sum(dim=(2, 4))[..., None]
+        jh, wh = _linear_weights(self._buffer("source_altitude_m", dtype), sampled[1])
+        out = weight.new_zeros(n_obs, n_t, s, n_r, s, n_h)
+        out = out.scatter_add(-1, jh[..., None], (weight * (1 - wh))[..., None])
+        out = out.scatter_add(-1, (jh + 1).clamp(max=n_h - 1)[..., None],
+                              (weight * wh)[..., None])
+        return out.sum(dim=(2, 4))
 
     def convolve(self, polar: torch.Tensor, observer_altitude_index: int) -> torch.Tensor:
         """Per-unit-flux radiance from polar node fluxes for one observer altitude node.
@@ -547,7 +622,8 @@ class SkyglowModel(nn.Module):
         return _linear_weights(grid, observer_altitude_m.to(torch.float64))
 
     def radiance_per_lumen(self, cells: Mapping[str, torch.Tensor], observer_xy,
-                           observer_altitude_m=0.0, *, max_pairs: int = 4_000_000
+                           observer_altitude_m=0.0, *, resampling: str = "splat",
+                           oversampling: int = 1, max_pairs: int = 4_000_000
                            ) -> torch.Tensor:
         """``Σ_cells flux · b`` for each observer (the tensor core of :meth:`render`).
 
@@ -560,6 +636,13 @@ class SkyglowModel(nn.Module):
             Observer positions [m].
         observer_altitude_m : Tensor (observer,) or scalar
             Observer altitudes [m]; interpolated linearly between the tabulated nodes.
+        resampling : {"splat", "sample"}
+            How the map reaches the polar grid: ``"splat"`` distributes each lit cell's
+            flux over its four polar nodes (:meth:`polar_flux`; exact flux, cost ∝ lit
+            cells); ``"sample"`` samples a gridded map's flux density in each polar cell
+            (:meth:`polar_sample`; cost independent of the number of cells).
+        oversampling : int
+            Sample points per polar cell and axis for ``"sample"``.
         max_pairs : int
             Bound on observer × cell pairs handled at once (memory).
 
@@ -567,14 +650,18 @@ class SkyglowModel(nn.Module):
         -------
         Tensor (observer, elevation, azimuth, wavelength)
         """
+        check_choice("resampling", resampling, RESAMPLINGS)
         flux = cells["flux"]
         dtype = flux.dtype
-        if flux.requires_grad:
-            lit = (slice(None),) * flux.ndim
+        if resampling == "sample":
+            polar_cells = cells
+        elif flux.requires_grad:
+            flux, x, y, altitude = (cells[k].reshape(-1).to(dtype)
+                                    for k in ("flux", "x", "y", "altitude"))
         else:  # only the lit cells (the coordinates are often expanded views: no copies)
-            lit = torch.unravel_index(torch.nonzero(flux.reshape(-1))[:, 0], flux.shape)
-        flux, x, y, altitude = (cells[k].expand_as(flux)[lit].reshape(-1).to(dtype)
-                                for k in ("flux", "x", "y", "altitude"))
+            lit = flux != 0
+            flux, x, y, altitude = (cells[k].expand_as(lit)[lit].to(dtype)
+                                    for k in ("flux", "x", "y", "altitude"))
         observer_xy = as_tensor("observer_xy", observer_xy, dtype=dtype).reshape(-1, 2)
         n_obs = observer_xy.shape[0]
         h_o = as_tensor("observer_altitude_m", observer_altitude_m, dtype=dtype)
@@ -585,11 +672,16 @@ class SkyglowModel(nn.Module):
         j, w = self.observer_altitude_weights(h_o)
         n_p, n_t = self.elevation_rad.numel(), self.azimuth_rad.numel()
         n_wl = self.wavelength_nm.numel()
-        step = max(1, max_pairs // max(flux.numel(), 1))
+        per_observer = (self.azimuth_rad.numel() * self.distance_m.numel() * oversampling**2
+                        if resampling == "sample" else flux.numel())
+        step = max(1, max_pairs // max(per_observer, 1))
         pieces = []
         for start in range(0, n_obs, step):
             stop = min(start + step, n_obs)
-            polar = self.polar_flux(x, y, flux, altitude, observer_xy[start:stop])
+            if resampling == "sample":
+                polar = self.polar_sample(polar_cells, observer_xy[start:stop], oversampling)
+            else:
+                polar = self.polar_flux(x, y, flux, altitude, observer_xy[start:stop])
             if self.observer_altitude_m.numel() == 1:
                 pieces.append(self.convolve(polar, 0))
                 continue
@@ -611,7 +703,8 @@ class SkyglowModel(nn.Module):
 
     def render(self, light_map, observer_xy=(0.0, 0.0), observer_altitude_m=0.0, *,
                lamp="white", x_m=None, y_m=None, altitude_m=None,
-               natural_mag_arcsec2: float | None = None, as_dataset: bool = True):
+               natural_mag_arcsec2: float | None = None, as_dataset: bool = True,
+               resampling: str = "splat", oversampling: int = 1):
         """Skyglow panorama(s) of a light map (Dobashi et al. 2023, eq. 5–9).
 
         Parameters
@@ -632,6 +725,8 @@ class SkyglowModel(nn.Module):
             Natural zenith brightness added in ``total_brightness`` (default 22.0).
         as_dataset : bool
             Return a Dataset (default) or a dict of tensors.
+        resampling, oversampling
+            Polar resampling of the map (see :meth:`radiance_per_lumen`).
 
         Returns
         -------
@@ -648,7 +743,8 @@ class SkyglowModel(nn.Module):
 
         cells = light_map_arrays(light_map, x_m, y_m, altitude_m)
         single = torch.as_tensor(observer_xy).ndim == 1
-        per_lumen = self.radiance_per_lumen(cells, observer_xy, observer_altitude_m)
+        per_lumen = self.radiance_per_lumen(cells, observer_xy, observer_altitude_m,
+                                            resampling=resampling, oversampling=oversampling)
         weights, band_power = luminance_weights(lamp, self.wavelength_nm)
         dtype = per_lumen.dtype
         luminance = per_lumen @ weights.to(dtype)
@@ -661,10 +757,10 @@ class SkyglowModel(nn.Module):
         if not as_dataset:
             return outputs
         return self._dataset(outputs, cells, observer_xy, observer_altitude_m, lamp, natural,
-                             single)
+                             single, resampling=resampling, oversampling=oversampling)
 
     def _dataset(self, outputs, cells, observer_xy, observer_altitude_m, lamp, natural,
-                 single):
+                 single, **resampling):
         from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
         from skytorch.skyglow.units import (
             artificial_to_natural_ratio,
@@ -714,7 +810,7 @@ class SkyglowModel(nn.Module):
         parameters = dict(self.parameters_used, lamp=lamp_name,
                           observer_xy=torch.as_tensor(observer_xy).tolist(),
                           observer_altitude_m=torch.as_tensor(observer_altitude_m).tolist(),
-                          natural_mag_arcsec2=natural,
+                          natural_mag_arcsec2=natural, **resampling,
                           total_flux_lm=float(cells["flux"].detach().sum()))
         return build_dataset(data, coords, title="Artificial skyglow panorama",
                              references=list(REFERENCES), parameters=parameters)
