@@ -46,8 +46,15 @@ def savefig(figure, path, dpi: int = 110) -> Path:
     return path
 
 
+def fisheye_xy(altitude_deg, azimuth_deg):
+    """Image coordinates (x, y) of directions in the all-sky view (north up, east left)."""
+    radius = (90.0 - np.asarray(altitude_deg, dtype=float)) / 90.0
+    azimuth = np.radians(np.asarray(azimuth_deg, dtype=float))
+    return -radius * np.sin(azimuth), radius * np.cos(azimuth)
+
+
 def all_sky(dataset, axes=None, *, title: str | None = None, exposure=None,
-            night: bool = False, compass: bool = True):
+            night: bool = False, compass: bool = True, markers: dict | None = None):
     """An all-sky (fisheye) or panorama image of a rendered scene (tone-mapped).
 
     Parameters
@@ -62,6 +69,9 @@ def all_sky(dataset, axes=None, *, title: str | None = None, exposure=None,
         Night-vision rendering.
     compass : bool
         Label N, E, S, W on a fisheye.
+    markers : dict, optional
+        ``{label: (altitude_deg, azimuth_deg)}`` circled and labelled on a fisheye
+        (sources smaller than a screen pixel stay findable).
     """
     import torch
 
@@ -83,6 +93,11 @@ def all_sky(dataset, axes=None, *, title: str | None = None, exposure=None,
             for text, (x, y) in {"N": (0, 1.06), "S": (0, -1.1), "E": (-1.1, 0),
                                  "W": (1.06, 0)}.items():
                 axes.text(x, y, text, color="0.3", ha="center", va="center", fontsize=8)
+        for label, (altitude, azimuth) in (markers or {}).items():
+            x, y = fisheye_xy(altitude, azimuth)
+            axes.scatter([x], [y], s=120, facecolors="none", edgecolors="orange", lw=0.8)
+            axes.annotate(label, (x, y), xytext=(6, 6), textcoords="offset points",
+                          color="orange", fontsize=7)
     if title:
         axes.set_title(title, fontsize=9)
     return axes

@@ -295,8 +295,10 @@ def all_sky_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
         stem = f"allsky_{index + 1}_{label.split()[0]}"
         to_netcdf(ds, output_dir / f"{stem}.nc")
         exposure = float(ds.attrs["parameter_exposure"]) if exposure is None else exposure
+        moon = (ds.attrs["parameter_moon_altitude_deg"], ds.attrs["parameter_moon_azimuth_deg"])
         plot.all_sky(ds, axes[index], exposure=exposure, night=True,
-                     title=f"{label}\n{str(when)[:16]} UTC")
+                     title=f"{label}\n{str(when)[:16]} UTC",
+                     markers={"Moon": moon} if moon[0] > 0 else None)
         axes[index].title.set_color("white")
         zenith = float(ds["v_mag_arcsec2"].sel(x=0.0, y=0.0, method="nearest"))
         lines.append(f"  {label:24s} zenith {zenith:.2f} mag/arcsec2, computed "
