@@ -59,6 +59,8 @@ def test_night_sky_without_lights_reaches_the_natural_background():
     assert ds.attrs["effects_computed"] == ""
     np.testing.assert_allclose(ds["v_mag_arcsec2"].values, NATURAL_ZENITH_MAG,
                                atol=0.01 * MAG)
+    np.testing.assert_allclose(ds["component_v_mag_arcsec2"].sel(component="natural").values,
+                               NATURAL_ZENITH_MAG, atol=0.01 * MAG)
 
 
 @pytest.mark.parametrize("time", ["2015-06-21T12:00", "2015-09-28T02:47"])

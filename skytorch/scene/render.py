@@ -479,6 +479,17 @@ def scene_dataset(scene, view, plan, components, total, seconds):
         data["v_mag_arcsec2"] = variable(dims, mags, VariableSpec(
             "mag arcsec-2", "V surface brightness", "Johnson V surface brightness of the "
             "sky (NaN off the sky)."))
+        stack = torch.stack(list(components.values())).to(torch.float64)
+        lit = (stack > 0).any(-1) & view.valid
+        component_mags = radiance_to_mag_arcsec2(stack.clamp(min=1e-300),
+                                                 wavelength.to(torch.float64))
+        component_mags = torch.where(lit, component_mags,
+                                     torch.full_like(component_mags, float("nan")))
+        data["component_v_mag_arcsec2"] = variable(
+            ("component", *dims), component_mags, VariableSpec(
+                "mag arcsec-2", "V surface brightness of each component",
+                "Johnson V surface brightness of each light source alone (NaN where it "
+                "adds no light or off the sky)."))
     g = plan.geometry
     parameters = scene.parameters()
     parameters.update({f"seconds_{k}": round(v, 4) for k, v in seconds.items()})
