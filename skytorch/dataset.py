@@ -247,6 +247,28 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
     The file is first written next to its destination and then renamed, so an interrupted
     write never leaves a truncated file or destroys an existing one. Datetimes are stored
     as int64 nanoseconds so that the round trip is exact.
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        Built by :func:`build_dataset` (attributes that netCDF cannot hold are encoded).
+    path : str or os.PathLike
+        Destination; missing parent directories are created.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import skytorch as st
+    >>> ds = st.ephemeris.sun_moon(["2024-06-20T20:51Z"])
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     back = open_dataset(to_netcdf(ds, pathlib.Path(folder) / "sun_moon.nc"))
+    >>> bool((back.sun_dec == ds.sun_dec).all()), back.time.dtype
+    (True, dtype('<M8[ns]'))
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

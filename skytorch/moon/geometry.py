@@ -120,6 +120,15 @@ def phase_angle(sun_vec, moon_vec, observer_vec=None) -> torch.Tensor:
     -----
     ``i = ∠(r_sun − r_moon, r_obs − r_moon)``, computed with :func:`angle_between`.
     Equivalent to Meeus (1998) eq. 48.2–48.3 without their small-angle steps.
+
+    Examples
+    --------
+    >>> import torch
+    >>> sun = torch.tensor([1.496e11, 0.0, 0.0], dtype=torch.float64)
+    >>> moon = torch.tensor([0.0, 3.844e8, 0.0], dtype=torch.float64)  # at quadrature
+    >>> i = phase_angle(sun, moon)
+    >>> round(float(torch.rad2deg(i)), 2), round(float(illuminated_fraction(i)), 3)
+    (89.85, 0.501)
     """
     dtype = common_dtype(sun_vec, moon_vec, observer_vec)
     sun = check_shape_last("sun_vec", _tensor("sun_vec", sun_vec, dtype), 3)
