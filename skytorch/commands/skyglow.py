@@ -51,8 +51,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     model.add_argument("--max-distance", type=float, default=20_000.0,
                        help="largest source distance [m] (default 20000)")
     model.add_argument("--components", type=int, default=32, help="PCA components M")
-    model.add_argument("--steps", type=int, default=None,
-                       help="Gauss nodes per half view ray (default: from a 1e-3 tolerance)")
+    model.add_argument("--steps", type=int, default=8,
+                       help="Gauss nodes per half view ray (default 8: kernel error 0.014 %% "
+                            "mean, 0.36 %% max)")
     parser.add_argument("--lamp", default="led4000k",
                         help="lamp spectrum: white, incandescent, led3000k, led4000k, hps, lps")
     parser.add_argument("-o", "--output", required=True, help="netCDF file to write")

@@ -487,12 +487,15 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     tau_obs = (medium.optical_depth_to_top(ro, sphi)[:, None]
                - medium.optical_depth_to_top(rp, mu_p_view)).clamp_min(0.0)
     beta = medium.scattering(hp)  # (n, nodes, species, wl)
-    phase = torch.stack([medium.phase_functions[s](cos_scatter).to(beta.dtype)
-                         for s in medium.species], dim=-1)  # (n, nodes, species)
-    scatter = (beta * phase[..., None]).sum(dim=-2)  # (n, nodes, wl)
+    scatter = None  # Σ_s β_s p_s, (n, nodes, wl): explicit sum over the few species
+    for i, species in enumerate(medium.species):
+        term = beta[..., i, :] * medium.phase_functions[species](cos_scatter).to(
+            beta.dtype)[..., None]
+        scatter = term if scatter is None else scatter + term
     geometric = intensity * du / (s2 + a * a)
-    integrand = scatter * torch.exp(-(tau_src + tau_obs)) * geometric[..., None]
-    return integrand.sum(dim=1)
+    # Σ over the nodes as a batched matrix-vector product
+    attenuated = scatter * torch.exp(-(tau_src + tau_obs))
+    return torch.matmul(geometric[:, None, :], attenuated)[:, 0]
 
 
 def converged_steps(medium: Medium, tolerance: float = 1e-3, *, probe=None,

@@ -269,7 +269,7 @@ class SkyglowModel(nn.Module):
                    source_altitude_range_m=(0.0, 1000.0),
                    observer_altitude_range_m=(0.0, 1000.0), wavelength_nm=None,
                    emission_parameters: Mapping[str, float] | None = None,
-                   n_steps: int | None = None, quadrature_tolerance: float = 1e-3,
+                   n_steps: int | None = 8, quadrature_tolerance: float = 1e-3,
                    source_radius_m: float | None = None, distance_spacing: str = "linear",
                    normalize: bool = True, phase_functions=None, progress: bool = True,
                    keep_kernel: bool = False, chunk_size: int = 16384,
@@ -302,10 +302,13 @@ class SkyglowModel(nn.Module):
             ``{"F": 0.1, "G": 0.15}`` for Garstang, ``{"beam_exponent": 8}`` for Dobashi.
         quadrature : {"single", "split"}
             View-ray quadrature (see :func:`~skytorch.skyglow.kernel.kernel_radiance`).
-        n_steps : int, optional
-            Half the Gauss nodes per view ray; default chosen by
-            :func:`~skytorch.skyglow.kernel.converged_steps` for
-            ``quadrature_tolerance``.
+        n_steps : int or None
+            Half the Gauss nodes per view ray. Default 8 (16 nodes): against 1024 nodes
+            the kernel's error is 0.014 % mean and 0.36 % at most over random geometries
+            including grazing rays (``docs/accuracy.md``), far below the error of the
+            map's polar resampling. ``None``: chosen by
+            :func:`~skytorch.skyglow.kernel.converged_steps` for ``quadrature_tolerance``
+            (1e-3 picks 32, four times the cost).
         source_radius_m : float, optional
             Regularising source radius [m]; default half the first distance cell.
         distance_spacing : {"linear", "quadratic"}
