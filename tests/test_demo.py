@@ -40,3 +40,19 @@ def test_demo_quick_writes_netcdf_and_png(tmp_path, capsys):
     sweep = open_dataset(tmp_path / "sweep_moon_colour.nc")
     assert set(sweep["b_minus_v"].dims) == {"turbidity", "ozone_du"}
     assert np.isfinite(sweep["b_minus_v"].values).all()
+
+
+def test_demo_reports_a_part_that_cannot_be_imported(tmp_path, capsys, monkeypatch):
+    from skytorch.commands import demo
+
+    def missing(output_dir, quick, state):
+        from skytorch.nonexistent_module import something  # noqa: F401
+
+    def present(output_dir, quick, state):
+        return ["present part ran"]
+
+    monkeypatch.setattr(demo, "PARTS", (("optional part", missing), ("present", present)))
+    assert main(["demo", "--quick", "--output-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "optional part: SKIPPED (No module named 'skytorch.nonexistent_module')" in out
+    assert "present part ran" in out

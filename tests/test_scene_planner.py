@@ -151,7 +151,7 @@ def test_earthshine_flag_follows_the_plan(monkeypatch):
     assert flags == [False]
 
 
-@pytest.mark.parametrize("name", ["day", "twilight", "dark", "eclipse"])
+@pytest.mark.parametrize("name", ["day", "twilight", "dark", "moonlit", "eclipse"])
 def test_forcing_everything_changes_the_image_within_tolerance(name):
     planned = scene(name).render()
     forced = scene(name, force=list(EFFECTS)).render()
