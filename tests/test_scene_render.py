@@ -119,3 +119,22 @@ def test_night_vision_desaturates_dark_skies():
     torch.testing.assert_close(out_bright, bright)  # photopic: unchanged
     xy = out_dark[:2] / out_dark.sum()
     torch.testing.assert_close(xy, torch.tensor([0.25, 0.25], dtype=torch.float64))
+
+
+def test_render_times_stacks_instants(tmp_path):
+    from skytorch.dataset import open_dataset, to_netcdf
+
+    scene = st.Scene(time="2015-06-21T12:00", **PARIS, view="directions", fidelity="fast",
+                     directions={"altitude_deg": [90.0], "azimuth_deg": [0.0]})
+    ds = st.scene.render_times(scene, ["2015-06-21T12:00", "2015-06-21T20:30",
+                                       "2015-06-21T23:30"])
+    assert ds["v_mag_arcsec2"].dims == ("time", "direction")
+    assert list(ds["effects_computed"].values) == ["sky", "sky", ""]
+    mags = ds["v_mag_arcsec2"].values[:, 0]
+    assert mags[0] < mags[1] < mags[2]  # day, civil twilight, night
+    np.testing.assert_allclose(mags[2], NATURAL_ZENITH_MAG, atol=0.01 * MAG)
+    # the sky component is absent at night: zero radiance there, not missing
+    night_sky = ds["component_radiance"].sel(component="sky").values[2]
+    assert (night_sky == 0.0).all()
+    again = open_dataset(to_netcdf(ds, tmp_path / "series.nc"))
+    np.testing.assert_array_equal(again["radiance"].values, ds["radiance"].values)

@@ -4,6 +4,7 @@
 * :func:`plan` — the effects that can change the image beyond the tolerance
   (:data:`EFFECTS`, :data:`FIDELITY`);
 * :func:`render` — per-component spectral radiance, XYZ, sRGB, V mag arcsec^-2;
+  :func:`render_times` — the same over several instants (dimension ``time``);
 * :func:`tonemap`, :func:`scene_png` — exposure, night vision, PNG.
 
 Examples
@@ -16,9 +17,9 @@ Examples
 """
 
 from skytorch.scene.planner import EFFECTS, FIDELITY, Plan, plan
-from skytorch.scene.render import COMPONENTS, render
+from skytorch.scene.render import COMPONENTS, render, render_times
 from skytorch.scene.scene import OUTPUTS, VIEWS, Scene, View
 from skytorch.scene.tonemap import scene_png, tonemap
 
 __all__ = ["COMPONENTS", "EFFECTS", "FIDELITY", "OUTPUTS", "VIEWS", "Plan", "Scene", "View",
-           "plan", "render", "scene_png", "tonemap"]
+           "plan", "render", "render_times", "scene_png", "tonemap"]

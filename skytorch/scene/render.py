@@ -533,3 +533,58 @@ _COORD_SPECS = {
                                                 "through east."),
     "direction": _coord_spec("1", "direction index", "Index of the view direction."),
 }
+
+
+def render_times(scene, times):
+    """Render ``scene`` at several instants, stacked along a ``time`` dimension.
+
+    Each instant is planned on its own (the Sun and Moon move); the per-instant decisions
+    are kept as the string variables ``effects_computed`` and ``effects_skipped`` over
+    ``time``, and the Dataset attributes list the union of the computed effects.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene; its ``time`` is replaced by each of ``times``.
+    times : sequence of str, datetime or datetime64
+        UTC instants (dimension ``time``).
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    import xarray as xr
+
+    from skytorch.dataset import VariableSpec, time_coordinate, variable
+    from skytorch.ephemeris import parse_times
+    from skytorch.scene.planner import EFFECTS
+
+    values = parse_times(times)
+    frames = [scene.replace(time=str(t)).render() for t in values]
+    computed = [f.attrs["effects_computed"] for f in frames]
+    skipped = [f.attrs["effects_skipped"] for f in frames]
+    varying = [k for k in frames[0].attrs if any(f.attrs.get(k) != frames[0].attrs[k]
+                                                  for f in frames[1:])]
+    static = ("altitude", "azimuth_of_view", "solid_angle")
+    changing = [name for name in frames[0].data_vars if name not in static]
+    fill = {name: (np.nan if "mag" in name else 0.0) for name in changing}
+    stacked = xr.concat([_no_attrs(f) for f in frames], dim="time", data_vars=changing,
+                        coords="minimal", compat="override", join="outer", fill_value=fill)
+    stacked = stacked.assign_coords(time=time_coordinate(values))
+    stacked["effects_computed"] = variable(("time",), np.array(computed, dtype=object),
+                                           VariableSpec("1", "effects computed",
+                                                        "Planner decision at each time."))
+    stacked["effects_skipped"] = variable(("time",), np.array(skipped, dtype=object),
+                                          VariableSpec("1", "effects skipped",
+                                                       "Skipped effects and reasons."))
+    stacked.attrs = {k: v for k, v in frames[0].attrs.items() if k not in varying}
+    union = {e for c in computed for e in c.split(",") if e}
+    stacked.attrs["effects_computed"] = ",".join(e for e in EFFECTS if e in union)
+    stacked.attrs["title"] = f"Sky scene at {len(values)} times"
+    return stacked
+
+
+def _no_attrs(dataset):
+    out = dataset.copy()
+    out.attrs = {}
+    return out
