@@ -349,9 +349,20 @@ class _Rays:
 _METHOD_ALIASES = {"gauss": "bouguer"}
 
 
-def _check_method(method: str) -> str:
-    method = _METHOD_ALIASES.get(method, method)
-    return check_choice("method", method, METHODS)
+def _check_method(method: str, n_nodes, n_steps=None) -> tuple[str, int | None]:
+    """Checked ``method`` and its Gauss–Legendre node count (``n_steps`` overrides
+    ``n_nodes``; validated only for ``"bouguer"``, None for ``"rk4"``)."""
+    method = check_choice("method", _METHOD_ALIASES.get(method, method), METHODS)
+    if method != "bouguer":
+        return method, None
+    return method, check_int("n_nodes", n_nodes if n_steps is None else n_steps, low=2)
+
+
+def _rk4_resolution(step_m, max_dh_m) -> tuple[float, float]:
+    """Checked RK4 step along the ray and altitude-change limit per step [m]."""
+    step_m = check_range("step_m", step_m, low=0.0, low_inclusive=False, unit=" m")
+    max_dh_m = check_range("max_dh_m", max_dh_m, low=0.0, low_inclusive=False, unit=" m")
+    return float(step_m), float(max_dh_m)
 
 
 def _wavelengths(wavelength_nm, dtype):
@@ -460,13 +471,11 @@ def refraction_angle(
     >>> float(refraction_angle(Air(), e) * 206264.8).__round__()  # arcseconds
     57
     """
-    method = _check_method(method)
-    n_nodes = n_nodes if n_steps is None else n_steps
+    method, n_nodes = _check_method(method, n_nodes, n_steps)
     dtype = common_dtype(apparent_altitude_rad, altitude_m)
     if method == "rk4":
         return _trace_observer_rk4(atm, apparent_altitude_rad, altitude_m, dtype, step_m,
                                    max_dh_m)["deviation_rad"]
-    n_nodes = check_int("n_nodes", n_nodes, low=2)
     return _observer_bending(atm, apparent_altitude_rad, altitude_m, dtype, n_nodes)[0]
 
 
@@ -649,12 +658,10 @@ def bent_optical_depth(
     >>> tuple(tau.shape)
     (2, 1)
     """
-    method = _check_method(method)
+    method, n_nodes = _check_method(method, n_nodes, n_steps)
     unused.pop("rtol", None)
     if unused:
         raise TypeError(f"bent_optical_depth got unexpected arguments {sorted(unused)}")
-    if n_steps is not None:
-        n_nodes = n_steps
     dtype = common_dtype(zenith_rad, altitude_m)
     limit = math.pi * (1.0 + 4.0 * torch.finfo(dtype).eps)
     zenith = check_range("zenith_rad", zenith_rad, 0.0, limit, unit=" rad", dtype=dtype)
@@ -669,7 +676,6 @@ def bent_optical_depth(
         tau = _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m,
                                   coefficient=coefficient)["optical_depth"]
     else:
-        n_nodes = check_int("n_nodes", n_nodes, low=2)
         geometry, rays, elevation, _, t0 = _observer_rays(atm, elevation, altitude_m, dtype)
         down = t0 < 0.0
         down_hit = down & rays.hits
@@ -772,7 +778,7 @@ def trace_grazing_rays(
     >>> [round(v, 2) for v in torch.rad2deg(rays["deviation_rad"]).tolist()]
     [1.24, 0.33]
     """
-    method = _check_method(method)
+    method, n_nodes = _check_method(method, n_nodes)
     given = [name for name, value in (("impact_parameter_m", impact_parameter_m),
                                       ("impact_altitude_m", impact_altitude_m),
                                       ("periapsis_altitude_m", periapsis_altitude_m))
@@ -793,7 +799,6 @@ def trace_grazing_rays(
         beta_geo = check_range("impact_altitude_m", impact_altitude_m, low=-radius,
                                unit=" m", dtype=dtype)
         return _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m)
-    n_nodes = check_int("n_nodes", n_nodes, low=2)
     geometry = _Geometry(atm, dtype)
     if periapsis_altitude_m is not None:
         h_p = check_range("periapsis_altitude_m", periapsis_altitude_m, low=-radius,
@@ -980,12 +985,16 @@ def _clockwise_angle(d0, d1):
     return torch.atan2(-cross, dot)
 
 
+def _rk4_max_length(geometry) -> float:
+    """Path length after which an RK4 ray is stopped [m]: far beyond any ray's exit."""
+    r_top = geometry.radius + geometry.top
+    return 4.0 * math.sqrt(r_top**2 - geometry.radius**2) + 4.0 * geometry.top
+
+
 def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coefficient=None):
     elevation = _check_elevation("apparent_altitude_rad", elevation, dtype)
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
-    step_m = float(check_range("step_m", step_m, low=0.0, low_inclusive=False, unit=" m"))
-    max_dh_m = float(check_range("max_dh_m", max_dh_m, low=0.0, low_inclusive=False,
-                                 unit=" m"))
+    step_m, max_dh_m = _rk4_resolution(step_m, max_dh_m)
     elevation, height = torch.broadcast_tensors(elevation, height)
     shape = elevation.shape
     geometry = _Geometry(atm, dtype)
@@ -993,8 +1002,7 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coe
     r0 = geometry.radius + height.reshape(-1)
     position = torch.stack([torch.zeros_like(r0), r0], dim=-1)
     direction = torch.stack([torch.cos(e), torch.sin(e)], dim=-1)
-    r_top = geometry.radius + geometry.top
-    max_length = 4.0 * math.sqrt(r_top**2 - geometry.radius**2) + 4.0 * geometry.top
+    max_length = _rk4_max_length(geometry)
     final, r_min, tau = _rk4_trace(geometry, position, direction, coefficient, step_m,
                                    max_dh_m, max_length, stop_at_ground=coefficient is not None)
     if coefficient is not None:
@@ -1004,9 +1012,7 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coe
 
 
 def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
-    step_m = float(check_range("step_m", step_m, low=0.0, low_inclusive=False, unit=" m"))
-    max_dh_m = float(check_range("max_dh_m", max_dh_m, low=0.0, low_inclusive=False,
-                                 unit=" m"))
+    step_m, max_dh_m = _rk4_resolution(step_m, max_dh_m)
     geometry = _Geometry(atm, dtype)
     shape = beta_geo.shape
     radius = geometry.radius
@@ -1016,7 +1022,7 @@ def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
     position = torch.stack([-chord, b], dim=-1)
     direction = torch.stack([torch.ones_like(b), torch.zeros_like(b)], dim=-1)
     extinction = None if wavelength is None else _extinction(atm, wavelength)
-    max_length = 4.0 * math.sqrt(r_top**2 - radius**2) + 4.0 * geometry.top
+    max_length = _rk4_max_length(geometry)
     final, r_min, tau = _rk4_trace(geometry, position, direction, extinction, step_m,
                                    max_dh_m, max_length)
     output = {
@@ -1163,7 +1169,7 @@ def deviation_table(
     from skytorch.dataset import build_dataset, coordinate, variable
 
     check_choice("parametrisation", parametrisation, TABLE_PARAMETRISATIONS)
-    method = _check_method(method)
+    method, checked_nodes = _check_method(method, n_nodes)
     n_altitude = check_int("n_altitude", n_altitude, low=2)
     n_angle = check_int("n_angle", n_angle, low=2)
     chunk_size = check_int("chunk_size", chunk_size, low=1)
@@ -1191,8 +1197,7 @@ def deviation_table(
                 flat_dev[part] = out["deviation_rad"]
                 flat_contact[part] = out["contact_radius_m"] - radius
             else:
-                bending, rays, t0 = _observer_bending(atm, e, h, dtype,
-                                                      check_int("n_nodes", n_nodes, low=2))
+                bending, rays, t0 = _observer_bending(atm, e, h, dtype, checked_nodes)
                 flat_dev[part] = bending
                 flat_contact[part] = torch.where(t0 < 0.0, rays.h_p, h)
     logger.info("deviation table %d x %d (%s) computed", n_altitude, n_angle, method)
