@@ -24,9 +24,6 @@ import numpy as np
 
 logger = logging.getLogger(__name__)
 
-#: how far from DATE the single-date mode looks for the nearest eclipse
-SEARCH_DAYS = 20
-
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``skytorch eclipse``."""
@@ -94,20 +91,6 @@ def _light_curve_model():
     return getattr(module, "lunar_eclipse", None)
 
 
-def nearest_eclipse(date: str, enlargement: str = "danjon"):
-    """Circumstances of the lunar eclipse nearest to ``date`` (within 20 days)."""
-    from skytorch.eclipse import lunar_eclipses
-    from skytorch.ephemeris import parse_times
-
-    (moment,) = parse_times(date)
-    window = np.timedelta64(SEARCH_DAYS, "D")
-    dataset = lunar_eclipses(moment - window, moment + window, enlargement=enlargement)
-    if dataset.sizes["eclipse"] == 0:
-        raise ValueError(f"no lunar eclipse within {SEARCH_DAYS} days of {date}")
-    index = int(np.argmin(np.abs(dataset.time.values - moment)))
-    return dataset.isel(eclipse=[index])
-
-
 def _run_light_curve(args: argparse.Namespace, model) -> int:
     """Single-date mode with the light-curve model: circumstances plus brightness."""
     dataset = model(args.date, enlargement=args.enlargement)
@@ -138,6 +121,8 @@ def _run_circumstances(args: argparse.Namespace) -> int:
     """Single-date mode without the light-curve model: circumstances and contacts."""
     if args.png:
         raise ValueError("--png needs the lunar-eclipse light-curve model")
+    from skytorch.eclipse.lunar import nearest_eclipse
+
     dataset = nearest_eclipse(args.date, args.enlargement)
     print(format_table(dataset))
     row = dataset.isel(eclipse=0)

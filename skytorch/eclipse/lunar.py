@@ -137,7 +137,12 @@ def _frames(sun: torch.Tensor, moon: torch.Tensor):
     return west, north, z
 
 
-def _eclipse_times(date, n_times: int, enlargement: str):
+def nearest_eclipse(date, enlargement: str = "danjon"):
+    """Circumstances of the lunar eclipse nearest to ``date`` (within ``SEARCH_DAYS``).
+
+    Returns the one-eclipse :func:`skytorch.eclipse.lunar_eclipses` Dataset (dimension
+    ``eclipse`` of length 1); raises ValueError when no eclipse is that near.
+    """
     from skytorch.eclipse import lunar_eclipses
     from skytorch.ephemeris import parse_times
 
@@ -147,7 +152,11 @@ def _eclipse_times(date, n_times: int, enlargement: str):
     if table.sizes["eclipse"] == 0:
         raise ValueError(f"no lunar eclipse within {SEARCH_DAYS} days of {date}")
     index = int(np.argmin(np.abs(table.time.values - moment)))
-    row = table.isel(eclipse=index)
+    return table.isel(eclipse=[index])
+
+
+def _eclipse_times(date, n_times: int, enlargement: str):
+    row = nearest_eclipse(date, enlargement).isel(eclipse=0)
     p1, p4 = row.p1.values, row.p4.values
     span = (p4 - p1).astype("timedelta64[ns]").astype(np.int64)
     start = p1 - np.timedelta64(int(MARGIN * span), "ns")
