@@ -12,7 +12,7 @@ overlap in at most one pixel and are not occluded here):
 * ``sky`` — single-scattered sunlight (:meth:`Atmosphere.sky_radiance`), tabulated on a
   (view zenith, relative azimuth) grid for the scene's Sun and interpolated bilinearly;
   the zenith nodes are denser towards the horizon (:math:`z = \\tfrac{\\pi}{2}\\sin
-  \\tfrac{\\pi u}{2}`).
+  \\tfrac{\\pi u}{2}`) and the azimuth nodes towards the Sun (:math:`\\phi = \\pi u^2`).
 * ``moon`` — the disc's irradiance (:func:`skytorch.moon.lunar_irradiance`) times the
   transmittance along the line of sight, spread over the pixel that holds it, plus the
   moonlit sky (:func:`skytorch.moon.sky.moonlit_sky_single_scattering`) tabulated
@@ -77,12 +77,18 @@ def _zenith_coordinate(zenith: torch.Tensor) -> torch.Tensor:
     return (2.0 / math.pi) * torch.asin((zenith / (0.5 * math.pi)).clamp(0.0, 1.0))
 
 
+def _azimuth_nodes(n: int, dtype) -> torch.Tensor:
+    """|Relative azimuth| nodes in [0, π], denser towards the source (φ = π u²)."""
+    u = torch.linspace(0.0, 1.0, n, dtype=dtype)
+    return math.pi * u * u
+
+
 def _lookup(table: torch.Tensor, zenith: torch.Tensor, relative_azimuth: torch.Tensor):
-    """Bilinear look-up of a (zenith node, |relative azimuth| in [0, π], wl) table."""
+    """Bilinear look-up of a (zenith node, |relative azimuth| node, wl) table."""
     n_z, n_a, n_wl = table.shape
     u = _zenith_coordinate(zenith.reshape(-1)) * 2.0 - 1.0
     phi = torch.remainder(relative_azimuth.reshape(-1) + math.pi, 2 * math.pi) - math.pi
-    v = phi.abs() / math.pi * 2.0 - 1.0
+    v = torch.sqrt(phi.abs() / math.pi) * 2.0 - 1.0
     grid = torch.stack([v, u], dim=-1).to(table.dtype)[None, None]  # (1, 1, P, 2)
     image = table.permute(2, 0, 1)[None]  # (1, wl, z, a)
     out = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
@@ -95,7 +101,7 @@ def sky_table(scene, geometry, knobs, wavelength):
     atm = scene.atmosphere()
     n_z, n_a = knobs["sky_lut"]
     zenith = _zenith_nodes(n_z, torch.float64)
-    azimuth = torch.linspace(0.0, math.pi, n_a, dtype=torch.float64)
+    azimuth = _azimuth_nodes(n_a, torch.float64)
     z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
     sun_zenith = torch.full_like(z, math.radians(90.0 - geometry.sun_altitude_deg))
     table = _transmittance_table(float(scene.turbidity), float(scene.ozone_du),
@@ -111,7 +117,7 @@ def moon_table(scene, geometry, knobs, wavelength):
 
     n_z, n_a = knobs["moon_lut"]
     zenith = _zenith_nodes(n_z, torch.float64).clamp(max=_MAX_MOONLIT_ZENITH)
-    azimuth = torch.linspace(0.0, math.pi, n_a, dtype=torch.float64)
+    azimuth = _azimuth_nodes(n_a, torch.float64)
     z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
     moon_zenith = min(math.radians(90.0 - geometry.moon_altitude_deg), _MAX_MOONLIT_ZENITH)
     return moonlit_sky_single_scattering(
