@@ -699,14 +699,8 @@ class Shadow(nn.Module):
 
         Pass ``atmosphere=False`` for the airless Earth (radius 6371 km).
         """
-        if atmosphere is None:
-            from skytorch.atmosphere import Atmosphere
-
-            atmosphere = Atmosphere.earth()
-        options = {"occluder_radius_m": EARTH_MEAN_RADIUS_M,
-                   "sun_distance_m": ASTRONOMICAL_UNIT_M, "name": "earth"}
-        options.update(kwargs)
-        return cls(atmosphere=atmosphere, **options)
+        return cls._preset("earth", atmosphere, EARTH_MEAN_RADIUS_M, ASTRONOMICAL_UNIT_M,
+                           kwargs)
 
     @classmethod
     def mars(cls, atmosphere=None, **kwargs) -> Shadow:
@@ -714,12 +708,18 @@ class Shadow(nn.Module):
 
         ``atmosphere=None`` uses ``Atmosphere.mars()``; ``False`` gives the airless planet.
         """
+        return cls._preset("mars", atmosphere, MARS_MEAN_RADIUS_M, MARS_SEMI_MAJOR_AXIS_M,
+                           kwargs)
+
+    @classmethod
+    def _preset(cls, planet, atmosphere, radius_m, sun_distance_m, kwargs) -> Shadow:
+        """Shadow of ``planet`` (``Atmosphere.<planet>()`` when ``atmosphere`` is None)."""
         if atmosphere is None:
             from skytorch.atmosphere import Atmosphere
 
-            atmosphere = Atmosphere.mars()
-        options = {"occluder_radius_m": MARS_MEAN_RADIUS_M,
-                   "sun_distance_m": MARS_SEMI_MAJOR_AXIS_M, "name": "mars"}
+            atmosphere = getattr(Atmosphere, planet)()
+        options = {"occluder_radius_m": radius_m, "sun_distance_m": sun_distance_m,
+                   "name": planet}
         options.update(kwargs)
         return cls(atmosphere=atmosphere, **options)
 
