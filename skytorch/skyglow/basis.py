@@ -91,7 +91,7 @@ def resolve_components(n_components, n_samples: int, n_features: int) -> int | f
 
 
 def fit_basis(samples: torch.Tensor, n_components=32, *, normalize: bool = True,
-              random_state: int = 0) -> BasisFit:
+              random_state: int = 0, feature_weights: torch.Tensor | None = None) -> BasisFit:
     """Principal components of kernel images.
 
     Parameters
@@ -105,6 +105,12 @@ def fit_basis(samples: torch.Tensor, n_components=32, *, normalize: bool = True,
         Divide each sample by its root-mean-square value before the PCA (default).
     random_state : int
         Seed of scikit-learn's randomised solver (used for large problems).
+    feature_weights : Tensor (n_features,), optional
+        Multiplicity w_j of each feature: the samples stand for images in which feature j
+        occurs w_j times (the azimuths 0 < θ < π of mirror-symmetric kernel images occur
+        twice). The PCA is exactly that of the expanded images, computed on the
+        √w-weighted features (half the work for mirrored images); the basis is returned on
+        the given features.
 
     Returns
     -------
@@ -125,26 +131,33 @@ def fit_basis(samples: torch.Tensor, n_components=32, *, normalize: bool = True,
     n_samples, n_features = samples.shape
     m = resolve_components(n_components, n_samples, n_features)
     data = samples.detach().to(torch.float64)
+    if feature_weights is None:
+        weight = torch.ones(n_features, dtype=torch.float64)
+    else:
+        weight = torch.as_tensor(feature_weights, dtype=torch.float64).reshape(-1)
+        if weight.numel() != n_features or not bool((weight > 0).all()):
+            raise ValueError(f"feature_weights must hold {n_features} positive values")
     if normalize:
-        scale = data.pow(2).mean(dim=1).sqrt()
+        scale = (data.pow(2) @ weight / weight.sum()).sqrt()
     else:
         scale = torch.ones(n_samples, dtype=torch.float64)
     safe = torch.where(scale > 0, scale, torch.ones_like(scale))
+    root = weight.sqrt().numpy()
     normalized = (data / safe[:, None]).numpy()
     if n_samples == 1:
         # nothing to analyse: the mean image reproduces the single sample exactly
         components = np.zeros((0, n_features))
         ratio = np.zeros(0)
     else:
-        m_fit = m if isinstance(m, float) else min(m, n_samples - 0)
+        m_fit = m if isinstance(m, float) else min(m, n_samples, n_features)
         pca = PCA(n_components=m_fit, svd_solver="full" if isinstance(m, float) else "auto",
                   random_state=random_state)
-        pca.fit(normalized)
-        components = pca.components_
+        pca.fit(normalized * root)
+        components = pca.components_ / root  # orthonormal in the expanded feature space
         ratio = pca.explained_variance_ratio_
     mean = normalized.mean(axis=0)
     basis = np.concatenate([mean[None, :], components], axis=0)
-    weights = (normalized - mean) @ components.T
+    weights = ((normalized - mean) * root**2) @ components.T
     coefficients = np.concatenate([np.ones((n_samples, 1)), weights], axis=1)
     coefficients = coefficients * scale.numpy()[:, None]
     logger.info("PCA: %d components explain %.6f of the variance", components.shape[0],

@@ -370,8 +370,14 @@ class SkyglowModel(nn.Module):
         bar = tqdm(total=n_observer_altitude * n_distance, desc="skyglow kernels",
                    unit="distance", disable=not progress or not sys.stderr.isatty())
         fits, kernels = [], []
+        # multiplicity of the integrated azimuths in the full circle (the PCA of the half
+        # images with these weights is that of the full images)
+        multiplicity = torch.tensor([1.0 if i in (0, n_azimuth - i) else 2.0
+                                     for i in range(half)], dtype=torch.float64)
+        feature_weights = multiplicity[:, None].expand(
+            half, n_elevation * wavelength.numel()).reshape(-1)
         for h_o in observer_altitude:
-            table = torch.empty(n_distance, n_source_altitude, n_azimuth, n_elevation,
+            table = torch.empty(n_distance, n_source_altitude, half, n_elevation,
                                 wavelength.numel(), dtype=torch.float64)
             block = max(1, 4 * chunk_size // (half * n_elevation * n_source_altitude))
             for start in range(0, n_distance, block):
@@ -382,12 +388,15 @@ class SkyglowModel(nn.Module):
                     distance[start:stop, None, None, None].to(compute_dtype),
                     source_altitude[:, None, None].to(compute_dtype), h_o.to(compute_dtype),
                     n_steps=n_steps, chunk_size=chunk_size, **kernel_arguments)
-                table[start:stop] = values[:, :, mirror].to(torch.float64)
+                table[start:stop] = values.to(torch.float64)
                 bar.update(stop - start)
-            fits.append(fit_basis(table.reshape(n_distance * n_source_altitude, -1),
-                                  n_components, normalize=normalize))
+            fit = fit_basis(table.reshape(n_distance * n_source_altitude, -1), n_components,
+                            normalize=normalize, feature_weights=feature_weights)
+            fit.basis = fit.basis.reshape(-1, half, n_elevation * wavelength.numel())[
+                :, mirror].reshape(fit.basis.shape[0], -1)
+            fits.append(fit)
             if keep_kernel:
-                kernels.append(table)
+                kernels.append(table[:, :, mirror])
         bar.close()
         basis, coefficients, ratio = _stack_fits(
             fits, (n_azimuth, n_elevation, wavelength.numel()), (n_distance, n_source_altitude))
@@ -546,7 +555,8 @@ class SkyglowModel(nn.Module):
         spacing = []
         for name, c in (("x", x_c), ("y", y_c)):
             step = torch.diff(c)
-            if c.numel() < 2 or not bool(torch.allclose(step, step[0], rtol=1e-6, atol=0.0)):
+            rtol = 1e-6 if c.dtype == torch.float64 else 1e-4  # float32 coordinates round
+            if c.numel() < 2 or not bool(torch.allclose(step, step[0], rtol=rtol, atol=0.0)):
                 raise ValueError(f"resampling='sample' needs an evenly spaced increasing '{name}' "
                                  "coordinate with at least two cells")
             spacing.append(step[0])
