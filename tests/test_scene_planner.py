@@ -155,7 +155,9 @@ def test_earthshine_flag_follows_the_plan(monkeypatch):
 def test_forcing_everything_changes_the_image_within_tolerance(name):
     planned = scene(name).render()
     forced = scene(name, force=list(EFFECTS)).render()
-    assert set(forced.attrs["effects_computed"].split(",")) == set(EFFECTS) - {"skyglow"}
+    assert set(forced.attrs["effects_computed"].split(",")) == (set(EFFECTS)
+                                                               - {"skyglow", "scintillation"})
+    assert "cannot be forced" in forced.attrs["effects_skipped"]
     assert l1_change(forced, planned) <= TOLERANCE
 
 

@@ -30,7 +30,7 @@ Estimates
   :func:`skytorch.stars.refraction_table`); with stars in a
   fisheye or panorama, stars near the horizon always move by more than a pixel;
 * scintillation: a still image records the mean flux of a twinkling star, so it is
-  skipped unless forced.
+  always skipped (twinkling sequences: ``skytorch.stars.observe(..., twinkle_samples=n)``).
 
 :data:`FIDELITY` maps the presets "fast", "default", "reference" to the modules' knobs;
 their measured error and cost are in ``docs/scene.md``.
@@ -392,6 +392,10 @@ def plan(scene, view=None) -> Plan:
             skipped[name] = "excluded by the user"
         elif name == "skyglow" and scene.light_map is None:
             skipped[name] = reason
+        elif name == "scintillation":
+            # a still image holds the time-averaged flux; twinkling needs a time axis
+            # (skytorch.stars.observe(..., twinkle_samples=n) gives the sequences)
+            skipped[name] = reason + (" (cannot be forced)" if name in scene.force else "")
         elif name in scene.force:
             computed.append(name)
         elif on:
