@@ -20,9 +20,8 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
-from skytorch.constants import DEGREE  # noqa: E402
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable  # noqa: E402
-from skytorch.moon.disc import disc_image  # noqa: E402
+from skytorch.moon.datasets import moon_disc_image  # noqa: E402
 from skytorch.spectrum import spectrum_to_xyz, wavelength_grid, xyz_to_srgb  # noqa: E402
 
 PHASES_DEG = (0.0, 30.0, 60.0, 90.0, 120.0, 150.0)
@@ -32,9 +31,9 @@ def run(quick: bool = False):
     n_pixels = 48 if quick else 160
     wl = wavelength_grid("bands15")
     wl = wl[(wl >= 360.0) & (wl <= 830.0)]
-    alpha = torch.tensor(PHASES_DEG, dtype=torch.float64) * DEGREE
-    radiance = disc_image(alpha, torch.full_like(alpha, 270.0 * DEGREE), n_pixels=n_pixels,
-                          wavelength_nm=wl)  # (phase, y, x, wl)
+    images = [moon_disc_image(phase, 270.0, n_pixels=n_pixels, wavelength_nm=wl.tolist())
+              for phase in PHASES_DEG]
+    radiance = torch.as_tensor(np.stack([image.radiance.values for image in images]))
     xyz = spectrum_to_xyz(radiance, wl)
     luminance = xyz[..., 1]
     exposure = 0.8 / luminance[0, n_pixels // 2, n_pixels // 2]
@@ -43,8 +42,6 @@ def run(quick: bool = False):
     own = xyz_to_srgb(xyz / peak, clip=True)
     dark = xyz_to_srgb(xyz / peak * 200.0, clip=True)
     own = torch.where(luminance.unsqueeze(-1) < peak[..., 0:1, :] / 200.0, dark, own)
-    centres = (np.arange(n_pixels) + 0.5) * (2.0 / n_pixels) - 1.0
-    position = "{} on the lunar disc in lunar radii ({})"
     return build_dataset(
         {"luminance": variable(("phase_angle", "y", "x"), luminance, VariableSpec(
             "W m-2 sr-1", "CIE Y of the disc radiance",
@@ -57,8 +54,7 @@ def run(quick: bool = False):
                                                "part shown with a gain of 200"))},
         {"phase_angle": coordinate("phase_angle", np.array(PHASES_DEG), VariableSpec(
             "degree", "lunar phase angle", "Sun-Moon-observer angle")),
-         "y": coordinate("y", centres, VariableSpec("1", "y", position.format("y", "north"))),
-         "x": coordinate("x", centres, VariableSpec("1", "x", position.format("x", "west"))),
+         "y": images[0].y.variable, "x": images[0].x.variable,
          "channel": coordinate("channel", np.array(["R", "G", "B"]), VariableSpec(
              "1", "sRGB channel", "red, green, blue"))},
         title="Images of the lunar disc through a lunation",
