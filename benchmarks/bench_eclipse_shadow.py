@@ -93,8 +93,13 @@ def main(argv: list[str] | None = None) -> int:
 
     text = (f"\n## Eclipse shadow (`benchmarks/bench_eclipse_shadow.py`)\n\n"
             f"Machine: {machine_description()}\n\n{markdown_table(rows)}\n")
+    return _report(text, args.append)
+
+
+def _report(text: str, append: bool) -> int:
+    """Print ``text`` and, with ``append``, add it to docs/benchmarks.md."""
     print(text)
-    if args.append:
+    if append:
         with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as f:
             f.write(text)
     return 0
@@ -141,11 +146,7 @@ def _sweep(args) -> int:
         25.0 * (time.perf_counter() - start))
     text = (f"\n## Eclipse light-curve sweep (`benchmarks/bench_eclipse_shadow.py --sweep`)\n\n"
             f"Machine: {machine_description()}\n\n{markdown_table(rows)}\n")
-    print(text)
-    if args.append:
-        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as f:
-            f.write(text)
-    return 0
+    return _report(text, args.append)
 
 
 if __name__ == "__main__":
