@@ -392,20 +392,12 @@ def limb_views(quick: bool):
 
 def main(argv=None) -> int:
     args = parse_arguments(__doc__.splitlines()[0], argv)
-    dataset, figure, summary = profiles(args.quick)
-    save_outputs(dataset, figure, args.output_dir, "eclipse_theory_profiles")
-    for key, value in summary.items():
-        print(f"{key}: {value:.6g}")
-    dataset, figure = ozone_sweep(args.quick)
-    save_outputs(dataset, figure, args.output_dir, "eclipse_theory_ozone")
-    dataset, figure, summary = light_curves(args.quick)
-    save_outputs(dataset, figure, args.output_dir, "eclipse_theory_2015")
-    for key, value in summary.items():
-        print(f"{key}: {value:.6g}")
-    dataset, figure = mars(args.quick)
-    save_outputs(dataset, figure, args.output_dir, "eclipse_theory_mars")
-    dataset, figure = limb_views(args.quick)
-    save_outputs(dataset, figure, args.output_dir, "eclipse_theory_limb")
+    for build, stem in ((profiles, "profiles"), (ozone_sweep, "ozone"),
+                        (light_curves, "2015"), (mars, "mars"), (limb_views, "limb")):
+        dataset, figure, *summary = build(args.quick)
+        save_outputs(dataset, figure, args.output_dir, f"eclipse_theory_{stem}")
+        for key, value in (summary[0] if summary else {}).items():
+            print(f"{key}: {value:.6g}")
     return 0
 
 
