@@ -24,7 +24,8 @@ overlap in at most one pixel and are not occluded here):
   extinction) with black-body spectra of their B−V temperature
   (:func:`skytorch.spectrum.bv_to_temperature`) scaled to their V magnitudes.
 * ``skyglow`` — :meth:`skytorch.skyglow.SkyglowModel.render` panorama interpolated to
-  the view (model cached on disk).
+  the view (model cached on disk, keyed by the atmosphere, wavelengths, settings and a
+  hash of the skyglow and atmosphere sources).
 """
 
 from __future__ import annotations
@@ -322,10 +323,26 @@ def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tens
     return _splat(view, altitude[up], azimuth[up], flux, wavelength.numel(), scene.dtype)
 
 
+@lru_cache(maxsize=1)
+def _skyglow_code_hash() -> str:
+    """Hash of the skyglow and atmosphere sources: a changed model rebuilds cached tables."""
+    from pathlib import Path
+
+    import skytorch.atmosphere
+    import skytorch.skyglow
+
+    digest = hashlib.sha256()
+    for package in (skytorch.skyglow, skytorch.atmosphere):
+        for path in sorted(Path(package.__file__).parent.glob("*.py")):
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
 def _skyglow_key(scene, wavelength, settings) -> str:
     text = json.dumps({"turbidity": float(scene.turbidity), "ozone_du": float(scene.ozone_du),
                        "wavelength": [float(v) for v in wavelength.tolist()],
-                       "settings": settings, "format": 1}, sort_keys=True)
+                       "settings": settings, "code": _skyglow_code_hash(), "format": 1},
+                      sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
