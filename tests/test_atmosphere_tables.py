@@ -121,3 +121,23 @@ def test_cache_directory_from_environment(atmosphere, tmp_path, monkeypatch):
     table = TransmittanceTable.build(atmosphere, WAVELENGTH, cache=True, n_mu=16, n_r=8)
     assert len(list((tmp_path / "env-cache").glob("transmittance_*.nc"))) == 1
     assert table.table.shape == (8, 16, 3)
+
+
+@pytest.mark.parametrize("altitude", [37_000.0, 39_000.0, 39_800.0])
+def test_lookup_below_the_ozone_top(atmosphere, table, altitude):
+    # near-horizontal rays just below the ozone tent's top (40 km): the column falls like
+    # (40 km - h)^1.5 there; uniform x_r samples gave up to 20 % errors, the kink-graded
+    # samples stay within 5 % (measured <= 2.9 %; 15 % with uniform samples)
+    zenith = torch.linspace(math.radians(80.0), math.radians(89.5), 40, dtype=torch.float64)
+    looked_up = table.optical_depth(zenith, altitude)
+    direct = atmosphere.optical_depth(WAVELENGTH, zenith, altitude)
+    assert float(((looked_up - direct).abs() / direct).max()) <= 5 * PERCENT
+
+
+def test_radius_nodes_put_profile_kinks_on_nodes(atmosphere):
+    nodes = tables_module.radius_nodes(atmosphere, 64)
+    planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
+    altitude = torch.sqrt(nodes ** 2 * (top ** 2 - planet ** 2) + planet ** 2) - planet
+    for kink in (10_000.0, 25_000.0, 40_000.0):
+        assert float((altitude - kink).abs().min()) <= 1e-6
+    assert nodes[0] == 0.0 and nodes[-1] == 1.0 and bool((nodes.diff() > 0).all())

@@ -12,8 +12,13 @@ on the texture coordinates of Bruneton (ref. 1, ``GetTransmittanceTextureUvFromR
     x_\\mu = (d - d_{min})/(d_{max} - d_{min}),
 
 with :math:`d` the distance to the top. Samples lie on the unit range, including both
-ends (:math:`x = k/(n-1)`), and look-ups interpolate bilinearly. Optical depths between
-two points, and to the ground, follow from differences of two look-ups (ref. 1,
+ends; along :math:`x_\\mu` they are uniform (:math:`x = k/(n-1)`). Along :math:`x_r` they
+have nodes at the altitudes where a density profile has a kink (the ozone tent's base,
+peak and top) and are graded towards the kink above them (:func:`radius_nodes`): below
+a kink the column of near-horizontal rays behaves like :math:`(h_k - h)^{3/2}`, and
+uniform samples interpolated it with 20 % errors at 256 x 64 (ozone at 595 nm, 40 km).
+Look-ups interpolate bilinearly in :math:`(x_r, x_\\mu)`. Optical depths between two
+points, and to the ground, follow from differences of two look-ups (ref. 1,
 ``GetTransmittance``). Because the per-species path integrals do not depend on
 wavelength, the table's cost is that of ``n_r * n_mu`` rays times three species.
 
@@ -70,6 +75,7 @@ __all__ = [
     "TransmittanceTable",
     "cache_directory",
     "cached_transmittance_table",
+    "radius_nodes",
     "table_key",
     "transmittance_table",
 ]
@@ -77,7 +83,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: bump when the layout or the numerics of the table change (invalidates caches)
-TABLE_FORMAT_VERSION = 1
+TABLE_FORMAT_VERSION = 2
 
 _REFERENCES = [
     "Bruneton, E. 2017, Precomputed Atmospheric Scattering: a New Implementation, "
@@ -90,6 +96,49 @@ _REFERENCES = [
 def cache_directory() -> Path:
     """``$SKYTORCH_CACHE_DIR`` if set, else ``~/.cache/skytorch``."""
     return Path(os.environ.get("SKYTORCH_CACHE_DIR") or Path.home() / ".cache" / "skytorch")
+
+
+#: grading exponent of the x_r samples towards a kink above them (see radius_nodes)
+_KINK_GRADING = 1.7
+
+
+def radius_nodes(atmosphere, n_r: int) -> torch.Tensor:
+    """The :math:`x_r = \\rho/H` samples of a table (n_r,), kinks of the profiles on nodes.
+
+    The unit range is cut at the :math:`x_r` of every profile kink inside the atmosphere
+    (the ozone tent's base, peak and top); the ``n_r - 1`` intervals are shared among the
+    pieces in proportion to their lengths (at least one each) and are uniform within a
+    piece. Below a kink the column of near-horizontal rays behaves like
+    :math:`(h_k - h)^{3/2}`, so in the pieces between two kinks the samples are graded
+    towards the upper one, :math:`x = a + (b - a)(1 - (1 - u)^{1.7})` with :math:`u`
+    uniform (at 256 x 64 this cuts the worst look-up error from 19 % to 4.9 %, see
+    docs/accuracy.md); the lowest piece, where molecules and aerosols dominate, and the
+    highest stay uniform. With fewer intervals than pieces the samples are uniform.
+    """
+    planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
+    horizon = math.sqrt(top ** 2 - planet ** 2)
+    kinks = atmosphere._levels("ozone", torch.float64).reshape(-1).tolist()
+    cuts = sorted({math.sqrt(h * (2.0 * planet + h)) / horizon for h in kinks
+                   if 0.0 < h < atmosphere.top_altitude_m})
+    edges = [0.0, *cuts, 1.0]
+    lengths = [b - a for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    n_intervals = n_r - 1
+    if n_intervals < len(lengths):
+        return torch.linspace(0.0, 1.0, n_r, dtype=torch.float64)
+    counts = [max(1, round(n_intervals * length)) for length in lengths]
+    while sum(counts) != n_intervals:
+        # adjust the piece whose interval length is furthest from the mean
+        step = 1 if sum(counts) < n_intervals else -1
+        spacing = [length / count for length, count in zip(lengths, counts, strict=True)]
+        candidates = [k for k in range(len(counts)) if step > 0 or counts[k] > 1]
+        k = (max if step > 0 else min)(candidates, key=lambda index: spacing[index])
+        counts[k] += step
+    pieces = []
+    for k, (a, b, count) in enumerate(zip(edges[:-1], edges[1:], counts, strict=True)):
+        u = torch.linspace(0.0, 1.0, count + 1, dtype=torch.float64)[:-1]
+        grading = _KINK_GRADING if 0 < k < len(lengths) - 1 else 1.0
+        pieces.append(a + (b - a) * (1.0 - (1.0 - u) ** grading))
+    return torch.cat([*pieces, torch.ones(1, dtype=torch.float64)])
 
 
 def _geometry(x_r, x_mu, planet_radius, top_radius):
@@ -161,7 +210,7 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
                          f"got batch shape {tuple(atmosphere.batch_shape)} (loop over the "
                          "sweep)")
     wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
-    x_r = torch.linspace(0.0, 1.0, n_r, dtype=torch.float64)
+    x_r = radius_nodes(atmosphere, n_r)
     x_mu = torch.linspace(0.0, 1.0, n_mu, dtype=torch.float64)
     r, mu = _geometry(x_r[:, None], x_mu[None, :], atmosphere.planet_radius_m,
                       atmosphere.top_radius_m)
@@ -188,7 +237,9 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
     }
     coords = {
         "x_r": coordinate("x_r", x_r, VariableSpec(
-            "1", "radius texture coordinate", "sqrt(r^2 - R^2) / sqrt(R_t^2 - R^2)")),
+            "1", "radius texture coordinate",
+            "sqrt(r^2 - R^2) / sqrt(R_t^2 - R^2); uniform between profile kinks, which are "
+            "nodes")),
         "x_mu": coordinate("x_mu", x_mu, VariableSpec(
             "1", "direction texture coordinate",
             "(d - d_min) / (d_max - d_min), d the distance to the top")),
@@ -269,14 +320,22 @@ class TransmittanceTable(nn.Module):
         Its wavelengths [nm].
     planet_radius_m, top_radius_m : float
         Radii the table was computed for [m].
+    x_r : Tensor (x_r,), optional
+        The increasing :math:`x_r` samples from 0 to 1 (default uniform).
     """
 
     def __init__(self, optical_depth, wavelength_nm, planet_radius_m: float,
-                 top_radius_m: float):
+                 top_radius_m: float, x_r=None):
         super().__init__()
         self.register_buffer("table", torch.tensor(np.array(optical_depth, dtype=np.float64)))
         self.register_buffer("wavelength_nm",
                              torch.tensor(np.array(wavelength_nm, dtype=np.float64)))
+        n_r = self.table.shape[0]
+        nodes = (torch.linspace(0.0, 1.0, n_r, dtype=torch.float64) if x_r is None
+                 else torch.tensor(np.array(x_r, dtype=np.float64)))
+        if nodes.shape != (n_r,) or not bool((nodes[1:] > nodes[:-1]).all()):
+            raise ValueError(f"x_r must be {n_r} increasing samples; got {nodes.tolist()}")
+        self.register_buffer("x_r", nodes)
         self.planet_radius_m = float(planet_radius_m)
         self.top_radius_m = float(top_radius_m)
 
@@ -286,7 +345,7 @@ class TransmittanceTable(nn.Module):
         parameters = json.loads(dataset.attrs["parameters"])
         planet = parameters["planet_radius_m"]
         return cls(dataset["optical_depth"].values, dataset["wavelength"].values, planet,
-                   planet + parameters["top_altitude_m"])
+                   planet + parameters["top_altitude_m"], dataset["x_r"].values)
 
     @classmethod
     def build(cls, atmosphere, wavelength_nm, *, cache: bool = False, **kwargs
@@ -303,11 +362,12 @@ class TransmittanceTable(nn.Module):
         x_r, x_mu = _coordinates(r, mu, self.planet_radius_m, self.top_radius_m)
         table = self.table.to(x_r.dtype)
         n_r, n_mu, n_wl = table.shape
-        fr = x_r * (n_r - 1)
+        nodes = self.x_r.to(x_r.dtype)
+        i = torch.clamp(torch.searchsorted(nodes, x_r.detach().contiguous(), right=True) - 1,
+                        0, n_r - 2)
         fm = x_mu * (n_mu - 1)
-        i = torch.clamp(fr.detach().floor().long(), 0, n_r - 2)
         j = torch.clamp(fm.detach().floor().long(), 0, n_mu - 2)
-        wr = (fr - i)[..., None]
+        wr = ((x_r - nodes[i]) / (nodes[i + 1] - nodes[i]))[..., None]
         wm = (fm - j)[..., None]
         flat = table.reshape(n_r * n_mu, n_wl)
 
