@@ -81,18 +81,61 @@ def _row(case, wall, cpu, target):
             "meets (CPU)": cpu <= target if isinstance(target, float) else ""}
 
 
+def _precompute_rows(rows, medium, quick: bool) -> None:
+    """Kernel on one (h_o, h_c) slice of the paper's grid and one PCA, both measured."""
+    from skytorch.skyglow.basis import fit_basis
+    from skytorch.skyglow.kernel import kernel_radiance
+
+    half = 256 // 2 + 1
+    az = torch.arange(half, dtype=torch.float64) * (2 * math.pi / 256)
+    el = (torch.arange(64, dtype=torch.float64) + 0.5) * (math.pi / 128)
+    edges = torch.linspace(0.0, 10_000.0, 129, dtype=torch.float64)
+    r = 0.5 * (edges[1:] + edges[:-1])
+    if quick:
+        r = r[::32]
+    geometries = half * 64 * r.numel()
+    slice_fraction = r.numel() / 128
+    # the PCA precompute runs: 2048 half images (129 azimuths × 64 × 3) with multiplicities
+    n_samples = 256 if quick else 2048
+    data = torch.rand(n_samples, half * 64 * 3, generator=torch.Generator().manual_seed(2),
+                      dtype=torch.float64)
+    multiplicity = torch.tensor([1.0 if i in (0, 128) else 2.0 for i in range(half)],
+                                dtype=torch.float64)
+    weights = multiplicity[:, None].expand(half, 64 * 3).reshape(-1)
+    pca_wall, pca_cpu = _median_wall_cpu(
+        lambda: fit_basis(data, 128, feature_weights=weights), repeat=1, warmup=0)
+    rows.append(_row(f"one PCA: {n_samples} half images × {half * 64 * 3} features, M = 128",
+                     pca_wall, pca_cpu, ""))
+    for dtype, steps in ((torch.float32, (8, 16)), (torch.float64, (8,))):
+        for n_steps in steps:
+            wall, cpu = _median_wall_cpu(
+                lambda dtype=dtype, n_steps=n_steps: kernel_radiance(
+                    medium, az[:, None].to(dtype), el[None, :].to(dtype),
+                    r[:, None, None].to(dtype), 0.0, 0.0, n_steps=n_steps),
+                repeat=3, warmup=0)
+            per_node_ns = cpu / geometries / (2 * n_steps) * 1e9
+            copies = PAPER_ALTITUDE_PAIRS / slice_fraction
+            total_cpu = copies * cpu + PAPER_PCAS * pca_cpu
+            total_wall = copies * wall + PAPER_PCAS * pca_wall
+            rows.append(_row(
+                f"precompute at paper resolution, {str(dtype)[6:]}, {2 * n_steps} nodes per "
+                f"ray: kernel slice of {geometries} geometries {cpu:.3g} CPU-s ({per_node_ns:.0f} "
+                f"ns per geometry and node) × {copies:.0f} + {PAPER_PCAS} PCAs",
+                total_wall, total_cpu, TARGET_PRECOMPUTE_S))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
     parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
     parser.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
     parser.add_argument("--repeat", type=int, default=9)
+    parser.add_argument("--part", choices=("all", "runtime", "precompute"), default="all")
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
 
     from skytorch.atmosphere import Atmosphere
-    from skytorch.skyglow.basis import fit_basis
-    from skytorch.skyglow.kernel import Medium, kernel_radiance
+    from skytorch.skyglow.kernel import Medium
     from skytorch.skyglow.model import SkyglowModel
     from skytorch.skyglow.naive import naive_radiance_per_lumen
     from skytorch.spectrum import wavelength_grid
@@ -109,88 +152,61 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     extent = 20_000.0 / math.sqrt(2.0)  # the map's corners lie on the largest distance
 
-    # --- runtime vs number of lighting cells -------------------------------------------
-    sides = (4, 16, 45, 128, 256) if not args.quick else (4, 16, 45)
-    times = {}
-    for side in sides:
-        cells = _grid_map(side, extent)
-        for dtype in (torch.float64, torch.float32):
+    if args.part in ("all", "runtime"):
+        # --- runtime vs number of lighting cells -------------------------------------------
+        sides = (4, 16, 45, 128, 256) if not args.quick else (4, 16, 45)
+        times = {}
+        for side in sides:
+            cells = _grid_map(side, extent)
+            for dtype in (torch.float64, torch.float32):
+                typed = {k: v.to(dtype) for k, v in cells.items()}
+                for resampling in ("splat", "sample"):
+                    wall, cpu = _median_wall_cpu(
+                        lambda typed=typed, resampling=resampling: model.radiance_per_lumen(
+                            typed, (0.0, 0.0), resampling=resampling), repeat=args.repeat, warmup=2)
+                    times[(side * side, dtype, resampling)] = (wall, cpu)
+                    rows.append(_row(f"panorama {n_t}×{n_p}, M={model.n_components}, N_r={n_r}, "
+                                     f"{side * side} cells, {resampling}, {str(dtype)[6:]}",
+                                     wall, cpu, TARGET_PANORAMA_S))
+        from skytorch.skyglow.citymap import point_sources
+
+        city = point_sources(2048, 28_000.0, 28_000.0 / 256)
+        wall, cpu = _median_wall_cpu(lambda: model.render(city), repeat=args.repeat)
+        rows.append(_row("render() with Dataset, 2048 point sources, splat, float64", wall, cpu,
+                         TARGET_PANORAMA_S))
+
+        # --- 1000 observers ----------------------------------------------------------------
+        n_obs = 100 if args.quick else 1000
+        cells = _grid_map(45, extent)  # 2025 lit cells
+        xy = (torch.rand(n_obs, 2, generator=torch.Generator().manual_seed(1),
+                         dtype=torch.float64) - 0.5) * 10_000.0
+        for dtype in (torch.float32, torch.float64):
             typed = {k: v.to(dtype) for k, v in cells.items()}
-            for resampling in ("splat", "sample"):
-                wall, cpu = _median_wall_cpu(
-                    lambda typed=typed, resampling=resampling: model.radiance_per_lumen(
-                        typed, (0.0, 0.0), resampling=resampling), repeat=args.repeat, warmup=2)
-                times[(side * side, dtype, resampling)] = (wall, cpu)
-                rows.append(_row(f"panorama {n_t}×{n_p}, M={model.n_components}, N_r={n_r}, "
-                                 f"{side * side} cells, {resampling}, {str(dtype)[6:]}",
-                                 wall, cpu, TARGET_PANORAMA_S))
-    from skytorch.skyglow.citymap import point_sources
-
-    city = point_sources(2048, 28_000.0, 28_000.0 / 256)
-    wall, cpu = _median_wall_cpu(lambda: model.render(city), repeat=args.repeat)
-    rows.append(_row("render() with Dataset, 2048 point sources, splat, float64", wall, cpu,
-                     TARGET_PANORAMA_S))
-
-    # --- 1000 observers ----------------------------------------------------------------
-    n_obs = 100 if args.quick else 1000
-    cells = _grid_map(45, extent)  # 2025 lit cells
-    xy = (torch.rand(n_obs, 2, generator=torch.Generator().manual_seed(1),
-                     dtype=torch.float64) - 0.5) * 10_000.0
-    for dtype in (torch.float32, torch.float64):
-        typed = {k: v.to(dtype) for k, v in cells.items()}
-        observers = xy.to(dtype)
-        wall, cpu = _median_wall_cpu(
-            lambda typed=typed, observers=observers: model.radiance_per_lumen(typed, observers),
-            repeat=3)
-        rows.append(_row(f"{n_obs} observers batched, 2025 cells, splat, {str(dtype)[6:]}",
-                         wall, cpu, TARGET_BATCH_S))
-
-    # --- naive reference, scaled to 2048 cells ---------------------------------------------
-    sample = point_sources(4, 28_000.0, 28_000.0 / 256, seed=1)
-    from skytorch.skyglow.model import light_map_arrays
-
-    c0 = time.process_time()
-    naive_radiance_per_lumen(model, light_map_arrays(sample), (0.0, 0.0), sources="cells",
-                             medium=medium)
-    naive_2048 = (time.process_time() - c0) / 4 * 2048
-    ours = times[(45 * 45, torch.float64, "splat")][1] if not args.quick else times[
-        (45 * 45, torch.float64, "splat")][1]
-    speedup = naive_2048 / ours
-    rows.append(_row(f"naive, 2048 cells (4-cell CPU time × 512); speed-up over splat "
-                     f"float64 at 2025 cells: {speedup:.3g}×", float("nan"), naive_2048,
-                     f"≥ {TARGET_SPEEDUP:.0f}× "
-                     f"({'met' if speedup >= TARGET_SPEEDUP else 'missed'})"))
-
-    # --- precompute: one altitude slice of the paper's grid, measured -----------------------
-    half = 256 // 2 + 1
-    az = torch.arange(half, dtype=torch.float64) * (2 * math.pi / 256)
-    el = (torch.arange(64, dtype=torch.float64) + 0.5) * (math.pi / 128)
-    edges = torch.linspace(0.0, 10_000.0, 129, dtype=torch.float64)
-    r = 0.5 * (edges[1:] + edges[:-1])
-    if args.quick:
-        r = r[::32]
-    geometries = half * 64 * r.numel()
-    slice_fraction = r.numel() / 128
-    n_samples = 256 if args.quick else 2048
-    data = torch.rand(n_samples, 256 * 64 * 3, generator=torch.Generator().manual_seed(2),
-                      dtype=torch.float64)
-    pca_wall, pca_cpu = _median_wall_cpu(lambda: fit_basis(data, 128), repeat=1, warmup=0)
-    for dtype in (torch.float32, torch.float64):
-        for n_steps in (8, 16):
+            observers = xy.to(dtype)
             wall, cpu = _median_wall_cpu(
-                lambda dtype=dtype, n_steps=n_steps: kernel_radiance(
-                    medium, az[:, None].to(dtype), el[None, :].to(dtype),
-                    r[:, None, None].to(dtype), 0.0, 0.0, n_steps=n_steps),
-                repeat=1 if not args.quick else 3, warmup=0 if not args.quick else 1)
-            per_node_ns = cpu / geometries / (2 * n_steps) * 1e9
-            total_cpu = PAPER_ALTITUDE_PAIRS * cpu / slice_fraction + PAPER_PCAS * pca_cpu
-            total_wall = PAPER_ALTITUDE_PAIRS * wall / slice_fraction + PAPER_PCAS * pca_wall
-            rows.append(_row(
-                f"precompute at paper resolution, {str(dtype)[6:]}, {2 * n_steps} nodes per "
-                f"ray: slice of {geometries} geometries {cpu:.3g} CPU-s ({per_node_ns:.0f} ns "
-                f"per geometry and node) × {PAPER_ALTITUDE_PAIRS / slice_fraction:.0f} + "
-                f"{PAPER_PCAS} PCAs × {pca_cpu:.3g} CPU-s ({n_samples} × 49152, M = 128)",
-                total_wall, total_cpu, TARGET_PRECOMPUTE_S))
+                lambda typed=typed, observers=observers: model.radiance_per_lumen(typed, observers),
+                repeat=3)
+            rows.append(_row(f"{n_obs} observers batched, 2025 cells, splat, {str(dtype)[6:]}",
+                             wall, cpu, TARGET_BATCH_S))
+
+        # --- naive reference, scaled to 2048 cells ---------------------------------------------
+        sample = point_sources(4, 28_000.0, 28_000.0 / 256, seed=1)
+        from skytorch.skyglow.model import light_map_arrays
+
+        c0 = time.process_time()
+        naive_radiance_per_lumen(model, light_map_arrays(sample), (0.0, 0.0), sources="cells",
+                                 medium=medium)
+        naive_2048 = (time.process_time() - c0) / 4 * 2048
+        ours = times[(45 * 45, torch.float64, "splat")][1] if not args.quick else times[
+            (45 * 45, torch.float64, "splat")][1]
+        speedup = naive_2048 / ours
+        rows.append(_row(f"naive, 2048 cells (4-cell CPU time × 512); speed-up over splat "
+                         f"float64 at 2025 cells: {speedup:.3g}×", float("nan"), naive_2048,
+                         f"≥ {TARGET_SPEEDUP:.0f}× "
+                         f"({'met' if speedup >= TARGET_SPEEDUP else 'missed'})"))
+
+    if args.part in ("all", "precompute"):
+        _precompute_rows(rows, medium, args.quick)
     load_after = os.getloadavg()
     table = markdown_table(rows)
     header = (f"\n### Skyglow runtime and precompute, {time.strftime('%Y-%m-%d', time.gmtime())}"
