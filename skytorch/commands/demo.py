@@ -70,6 +70,7 @@ def _plt():
 
 
 def ephemeris_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    """Sun and Moon over the night from Berlin (netCDF + altitude plot)."""
     from skytorch import plot
     from skytorch.dataset import to_netcdf
     from skytorch.ephemeris import parse_times, sun_moon
@@ -95,6 +96,7 @@ def ephemeris_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
 
 
 def circumstances_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    """Circumstances of the eclipse (contacts, magnitudes, gamma)."""
     from skytorch.dataset import to_netcdf
     from skytorch.eclipse import lunar_eclipses
 
@@ -139,6 +141,7 @@ def _eclipse_options(quick: bool) -> dict:
 
 
 def light_curve_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    """Light curves and colours for the typical and the Calbuco-like atmosphere."""
     from skytorch import plot
     from skytorch.dataset import to_netcdf
     from skytorch.eclipse import lunar_eclipse
@@ -177,6 +180,7 @@ def light_curve_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
 
 
 def shadow_profile_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    """Shadow profile at the Moon's distance against lunar-eclipse theory."""
     import torch
 
     from skytorch import plot
@@ -273,6 +277,7 @@ def _phases(state: dict) -> dict[str, np.datetime64]:
 
 
 def all_sky_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    """All-sky renders at three phases with stars, the Moon and a city's skyglow."""
     from skytorch import plot
     from skytorch.dataset import to_netcdf
     from skytorch.scene import Scene
@@ -324,6 +329,7 @@ def moon_colour_at_totality(turbidity, ozone_du, quick: bool = False):
 
 
 def sweep_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    """Turbidity x ozone sweep of the Moon's colour at totality."""
     from functools import partial
 
     from skytorch import plot

@@ -212,6 +212,8 @@ def natural_component(scene, view, wavelength) -> torch.Tensor:
 
 
 def sun_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
+    """The solar disc (*view, wl) [W m^-2 sr^-1 nm^-1]: extraterrestrial irradiance times
+    the transmittance at its (refracted) altitude, spread over its pixels."""
     from skytorch.spectrum import solar_irradiance
 
     altitude = _apparent(scene, geometry.sun_altitude_deg, refraction)
@@ -225,6 +227,8 @@ def sun_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor
 
 def moon_component(scene, view, geometry, wavelength, knobs, *, earthshine: bool,
                    eclipse, refraction: bool) -> torch.Tensor:
+    """The Moon (*view, wl) [W m^-2 sr^-1 nm^-1]: its disc (irradiance times transmittance,
+    times the shadow factor ``eclipse`` (wl,) when given) plus the moonlit sky."""
     from skytorch.moon import lunar_irradiance
 
     wl = wavelength.to(torch.float64)
@@ -249,6 +253,7 @@ def moon_component(scene, view, geometry, wavelength, knobs, *, earthshine: bool
 
 
 def sky_component(scene, view, geometry, wavelength, knobs) -> torch.Tensor:
+    """Single-scattered sunlight (*view, wl) [W m^-2 sr^-1 nm^-1] from the sky table."""
     table = sky_table(scene, geometry, knobs, wavelength)
     relative = view.azimuth_rad.to(torch.float64) - math.radians(geometry.sun_azimuth_deg)
     sky = _lookup(table, view.zenith_rad.to(torch.float64), relative)
@@ -368,6 +373,7 @@ def skyglow_model(scene, wavelength, settings):
 
 
 def skyglow_component(scene, view, wavelength, knobs) -> torch.Tensor:
+    """City skyglow (*view, wl) [W m^-2 sr^-1 nm^-1] from the cached skyglow model."""
     model = skyglow_model(scene, wavelength, knobs["skyglow"])
     out = model.render(scene.light_map, observer_xy=tuple(scene.observer_xy),
                        lamp=scene.lamp, as_dataset=False)

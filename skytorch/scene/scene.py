@@ -81,6 +81,7 @@ class View:
 
     @property
     def shape(self) -> tuple[int, ...]:
+        """Image shape (the sizes of ``dims``)."""
         return tuple(self.zenith_rad.shape)
 
     def unit_vectors(self) -> torch.Tensor:
