@@ -516,8 +516,8 @@ class SkyglowModel(nn.Module):
                 corners = [item for offset, value in corners for item in (
                     (offset, value * (1 - w)), (offset + stride, value * w))]
         out = torch.zeros(n_obs * n_t * n_r * n_h, dtype=dtype)
-        for offset, value in corners:
-            out = out.index_add(0, base + offset, value)
+        for offset, value in corners:  # in place: a copy of `out` per corner costs more
+            out.index_add_(0, base + offset, value)
         return out.reshape(n_obs, n_t, n_r, n_h)
 
     def polar_sample(self, cells: Mapping[str, torch.Tensor], observer_xy,
@@ -712,7 +712,7 @@ class SkyglowModel(nn.Module):
                 result = result.index_add(0, torch.nonzero(use)[:, 0],
                                           part * weight[use][:, None, None, None])
             pieces.append(result)
-        return torch.cat(pieces)
+        return pieces[0] if len(pieces) == 1 else torch.cat(pieces)
 
     def render(self, light_map, observer_xy=(0.0, 0.0), observer_altitude_m=0.0, *,
                lamp="white", x_m=None, y_m=None, altitude_m=None,
