@@ -176,6 +176,7 @@ def test_many_chunks_agree_with_single_evaluations(monkeypatch):
     from skytorch.eclipse import occlusion
 
     monkeypatch.setattr(occlusion, "_CHUNK", 4_096)
+    monkeypatch.setattr(occlusion, "_NODE_CHUNK", 1_000)  # rim sub-chunks, uneven split
     generator = torch.Generator().manual_seed(3)
     rho_o = SUN_RADIUS * (0.1 + 3 * torch.rand(40_000, generator=generator, dtype=torch.float64))
     d = (SUN_RADIUS + rho_o) * torch.rand(40_000, generator=generator, dtype=torch.float64)
@@ -197,6 +198,15 @@ def test_invalid_input_names_parameter(name, value, message):
     arguments[name] = value
     with pytest.raises(ValueError, match=message):
         sun_visible_fraction(**arguments)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), -1e-3, 4.0])
+def test_invalid_value_in_a_large_input_names_parameter(bad):
+    # large inputs are range-checked in one pass; the error must still name the parameter
+    d = torch.full((1000,), SUN_RADIUS, dtype=torch.float64)
+    d[637] = bad
+    with pytest.raises(ValueError, match="separation_rad"):
+        sun_visible_fraction(SUN_RADIUS, SUN_RADIUS, d)
 
 
 def test_invalid_law_and_quadratic_coefficients():
@@ -221,6 +231,8 @@ HARD_CASES = {
     "fully visible": (1.0, 5.0, 1.0),
     "far beyond the penumbra": (3.0, 300.0, 1.0),
     "Phobos-like antumbra": (0.6, 0.2, None),
+    "antumbra on the axis": (0.6, 0.0, None),
+    "tiny occluder on the axis": (1e-3, 0.0, None),
     "tiny occluder": (1e-3, 0.5, None),
     "huge occluder (Earth from low orbit)": (1.4 / SUN_RADIUS, 1.4 / SUN_RADIUS + 0.3, None),
 }
@@ -231,10 +243,12 @@ def test_hard_cases_values_and_gradients(case, dtype):
     ratio, offset, exact = HARD_CASES[case]
     inputs = torch.tensor([SUN_RADIUS, ratio * SUN_RADIUS, offset * SUN_RADIUS], dtype=dtype,
                           requires_grad=True)
-    value = sun_visible_fraction(inputs[0], inputs[1], inputs[2], 0.6)
+    u = torch.tensor(0.6, dtype=dtype, requires_grad=True)
+    value = sun_visible_fraction(inputs[0], inputs[1], inputs[2], u)
     value.backward()
     assert value.dtype == dtype
     assert torch.isfinite(value) and torch.isfinite(inputs.grad).all()
+    assert torch.isfinite(u.grad)
     rho_s, rho_o, d = (float(x) for x in inputs.detach())  # the values the dtype can hold
     reference = ring_reference(rho_s, rho_o, d) if exact is None else exact
     tolerance = EXACT if dtype == torch.float64 else FLOAT32_EXACT
@@ -282,3 +296,19 @@ def test_accuracy_cost_experiment_quick(tmp_path):
     # float64 error falls with the node count and is below 1e-6 at the default
     errors = dataset.max_error.sel(dtype="float64").values
     assert errors[-1] < 1e-6 and errors[0] > errors[-1]
+
+
+@pytest.mark.parametrize("ratio", [0.05, 0.6, 0.95])
+def test_gradient_on_the_axis_matches_concentric_closed_form(ratio, dtype):
+    # occluder centred on the disc (antumbra on the axis), every input requiring a gradient:
+    # d f / d rho_o from the derivative of the concentric closed form (flat limit), and
+    # d f / d d = 0 by symmetry
+    rho_s, u = 1e-5, 0.6
+    inputs = torch.tensor([rho_s, ratio * rho_s, 0.0], dtype=dtype, requires_grad=True)
+    sun_visible_fraction(inputs[0], inputs[1], inputs[2], u).backward()
+    blocked_slope = 2 * (1 - u) * ratio + 2 * u * ratio * math.sqrt(1 - ratio**2)
+    expected = -blocked_slope / (1 - u / 3) / rho_s
+    tolerance = 1e-6 if dtype == torch.float64 else 1e-4
+    assert torch.isfinite(inputs.grad).all()
+    assert inputs.grad[1].item() == pytest.approx(expected, rel=tolerance)
+    assert inputs.grad[2].item() == 0.0

@@ -90,8 +90,11 @@ MIN_SUN_RADIUS_RAD = 1e-8
 #: 1e-12 over random configurations; see
 #: experiments/eclipse_geometry_accuracy_cost.py)
 DEFAULT_NODES = 8
-#: elements per chunk: keeps the (chunk, n_nodes) temporaries in the CPU cache
-_CHUNK = 16_384
+#: elements per chunk of the per-configuration work (few Python dispatches per element)
+_CHUNK = 262_144
+#: elements per sub-chunk of the rim quadrature: keeps the (chunk, n_nodes) temporaries in
+#: the CPU cache
+_NODE_CHUNK = 16_384
 
 # binomial series of 1/sqrt(1 - b t) = sum_n c_n (b t)^n, c_n = C(2n, n) / 4^n
 _SERIES = tuple(math.comb(2 * n, n) / 4.0**n for n in range(8))
@@ -251,52 +254,121 @@ def _radial_coefficients(b, a0, a1, a2) -> torch.Tensor:
     return coefficients
 
 
-def _visible_fraction_flat(rho_s, rho_o, d, coefficients, v, weight):
+def _inverse_haversine(numerator: torch.Tensor, denominator: torch.Tensor,
+                       full: torch.Tensor) -> torch.Tensor:
+    """Angle ``x`` in [0, pi] with ``hav x = numerator / denominator``, clamped to [0, 1].
+
+    Where ``full`` is true the quotient is set to exactly 1 (containment, decided from the
+    radii, so that rounding at inner tangency cannot leave the quotient at ``1 - eps``,
+    which would shift the angle by ``sqrt(eps)``). The denominator is raised to
+    ``|numerator|`` (the quotient is clamped there anyway) and to ``tiny^(3/4)`` (below the
+    smallest ``sin d sin rho`` reached with ``d >= sqrt(tiny)`` and ``rho_s >= 1e-8``), so
+    that neither the value nor the derivative overflows when the denominator vanishes (zero
+    separation: Sun behind the occluder's centre, or the occluder centred on the disc).
+    """
+    floor = torch.finfo(numerator.dtype).tiny ** 0.75
+    safe = torch.maximum(torch.clamp(denominator, min=floor), numerator.abs())
+    if torch.is_grad_enabled() and (numerator.requires_grad or denominator.requires_grad):
+        return _angle_from_haversine(torch.where(full, 1.0, numerator / safe))
+    quotient = torch.div(numerator, safe, out=safe).masked_fill_(full, 1.0)
+    return quotient.clamp_(0.0, 1.0).sqrt_().asin_().mul_(2.0)
+
+
+def _visible_fraction_flat(rho_s, rho_o, d, coefficients, s, weight):
     """Core of :func:`sun_visible_fraction` on 1-D tensors (one chunk).
 
     Tensors of length 1 (a scalar Sun radius or limb darkening) broadcast against the chunk.
+    ``s = 1 - v^2`` and ``weight = 2 v w_GL`` are the rim nodes and weights.
     """
+    grad = torch.is_grad_enabled() and any(
+        x.requires_grad for x in (rho_s, rho_o, d, coefficients))
     hidden = d <= rho_o - rho_s  # Sun entirely behind the occluder
-    clear = d >= rho_o + rho_s  # no overlap
     inside = d <= rho_s - rho_o  # occluder entirely on the disc (transit, antumbra)
     # a separation below sqrt(tiny) changes the fraction by < 1e-140 but would underflow
     d = torch.clamp(d, min=torch.finfo(d.dtype).tiny ** 0.5)
+    half_d = 0.5 * d
     sin_d = torch.sin(d)
     sin_s = torch.sin(rho_s)
     sin_o = torch.sin(rho_o)
     b = sin_s * sin_s
-    # haversines of the half-angles of the solar limb inside the occluder (seen from the
-    # Sun's centre) and of the occluder's rim inside the solar disc (from its centre),
-    # stacked in the last dimension
-    difference = rho_o - rho_s
-    numerators = torch.sin(0.5 * (rho_o + rho_s - d)).unsqueeze(-1) * torch.sin(
-        0.5 * (torch.stack(torch.broadcast_tensors(difference, -difference), dim=-1)
-               + d.unsqueeze(-1)))
-    denominators = torch.stack(torch.broadcast_tensors(sin_s, sin_o), dim=-1) * sin_d.unsqueeze(-1)
-    angles = _angle_from_haversine(
-        torch.where(inside.unsqueeze(-1), torch.tensor([0.0, 1.0], dtype=d.dtype),
-                    numerators / denominators))
-    alpha, phi_max = angles[..., 0], angles[..., 1]
+    # haversines of the half-angles of the solar limb inside the occluder (alpha, seen from
+    # the Sun's centre) and of the occluder's rim inside the solar disc (phi_max, from its
+    # centre); the quotient is 1 when the disc is behind the occluder (alpha) or the
+    # occluder on the disc (phi_max), and <= 0 without overlap
+    half_difference = 0.5 * (rho_o - rho_s)
+    outer = torch.sin(0.5 * (rho_o + rho_s) - half_d)
+    sin_d_o = sin_d * sin_o
+    alpha = _inverse_haversine(outer * torch.sin(half_difference + half_d), sin_d * sin_s,
+                               hidden)
+    phi_max = _inverse_haversine(outer * torch.sin(half_d - half_difference), sin_d_o, inside)
+    # hav(d - rho_o) and sin(rho_o - d) from the half angle
+    half_o_d = 0.5 * rho_o - half_d
+    sin_half, cos_half = torch.sin(half_o_d), torch.cos(half_o_d)
+    hav_o_d = sin_half * sin_half
+    sin_o_d = 2.0 * sin_half * cos_half
     total = coefficients[:, 0]  # (1 + w) K at w = 0, i.e. C(rho_s) / sin^2(rho_s)
 
-    # rim of the occluder, phi = phi_max (1 - v^2): hav(theta), w^2 = 1 - sin^2(theta) / b
-    hav_phi = torch.sin((0.5 * phi_max).unsqueeze(-1) * (1.0 - v * v)).square()
-    hav_theta = torch.addcmul(_haversine(d - rho_o).unsqueeze(-1),
-                              (sin_d * sin_o).unsqueeze(-1), hav_phi)
-    hav_theta = torch.addcmul(hav_theta, hav_theta, hav_theta, value=-1.0)  # hav (1 - hav)
-    w = _safe_sqrt(torch.addcmul(torch.ones((), dtype=d.dtype), hav_theta,
-                                 (4.0 / b).unsqueeze(-1), value=-1.0))
+    # rim of the occluder on sub-chunks that keep the (chunk, n_nodes) arrays in cache
+    rim = (0.5 * phi_max, hav_o_d, sin_d_o, sin_o_d, 2.0 * sin_d * torch.cos(rho_o), -4.0 / b,
+           coefficients)
+    n = d.shape[0]
+    if grad or n <= _NODE_CHUNK:
+        integral = _rim_integral(*rim, s, weight, grad)
+    else:
+        integral = torch.cat([
+            _rim_integral(*(x if x.shape[0] == 1 else x[start : start + _NODE_CHUNK]
+                            for x in rim), s, weight, grad)
+            for start in range(0, n, _NODE_CHUNK)])
+    arc = integral * phi_max * sin_o / (b * total)
+    fraction = torch.clamp(1.0 - (alpha + arc) / math.pi, 0.0, 1.0)
+    return torch.where(hidden, 0.0, fraction)
+
+
+def _rim_integral(half_phi_max, hav_o_d, sin_d_o, sin_o_d, two_sin_d_cos_o, minus_4_over_b,
+                  coefficients, s, weight, grad: bool) -> torch.Tensor:
+    """Gauss–Legendre sum over the occluder's rim, ``sum_k weight_k f(phi_max s_k)``.
+
+    ``f = (1 + w) K / (1 + w) * J`` with ``hav(theta) = hav(d - rho_o) + sin d sin rho_o
+    hav(phi)``, ``w^2 = 1 - sin^2(theta) / b`` and the Jacobian
+    ``J = sin(rho_o - d) + 2 sin d cos(rho_o) hav(phi)``. The node arrays (chunk, n_nodes)
+    are updated in place when no gradient is needed.
+    """
+    hav_phi = torch.outer(half_phi_max, s)
+    hav_phi = torch.sin(hav_phi).square() if grad else hav_phi.sin_().square_()
+    hav_theta = torch.addcmul(hav_o_d.unsqueeze(-1), sin_d_o.unsqueeze(-1), hav_phi)
+    one = torch.ones((), dtype=hav_phi.dtype)
+    if grad:
+        hav_theta = torch.addcmul(hav_theta, hav_theta, hav_theta, value=-1.0)  # sin^2/4
+        w = _safe_sqrt(torch.addcmul(one, hav_theta, minus_4_over_b.unsqueeze(-1)))
+    else:
+        hav_theta.addcmul_(hav_theta, hav_theta, value=-1.0)
+        w = torch.addcmul(one, hav_theta, minus_4_over_b.unsqueeze(-1),
+                          out=hav_theta).clamp_(min=0.0).sqrt_()
     radial = coefficients[:, -1:]
     for m in range(coefficients.shape[-1] - 2, -1, -1):
         radial = torch.addcmul(coefficients[:, m : m + 1], radial, w)
     # d psi / d phi * sin^2(theta) / sin^2(rho_s) on the rim
-    jacobian = torch.addcmul(torch.sin(rho_o - d).unsqueeze(-1),
-                             (2.0 * sin_d * torch.cos(rho_o)).unsqueeze(-1), hav_phi)
-    integrand = radial * jacobian / (1.0 + w)
-    arc = (integrand @ (2.0 * v * weight)) * phi_max * sin_o / b
-    fraction = 1.0 - (alpha + arc / total) / math.pi
-    fraction = torch.clamp(fraction, 0.0, 1.0)
-    return torch.where(hidden, 0.0, torch.where(clear, 1.0, fraction))
+    jacobian = torch.addcmul(sin_o_d.unsqueeze(-1), two_sin_d_cos_o.unsqueeze(-1), hav_phi)
+    if grad:
+        integrand = radial * jacobian / (1.0 + w)
+    else:
+        integrand = radial.mul_(jacobian).div_(w.add_(1.0))
+    return integrand @ weight
+
+
+def _checked_range(name, value, low, high, *, low_inclusive=True, unit="", dtype=None):
+    """:func:`~skytorch._validate.check_range` in one pass over large inputs.
+
+    ``aminmax`` (NaN propagates into both results, so NaN fails the comparison) decides;
+    only an input out of range goes through ``check_range`` for its error message.
+    """
+    tensor = as_tensor(name, value, dtype=dtype)
+    if tensor.numel() > 1:
+        low_value, high_value = (float(x) for x in torch.aminmax(tensor.detach()))
+        above = low_value >= low if low_inclusive else low_value > low
+        if above and high_value <= high:
+            return tensor
+    return check_range(name, tensor, low, high, low_inclusive=low_inclusive, unit=unit)
 
 
 def sun_visible_fraction(
@@ -355,11 +427,12 @@ def sun_visible_fraction(
     check_choice("law", law, LIMB_DARKENING_LAWS)
     n_nodes = check_int("n_nodes", n_nodes, low=2, high=256)
     dtype = common_dtype(sun_radius_rad, occluder_radius_rad, separation_rad)
-    rho_s = check_range("sun_radius_rad", sun_radius_rad, MIN_SUN_RADIUS_RAD,
+    rho_s = _checked_range("sun_radius_rad", sun_radius_rad, MIN_SUN_RADIUS_RAD,
                         MAX_SUN_RADIUS_RAD, unit=" rad", dtype=dtype)
-    rho_o = check_range("occluder_radius_rad", occluder_radius_rad, 0.0, 0.5 * math.pi,
+    rho_o = _checked_range("occluder_radius_rad", occluder_radius_rad, 0.0, 0.5 * math.pi,
                         low_inclusive=False, unit=" rad", dtype=dtype)
-    d = check_range("separation_rad", separation_rad, 0.0, math.pi, unit=" rad", dtype=dtype)
+    d = _checked_range("separation_rad", separation_rad, 0.0, math.pi, unit=" rad",
+                       dtype=dtype)
     a0, a1, a2 = _law_coefficients(law, limb_darkening, dtype)
     shape = torch.broadcast_shapes(rho_s.shape, rho_o.shape, d.shape, a0.shape)
     n = math.prod(shape)
@@ -374,15 +447,15 @@ def sun_visible_fraction(
     coefficients = coefficients.reshape(1, -1) if sun[0].numel() == 1 else \
         coefficients.expand(*shape, coefficients.shape[-1]).reshape(n, -1)
     nodes, weights = _nodes(n_nodes)
-    v = torch.as_tensor(nodes, dtype=dtype)
-    weight = torch.as_tensor(weights, dtype=dtype)
+    s = torch.as_tensor(1.0 - nodes * nodes, dtype=dtype)
+    weight = torch.as_tensor(2.0 * nodes * weights, dtype=dtype)
     inputs = (flat(rho_s), flat(rho_o), flat(d), coefficients)
 
     def piece(x: torch.Tensor, start: int) -> torch.Tensor:
         return x if x.shape[0] == 1 else x[start : start + _CHUNK]
 
     chunks = [
-        _visible_fraction_flat(*(piece(x, start) for x in inputs), v, weight)
+        _visible_fraction_flat(*(piece(x, start) for x in inputs), s, weight)
         for start in range(0, max(n, 1), _CHUNK)
     ]
     result = torch.cat(chunks) if len(chunks) > 1 else chunks[0]
