@@ -15,9 +15,12 @@ times a spectral extinction coefficient at the reference level :math:`k_s(\\lamb
 * ozone (absorbing only; :mod:`skytorch.atmosphere.ozone`), tent profile with the
   column given in Dobson units.
 
-The refractivity :math:`n - 1` is proportional to the molecular density,
-:math:`(n-1)(h) = (n-1)_{ref}\\,(p/p_{ref})(T_{ref}/T)\\,\\rho_{mol}(h)` (2.77e-4 at
-1013.25 hPa, 288.15 K on Earth; 3.38e-6 at 610 Pa, 215 K on Mars, ref. 1).
+The refractivity :math:`n - 1` is proportional to the gas density,
+:math:`(n-1)(h) = (n-1)_{ref}\\,(p/p_{ref})(T_{ref}/T)\\,\\rho(h)` (2.77e-4 at
+1013.25 hPa, 288.15 K on Earth; 3.38e-6 at 610 Pa, 215 K on Mars, ref. 1), with
+:math:`\\rho` the molecular profile or, with ``refractivity_profile="us1976"``, the
+U.S. Standard Atmosphere 1976 density (a realistic lapse rate for refraction near the
+horizon, while optical depths keep the molecular profile).
 
 Every physical parameter may be a tensor with batch dimensions; parameters and ray
 geometry broadcast together by torch rules and spectral outputs have shape
@@ -137,7 +140,13 @@ class Atmosphere(nn.Module):
     gas : {"air", "co2"}
         Rayleigh model (:data:`skytorch.atmosphere.rayleigh.RAYLEIGH_GASES`).
     molecule_profile : {"exponential", "us1976"}
-        Shape of the molecular density.
+        Shape of the molecular density (optical depths, scattering).
+    refractivity_profile : {"exponential", "us1976"}, optional
+        Shape of the refractivity :math:`n - 1` with altitude (refraction); default: the
+        ``molecule_profile``. The refraction near the horizon depends on the density
+        gradient in the lowest kilometres, which the isothermal 8 km exponential
+        overstates (horizon refraction 37.3' instead of Bennett's 33.9' at 1013.25 hPa,
+        15 degC; US 1976: 32.9'; see ``docs/atmosphere.md``).
     rayleigh_scale_height_m : float or Tensor
         Scale height of the exponential molecular profile [m].
     angstrom_beta, angstrom_alpha : float or Tensor
@@ -180,6 +189,7 @@ class Atmosphere(nn.Module):
                  gravity_m_s2=EARTH_GRAVITY_M_S2,
                  molar_mass_kg_mol=None, gas: str = "air",
                  molecule_profile: str = "exponential",
+                 refractivity_profile: str | None = None,
                  rayleigh_scale_height_m=EARTH_RAYLEIGH_SCALE_HEIGHT_M,
                  angstrom_beta=0.0, angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA,
                  aerosol_scale_height_m=EARTH_AEROSOL_SCALE_HEIGHT_M,
@@ -195,6 +205,10 @@ class Atmosphere(nn.Module):
         self.gas = check_choice("gas", gas, _rayleigh.RAYLEIGH_GASES)
         self.molecule_profile = check_choice("molecule_profile", molecule_profile,
                                              _profiles.PROFILES)
+        self.refractivity_profile = check_choice(
+            "refractivity_profile",
+            self.molecule_profile if refractivity_profile is None else refractivity_profile,
+            _profiles.PROFILES)
         self.aerosol_phase_model = check_choice("aerosol_phase_model", aerosol_phase_model,
                                                 PHASE_FUNCTIONS)
         self.name = str(name)
@@ -313,6 +327,7 @@ class Atmosphere(nn.Module):
     def parameters_dict(self) -> dict:
         """All parameters (lists for batched ones), e.g. for Dataset attributes and hashes."""
         result = {"name": self.name, "gas": self.gas, "molecule_profile": self.molecule_profile,
+                  "refractivity_profile": self.refractivity_profile,
                   "aerosol_phase_model": self.aerosol_phase_model,
                   "planet_radius_m": self.planet_radius_m,
                   "top_altitude_m": self.top_altitude_m}
@@ -347,10 +362,11 @@ class Atmosphere(nn.Module):
             self._extra_dims = previous
 
     # ------------------------------------------------------------------ species
-    def _density(self, species: str, dtype: torch.dtype):
-        """Density profile of a species as a function of altitude with a trailing sample dim."""
+    def _density(self, species: str, dtype: torch.dtype, profile: str | None = None):
+        """Density profile of a species as a function of altitude with a trailing sample dim
+        (``profile`` overrides the molecules' profile)."""
         if species == "rayleigh":
-            if self.molecule_profile == "us1976":
+            if (profile or self.molecule_profile) == "us1976":
                 return _profiles.us1976
             height = self._p("rayleigh_scale_height_m", dtype, 1)
             return lambda h: _profiles.exponential(h, height)
@@ -477,6 +493,11 @@ class Atmosphere(nn.Module):
         altitude = self._altitude(altitude_m, common_dtype(altitude_m))
         return self._density(species, altitude.dtype)(altitude[..., None])[..., 0]
 
+    @property
+    def refractivity_breakpoints_m(self) -> tuple[float, ...]:
+        """Altitudes where the refractivity profile has kinks [m] (US 1976 layer bases)."""
+        return _US1976_BREAKS_M if self.refractivity_profile == "us1976" else ()
+
     def refractivity(self, altitude_m, wavelength_nm=None) -> torch.Tensor:
         """Refractivity :math:`n - 1` of the gas at ``altitude_m``.
 
@@ -491,7 +512,8 @@ class Atmosphere(nn.Module):
         Returns
         -------
         Tensor (...) or (..., wavelength)
-            :math:`(n-1)_{ref} (p/p_{ref})(T_{ref}/T) \\rho_{mol}(h)` [1].
+            :math:`(n-1)_{ref} (p/p_{ref})(T_{ref}/T) \\rho(h)` [1], :math:`\\rho` the
+            ``refractivity_profile`` normalised to 1 at the ground.
         """
         dtype = common_dtype(altitude_m, wavelength_nm)
         altitude = self._altitude(altitude_m, dtype)
@@ -500,7 +522,8 @@ class Atmosphere(nn.Module):
                                                                      dtype)
                    * self._p("reference_temperature_k", dtype)
                    / self._p("surface_temperature_k", dtype))
-        density = self._density("rayleigh", dtype)(altitude[..., None])[..., 0]
+        density = self._density("rayleigh", dtype, self.refractivity_profile)(
+            altitude[..., None])[..., 0]
         value = surface * density
         if wavelength_nm is None:
             return value
