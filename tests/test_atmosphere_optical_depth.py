@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 from scipy import integrate, special
+from torch.autograd import gradcheck
 
 from skytorch.atmosphere import Atmosphere
 from skytorch.atmosphere.optical_depth import chapman, chapman_horizontal, kasten_young_air_mass
@@ -222,3 +223,38 @@ def test_refraction_delegation_and_refracted_air_mass():
     zenith = torch.tensor(85.0 * DEGREE, dtype=torch.float64)
     bent = atm.air_mass(zenith, refraction=True)
     assert abs(float(bent / kasten_young_air_mass(zenith)) - 1.0) <= 1 * PERCENT
+
+
+def _mpmath_chapman(x, zenith):
+    """Ch(x, z) = integral of exp(x - r(t)) dt along the straight ray, by mpmath."""
+    import mpmath
+
+    mpmath.mp.dps = 30
+    x, mu = mpmath.mpf(x), mpmath.cos(mpmath.mpf(zenith))
+    points = [0, -x * mu] if mu < 0 else [0]
+    points += [points[-1] + 60, mpmath.inf]
+    return float(mpmath.quad(lambda t: mpmath.exp(x - mpmath.sqrt(x * x + 2 * x * t * mu + t * t)),
+                             points))
+
+
+@pytest.mark.parametrize("x", [50.0, 305.0, 800.0])
+def test_exact_chapman_against_mpmath(x):
+    zenith_deg = [0.0, 45.0, 80.0, 89.0, 89.9, 90.0, 90.1, 93.0, 100.0]
+    zenith = torch.tensor(zenith_deg, dtype=torch.float64) * DEGREE
+    value = chapman(torch.tensor(x, dtype=torch.float64), zenith, exact=True)
+    reference = torch.tensor([_mpmath_chapman(x, float(z)) for z in zenith],
+                             dtype=torch.float64)
+    assert float((value / reference - 1.0).abs().max()) <= 1e-10
+    # the asymptotic form is O(1/x): measurably worse, which the exact form removes
+    asymptotic = chapman(torch.tensor(x, dtype=torch.float64), zenith)
+    assert float((asymptotic / reference - 1.0).abs().max()) > 1e-5
+
+
+def test_exact_chapman_float32_and_gradient():
+    zenith = torch.tensor([0.3, 1.2, 1.5707, 1.7], dtype=torch.float64, requires_grad=True)
+    x = torch.tensor(800.0, dtype=torch.float64)
+    assert gradcheck(lambda z: chapman(x, z, exact=True), (zenith,))
+    single = chapman(x.float(), zenith.detach().float(), exact=True)
+    assert single.dtype == torch.float32
+    double = chapman(x, zenith.detach(), exact=True)
+    assert float((single.double() / double - 1.0).abs().max()) <= 1e-5
