@@ -93,3 +93,18 @@ def test_sampling_needs_an_even_grid():
     with pytest.raises(ValueError, match="resampling"):
         model.render(flux, x_m=torch.tensor([0.0, 1e3, 2e3]), y_m=torch.tensor([0.0, 1e3]),
                      resampling="nearest")
+
+
+@pytest.mark.parametrize("resampling", ["splat", "sample"])
+def test_large_observer_batches_equal_single_renders(resampling):
+    # from 16 observers on the convolution keeps the observers innermost (another layout)
+    model = cached_model()
+    city = synthetic_city(24e3, 1000.0, population=1e5)
+    generator = torch.Generator().manual_seed(4)
+    xy = (torch.rand(20, 2, generator=generator, dtype=torch.float64) - 0.5) * 8e3
+    batch = model.render(city, observer_xy=xy, as_dataset=False,
+                         resampling=resampling)["luminance"]
+    for i in (0, 7, 19):
+        single = model.render(city, observer_xy=xy[i], as_dataset=False,
+                              resampling=resampling)["luminance"]
+        torch.testing.assert_close(batch[i], single, rtol=1e-10, atol=0.0)

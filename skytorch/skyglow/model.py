@@ -95,6 +95,9 @@ def _linear_weights(grid: torch.Tensor, value: torch.Tensor):
     return j, w
 
 
+#: from this many observers on, :meth:`SkyglowModel.convolve` keeps them innermost
+_MANY_OBSERVERS = 16
+
 #: tolerance beyond the tabulated altitude range before a warning [m]
 _ALTITUDE_SLACK_M = 1.0
 
@@ -504,13 +507,14 @@ class SkyglowModel(nn.Module):
         _warn_outside("source altitude", altitude_m[flux.detach() != 0], self.source_altitude_m)
         jh, wh = _linear_weights(self._buffer("source_altitude_m", dtype),
                                  altitude_m[None, :].expand_as(r))
-        # one flat index per cell into (observer, azimuth, r, h_c); the other corners are
-        # offsets from it (the azimuth offset wraps around from the last node to the first)
+        # one flat index per cell into storage ordered (azimuth, r, h_c, observer) — the
+        # layout :meth:`convolve` multiplies without a copy; the other corners are offsets
+        # from it (the azimuth offset wraps around from the last node to the first)
         i0 = i0.long()
-        base = (((torch.arange(n_obs)[:, None] * n_t + i0) * n_r + jr) * n_h + jh).reshape(-1)
-        wrap = n_r * n_h * torch.where(i0 == n_t - 1, 1 - n_t, 1).reshape(-1)
+        base = (((i0 * n_r + jr) * n_h + jh) * n_obs + torch.arange(n_obs)[:, None]).reshape(-1)
+        wrap = n_r * n_h * n_obs * torch.where(i0 == n_t - 1, 1 - n_t, 1).reshape(-1)
         corners = [(0, (flux[None, :] * inside).reshape(-1))]
-        for stride, w, n in ((wrap, wt, 2), (n_h, wr, n_r), (1, wh, n_h)):
+        for stride, w, n in ((wrap, wt, 2), (n_h * n_obs, wr, n_r), (n_obs, wh, n_h)):
             if n > 1:
                 w = w.reshape(-1)
                 corners = [item for offset, value in corners for item in (
@@ -518,7 +522,7 @@ class SkyglowModel(nn.Module):
         out = torch.zeros(n_obs * n_t * n_r * n_h, dtype=dtype)
         for offset, value in corners:  # in place: a copy of `out` per corner costs more
             out.index_add_(0, base + offset, value)
-        return out.reshape(n_obs, n_t, n_r, n_h)
+        return out.reshape(n_t, n_r, n_h, n_obs).permute(3, 0, 1, 2)
 
     def polar_sample(self, cells: Mapping[str, torch.Tensor], observer_xy,
                      oversampling: int = 1) -> torch.Tensor:
@@ -612,20 +616,36 @@ class SkyglowModel(nn.Module):
         n_obs, n_t, n_r, n_h = polar.shape
         n_p, n_wl = self.elevation_rad.numel(), self.wavelength_nm.numel()
         coefficients = self._buffer("coefficients", dtype)[observer_altitude_index]
-        basis_fft = self._buffer("basis_fft", dtype)[observer_altitude_index]
         n_k = coefficients.shape[-1]
-        # H_k(θ) with azimuth last, so that the FFT runs over contiguous memory
-        h = torch.matmul(coefficients.reshape(n_r * n_h, n_k).T,
-                         polar.reshape(n_obs, n_t, n_r * n_h).transpose(1, 2))
-        h_fft = torch.view_as_real(torch.fft.rfft(h, dim=-1))  # (observer, K, frequency, 2)
-        n_f = h_fft.shape[2]
-        # the bases' spectra are real: real and imaginary parts of H multiply them alike
-        stacked = h_fft.permute(2, 0, 3, 1).reshape(n_f, 2 * n_obs, n_k)
-        product = torch.bmm(stacked, basis_fft)  # (frequency, observer · 2, φ·λ)
-        product = product.reshape(n_f, n_obs, 2, n_p * n_wl).permute(1, 3, 0, 2)
-        spectrum = torch.view_as_complex(product.contiguous())  # (observer, φ·λ, frequency)
-        radiance = torch.fft.irfft(spectrum, n=n_t, dim=-1)  # (observer, φ·λ, azimuth)
-        return radiance.reshape(n_obs, n_p, n_wl, n_t).transpose(2, 3)
+        if n_obs < _MANY_OBSERVERS:
+            basis_fft = self._buffer("basis_fft", dtype)[observer_altitude_index]
+            # H_k(θ) with azimuth last, so that the FFT runs over contiguous memory
+            h = torch.matmul(coefficients.reshape(n_r * n_h, n_k).T,
+                             polar.reshape(n_obs, n_t, n_r * n_h).transpose(1, 2))
+            h_fft = torch.view_as_real(torch.fft.rfft(h, dim=-1))  # (observer, K, f, 2)
+            n_f = h_fft.shape[2]
+            # the bases' spectra are real: real and imaginary parts of H multiply them alike
+            stacked = h_fft.permute(2, 0, 3, 1).reshape(n_f, 2 * n_obs, n_k)
+            product = torch.bmm(stacked, basis_fft)  # (frequency, observer · 2, φ·λ)
+            product = product.reshape(n_f, n_obs, 2, n_p * n_wl).permute(1, 3, 0, 2)
+            spectrum = torch.view_as_complex(product.contiguous())  # (observer, φ·λ, f)
+            radiance = torch.fft.irfft(spectrum, n=n_t, dim=-1)  # (observer, φ·λ, azimuth)
+            return radiance.reshape(n_obs, n_p, n_wl, n_t).transpose(2, 3)
+        # many observers: layout (azimuth, ..., observer) throughout, so that the
+        # observers (and real/imaginary parts) stay the fastest-varying index and no step
+        # needs a transposing copy (``polar`` from :meth:`polar_flux` is such a view)
+        key = ("basis_fft_transposed", dtype)
+        if key not in self._cast:  # (ho, frequency, φ·λ, K)
+            self._cast[key] = self.basis_fft.transpose(-1, -2).to(dtype).contiguous()
+        basis_t = self._cast[key][observer_altitude_index]
+        polar_t = polar.permute(1, 2, 3, 0).reshape(n_t, n_r * n_h, n_obs)
+        h = torch.matmul(coefficients.reshape(n_r * n_h, n_k).T, polar_t)  # (θ, K, observer)
+        h_fft = torch.view_as_real(torch.fft.rfft(h, dim=0))  # (frequency, K, observer, 2)
+        n_f = h_fft.shape[0]
+        product = torch.bmm(basis_t, h_fft.reshape(n_f, n_k, 2 * n_obs))
+        spectrum = torch.view_as_complex(product.reshape(n_f, n_p * n_wl, n_obs, 2))
+        radiance = torch.fft.irfft(spectrum, n=n_t, dim=0)  # (azimuth, φ·λ, observer)
+        return radiance.reshape(n_t, n_p, n_wl, n_obs).permute(3, 1, 0, 2)
 
     def observer_altitude_weights(self, observer_altitude_m: torch.Tensor):
         """Lower node index and weight of the upper node for each observer altitude."""
