@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
 
     rows = []
     scale = N_OCCLUSION / args.n
-    for dtype, n_nodes in ((torch.float64, 8), (torch.float32, 8), (torch.float64, 6),
+    for dtype, n_nodes in ((torch.float64, 8), (torch.float32, 8), (torch.float64, 7),
                            (torch.float64, 12)):
         rho_o, d = _inputs(args.n, dtype)
 

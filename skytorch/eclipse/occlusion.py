@@ -312,7 +312,7 @@ def _visible_fraction_flat(rho_s, rho_o, d, coefficients, s, weight):
     rim = (0.5 * phi_max, hav_o_d, sin_d_o, sin_o_d, 2.0 * sin_d * torch.cos(rho_o), -4.0 / b,
            coefficients)
     n = d.shape[0]
-    if grad or n <= _NODE_CHUNK:
+    if n <= _NODE_CHUNK:
         integral = _rim_integral(*rim, s, weight, grad)
     else:
         integral = torch.cat([
