@@ -186,6 +186,21 @@ def test_many_chunks_agree_with_single_evaluations(monkeypatch):
     assert torch.allclose(batch[picks], single, atol=1e-15)
 
 
+def test_gradients_over_rim_sub_chunks_agree_with_single_evaluations(monkeypatch):
+    from skytorch.eclipse import occlusion
+
+    monkeypatch.setattr(occlusion, "_NODE_CHUNK", 1_000)
+    generator = torch.Generator().manual_seed(4)
+    rho_o = SUN_RADIUS * (0.1 + 3 * torch.rand(3_000, generator=generator, dtype=torch.float64))
+    d = ((SUN_RADIUS + rho_o) * torch.rand(3_000, generator=generator, dtype=torch.float64))
+    d.requires_grad_(True)
+    sun_visible_fraction(SUN_RADIUS, rho_o, d).sum().backward()
+    for i in (0, 999, 1_000, 2_999):
+        single = d.detach()[i].clone().requires_grad_(True)
+        sun_visible_fraction(SUN_RADIUS, rho_o[i], single).backward()
+        assert d.grad[i].item() == pytest.approx(single.grad.item(), rel=1e-12)
+
+
 @pytest.mark.parametrize(
     ("name", "value", "message"),
     [("sun_radius_rad", -1e-3, "sun_radius_rad"), ("sun_radius_rad", 0.3, "sun_radius_rad"),
