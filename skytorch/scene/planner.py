@@ -49,7 +49,7 @@ from __future__ import annotations
 import logging
 import math
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -140,14 +140,24 @@ class Geometry:
 
 
 def scene_geometry(scene) -> Geometry:
-    """Topocentric Sun and Moon and the Moon's place in the Earth's shadow."""
+    """Topocentric Sun and Moon and the Moon's place in the Earth's shadow.
+
+    Cached per (time, site): the render and later plans of the same instant and place
+    reuse it (a fresh copy each call, so callers may modify it).
+    """
+    return replace(_site_geometry(np.datetime64(scene.time, "ns"), float(scene.lat_deg),
+                                  float(scene.lon_deg), float(scene.elevation_m)))
+
+
+@lru_cache(maxsize=64)
+def _site_geometry(time, lat_deg: float, lon_deg: float, elevation_m: float) -> Geometry:
     from skytorch.constants import SUN_RADIUS_M
     from skytorch.eclipse import shadow_radii
     from skytorch.ephemeris import sun_moon, sun_moon_vectors
     from skytorch.moon.geometry import phase_angle
 
-    ds = sun_moon([scene.time], scene.lat_deg, scene.lon_deg, scene.elevation_m)
-    vectors = sun_moon_vectors([scene.time])
+    ds = sun_moon([time], lat_deg, lon_deg, elevation_m)
+    vectors = sun_moon_vectors([time])
     sun = vectors["sun_gcrs_m"][0]
     moon = vectors["moon_gcrs_m"][0]
     sun_hat = sun / torch.linalg.norm(sun)
@@ -161,7 +171,7 @@ def scene_geometry(scene) -> Geometry:
         sun_altitude_deg=float(ds["sun_altitude"][0]), sun_azimuth_deg=float(ds["sun_azimuth"][0]),
         moon_altitude_deg=float(ds["moon_altitude"][0]),
         moon_azimuth_deg=float(ds["moon_azimuth"][0]),
-        moon_distance_m=_topocentric_distance(ds, scene),
+        moon_distance_m=_topocentric_distance(ds, elevation_m),
         sun_distance_m=sun_distance,
         phase_angle_rad=float(phase_angle(sun, moon)),
         shadow_distance_m=along, shadow_offset_m=offset,
@@ -174,11 +184,11 @@ def _earth_radius() -> float:
     return EARTH_MEAN_RADIUS_M
 
 
-def _topocentric_distance(ds, scene) -> float:
+def _topocentric_distance(ds, elevation_m: float) -> float:
     """Observer–Moon distance [m] (geocentric minus the observer's height projection)."""
     geocentric = float(ds["moon_distance"][0])
     altitude = math.radians(float(ds["moon_altitude"][0]))
-    return geocentric - (_earth_radius() + scene.elevation_m) * math.sin(altitude)
+    return geocentric - (_earth_radius() + elevation_m) * math.sin(altitude)
 
 
 @dataclass
@@ -244,11 +254,18 @@ def _sky_flux(scene, geometry: Geometry) -> float:
 
 def _moon_fluxes(geometry: Geometry) -> tuple[float, float]:
     """V flux of the Moon with earthshine and of its earthshine alone."""
+    return _moon_fluxes_cached(geometry.phase_angle_rad, geometry.moon_distance_m,
+                               geometry.sun_distance_m)
+
+
+@lru_cache(maxsize=64)
+def _moon_fluxes_cached(phase_angle_rad: float, moon_distance_m: float,
+                        sun_distance_m: float) -> tuple[float, float]:
     from skytorch.moon import magnitude
 
-    alpha = torch.tensor(geometry.phase_angle_rad, dtype=torch.float64)
-    options = {"distance_m": geometry.moon_distance_m,
-               "sun_distance_m": geometry.sun_distance_m,
+    alpha = torch.tensor(phase_angle_rad, dtype=torch.float64)
+    options = {"distance_m": moon_distance_m,
+               "sun_distance_m": sun_distance_m,
                "n_quadrature": PLANNER_MOON_QUADRATURE}
     with_es = float(magnitude(alpha, earthshine=True, **options))
     without = float(magnitude(alpha, earthshine=False, **options))
@@ -327,9 +344,7 @@ def plan(scene, view=None) -> Plan:
     inside = g.shadow_distance_m > 0.0 and g.shadow_offset_m < reach
     eclipse = None
     if inside and moon_up and "eclipse" not in scene.exclude:
-        from skytorch.scene.render import eclipse_factor
-
-        eclipse = eclipse_factor(scene, g, scene.wavelength_nm())
+        eclipse = _eclipse_factor(scene, g)
         dimmed = moon_total * float(eclipse.mean())
         total = total - moon + dimmed
         moon = dimmed
@@ -406,6 +421,51 @@ def plan(scene, view=None) -> Plan:
                   eclipse_factor=eclipse)
     logger.info("plan: computed %s; skipped %s", result.computed, result.skipped)
     return result
+
+
+def _eclipse_factor(scene, geometry: Geometry) -> torch.Tensor:
+    """:func:`skytorch.scene.render.eclipse_factor`, cached per atmosphere, geometry and
+    wavelength grid (a fresh copy each call)."""
+    wavelength = scene.wavelength_nm().to(torch.float64)
+    key = (float(scene.turbidity), float(scene.ozone_du), geometry.sun_distance_m,
+           geometry.shadow_distance_m, geometry.shadow_offset_m,
+           tuple(wavelength.tolist()))
+    return _eclipse_factor_cached(key).clone()
+
+
+@lru_cache(maxsize=64)
+def _eclipse_factor_cached(key) -> torch.Tensor:
+    from skytorch.scene.render import eclipse_factor
+
+    turbidity, ozone_du, sun_distance_m, shadow_distance_m, shadow_offset_m, wavelength = key
+    scene = _AtmosphereKey(turbidity, ozone_du)
+    geometry = _ShadowKey(sun_distance_m, shadow_distance_m, shadow_offset_m)
+    return eclipse_factor(scene, geometry, torch.tensor(wavelength, dtype=torch.float64))
+
+
+@dataclass(frozen=True)
+class _AtmosphereKey:
+    turbidity: float
+    ozone_du: float
+
+    def atmosphere(self):
+        from skytorch.scene.render import cached_atmosphere
+
+        return cached_atmosphere(self.turbidity, self.ozone_du)
+
+
+@dataclass(frozen=True)
+class _ShadowKey:
+    sun_distance_m: float
+    shadow_distance_m: float
+    shadow_offset_m: float
+
+
+def clear_cache() -> None:
+    """Forget the cached geometry, Moon fluxes and eclipse factors (a cold planner)."""
+    _site_geometry.cache_clear()
+    _moon_fluxes_cached.cache_clear()
+    _eclipse_factor_cached.cache_clear()
 
 
 def _moon_radius() -> float:
