@@ -66,22 +66,15 @@ REFERENCES = [
 
 def _atmospheres():
     from skytorch.atmosphere import Atmosphere
-    from skytorch.atmosphere.aerosol import (
-        ANGSTROM_REFERENCE_NM,
-        PREETHAM_ANGSTROM_ALPHA,
-        preetham_angstrom_beta,
-    )
+    from skytorch.eclipse import volcanic_atmosphere
 
-    beta = float(preetham_angstrom_beta(torch.tensor(2.0, dtype=torch.float64)))
-    aod_550 = beta * (550.0 / ANGSTROM_REFERENCE_NM) ** (-PREETHAM_ANGSTROM_ALPHA)
     clean = {"aerosol_optical_depth": 0.0}
     return {
         "molecules": Atmosphere.earth(ozone_du=0.0, **clean),
         "ozone": Atmosphere.earth(ozone_du=300.0, **clean),
         "aerosols": Atmosphere.earth(turbidity=2.0, ozone_du=300.0),
-        # density x2 and scale height 1.2 -> 3 km: vertical optical depth x 2 x 3/1.2
-        "volcanic": Atmosphere.earth(aerosol_optical_depth=aod_550 * 2.0 * 3000.0 / 1200.0,
-                                     ozone_du=300.0, aerosol_scale_height_m=3000.0),
+        # density x2 and scale height 1.2 -> 3 km (Schneegans et al. 2025)
+        "volcanic": volcanic_atmosphere(2.0, 300.0),
     }
 
 

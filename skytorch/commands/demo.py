@@ -45,7 +45,6 @@ VG2008_UMBRA_CENTRE = 1.0 / 2400.0
 #: the volcanic case: aerosol density and scale height relative to the typical one
 CALBUCO_DENSITY_FACTOR = 2.0
 CALBUCO_SCALE_HEIGHT_M = 3000.0
-TYPICAL_AEROSOL_SCALE_HEIGHT_M = 1200.0
 #: the city of the all-sky renders: centre 12 km south-east of the observer
 CITY = {"population": 1_000_000.0, "scale_length_m": 4_000.0, "centre_xy": (8_000.0, -9_000.0)}
 #: sweep grid of the Moon's colour at totality
@@ -113,22 +112,13 @@ def circumstances_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
 
 
 def _atmospheres():
-    import torch
-
     from skytorch.atmosphere import Atmosphere
-    from skytorch.atmosphere.aerosol import (
-        ANGSTROM_REFERENCE_NM,
-        PREETHAM_ANGSTROM_ALPHA,
-        preetham_angstrom_beta,
-    )
+    from skytorch.eclipse import volcanic_atmosphere
 
-    beta = float(preetham_angstrom_beta(torch.tensor(2.0, dtype=torch.float64)))
-    aod_550 = beta * (550.0 / ANGSTROM_REFERENCE_NM) ** (-PREETHAM_ANGSTROM_ALPHA)
-    column = CALBUCO_DENSITY_FACTOR * CALBUCO_SCALE_HEIGHT_M / TYPICAL_AEROSOL_SCALE_HEIGHT_M
     return {
         "typical": Atmosphere.earth(turbidity=2.0, ozone_du=300.0),
-        "calbuco": Atmosphere.earth(aerosol_optical_depth=aod_550 * column, ozone_du=300.0,
-                                    aerosol_scale_height_m=CALBUCO_SCALE_HEIGHT_M),
+        "calbuco": volcanic_atmosphere(2.0, 300.0, density_factor=CALBUCO_DENSITY_FACTOR,
+                                       scale_height_m=CALBUCO_SCALE_HEIGHT_M),
     }
 
 

@@ -25,6 +25,7 @@ __all__ = [
     "shadow_cone",
     "shadow_radii",
     "sun_visible_fraction",
+    "volcanic_atmosphere",
 ]
 from skytorch.eclipse.lunar import (  # noqa: E402,F401,I001
-    Shadow, ShadowTable, danjon_l, lunar_eclipse, lunar_light_curve)
+    Shadow, ShadowTable, danjon_l, lunar_eclipse, lunar_light_curve, volcanic_atmosphere)

@@ -62,6 +62,7 @@ __all__ = [
     "ShadowTable",
     "danjon_l",
     "lunar_eclipse",
+    "volcanic_atmosphere",
     "lunar_light_curve",
     "plot_lunar_eclipse",
 ]
@@ -73,6 +74,45 @@ logger = logging.getLogger(__name__)
 #: a bright eclipse without stratospheric aerosol), and L = 0 at V = +2, the faint end of
 #: the totality range the project adopts from Keen 1983 (not a fitted relation)
 DANJON_ANCHORS = ((0.0, 2.0), (4.0, -3.3))
+
+
+def volcanic_atmosphere(turbidity=2.0, ozone_du=300.0, *, density_factor=2.0,
+                        scale_height_m=3000.0):
+    """Earth's atmosphere with a volcanic aerosol layer, as after Calbuco in 2015.
+
+    Schneegans et al. (2025, §6) model the 2015-09-28 eclipse by doubling the aerosol
+    density of a turbidity-2 atmosphere and raising its scale height from 1.2 km to 3 km.
+    The vertical aerosol optical depth at 550 nm therefore grows by
+    ``density_factor * scale_height_m / 1200 m``.
+
+    Parameters
+    ----------
+    turbidity : float
+        Preetham turbidity of the background aerosols the factor applies to.
+    ozone_du : float
+        Ozone column [DU].
+    density_factor : float
+        Aerosol number density relative to the background at the ground.
+    scale_height_m : float
+        Scale height of the volcanic aerosols [m].
+
+    Returns
+    -------
+    skytorch.atmosphere.Atmosphere
+    """
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.atmosphere.aerosol import (
+        ANGSTROM_REFERENCE_NM,
+        PREETHAM_ANGSTROM_ALPHA,
+        preetham_angstrom_beta,
+    )
+    from skytorch.constants import EARTH_AEROSOL_SCALE_HEIGHT_M
+
+    beta = float(preetham_angstrom_beta(torch.tensor(float(turbidity), dtype=torch.float64)))
+    aod_550 = beta * (550.0 / ANGSTROM_REFERENCE_NM) ** (-PREETHAM_ANGSTROM_ALPHA)
+    column = density_factor * scale_height_m / EARTH_AEROSOL_SCALE_HEIGHT_M
+    return Atmosphere.earth(aerosol_optical_depth=aod_550 * column, ozone_du=ozone_du,
+                            aerosol_scale_height_m=scale_height_m)
 #: days around the given date in which the nearest eclipse is looked for
 SEARCH_DAYS = 20
 #: fraction of the P1–P4 duration added before P1 and after P4
