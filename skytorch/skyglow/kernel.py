@@ -204,9 +204,6 @@ class Medium:
                 n_table_radius, n_table_mu, n_table_steps)
 
     # --- optical depth to the top of the atmosphere --------------------------------------
-    def _horizon_distance(self, radius):
-        return torch.sqrt((radius**2 - self.planet_radius_m**2).clamp_min(0.0))
-
     def _optical_depth_table(self, n_r, n_mu, n_steps):
         big_h = math.sqrt(self.top_radius_m**2 - self.planet_radius_m**2)
         x_r = torch.linspace(0.0, 1.0, n_r, dtype=torch.float64)
@@ -253,17 +250,52 @@ class Medium:
         Returns
         -------
         Tensor (..., wavelength)
+
+        Notes
+        -----
+        In float32 a radius near 6.4e6 m is resolved to 0.5 m only; call
+        :meth:`optical_depth_from_altitude` with the altitude where it is known.
         """
-        dtype = radius.dtype
+        return self.optical_depth_from_altitude(radius - self.planet_radius_m, mu)
+
+    def optical_depth_from_altitude(self, altitude_m, mu):
+        """Optical depth from altitude ``h`` along direction cosine ``μ ≥ 0`` to the top.
+
+        The table coordinates are computed from the altitude without differences of
+        radii, so that float32 keeps them accurate near the ground:
+
+        .. math::
+
+            ρ^2 = h (h + 2R), \\qquad r_t^2 - r^2 = (h_t - h)(r_t + r), \\qquad
+            d = \\frac{r_t^2 - r^2}{r μ + \\sqrt{r^2 μ^2 + r_t^2 - r^2}},
+
+        with ``ρ`` the distance to the horizon, ``d`` the distance to the top along the
+        ray, ``R`` the planet radius and ``r_t``, ``h_t`` the top radius and altitude.
+
+        Parameters
+        ----------
+        altitude_m : Tensor (...)
+            Altitude above the planet surface [m] (clamped to the atmosphere).
+        mu : Tensor (...)
+            Cosine of the zenith angle of the ray (clamped to [0, 1]).
+
+        Returns
+        -------
+        Tensor (..., wavelength)
+        """
+        dtype = altitude_m.dtype
         n_wl = self.optical_depth_table.shape[-1]
-        big_h = math.sqrt(self.top_radius_m**2 - self.planet_radius_m**2)
-        radius = radius.clamp(self.planet_radius_m, self.top_radius_m)
+        big_r, top = self.planet_radius_m, self.top_altitude_m
+        big_h = math.sqrt(self.top_radius_m**2 - big_r**2)
+        h = altitude_m.clamp(0.0, top)
         mu = mu.clamp(0.0, 1.0)
-        rho = self._horizon_distance(radius)
-        distance = -radius * mu + torch.sqrt(
-            ((radius * radius) * (mu * mu - 1.0) + self.top_radius_m**2).clamp_min(0.0))
-        d_min = self.top_radius_m - radius
-        d_max = torch.sqrt((self.top_radius_m**2 - radius * radius).clamp_min(0.0))
+        radius = h + big_r
+        rho = torch.sqrt(h * (h + 2.0 * big_r))
+        d_min = top - h
+        below_top = d_min * (radius + self.top_radius_m)  # r_t^2 - r^2 >= 0
+        d_max = torch.sqrt(below_top)
+        rmu = radius * mu
+        distance = below_top / (rmu + torch.sqrt(rmu * rmu + below_top)).clamp_min(1e-30)
         x_mu = ((distance - d_min) / (d_max - d_min).clamp_min(1e-9)).clamp(0.0, 1.0)
         x_r = (rho / big_h).clamp(0.0, 1.0)
         # bilinear interpolation of all wavelengths at once: grid_sample on the table as an
@@ -410,31 +442,41 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
 
 def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_parameters, a,
                   quadrature):
-    """The quadrature for a flat batch of geometries: returns (n, wavelength)."""
+    """The quadrature for a flat batch of geometries: returns (n, wavelength).
+
+    Every length is formed from altitudes and offsets, never as a difference of two radii
+    near ``R`` (float32 resolves those to 0.5 m only): the source height below the
+    observer's tangent plane is ``h_c cos α − 2R sin²(α/2)``, a point's altitude is
+    ``(r² − R²)/(r + R)`` with ``r² − R² = x² + y² + z (z + 2R)``, and the cosines and
+    distances of both legs follow from the ray parameter ``u`` (``|P − S|² = (u − u_p)² +
+    ρ_0²``, ``(P − S)·n_S = u d_n − η``).
+    """
     big_r = medium.planet_radius_m
     # frame: observer above the origin, Earth centre at (0, 0, -R), source in azimuth 0
     alpha = r / big_r
+    sin_half = torch.sin(0.5 * alpha)
+    nsx, nsz = torch.sin(alpha), torch.cos(alpha)  # source's zenith n_S
     rs = big_r + h_c
-    sx = rs * torch.sin(alpha)
-    sz = rs * torch.cos(alpha) - big_r
+    sx = rs * nsx
+    sz = h_c * nsz - 2.0 * big_r * sin_half * sin_half  # = rs cos α − R without cancelling
     ro = big_r + h_o
     cphi, sphi = torch.cos(phi), torch.sin(phi)
     dx, dy, dz = cphi * torch.cos(theta), cphi * torch.sin(theta), sphi
-    oz = h_o
-    # closest approach of the view ray to the source
-    vx, vz = sx, sz - oz
+    # closest approach of the view ray to the source: v = S − O
+    vx, vz = sx, sz - h_o
     u_proj = vx * dx + vz * dz
     u_c = u_proj.clamp_min(0.0)
-    dist2 = vx * vx + vz * vz
-    rho2 = (dist2 - u_c * (2.0 * u_proj - u_c)).clamp_min(0.0)
+    # squared distance of the source from the view line, |v × d|², without cancellation
+    cross_y = vz * dx - vx * dz
+    off_line2 = (vz * dy) ** 2 + cross_y * cross_y + (vx * dy) ** 2
+    rho2 = torch.where(u_proj > 0, off_line2, vx * vx + vz * vz)
     rho_e = torch.sqrt(rho2 + a * a)
-    u_top = -ro * sphi + torch.sqrt((ro**2 * sphi**2 + medium.top_radius_m**2 - ro**2)
-                                    .clamp_min(0.0))
+    top_gap = (medium.top_altitude_m - h_o) * (ro + medium.top_radius_m)  # r_t² − r_o²
+    u_top = top_gap / (ro * sphi + torch.sqrt(ro * ro * sphi * sphi + top_gap)).clamp_min(1e-30)
     # the lit part of the ray lies above the source's horizon plane (n_S . (P - S) > 0):
     # integrating only there keeps a discontinuous emission function (Garstang's ψ^4 term
     # at ψ = 90°) out of the quadrature
-    nsx, nsz = torch.sin(alpha), torch.cos(alpha)
-    height_o = rs - ro * nsz  # n_S . (S - O)
+    height_o = (h_c - h_o) + 2.0 * ro * sin_half * sin_half  # η = n_S . (S - O)
     d_n = dx * nsx + dz * nsz
     safe = torch.where(d_n.abs() > 1e-15, d_n, torch.full_like(d_n, 1e-15))
     u_h = (height_o / safe).clamp(0.0)
@@ -464,28 +506,24 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     tan_t = torch.tan(t)
     u = (u_c[:, None] + rho_e[:, None] * tan_t).clamp(0.0)
     du = wt * rho_e[:, None] * (1.0 + tan_t * tan_t)
-    # points on the view ray
-    px = u * dx[:, None]
-    py = u * dy[:, None]
-    pz = oz[:, None] + u * dz[:, None]
-    cz = pz + big_r
-    rp = torch.sqrt(px * px + py * py + cz * cz)
-    hp = rp - big_r
-    # source leg
-    ex, ey, ez = px - sx[:, None], py, pz - sz[:, None]
-    s2 = ex * ex + ey * ey + ez * ez
+    # points P = O + u d on the view ray: altitude and radius
+    pz = h_o[:, None] + u * dz[:, None]
+    above2 = (u * cphi[:, None]) ** 2 + pz * (pz + 2.0 * big_r)  # r_P² − R²
+    rp = torch.sqrt(above2 + big_r * big_r)
+    hp = above2.clamp_min(0.0) / (rp + big_r)
+    # source leg S -> P: length, emission cosine, scattering cosine, zenith cosine at P
+    along = u - u_proj[:, None]
+    s2 = along * along + off_line2[:, None]  # |u d − v|²
     s_len = torch.sqrt(s2).clamp_min(1e-12)
-    ex, ey, ez = ex / s_len, ey / s_len, ez / s_len
-    cos_psi = ex * nsx[:, None] + ez * nsz[:, None]
+    cos_psi = ((u * d_n[:, None] - height_o[:, None]) / s_len).clamp(-1.0, 1.0)
     intensity = emission_intensity(cos_psi, emission, emission_parameters)
-    cos_scatter = (-(ex * dx[:, None] + ey * dy[:, None] + ez * dz[:, None])).clamp(-1.0, 1.0)
-    mu_p_src = (ex * px + ey * py + ez * cz) / rp
-    mu_p_view = (dx[:, None] * px + dy[:, None] * py + dz[:, None] * cz) / rp
-    rs_b = rs[:, None].expand_as(rp)
-    tau_src = (medium.optical_depth_to_top(rs_b, cos_psi)
-               - medium.optical_depth_to_top(rp, mu_p_src)).clamp_min(0.0)
-    tau_obs = (medium.optical_depth_to_top(ro, sphi)[:, None]
-               - medium.optical_depth_to_top(rp, mu_p_view)).clamp_min(0.0)
+    cos_scatter = (-along / s_len).clamp(-1.0, 1.0)
+    mu_p_src = (s_len + rs[:, None] * cos_psi) / rp  # e . (P - C) / r_P
+    mu_p_view = (u + ro[:, None] * sphi[:, None]) / rp  # d . (P - C) / r_P
+    tau_src = (medium.optical_depth_from_altitude(h_c[:, None].expand_as(hp), cos_psi)
+               - medium.optical_depth_from_altitude(hp, mu_p_src)).clamp_min(0.0)
+    tau_obs = (medium.optical_depth_from_altitude(h_o, sphi)[:, None]
+               - medium.optical_depth_from_altitude(hp, mu_p_view)).clamp_min(0.0)
     beta = medium.scattering(hp)  # (n, nodes, species, wl)
     scatter = None  # Σ_s β_s p_s, (n, nodes, wl): explicit sum over the few species
     for i, species in enumerate(medium.species):
