@@ -20,7 +20,11 @@ def test_magnitude_against_ks1991():
 
     Measured differences (docs/moon.md): +0.15 mag at 20°, +0.12 at 60°–90°; outside this
     range +0.16 at 110°, +0.22 at 120° (model fainter) and −0.19 at 0° (opposition surge,
-    absent from the linear K&S law).
+    absent from the linear K&S law). The issue asks for 0.15 mag up to 120°; that is not
+    met. The roughness term and the disc integration reproduce Hapke's K(g, θ̄) table
+    (test_moon_reflectance.py) and the model follows ROLO's phase curve to ≤ 0.02 mag in
+    shape up to its 97° limit (test_disc_reflectance_against_rolo), so the 110°–120°
+    excess is left as measured rather than tuned away.
     """
     alpha = torch.arange(3.0, 101.0, 2.0, dtype=torch.float64) * DEGREE
     difference = br.magnitude(alpha) - br.magnitude_ks1991(alpha)
@@ -103,3 +107,51 @@ def test_module_matches_function(dtype):
     assert torch.allclose(moon(alpha, d), br.magnitude(alpha, distance_m=d), atol=tolerance)
     assert moon(alpha).dtype == dtype
     assert "hapke2012" in repr(moon)
+
+
+#: Kieffer & Stone (2005, AJ 129, 2887, doi:10.1086/430185), ROLO disc-reflectance model
+#: eq. 10, Table 4 row of the 553.8 nm band: a0..a3 (phase polynomial, g in rad), d1..d3
+#: (opposition terms), and the band-independent p1..p4 [degree]
+ROLO_553NM_A = (-2.12504, -1.65970, 0.38409, -0.20655)
+ROLO_553NM_D = (0.37206, -0.10745, 0.00347)
+ROLO_P_DEG = (4.06054, 12.8802, -30.5858, 16.7498)
+#: ROLO's phase-angle range (Kieffer & Stone 2005: 1.55°–97°)
+ROLO_PHASES_DEG = (2.0, 5.0, 10.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0, 97.0)
+#: absolute scale: ROLO's stated absolute uncertainty is 5–10 %
+ROLO_ABSOLUTE_TOLERANCE = 0.10 * MAG
+#: phase-curve shape (relative to 30°): ROLO's relative precision is ~1 %
+ROLO_SHAPE_TOLERANCE = 0.03 * MAG
+
+
+def _rolo_disc_reflectance(alpha_deg: torch.Tensor) -> torch.Tensor:
+    """ROLO disc-equivalent reflectance A(g) at zero libration (Kieffer & Stone 2005, eq. 10).
+
+    The odd terms in the Sun's selenographic longitude (waxing/waning asymmetry from the
+    maria) are left out: they cancel in the mean of waxing and waning Moons, the case of a
+    uniform sphere. A is defined by I = A Ω_M E_sun / π with Ω_M = π (R/d)², so it is the
+    disc integral Q(α) of :func:`disc_integrated_reflectance`.
+    """
+    g = alpha_deg * DEGREE
+    a0, a1, a2, a3 = ROLO_553NM_A
+    d1, d2, d3 = ROLO_553NM_D
+    p1, p2, p3, p4 = ROLO_P_DEG
+    log_a = (a0 + a1 * g + a2 * g**2 + a3 * g**3 + d1 * torch.exp(-alpha_deg / p1)
+             + d2 * torch.exp(-alpha_deg / p2) + d3 * torch.cos((alpha_deg - p3) / p4))
+    return torch.exp(log_a)
+
+
+def test_disc_reflectance_against_rolo():
+    """The Hapke disc integral against the ROLO lunar irradiance model, 2°–97°.
+
+    An independent, modern disc-integrated phase curve (ROLO, 1.55°–97°): measured
+    difference 0.04–0.07 mag in level and ≤ 0.02 mag in shape (docs/moon.md); K&S eq. 9
+    differs from ROLO by 0.23 mag in shape at 2° (no opposition surge in the linear law).
+    """
+    alpha_deg = torch.tensor(ROLO_PHASES_DEG, dtype=torch.float64)
+    q = br.disc_integrated_reflectance(alpha_deg * DEGREE)
+    rolo = _rolo_disc_reflectance(alpha_deg)
+    difference = -2.5 * torch.log10(q / rolo)
+    assert float(difference.abs().max()) <= ROLO_ABSOLUTE_TOLERANCE
+    reference = ROLO_PHASES_DEG.index(30.0)
+    shape = difference - difference[reference]
+    assert float(shape.abs().max()) <= ROLO_SHAPE_TOLERANCE

@@ -36,9 +36,14 @@ the planes of incidence and emission follows from ``cos g = μ0 μ + sin i sin e
 Lunar parameters (:data:`HAPKE_PARAMETERS`, ``"helfenstein1987"``): the disc-averaged
 lunar solution of Helfenstein & Veverka (1987) as quoted in the secondary literature:
 w = 0.21, ξ = −0.18 (single-lobe Henyey–Greenstein), B_S0 = 2.0, h_S = 0.07, θ̄ = 20°, no
-CBOE. The primary table was not available to re-check the digits; the resulting disc
-integral is validated against the observed lunar phase curve (Krisciunas & Schaefer 1991)
-in ``tests/test_moon_brightness.py`` and docs/moon.md.
+CBOE. The primary table could not be consulted. w, h_S, θ̄ and B_S0 = S(0)/(w p(0)) agree
+with a transcription of their disc-integrated Table II (w = 0.21, h = 0.07, S(0) = 0.71,
+θ̄ = 20°), which however gives a two-term Legendre phase function (b = 0.29, c = 0.39)
+instead of ξ; that variant is 0.09–0.19 mag off the ROLO phase curve, the single-lobe set
+0.04–0.07 mag (docs/moon.md). The disc integral is validated against two independent
+phase curves, ROLO (Kieffer & Stone 2005) and Krisciunas & Schaefer (1991), and the
+roughness term against Hapke's (2012) Table 12.1, in ``tests/test_moon_brightness.py`` and
+``tests/test_moon_reflectance.py``.
 
 The lunar albedo colour (:func:`albedo`) is the quadratic through Müller et al.'s (2012,
 §2.2.2) colour coefficients kλ = (0.92, 0.79, 0.64) at (680, 550, 440) nm, which they
@@ -65,6 +70,8 @@ References
 7. Sato, H., Robinson, M. S., Hapke, B., Denevi, B. W., Boyd, A. K. 2014, "Resolved Hapke
    parameter maps of the Moon", J. Geophys. Res. Planets 119, 1775,
    doi:10.1002/2013JE004580 (the same model form fitted to LROC WAC data).
+8. Kieffer, H. H., Stone, T. C. 2005, "The spectral irradiance of the Moon", AJ 129, 2887,
+   doi:10.1086/430185 (ROLO disc-reflectance model, the validation phase curve).
 
 Examples
 --------
