@@ -51,7 +51,7 @@ def all_sky_chart(observation: xr.Dataset, time_index: int = 0, *, limit: float 
     matplotlib.figure.Figure
         Zenith-equidistant projection (radius 90° − altitude), north up and east to the
         left as seen looking up; marker area from the magnitude after extinction, colour
-        from B−V (``color``), black background.
+        the apparent one (``color``), black background.
     """
     import matplotlib.pyplot as plt
 
@@ -62,7 +62,7 @@ def all_sky_chart(observation: xr.Dataset, time_index: int = 0, *, limit: float 
     altitude = frame["altitude"].values[keep]
     azimuth = np.deg2rad(frame["azimuth"].values[keep])
     magnitude = frame["magnitude"].values[keep]
-    colours = np.clip(observation["color"].values[keep], 0.0, 1.0)
+    colours = np.clip(frame["color"].values[keep], 0.0, 1.0)
     order = np.argsort(-magnitude)  # faint first, bright on top
     if ax is None:
         fig = plt.figure(figsize=(8, 8), facecolor="black")

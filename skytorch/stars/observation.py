@@ -28,6 +28,8 @@ from skytorch._validate import check_int, check_range
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.ephemeris import parse_times
 from skytorch.stars.photometry import (
+    apparent_color,
+    apparent_color_table,
     bv_to_srgb,
     extinction_table,
     grid_altitudes,
@@ -324,9 +326,16 @@ _SPECS = {
     "day_night_factor": VariableSpec(
         "1", "day-night visibility factor",
         "(1 + (sin h_sun + 1.14)^32)^(-1/2) (Mueller et al. 2012, section 5)."),
-    "color": VariableSpec("1", "star colour (sRGB)",
-                          "Gamma-encoded sRGB of a black body at the Ballesteros (2012) "
-                          "temperature of B-V, above the atmosphere."),
+    "color": VariableSpec("1", "apparent star colour (sRGB)",
+                          "Gamma-encoded sRGB (largest linear component 1) of a black body "
+                          "at the Ballesteros (2012) temperature of B-V, seen through the "
+                          "atmosphere: spectral extinction along the refracted path "
+                          "reddens stars near the horizon; below the horizon the horizon "
+                          "colour."),
+    "color_exoatmospheric": VariableSpec(
+        "1", "star colour above the atmosphere (sRGB)",
+        "Gamma-encoded sRGB (largest linear component 1) of a black body at the "
+        "Ballesteros (2012) temperature of B-V, without extinction."),
     "vmag": VariableSpec("mag", "V magnitude above the atmosphere", "Catalogue V."),
     "bv": VariableSpec("mag", "B-V colour index", "Catalogue B-V."),
 }
@@ -383,11 +392,14 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     Returns
     -------
     xarray.Dataset
-        Dimensions ``time``, ``star`` (and ``channel`` for ``color``): ``altitude``,
+        Dimensions ``time``, ``star`` (and ``channel`` for the colours): ``altitude``,
         ``azimuth`` [degree], ``magnitude`` [mag], ``airmass``, ``above_horizon``,
-        ``visible``, ``relative_brightness``, ``scintillation_index``; per time
+        ``visible``, ``relative_brightness``, ``scintillation_index``, ``color`` (time,
+        star, channel: the apparent sRGB colour after the spectral extinction along the
+        path, :func:`skytorch.stars.photometry.apparent_color`); per time
         ``limiting_magnitude`` and ``n_visible`` (and ``day_night_factor``); per star
-        ``color``, ``vmag``, ``bv`` and the catalogue's ``hip``/``hr`` when present.
+        ``color_exoatmospheric`` (star, channel), ``vmag``, ``bv`` and the catalogue's
+        ``hip``/``hr`` when present.
 
     Notes
     -----
@@ -453,7 +465,13 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         brightness = brightness * factor[:, None]
     scint = scintillation_index(result["airmass"].clamp_min(1.0), aperture_m, exposure_s,
                                 elevation)
-    color = bv_to_srgb(bv)
+    color_exo = bv_to_srgb(bv).to(dtype)
+    if has_atmosphere:
+        color = apparent_color(bv, result["altitude"],
+                               apparent_color_table(atmosphere, elevation,
+                                                    refraction=refraction))
+    else:
+        color = color_exo.expand(values.size, *color_exo.shape)
 
     ts = ("time", "star")
     data_vars = {
@@ -467,7 +485,9 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         "scintillation_index": variable(ts, scint, _SPECS["scintillation_index"]),
         "limiting_magnitude": variable("time", limit, _SPECS["limiting_magnitude"]),
         "n_visible": variable("time", count, _SPECS["n_visible"]),
-        "color": variable(("star", "channel"), color, _SPECS["color"]),
+        "color": variable(("time", "star", "channel"), color, _SPECS["color"]),
+        "color_exoatmospheric": variable(("star", "channel"), color_exo,
+                                         _SPECS["color_exoatmospheric"]),
         "vmag": variable("star", vmag, _SPECS["vmag"]),
         "bv": variable("star", bv, _SPECS["bv"]),
     }
