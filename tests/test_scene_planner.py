@@ -121,14 +121,21 @@ COMPONENT_FUNCTIONS = {"sky": "sky_component", "sun": "sun_component",
 @pytest.mark.parametrize("name", ["day", "dark", "eclipse"])
 def test_skipped_effects_are_never_called(monkeypatch, name):
     sc = scene(name)
-    plan = sc.plan()
+    from skytorch.scene import planner
+
+    planner.clear_cache()
     calls = _spy(monkeypatch, [*COMPONENT_FUNCTIONS.values(), "eclipse_factor",
-                               "refracted_altitude"])
+                               "shadow_illuminance", "refracted_altitude"])
+    plan = sc.plan()
+    # the planner decides the eclipse from geometry and bounds, without the shadow model
+    assert "shadow_illuminance" not in calls and "eclipse_factor" not in calls
+    calls.clear()
     sc.render(plan)
     for effect, function in COMPONENT_FUNCTIONS.items():
         assert (function in calls) == (effect in plan.computed), (effect, calls)
-    # the eclipse factor comes from the plan (computed once there) or not at all
-    assert "eclipse_factor" not in calls
+    # the render evaluates the disc-averaged shadow once, only for an eclipsed Moon
+    assert calls.count("eclipse_factor") == (1 if "eclipse" in plan.computed else 0)
+    assert ("shadow_illuminance" in calls) == ("eclipse" in plan.computed)
     assert ("refracted_altitude" in calls) == ("refraction" in plan.computed
                                               and bool({"sun", "moon"} & set(plan.computed)))
 

@@ -7,6 +7,10 @@ L1 norm of the luminance over the pixels, :math:`\\sum_p Y_p\\,\\Omega_p`) is bo
 with cheap estimates, and an effect whose share is below ``scene.tolerance`` is skipped
 with the reason recorded. Omitting it then changes the image by at most that share.
 
+The Sun and Moon come from one ephemeris evaluation per instant
+(:mod:`skytorch.scene.geometry`), cached per time and site and handed to the render
+with the plan, so planning and rendering share it.
+
 Vocabulary (:data:`EFFECTS`): ``sky`` (scattered sunlight and twilight), ``sun`` (the
 solar disc), ``moon`` (disc and moonlit sky), ``earthshine``, ``eclipse`` (Earth's shadow
 on the Moon), ``stars``, ``scintillation``, ``skyglow`` (city lights), ``refraction``
@@ -17,12 +21,20 @@ Estimates
 ---------
 * natural background: the zenith value (22.0 V mag arcsec^-2) over the hemisphere;
 * sky: single-scattering radiance (:meth:`Atmosphere.sky_radiance`) at 9 directions,
-  averaged and spread over the hemisphere;
-* sun, moon: their V magnitudes above the atmosphere (the Moon's from
-  :func:`skytorch.moon.magnitude`) when their apparent upper limb is above the horizon;
+  averaged and spread over the hemisphere; a function of the Sun's altitude only, so it
+  is tabulated per atmosphere (every 0.25°, in 5° segments computed when first needed)
+  and interpolated;
+* sun, moon: their V magnitudes above the atmosphere (the Moon's interpolated in a
+  table of :func:`skytorch.moon.magnitude` over phase angle and distance, built once per
+  process) when their apparent upper limb is above the horizon;
 * earthshine: the Moon's magnitude with minus without earthshine;
 * eclipse: zero outside the penumbra (:func:`skytorch.eclipse.shadow_radii`, Danjon
-  enlargement) — an exact criterion; inside it the Moon's whole share;
+  enlargement; a test of the Moon's offset from the anti-Sun axis) — an exact
+  criterion. Inside it no shadow model is evaluated: the Moon's share is bounded by the
+  uneclipsed Moon, the dimming by the Moon's flux times one minus the Sun's visible
+  fraction past an opaque sphere the size of the top of the atmosphere at the disc's
+  point nearest the axis, and the image total counts the Moon at that least
+  illuminance (so every share is an upper bound);
 * stars: half the integrated V flux of the catalogue above ``star_limit_mag``;
 * skyglow: the brightest sky measured by Falchi et al. (2016), 14.0 V mag arcsec^-2,
   over the hemisphere (a bound, since the planner cannot afford the skyglow model);
@@ -49,11 +61,19 @@ from __future__ import annotations
 import logging
 import math
 import time as _time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 import torch
+
+from skytorch.constants import (
+    EARTH_MEAN_RADIUS_M,
+    EARTH_TOP_OF_ATMOSPHERE_M,
+    MOON_RADIUS_M,
+    SUN_RADIUS_M,
+)
+from skytorch.scene.geometry import Geometry, scene_geometry
 
 logger = logging.getLogger(__name__)
 
@@ -70,11 +90,23 @@ BRIGHTEST_SKYGLOW_MAG_ARCSEC2 = 14.0
 SEMI_DIAMETER_RAD = math.radians(0.27)
 #: refraction at the horizon (standard atmosphere) bounding the upper-limb test [rad]
 HORIZON_REFRACTION_RAD = math.radians(0.6)
+#: Sun-altitude step of the planner's sky-flux table [degree] (0.5 gives 4 % error in
+#: deep twilight, 0.25 below 0.3 %)
+SKY_TABLE_STEP_DEG = 0.25
+#: ... computed in segments of this many degrees when first needed
+SKY_TABLE_SEGMENT_DEG = 5.0
 #: hemisphere [arcsec^2]
 HEMISPHERE_ARCSEC2 = 2.0 * math.pi * (180.0 * 3600.0 / math.pi) ** 2
 
 #: quadrature nodes of the planner's estimate of the Moon's magnitude (an estimate only)
 PLANNER_MOON_QUADRATURE = 8
+#: nodes of the planner's table of the Moon's flux over phase angle (2° apart) ...
+MOON_TABLE_PHASES = 91
+#: ... and over the observer–Moon distance
+MOON_TABLE_DISTANCES = 8
+#: distances of that table [m]: perigee 356 400 km less the Earth's radius to apogee
+#: 406 700 km plus it, rounded outwards
+MOON_TABLE_DISTANCE_RANGE_M = (3.45e8, 4.15e8)
 
 #: module knobs per fidelity preset (measured error and cost in docs/scene.md)
 FIDELITY = {
@@ -123,75 +155,6 @@ def integrated_starlight(limit_magnitude: float) -> float:
 
 
 @dataclass
-class Geometry:
-    """Sun and Moon at the observer for one scene (degrees, metres, radians)."""
-
-    sun_altitude_deg: float
-    sun_azimuth_deg: float
-    moon_altitude_deg: float
-    moon_azimuth_deg: float
-    moon_distance_m: float
-    sun_distance_m: float
-    phase_angle_rad: float
-    shadow_distance_m: float
-    shadow_offset_m: float
-    penumbra_radius_m: float
-    umbra_radius_m: float
-
-
-def scene_geometry(scene) -> Geometry:
-    """Topocentric Sun and Moon and the Moon's place in the Earth's shadow.
-
-    Cached per (time, site): the render and later plans of the same instant and place
-    reuse it (a fresh copy each call, so callers may modify it).
-    """
-    return replace(_site_geometry(np.datetime64(scene.time, "ns"), float(scene.lat_deg),
-                                  float(scene.lon_deg), float(scene.elevation_m)))
-
-
-@lru_cache(maxsize=64)
-def _site_geometry(time, lat_deg: float, lon_deg: float, elevation_m: float) -> Geometry:
-    from skytorch.constants import SUN_RADIUS_M
-    from skytorch.eclipse import shadow_radii
-    from skytorch.ephemeris import sun_moon, sun_moon_vectors
-    from skytorch.moon.geometry import phase_angle
-
-    ds = sun_moon([time], lat_deg, lon_deg, elevation_m)
-    vectors = sun_moon_vectors([time])
-    sun = vectors["sun_gcrs_m"][0]
-    moon = vectors["moon_gcrs_m"][0]
-    sun_hat = sun / torch.linalg.norm(sun)
-    along = -float(moon @ sun_hat)
-    offset = float(torch.linalg.norm(moon + along * sun_hat))
-    sun_distance = float(torch.linalg.norm(sun))
-    umbra, penumbra = shadow_radii(torch.tensor(max(along, 1.0), dtype=torch.float64),
-                                   sun_distance, SUN_RADIUS_M,
-                                   _earth_radius(), enlargement="danjon")
-    return Geometry(
-        sun_altitude_deg=float(ds["sun_altitude"][0]), sun_azimuth_deg=float(ds["sun_azimuth"][0]),
-        moon_altitude_deg=float(ds["moon_altitude"][0]),
-        moon_azimuth_deg=float(ds["moon_azimuth"][0]),
-        moon_distance_m=_topocentric_distance(ds, elevation_m),
-        sun_distance_m=sun_distance,
-        phase_angle_rad=float(phase_angle(sun, moon)),
-        shadow_distance_m=along, shadow_offset_m=offset,
-        penumbra_radius_m=float(penumbra), umbra_radius_m=float(umbra))
-
-
-def _earth_radius() -> float:
-    from skytorch.constants import EARTH_MEAN_RADIUS_M
-
-    return EARTH_MEAN_RADIUS_M
-
-
-def _topocentric_distance(ds, elevation_m: float) -> float:
-    """Observer–Moon distance [m] (geocentric minus the observer's height projection)."""
-    geocentric = float(ds["moon_distance"][0])
-    altitude = math.radians(float(ds["moon_altitude"][0]))
-    return geocentric - (_earth_radius() + elevation_m) * math.sin(altitude)
-
-
-@dataclass
 class Plan:
     """The planner's decision for one scene.
 
@@ -204,10 +167,9 @@ class Plan:
     shares : dict
         Estimated share of the image's V flux per effect (bounds; see module notes).
     geometry : Geometry
+        Sun and Moon at the observer (shared with the render).
     seconds : float
         Wall time of the planning [s].
-    eclipse_factor : Tensor (n_wavelength,) or None
-        Relative illuminance of the Earth's shadow at the Moon (reused by the render).
     """
 
     computed: tuple[str, ...]
@@ -215,7 +177,6 @@ class Plan:
     shares: dict[str, float] = field(default_factory=dict)
     geometry: Geometry | None = None
     seconds: float = 0.0
-    eclipse_factor: torch.Tensor | None = None
 
     def __contains__(self, effect: str) -> bool:
         return effect in self.computed
@@ -227,50 +188,139 @@ class Plan:
 
 
 def _sky_flux(scene, geometry: Geometry) -> float:
-    """Hemisphere V flux of single-scattered sunlight from 9 sample directions."""
-    from skytorch.moon.sky import radiance_to_mag_arcsec2
-
-    atm = scene.atmosphere()
-    # every point of the atmosphere the observer can see lies within the angle
-    # acos(R / R_top) of the observer's zenith (seen from the planet's centre); with the
-    # Sun deeper than twice that angle below the horizon all of it is in the shadow
-    visible = math.acos(atm.planet_radius_m / atm.top_radius_m)
-    if -math.radians(geometry.sun_altitude_deg) > 2.0 * visible:
+    """Hemisphere V flux of single-scattered sunlight (relative to V = 0), interpolated
+    log-linearly in the Sun's altitude in :func:`sky_flux_table`."""
+    key = (float(scene.turbidity), float(scene.ozone_du), float(scene.elevation_m),
+           tuple(scene.wavelength_nm().tolist()))
+    deepest = _deepest_sunlit_deg(*key[:2])
+    if geometry.sun_altitude_deg <= -deepest:
         return 0.0
-    wl = scene.wavelength_nm().to(torch.float64)
-    sun_zenith = math.radians(90.0 - geometry.sun_altitude_deg)
-    sun_azimuth = math.radians(geometry.sun_azimuth_deg)
+    segment = min(int((geometry.sun_altitude_deg + deepest) / SKY_TABLE_SEGMENT_DEG),
+                  int((90.0 + deepest) / SKY_TABLE_SEGMENT_DEG))
+    altitude, log_flux = sky_flux_table(*key, segment)
+    return float(np.exp(np.interp(geometry.sun_altitude_deg, altitude, log_flux)))
+
+
+@lru_cache(maxsize=8)
+def _deepest_sunlit_deg(turbidity: float, ozone_du: float) -> float:
+    """Sun depression [degree] beyond which all the air an observer sees is in shadow.
+
+    Every point of the atmosphere the observer can see lies within ``acos(R / R_top)`` of
+    the observer's zenith (seen from the planet's centre); with the Sun deeper than
+    twice that angle below the horizon all of it is in the Earth's shadow.
+    """
+    from skytorch.scene.render import cached_atmosphere
+
+    atm = cached_atmosphere(turbidity, ozone_du)
+    return 2.0 * math.degrees(math.acos(atm.planet_radius_m / atm.top_radius_m))
+
+
+@lru_cache(maxsize=256)
+def sky_flux_table(turbidity: float, ozone_du: float, elevation_m: float,
+                   wavelengths: tuple, segment: int) -> tuple[np.ndarray, np.ndarray]:
+    """The planner's estimate of the sunlit sky's V flux against the Sun's altitude.
+
+    Single-scattering radiance (:meth:`Atmosphere.sky_radiance`) at 9 directions (the
+    zenith and 60° and 85° from it at 0°, 90°, 180°, 270° from the Sun's azimuth),
+    averaged and spread over the hemisphere. It depends on the Sun's altitude only, so it
+    is tabulated per atmosphere, observer height and wavelength grid every
+    :data:`SKY_TABLE_STEP_DEG`, in segments of :data:`SKY_TABLE_SEGMENT_DEG` computed when
+    first needed, from the depression where the whole visible atmosphere is in the
+    Earth's shadow (:func:`_deepest_sunlit_deg`, flux zero) up to the zenith.
+
+    Returns
+    -------
+    altitude_deg : ndarray (n,)
+        Sun altitudes of the segment's nodes [degree].
+    log_flux : ndarray (n,)
+        Natural logarithm of the flux relative to V = 0 (the smallest positive float
+        where the flux is zero).
+    """
+    from skytorch.moon.sky import radiance_to_mag_arcsec2
+    from skytorch.scene.render import cached_atmosphere
+
+    atm = cached_atmosphere(turbidity, ozone_du)
+    low = -_deepest_sunlit_deg(turbidity, ozone_du) + segment * SKY_TABLE_SEGMENT_DEG
+    n = round(SKY_TABLE_SEGMENT_DEG / SKY_TABLE_STEP_DEG) + 1
+    altitude = np.minimum(low + SKY_TABLE_STEP_DEG * np.arange(n), 90.0)
+    wl = torch.tensor(wavelengths, dtype=torch.float64)
     zenith = torch.tensor([0.0] + [math.radians(60.0)] * 4 + [math.radians(85.0)] * 4,
                           dtype=torch.float64)
-    azimuth = torch.tensor([0.0] + [sun_azimuth + k * math.pi / 2 for k in range(4)]
-                           + [sun_azimuth + k * math.pi / 2 for k in range(4)],
+    azimuth = torch.tensor([0.0] + [k * math.pi / 2 for k in range(4)] * 2,
                            dtype=torch.float64)
-    radiance = atm.sky_radiance(wl, zenith, azimuth, torch.full_like(zenith, sun_zenith),
-                                torch.full_like(zenith, sun_azimuth), scene.elevation_m,
+    sun_zenith = torch.deg2rad(90.0 - torch.as_tensor(altitude))[:, None].expand(-1, 9)
+    radiance = atm.sky_radiance(wl, zenith.expand_as(sun_zenith), azimuth.expand_as(sun_zenith),
+                                sun_zenith, torch.zeros_like(sun_zenith), elevation_m,
                                 solar_irradiance=True, n_samples=24)
     mags = radiance_to_mag_arcsec2(radiance.clamp(min=1e-300), wl)
-    return float(torch.mean(10.0 ** (-0.4 * mags))) * HEMISPHERE_ARCSEC2
+    flux = torch.mean(10.0 ** (-0.4 * mags), dim=-1) * HEMISPHERE_ARCSEC2
+    if segment == 0:
+        flux[0] = 0.0
+    return altitude, np.log(flux.clamp(min=np.finfo(np.float64).tiny).numpy())
 
 
 def _moon_fluxes(geometry: Geometry) -> tuple[float, float]:
-    """V flux of the Moon with earthshine and of its earthshine alone."""
-    return _moon_fluxes_cached(geometry.phase_angle_rad, geometry.moon_distance_m,
-                               geometry.sun_distance_m)
+    """V flux of the Moon with earthshine and of its earthshine alone (relative to V = 0),
+    interpolated in a table of :func:`skytorch.moon.magnitude` over phase angle and
+    distance (:func:`moon_flux_table`)."""
+    from skytorch.constants import ASTRONOMICAL_UNIT_M
+
+    alpha, distance, table = moon_flux_table()
+    u = min(max(geometry.phase_angle_rad, 0.0), math.pi) / math.pi * (alpha.size - 1)
+    v = (min(max(geometry.moon_distance_m, distance[0]), distance[-1]) - distance[0]) / (
+        distance[1] - distance[0])
+    i, j = min(int(u), alpha.size - 2), min(int(v), distance.size - 2)
+    fu, fv = u - i, v - j
+    values = ((1 - fu) * (1 - fv) * table[i, j] + fu * (1 - fv) * table[i + 1, j]
+              + (1 - fu) * fv * table[i, j + 1] + fu * fv * table[i + 1, j + 1])
+    scale = (ASTRONOMICAL_UNIT_M / geometry.sun_distance_m) ** 2
+    total, sunlit = float(values[0]) * scale, float(values[1]) * scale
+    return total, total - sunlit
 
 
-@lru_cache(maxsize=64)
-def _moon_fluxes_cached(phase_angle_rad: float, moon_distance_m: float,
-                        sun_distance_m: float) -> tuple[float, float]:
+@lru_cache(maxsize=1)
+def moon_flux_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Moon's V flux with and without earthshine over phase angle and distance.
+
+    Returns
+    -------
+    alpha_rad : ndarray (MOON_TABLE_PHASES,)
+        Phase angles, uniform in [0, π].
+    distance_m : ndarray (MOON_TABLE_DISTANCES,)
+        Observer–Moon distances, uniform over :data:`MOON_TABLE_DISTANCE_RANGE_M`.
+    flux : ndarray (phase, distance, 2)
+        Flux relative to V = 0 at 1 AU from the Sun, with earthshine and without
+        (:func:`skytorch.moon.magnitude`, :data:`PLANNER_MOON_QUADRATURE` nodes).
+    """
     from skytorch.moon import magnitude
 
-    alpha = torch.tensor(phase_angle_rad, dtype=torch.float64)
-    options = {"distance_m": moon_distance_m,
-               "sun_distance_m": sun_distance_m,
-               "n_quadrature": PLANNER_MOON_QUADRATURE}
-    with_es = float(magnitude(alpha, earthshine=True, **options))
-    without = float(magnitude(alpha, earthshine=False, **options))
-    total = _flux(with_es)
-    return total, total - (_flux(without) if math.isfinite(without) else 0.0)
+    alpha = torch.linspace(0.0, math.pi, MOON_TABLE_PHASES, dtype=torch.float64)
+    distance = torch.linspace(*MOON_TABLE_DISTANCE_RANGE_M, MOON_TABLE_DISTANCES,
+                              dtype=torch.float64)
+    options = {"distance_m": distance[None, :], "n_quadrature": PLANNER_MOON_QUADRATURE}
+    fluxes = [10.0 ** (-0.4 * magnitude(alpha[:, None], earthshine=earthshine, **options))
+              for earthshine in (True, False)]
+    return alpha.numpy(), distance.numpy(), torch.stack(fluxes, -1).numpy()
+
+
+def _eclipse_bounds(geometry: Geometry) -> float:
+    """Lower bound of the Moon's disc-averaged illuminance in the Earth's shadow.
+
+    The fraction of the Sun visible past an opaque sphere as large as the top of the
+    atmosphere (:func:`skytorch.eclipse.sun_visible_fraction`, limb-darkened) at the
+    point of the disc nearest the shadow axis: light through the atmosphere only adds to
+    it, and the visible fraction grows with the offset from the axis.
+    """
+    from skytorch.eclipse import sun_visible_fraction
+    from skytorch.eclipse.shadow import shadow_angles
+
+    nearest = max(geometry.shadow_offset_m - _moon_radius(), 0.0)
+    angles = shadow_angles(torch.tensor(geometry.shadow_distance_m, dtype=torch.float64),
+                           torch.tensor(nearest, dtype=torch.float64),
+                           geometry.sun_distance_m, SUN_RADIUS_M,
+                           EARTH_MEAN_RADIUS_M + EARTH_TOP_OF_ATMOSPHERE_M)
+    return float(sun_visible_fraction(angles["sun_radius_rad"], angles["occluder_radius_rad"],
+                                      angles["separation_rad"]))
 
 
 def _above_horizon(altitude_deg: float) -> bool:
@@ -342,14 +392,15 @@ def plan(scene, view=None) -> Plan:
         decided["moon"] = (s >= tol, f"Moon {s:.1e} of the image flux")
     reach = g.penumbra_radius_m + _moon_radius()
     inside = g.shadow_distance_m > 0.0 and g.shadow_offset_m < reach
-    eclipse = None
-    if inside and moon_up and "eclipse" not in scene.exclude:
-        eclipse = _eclipse_factor(scene, g)
-        dimmed = moon_total * float(eclipse.mean())
-        total = total - moon + dimmed
-        moon = dimmed
-        s = share("moon", moon)
-        decided["moon"] = (s >= tol, f"eclipsed Moon {s:.1e} of the image flux")
+    lit = 1.0
+    if inside and moon_up:
+        # bounds, not estimates: the Moon's share is at most the uneclipsed Moon's; in the
+        # total (the denominator of every share) it counts with its least illuminance
+        lit = _eclipse_bounds(g)
+        total = total - moon + moon_total * lit
+        s = share("moon", moon_total)
+        decided["moon"] = (s >= tol, f"Moon in the Earth's shadow, at most {s:.1e} of the "
+                                     "image flux")
     moon_on = decided["moon"][0] or "moon" in scene.force
     s = share("earthshine", earthshine if moon_on else 0.0)
     decided["earthshine"] = (moon_on and s >= tol,
@@ -362,10 +413,9 @@ def plan(scene, view=None) -> Plan:
                                      f"{g.shadow_offset_m / 1e3:.0f} km > "
                                      f"{reach / 1e3:.0f} km)")
     else:
-        s = share("eclipse", moon_total * float((1.0 - eclipse).max()) if eclipse is not None
-                  else moon_total)
-        decided["eclipse"] = (s >= tol, f"the Earth's shadow dims the Moon by {s:.1e} of the "
-                                        "image flux")
+        s = share("eclipse", moon_total * (1.0 - lit))
+        decided["eclipse"] = (s >= tol, f"the Earth's shadow dims the Moon by up to {s:.1e} "
+                                        "of the image flux")
     if not points:
         decided["stars"] = (False, "a directions view holds no point sources")
     else:
@@ -417,58 +467,17 @@ def plan(scene, view=None) -> Plan:
             computed.append(name)
         else:
             skipped[name] = reason
-    result = Plan(tuple(computed), skipped, shares, g, _time.perf_counter() - start,
-                  eclipse_factor=eclipse)
+    result = Plan(tuple(computed), skipped, shares, g, _time.perf_counter() - start)
     logger.info("plan: computed %s; skipped %s", result.computed, result.skipped)
     return result
 
 
-def _eclipse_factor(scene, geometry: Geometry) -> torch.Tensor:
-    """:func:`skytorch.scene.render.eclipse_factor`, cached per atmosphere, geometry and
-    wavelength grid (a fresh copy each call)."""
-    wavelength = scene.wavelength_nm().to(torch.float64)
-    key = (float(scene.turbidity), float(scene.ozone_du), geometry.sun_distance_m,
-           geometry.shadow_distance_m, geometry.shadow_offset_m,
-           tuple(wavelength.tolist()))
-    return _eclipse_factor_cached(key).clone()
-
-
-@lru_cache(maxsize=64)
-def _eclipse_factor_cached(key) -> torch.Tensor:
-    from skytorch.scene.render import eclipse_factor
-
-    turbidity, ozone_du, sun_distance_m, shadow_distance_m, shadow_offset_m, wavelength = key
-    scene = _AtmosphereKey(turbidity, ozone_du)
-    geometry = _ShadowKey(sun_distance_m, shadow_distance_m, shadow_offset_m)
-    return eclipse_factor(scene, geometry, torch.tensor(wavelength, dtype=torch.float64))
-
-
-@dataclass(frozen=True)
-class _AtmosphereKey:
-    turbidity: float
-    ozone_du: float
-
-    def atmosphere(self):
-        from skytorch.scene.render import cached_atmosphere
-
-        return cached_atmosphere(self.turbidity, self.ozone_du)
-
-
-@dataclass(frozen=True)
-class _ShadowKey:
-    sun_distance_m: float
-    shadow_distance_m: float
-    shadow_offset_m: float
-
-
 def clear_cache() -> None:
-    """Forget the cached geometry, Moon fluxes and eclipse factors (a cold planner)."""
-    _site_geometry.cache_clear()
-    _moon_fluxes_cached.cache_clear()
-    _eclipse_factor_cached.cache_clear()
+    """Forget the geometry cached per time and site (a planner meeting a new instant)."""
+    from skytorch.scene.geometry import clear_cache as clear_geometry
+
+    clear_geometry()
 
 
 def _moon_radius() -> float:
-    from skytorch.constants import MOON_RADIUS_M
-
     return MOON_RADIUS_M

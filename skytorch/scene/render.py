@@ -16,9 +16,11 @@ overlap in at most one pixel and are not occluded here):
 * ``moon`` — the disc's irradiance (:func:`skytorch.moon.lunar_irradiance`) times the
   transmittance along the line of sight, spread over the pixel that holds it, plus the
   moonlit sky (:func:`skytorch.moon.sky.moonlit_sky_single_scattering`) tabulated
-  like the sky; during an eclipse both are multiplied by the relative illuminance of
-  the Earth's shadow (:meth:`skytorch.eclipse.Shadow.relative_illuminance`) at the
-  Moon's centre.
+  like the sky; during an eclipse each pixel of the disc is multiplied by the relative
+  illuminance of the Earth's shadow (:meth:`skytorch.eclipse.Shadow.relative_illuminance`)
+  at the lunar surface point its centre sees (a disc smaller than a pixel, and the
+  moonlit sky, by the shadow averaged over the disc), so a resolved disc shows the
+  umbra's edge.
 * ``sun`` — the solar irradiance times the transmittance, spread over its pixel.
 * ``stars`` — catalogue stars (:func:`skytorch.stars.observe`, magnitudes after
   extinction) with black-body spectra of their B−V temperature
@@ -129,15 +131,103 @@ def moon_table(scene, geometry, knobs, wavelength):
         n_quadrature=knobs["moon_quadrature"])
 
 
-def eclipse_factor(scene, geometry, wavelength) -> torch.Tensor:
-    """Relative illuminance of the Earth's shadow at the Moon's centre (n_wavelength,)."""
+@lru_cache(maxsize=8)
+def cached_shadow(turbidity: float, ozone_du: float):
+    """The Earth's shadow (:meth:`skytorch.eclipse.Shadow.earth`) for the scene's atmosphere;
+    shared, so its ring table is traced once per atmosphere and wavelength grid."""
     from skytorch.eclipse import Shadow
 
-    shadow = Shadow.earth(scene.atmosphere(), sun_distance_m=geometry.sun_distance_m)
-    return shadow.relative_illuminance(
-        torch.tensor(geometry.shadow_distance_m, dtype=torch.float64),
-        torch.tensor(geometry.shadow_offset_m, dtype=torch.float64),
-        wavelength.to(torch.float64))
+    return Shadow.earth(cached_atmosphere(turbidity, ozone_du))
+
+
+def shadow_illuminance(scene, geometry, points_m: torch.Tensor, wavelength) -> torch.Tensor:
+    """Relative illuminance of the Earth's shadow (n, wl) at points (n, 3) [m].
+
+    The points are given from the observer in the horizontal frame (north, east, up);
+    their distance along the anti-Sun axis and their offset from it are measured from the
+    Earth's centre (:meth:`skytorch.eclipse.Shadow.relative_illuminance`).
+    """
+    observer = torch.tensor(geometry.observer_horizontal_m, dtype=torch.float64)
+    sun = torch.tensor(geometry.sun_horizontal_m, dtype=torch.float64) + observer
+    sun_distance = torch.linalg.vector_norm(sun)
+    axis = sun / sun_distance
+    geocentric = points_m.to(torch.float64) + observer
+    along = -(geocentric @ axis)
+    offset = torch.linalg.vector_norm(geocentric + along[..., None] * axis, dim=-1)
+    shadow = cached_shadow(float(scene.turbidity), float(scene.ozone_du))
+    return shadow.relative_illuminance(along, offset, wavelength.to(torch.float64),
+                                       sun_distance_m=sun_distance)
+
+
+def moon_surface_points(geometry, directions: torch.Tensor) -> torch.Tensor:
+    """Where lines of sight (n, 3) (unit, horizontal frame) meet the Moon's near side [m].
+
+    A line that misses the sphere gives its point of closest approach to the centre.
+    """
+    centre = torch.tensor(geometry.moon_horizontal_m, dtype=torch.float64)
+    along = directions @ centre
+    discriminant = along * along - centre @ centre + MOON_RADIUS_M ** 2
+    depth = along - torch.sqrt(discriminant.clamp(min=0.0))
+    return depth[..., None] * directions
+
+
+def _rotation(source: torch.Tensor, target: torch.Tensor):
+    """The rotation taking the unit vector ``source`` to ``target`` (Rodrigues), as a
+    function of vectors (..., 3)."""
+    axis = torch.linalg.cross(source, target)
+    cosine = float(source @ target)
+
+    def rotate(vectors):
+        once = torch.linalg.cross(axis.expand_as(vectors), vectors)
+        twice = torch.linalg.cross(axis.expand_as(vectors), once)
+        return vectors + once + twice / (1.0 + cosine)
+
+    return rotate
+
+
+def eclipse_factor(scene, geometry, wavelength, n_disc: int = 8) -> torch.Tensor:
+    """Relative illuminance of the Earth's shadow averaged over the Moon's visible disc
+    (n_wavelength,) (area-weighted over :func:`skytorch.moon.disc_grid` points on the near
+    hemisphere; a uniformly bright disc, as drawn by the render)."""
+    from skytorch.moon.disc import disc_grid
+
+    grid = disc_grid(n_disc, dtype=torch.float64)
+    centre = torch.tensor(geometry.moon_horizontal_m, dtype=torch.float64)
+    line = centre / torch.linalg.vector_norm(centre)
+    helper = torch.tensor([0.0, 0.0, 1.0] if abs(float(line[2])) < 0.9 else [1.0, 0.0, 0.0],
+                          dtype=torch.float64)
+    first = helper - (helper @ line) * line
+    first = first / torch.linalg.vector_norm(first)
+    second = torch.linalg.cross(line, first)
+    depth = torch.sqrt((1.0 - grid["x"] ** 2 - grid["y"] ** 2).clamp(min=0.0))
+    points = centre + MOON_RADIUS_M * (grid["x"][:, None] * first + grid["y"][:, None] * second
+                                       - depth[:, None] * line)
+    factor = shadow_illuminance(scene, geometry, points, wavelength)
+    weight = grid["weight"] / grid["weight"].sum()
+    return (weight[:, None] * factor).sum(0)
+
+
+def moon_shade(scene, geometry, wavelength, apparent_altitude_rad: float, mean):
+    """Shadow factor of the pixels of the Moon's disc: a function of their apparent
+    directions (n, 3) -> (n, wl), each pixel's factor at the lunar surface point its
+    centre sees (the apparent directions rotated by the refraction of the Moon's centre),
+    and ``mean`` (wl,), the disc average (:func:`eclipse_factor`), for a disc smaller than
+    a pixel."""
+    centre = torch.tensor(geometry.moon_horizontal_m, dtype=torch.float64)
+    true = centre / torch.linalg.vector_norm(centre)
+    azimuth = math.radians(geometry.moon_azimuth_deg)
+    apparent = torch.tensor([math.cos(apparent_altitude_rad) * math.cos(azimuth),
+                             math.cos(apparent_altitude_rad) * math.sin(azimuth),
+                             math.sin(apparent_altitude_rad)], dtype=torch.float64)
+    rotate = _rotation(apparent, true)
+
+    def shade(directions):
+        if directions is None:
+            return mean
+        return shadow_illuminance(scene, geometry,
+                                  moon_surface_points(geometry, rotate(directions)), wavelength)
+
+    return shade
 
 
 def _splat(view, altitude_rad, azimuth_rad, flux, n_wavelength, dtype) -> torch.Tensor:
@@ -153,11 +243,14 @@ def _splat(view, altitude_rad, azimuth_rad, flux, n_wavelength, dtype) -> torch.
 
 
 def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux,
-          dtype) -> torch.Tensor:
-    """A uniform disc of angular radius ``radius_rad`` and total flux (wl,) as radiance.
+          dtype, shade=None) -> torch.Tensor:
+    """A disc of angular radius ``radius_rad`` and total flux (wl,) as radiance.
 
     Pixels whose centres lie within the radius share the flux in proportion to their
     solid angle; a disc smaller than a pixel falls in the pixel that holds its centre.
+    ``shade`` (optional) multiplies the radiance of each disc pixel: a function of the
+    pixels' unit directions (n, 3) returning (n, wl), called with ``None`` for the factor
+    of a disc smaller than a pixel (wl,).
     """
     n_wavelength = flux.shape[-1]
     if view.kind == "directions" or altitude_rad + radius_rad < 0.0:
@@ -169,11 +262,16 @@ def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux
     inside = (cos_distance >= math.cos(radius_rad)) & (view.solid_angle_sr > 0)
     zenith = view.zenith_rad.to(torch.float64)
     if not bool(inside.any()):
+        if shade is not None:
+            flux = flux * shade(None)
         return _splat(view, torch.tensor([altitude_rad]), torch.tensor([azimuth_rad]),
                       flux[None], n_wavelength, dtype)
     weight = torch.where(inside, torch.ones_like(zenith), torch.zeros_like(zenith))
     radiance = flux.to(torch.float64) / float((weight * view.solid_angle_sr).sum())
-    return (weight[..., None] * radiance).to(dtype)
+    image = weight[..., None] * radiance
+    if shade is not None:
+        image[inside] = image[inside] * shade(view.unit_vectors()[inside])
+    return image.to(dtype)
 
 
 def refracted_altitude(scene, true_altitude_rad: float) -> float:
@@ -226,9 +324,10 @@ def sun_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor
 
 
 def moon_component(scene, view, geometry, wavelength, knobs, *, earthshine: bool,
-                   eclipse, refraction: bool) -> torch.Tensor:
-    """The Moon (*view, wl) [W m^-2 sr^-1 nm^-1]: its disc (irradiance times transmittance,
-    times the shadow factor ``eclipse`` (wl,) when given) plus the moonlit sky."""
+                   eclipse: bool, refraction: bool) -> torch.Tensor:
+    """The Moon (*view, wl) [W m^-2 sr^-1 nm^-1]: its disc (irradiance times transmittance;
+    with ``eclipse``, each disc pixel times the Earth's shadow at the lunar surface it
+    sees, :func:`moon_shade`) plus the moonlit sky (times the disc-averaged shadow)."""
     from skytorch.moon import lunar_irradiance
 
     wl = wavelength.to(torch.float64)
@@ -238,14 +337,16 @@ def moon_component(scene, view, geometry, wavelength, knobs, *, earthshine: bool
                                   sun_distance_m=geometry.sun_distance_m,
                                   earthshine=earthshine,
                                   n_quadrature=knobs["moon_disc_quadrature"])
-    factor = torch.ones_like(wl) if eclipse is None else eclipse
-    flux = irradiance * _point_transmittance(scene, max(altitude, 0.0), wavelength) * factor
-    radius = math.asin(MOON_RADIUS_M / geometry.moon_distance_m)
-    disc = _disc(view, altitude, math.radians(geometry.moon_azimuth_deg), radius, flux,
-                 scene.dtype)
+    flux = irradiance * _point_transmittance(scene, max(altitude, 0.0), wavelength)
+    mean = eclipse_factor(scene, geometry, wavelength) if eclipse else None
+    shade = moon_shade(scene, geometry, wavelength, altitude, mean) if eclipse else None
+    disc = _disc(view, altitude, math.radians(geometry.moon_azimuth_deg),
+                 geometry.moon_radius_rad, flux, scene.dtype, shade)
     if altitude < 0.0:  # below the horizon: single scattering of a set Moon is omitted
         return disc
-    table = moon_table(scene, geometry, knobs, wavelength) * factor
+    table = moon_table(scene, geometry, knobs, wavelength)
+    if eclipse:
+        table = table * mean
     relative = view.azimuth_rad.to(torch.float64) - math.radians(geometry.moon_azimuth_deg)
     sky = _lookup(table, view.zenith_rad.to(torch.float64).clamp(max=_MAX_MOONLIT_ZENITH),
                   relative)
@@ -428,13 +529,9 @@ def render_components(scene, plan, view) -> tuple[dict, dict]:
     if "stars" in plan.computed:
         timed("stars", lambda: stars_component(scene, view, g, wavelength, refraction))
     if "moon" in plan.computed:
-        eclipse = None
-        if "eclipse" in plan.computed:
-            eclipse = (plan.eclipse_factor if plan.eclipse_factor is not None
-                       else eclipse_factor(scene, g, wavelength))
         timed("moon", lambda: moon_component(
             scene, view, g, wavelength, knobs, earthshine="earthshine" in plan.computed,
-            eclipse=eclipse, refraction=refraction))
+            eclipse="eclipse" in plan.computed, refraction=refraction))
     if "sun" in plan.computed:
         timed("sun", lambda: sun_component(scene, view, g, wavelength, refraction))
     return components, seconds
