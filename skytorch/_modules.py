@@ -7,6 +7,9 @@ attribute holds the module and the module is made callable as its namesake funct
 ``st.sweep(fn, ...)``, ``st.moon.reflectance(mu0, mu, g)``, ``from
 skytorch.moon.reflectance import albedo`` and ``import skytorch.sweep`` all work.
 
+Such a module pickles by reference (its import name, as functions do), so it can be sent
+to other processes, e.g. as the swept function on dask worker processes.
+
 Examples
 --------
 >>> import inspect
@@ -15,10 +18,14 @@ Examples
 (True, True)
 >>> list(inspect.signature(module).parameters)[:3]
 ['mu0', 'mu', 'phase_angle_rad']
+>>> import pickle
+>>> pickle.loads(pickle.dumps(module)) is module
+True
 """
 
 from __future__ import annotations
 
+import importlib
 import inspect
 import sys
 import types
@@ -36,6 +43,10 @@ class FunctionModule(types.ModuleType):
     @property
     def __signature__(self) -> inspect.Signature:
         return inspect.signature(self._namesake())
+
+    def __reduce__(self):
+        # modules cannot be pickled by value; this one is re-imported by name on unpickling
+        return importlib.import_module, (self.__name__,)
 
 
 def make_callable(module_name: str) -> None:

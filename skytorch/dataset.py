@@ -14,7 +14,10 @@ which enforces the conventions of ``DESIGN.md``:
 
 :func:`to_netcdf` writes atomically (a temporary file renamed into place, so an
 interrupted write never destroys an existing file) and :func:`open_dataset` reads the file
-back fully into memory; the round trip is exact.
+back fully into memory; the round trip is exact. :func:`to_zarr` does the same for a Zarr
+store (a directory; needs the optional ``zarr`` package, ``pip install 'skytorch[zarr]'``),
+:func:`write_dataset` chooses between the two by the path's suffix (``.zarr`` or not) and
+:func:`open_dataset` reads both.
 
 Examples
 --------
@@ -35,7 +38,9 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import os
+import shutil
 import tempfile
+import uuid
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,10 +56,19 @@ __all__ = [
     "open_dataset",
     "to_netcdf",
     "to_numpy",
+    "to_zarr",
     "variable",
+    "write_dataset",
 ]
 
 CONVENTIONS = "CF-1.10"
+#: path suffix of a Zarr store (:func:`write_dataset`, :func:`open_dataset`)
+ZARR_SUFFIX = ".zarr"
+#: Zarr format written by :func:`to_zarr`: version 2, which every Zarr reader supports and
+#: which, unlike version 3 in zarr-python 3.1, has a specified encoding for string arrays
+ZARR_FORMAT = 2
+#: the ``pip install`` extra that provides zarr
+ZARR_EXTRA = "skytorch[zarr]"
 
 
 @dataclass(frozen=True)
@@ -241,6 +255,13 @@ def _sanitized(dataset: xr.Dataset) -> xr.Dataset:
     return out
 
 
+def _time_encoding(dataset: xr.Dataset) -> dict[str, dict[str, str]]:
+    """Datetimes as int64 nanoseconds since 1970, so that the round trip is exact."""
+    return {name: {"units": "nanoseconds since 1970-01-01", "dtype": "int64"}
+            for name, var in dataset.variables.items()
+            if np.issubdtype(var.dtype, np.datetime64)}
+
+
 def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
     """Write ``dataset`` to a netCDF-4 file atomically and return the path.
 
@@ -273,14 +294,10 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     dataset = _sanitized(dataset)
-    encoding = {}
-    for name, var in dataset.variables.items():
-        if np.issubdtype(var.dtype, np.datetime64):
-            encoding[name] = {"units": "nanoseconds since 1970-01-01", "dtype": "int64"}
     handle, temporary = tempfile.mkstemp(suffix=".nc.tmp", dir=path.parent)
     os.close(handle)
     try:
-        dataset.to_netcdf(temporary, engine="netcdf4", encoding=encoding)
+        dataset.to_netcdf(temporary, engine="netcdf4", encoding=_time_encoding(dataset))
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
@@ -288,7 +305,131 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
     return path
 
 
+def _import_zarr():
+    """The zarr package, or an ImportError that names the extra providing it."""
+    try:
+        import zarr
+    except ImportError as error:
+        raise ImportError(
+            f"Zarr export needs the optional dependency zarr: pip install '{ZARR_EXTRA}' "
+            "(or pip install zarr); netCDF (to_netcdf) needs nothing extra"
+        ) from error
+    return zarr
+
+
+def _replace_path(source: Path, destination: Path) -> None:
+    """Move ``source`` (a file or directory) to ``destination``, replacing what is there.
+
+    An existing destination is first renamed aside and only deleted once ``source`` is in
+    place, so at every instant either the old or the new content is complete on disk.
+    """
+    if not destination.exists() and not destination.is_symlink():
+        os.replace(source, destination)
+        return
+    aside = destination.with_name(f".{destination.name}.{uuid.uuid4().hex[:12]}.old")
+    os.replace(destination, aside)
+    try:
+        os.replace(source, destination)
+    except BaseException:
+        os.replace(aside, destination)
+        raise
+    if aside.is_dir() and not aside.is_symlink():
+        shutil.rmtree(aside, ignore_errors=True)
+    else:
+        aside.unlink(missing_ok=True)
+
+
+def to_zarr(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
+    """Write ``dataset`` to a Zarr store (a directory) atomically and return the path.
+
+    The store is first written to a temporary directory next to its destination and then
+    renamed into place; an existing store at ``path`` is renamed aside first and deleted
+    only after the new store is in place, so an interrupted write never leaves a partial
+    store or destroys the existing one. The store is Zarr format 2 with consolidated
+    metadata (readable by zarr-python 2 and 3, xarray and netCDF-C's NCZarr); datetimes are
+    int64 nanoseconds as in :func:`to_netcdf`, so the round trip through
+    :func:`open_dataset` is exact.
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        Built by :func:`build_dataset` (attributes are encoded as for netCDF).
+    path : str or os.PathLike
+        Destination directory, conventionally ending in ``.zarr``; missing parent
+        directories are created.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    ImportError
+        If the optional ``zarr`` package is not installed (``pip install 'skytorch[zarr]'``).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import skytorch as st
+    >>> ds = st.ephemeris.sun_moon(["2024-06-20T20:51Z"])
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     back = open_dataset(to_zarr(ds, pathlib.Path(folder) / "sun_moon.zarr"))
+    >>> bool((back.sun_dec == ds.sun_dec).all()), back.time.dtype
+    (True, dtype('<M8[ns]'))
+    """
+    _import_zarr()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    dataset = _sanitized(dataset)
+    temporary = Path(tempfile.mkdtemp(suffix=".zarr.tmp", dir=path.parent))
+    try:
+        dataset.to_zarr(temporary, mode="w", encoding=_time_encoding(dataset),
+                        zarr_format=ZARR_FORMAT, consolidated=True)
+        _replace_path(temporary, path)
+    except BaseException:
+        shutil.rmtree(temporary, ignore_errors=True)
+        raise
+    return path
+
+
+def _is_zarr(path: Path) -> bool:
+    return path.suffix.lower() == ZARR_SUFFIX
+
+
+def write_dataset(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
+    """Write ``dataset`` as a Zarr store if ``path`` ends in ``.zarr``, else as netCDF.
+
+    Both writes are atomic (:func:`to_zarr`, :func:`to_netcdf`).
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        Built by :func:`build_dataset`.
+    path : str or os.PathLike
+        ``*.zarr`` for a Zarr store (needs the optional ``zarr`` package), anything else
+        (conventionally ``*.nc``) for netCDF-4.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = Path(path)
+    return to_zarr(dataset, path) if _is_zarr(path) else to_netcdf(dataset, path)
+
+
 def open_dataset(path: str | os.PathLike) -> xr.Dataset:
-    """Read a netCDF file written by :func:`to_netcdf` fully into memory."""
-    with xr.open_dataset(path, engine="netcdf4") as dataset:
+    """Read a netCDF file or Zarr store written by this module fully into memory.
+
+    A path ending in ``.zarr`` or naming a directory is read as a Zarr store, anything
+    else as netCDF.
+    """
+    path = Path(path)
+    if _is_zarr(path) or path.is_dir():
+        _import_zarr()
+        engine = "zarr"
+    else:
+        engine = "netcdf4"
+    with xr.open_dataset(path, engine=engine) as dataset:
         return dataset.load()

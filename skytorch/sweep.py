@@ -21,10 +21,17 @@ Backends
 ``"dask"``
     Chunks run as tasks on ``dask.distributed``: a given ``client``, a scheduler at
     ``scheduler_address``, or a ``LocalCluster`` (threads in this process,
-    ``n_workers`` workers of one thread each, default 2) started and shut down by the
-    call. Results are gathered, persisted and assembled in the calling process. If a
-    chunk fails, the other chunks still run and are persisted before the first error is
-    raised (the serial backends stop at the first error).
+    ``n_workers`` workers of one thread each, default 2; worker processes with
+    ``cluster_options={"processes": True}``) started and shut down by the call. Results
+    are gathered, persisted and assembled in the calling process. If a chunk fails, the
+    other chunks still run and are persisted before the first error is raised (the
+    serial backends stop at the first error). Worker processes and remote workers
+    receive ``fn`` pickled (cloudpickle): a function defined at module level travels by
+    its import name and must be importable there (the module on the workers' path, as
+    for the package's own functions and callable modules such as
+    ``skytorch.moon.reflectance``); a lambda or a function defined in ``__main__``
+    travels by value. Scripts that start worker processes need the usual
+    ``if __name__ == "__main__":`` guard.
 
 All backends give the same Dataset (bit-identical for element-wise ``fn``; a function
 whose reductions vectorise differently over a batch may differ at the rounding level in
@@ -35,11 +42,16 @@ Chunking and resuming
 The grid is flattened in C order and cut into chunks of ``chunk_size`` points (by
 default the whole grid, or as many points as fit ``memory_budget_bytes`` given the
 size of one point's result). With ``store`` (a directory), each finished chunk is
-written as netCDF under ``store/<key>/`` where the key hashes ``fn``'s qualified name,
-the grid, the chunk size and the optional ``key`` string; a rerun loads the chunks that
+written under ``store/<name>-<key>/``, as a netCDF file or, when ``store`` ends in
+``.zarr``, as a Zarr store (optional ``zarr`` package); a rerun loads the chunks that
 exist and computes only the missing ones, so an interrupted sweep resumes where it
-stopped. The key does not see ``fn``'s code: pass a new ``key`` (e.g. a version) after
-changing ``fn``.
+stopped. The key hashes the grid, the chunk size, the optional ``key`` string and
+``fn`` itself (:func:`function_fingerprint`): its qualified name, its code (the source
+text when Python can find it, else the bytecode with its constants and the names it
+uses), its default arguments, the values it closes over and the arguments bound by
+``functools.partial``. Editing ``fn`` therefore starts a new set of chunks. Changes
+outside ``fn``'s own code (a helper it calls, a module it imports, the state of a
+callable object) are not seen: pass a new ``key`` (e.g. a version) after those.
 
 Examples
 --------
@@ -58,9 +70,11 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
+import inspect
 import json
 import logging
 import math
+import types
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
@@ -69,19 +83,21 @@ import torch
 import xarray as xr
 
 from skytorch import __version__
-from skytorch._modules import make_callable
+from skytorch._modules import FunctionModule, make_callable
 from skytorch._validate import check_choice, check_int
 from skytorch.dataset import (
+    ZARR_SUFFIX,
     VariableSpec,
+    _import_zarr,
     _sanitized,
     build_dataset,
     coordinate,
     open_dataset,
-    to_netcdf,
     to_numpy,
+    write_dataset,
 )
 
-__all__ = ["BACKENDS", "sweep"]
+__all__ = ["BACKENDS", "function_fingerprint", "sweep"]
 
 logger = logging.getLogger(__name__)
 
@@ -129,9 +145,22 @@ def _python_value(value):
     return value.item() if isinstance(value, np.generic) else value
 
 
+def _unwrap(fn: Callable) -> tuple[Callable, list[tuple[tuple, dict]]]:
+    """``fn`` without ``functools.partial`` layers and callable-module wrappers, and the
+    arguments the partials bind (outermost first)."""
+    bound = []
+    while True:
+        if isinstance(fn, functools.partial):
+            bound.append((fn.args, dict(fn.keywords)))
+            fn = fn.func
+        elif isinstance(fn, FunctionModule):
+            fn = fn._namesake()
+        else:
+            return fn, bound
+
+
 def _function_name(fn: Callable) -> str:
-    while isinstance(fn, functools.partial):
-        fn = fn.func
+    fn = _unwrap(fn)[0]
     module = getattr(fn, "__module__", None) or type(fn).__module__
     name = getattr(fn, "__qualname__", None) or type(fn).__qualname__
     return f"{module}.{name}"
@@ -288,9 +317,143 @@ def _compute_chunk(fn: Callable, names: tuple[str, ...], grids: tuple[np.ndarray
 
 # --- store ---------------------------------------------------------------------------------
 
+def _stable(value, containers: bool = True):
+    """A JSON-able description of ``value`` that is the same in every process and run.
+
+    Numbers, strings, tuples, frozensets, arrays and tensors are described by value
+    (arrays and tensors by dtype, shape and a hash of their bytes), and so are lists, sets
+    and mappings when ``containers`` is true; functions, classes and modules by their
+    qualified name; anything else (and, with ``containers`` false, a list, set or mapping,
+    which may be a cache or an accumulator filled by the calls) by its type only.
+    """
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, bytes):
+        return {"bytes": hashlib.sha256(value).hexdigest()}
+    if isinstance(value, (complex, np.generic, np.datetime64)):
+        return repr(value)
+    if isinstance(value, (torch.Tensor, np.ndarray)):
+        array = np.ascontiguousarray(to_numpy(value))
+        return {"array": str(array.dtype), "shape": list(array.shape),
+                "sha256": hashlib.sha256(array.tobytes()).hexdigest()}
+    if isinstance(value, tuple) or (containers and isinstance(value, list)):
+        return [_stable(v, containers) for v in value]
+    if isinstance(value, frozenset) or (containers and isinstance(value, set)):
+        return sorted((_stable(v, containers) for v in value),
+                      key=lambda v: json.dumps(v, sort_keys=True))
+    if containers and isinstance(value, Mapping):
+        return {str(k): _stable(v, containers) for k, v in value.items()}
+    if isinstance(value, types.ModuleType):
+        return {"module": value.__name__}
+    if isinstance(value, (types.FunctionType, types.BuiltinFunctionType, types.MethodType,
+                          type, functools.partial)):
+        return {"callable": _function_name(value)}
+    return {"object": f"{type(value).__module__}.{type(value).__qualname__}"}
+
+
+def _code_constant(value) -> str:
+    """A process-independent text for one constant of a code object."""
+    if isinstance(value, types.CodeType):
+        return _code_digest(value)
+    if isinstance(value, frozenset):
+        return "frozenset(" + ",".join(sorted(_code_constant(v) for v in value)) + ")"
+    if isinstance(value, tuple):
+        return "(" + ",".join(_code_constant(v) for v in value) + ")"
+    return repr(value)
+
+
+def _code_digest(code: types.CodeType) -> str:
+    """Hash of a code object's bytecode, constants (nested code included) and names."""
+    digest = hashlib.sha256(code.co_code)
+    for part in (code.co_names, code.co_varnames, code.co_freevars):
+        digest.update(repr(part).encode())
+    for const in code.co_consts:
+        digest.update(_code_constant(const).encode())
+    return digest.hexdigest()
+
+
+def _code_identity(fn: Callable) -> dict[str, str | None]:
+    """Source hash (when Python can find the source) or bytecode hash of ``fn``."""
+    target = fn
+    if not isinstance(fn, (types.FunctionType, types.MethodType, type,
+                           types.BuiltinFunctionType)):
+        target = type(fn).__call__  # a callable object: its class's __call__
+    target = inspect.unwrap(target)
+    try:
+        source = inspect.getsource(target)
+    except (OSError, TypeError):
+        source = None
+    if source is not None:
+        return {"source_sha256": hashlib.sha256(source.encode()).hexdigest()}
+    code = getattr(getattr(target, "__func__", target), "__code__", None)
+    return {"bytecode_sha256": None if code is None else _code_digest(code)}
+
+
+def function_fingerprint(fn: Callable) -> str:
+    """A hash that changes when the swept function ``fn`` is edited.
+
+    It covers ``fn``'s qualified name; its code: the source text when Python can find it
+    (``inspect.getsource``), else its bytecode with the constants (nested functions
+    included) and the global and attribute names it uses; its default arguments and the
+    values of the variables it closes over (numbers, strings, tuples, arrays, tensors; a
+    list, set, dict or other object only by its type, since it may be a cache or a
+    counter that the calls change); and the arguments bound by ``functools.partial``
+    (containers included, as in the ``[fixed]`` table of ``skytorch sweep``). A callable
+    module (``skytorch.sweep``,
+    ``skytorch.moon.reflectance``) is identified by its namesake function and a callable
+    object by its class's ``__call__``. What ``fn`` calls or imports is not covered.
+
+    Parameters
+    ----------
+    fn : callable
+        The swept function.
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits (SHA-256), the same in every process and run for the same
+        code.
+
+    Examples
+    --------
+    >>> def f(x):
+    ...     return x + 1
+    >>> def g(x):
+    ...     return x + 2
+    >>> function_fingerprint(f) == function_fingerprint(f)
+    True
+    >>> function_fingerprint(f) == function_fingerprint(g)
+    False
+    """
+    target, bound = _unwrap(fn)
+    closure = getattr(target, "__closure__", None) or ()
+    cells = []
+    for cell in closure:
+        try:
+            cells.append(_stable(cell.cell_contents, containers=False))
+        except ValueError:  # an empty cell (a variable not yet assigned)
+            cells.append(None)
+    description = {
+        "function": _function_name(target),
+        "code": _code_identity(target),
+        "defaults": _stable(getattr(target, "__defaults__", None), containers=False),
+        "keyword_defaults": _stable(getattr(target, "__kwdefaults__", None), containers=False),
+        "closure": cells,
+        "bound": _stable(bound),
+    }
+    text = json.dumps(description, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _store_format(store) -> str:
+    """``".zarr"`` for a store path ending in ``.zarr`` (Zarr chunks), else ``".nc"``."""
+    return ZARR_SUFFIX if Path(store).suffix.lower() == ZARR_SUFFIX else ".nc"
+
+
 def _store_directory(store, fn, names, grids, chunk_size, backend, key) -> Path:
     description = {
         "function": _function_name(fn),
+        "function_fingerprint": function_fingerprint(fn),
         "parameters": {n: [str(v) for v in g.tolist()] for n, g in zip(names, grids, strict=True)},
         "dtypes": {n: str(g.dtype) for n, g in zip(names, grids, strict=True)},
         "chunk_size": chunk_size,
@@ -307,16 +470,16 @@ def _store_directory(store, fn, names, grids, chunk_size, backend, key) -> Path:
     return directory
 
 
-def _chunk_path(directory: Path, start: int, stop: int) -> Path:
-    return directory / f"chunk_{start:09d}_{stop:09d}.nc"
+def _chunk_path(directory: Path, start: int, stop: int, suffix: str = ".nc") -> Path:
+    return directory / f"chunk_{start:09d}_{stop:09d}{suffix}"
 
 
 def _load_chunk(path: Path) -> xr.Dataset | None:
-    if not path.is_file():
+    if not path.exists():
         return None
     try:
         return open_dataset(path)
-    except (OSError, ValueError, RuntimeError) as error:  # unreadable: compute it again
+    except (OSError, ValueError, RuntimeError, KeyError) as error:  # unreadable: recompute
         logger.warning("recomputing unreadable sweep chunk %s (%s)", path, error)
         return None
 
@@ -459,9 +622,11 @@ def sweep(
         Bound on the result bytes held per chunk; the size of one point's result is
         measured with one evaluation at the first grid point.
     store : str or Path, optional
-        Directory for resumable chunk results (netCDF); see the module docstring.
+        Directory for resumable chunk results: netCDF files, or Zarr stores when the path
+        ends in ``.zarr`` (needs the optional ``zarr`` package); see the module docstring.
     key : str, optional
-        Extra text hashed into the store key (e.g. a version of ``fn``).
+        Extra text hashed into the store key, e.g. a version of what ``fn`` calls (``fn``'s
+        own code is hashed already, :func:`function_fingerprint`).
     progress : bool
         Show a tqdm progress bar over grid points (only on a terminal).
     client : distributed.Client, optional
@@ -535,11 +700,15 @@ def sweep(
     spans = _chunks(n_points, chunk_size)
 
     directory = None
+    suffix = ".nc"
     results: dict[tuple[int, int], xr.Dataset] = {}
     if store is not None:
+        suffix = _store_format(store)
+        if suffix == ZARR_SUFFIX:
+            _import_zarr()  # fail before computing anything
         directory = _store_directory(store, fn, names, grids, chunk_size, backend, key)
         for start, stop in spans:
-            loaded = _load_chunk(_chunk_path(directory, start, stop))
+            loaded = _load_chunk(_chunk_path(directory, start, stop, suffix))
             if loaded is not None:
                 results[(start, stop)] = loaded
         logger.info("sweep store %s: %d of %d chunks already done", directory, len(results),
@@ -554,7 +723,7 @@ def sweep(
 
     def done(start: int, stop: int, chunk: xr.Dataset) -> None:
         if directory is not None:
-            to_netcdf(chunk, _chunk_path(directory, start, stop))
+            write_dataset(chunk, _chunk_path(directory, start, stop, suffix))
         results[(start, stop)] = chunk
         bar.update(stop - start)
 

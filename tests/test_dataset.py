@@ -15,7 +15,9 @@ from skytorch.dataset import (
     open_dataset,
     time_coordinate,
     to_netcdf,
+    to_zarr,
     variable,
+    write_dataset,
 )
 
 WAVELENGTH = VariableSpec("nm", "wavelength", "Vacuum wavelength.")
@@ -91,3 +93,75 @@ def test_shape_mismatch_and_missing_metadata():
         variable(("a", "b"), [1.0, 2.0], TAU)
     with pytest.raises(ValueError, match="lacks"):
         variable(("a",), [1.0], {"units": "1"})
+
+
+# --- Zarr -------------------------------------------------------------------------------------
+
+def _example_with_labels():
+    ds = _example()
+    labels = VariableSpec("1", "model", "Name of the model variant.")
+    return ds.assign_coords(model=coordinate("model", np.array(["bodhaine1999", "peck"]), labels))
+
+
+def test_zarr_round_trip_is_exact(tmp_path):
+    pytest.importorskip("zarr")
+    ds = _example_with_labels()
+    path = to_zarr(ds, tmp_path / "sub" / "x.zarr")
+    assert path.is_dir()
+    back = open_dataset(path)
+    # identical: values (float64 bit for bit, int32, ns datetimes, strings), dims, coords
+    # and every variable and global attribute
+    xr.testing.assert_identical(back, ds)
+    assert back["tau"].dtype == np.float64 and back["flag"].dtype == np.int32
+    assert back["time"].dtype == np.dtype("datetime64[ns]")
+    np.testing.assert_array_equal(back["time"].values.astype("int64"),
+                                  ds["time"].values.astype("int64"))  # .123456789 s kept
+    assert back["model"].values.tolist() == ["bodhaine1999", "peck"]
+    assert json.loads(back.attrs["parameters"]) == json.loads(ds.attrs["parameters"])
+    # a plain xarray reader sees the same (no skytorch-specific decoding needed)
+    with xr.open_zarr(path) as plain:
+        np.testing.assert_array_equal(plain["tau"].values, ds["tau"].values)
+
+
+def test_write_dataset_chooses_format_by_suffix(tmp_path):
+    pytest.importorskip("zarr")
+    ds = _example()
+    nc = write_dataset(ds, tmp_path / "x.nc")
+    store = write_dataset(ds, tmp_path / "x.ZARR")
+    assert nc.is_file() and nc.read_bytes()[:4] == b"\x89HDF"  # netCDF-4 is HDF5
+    assert store.is_dir() and (store / ".zmetadata").is_file()  # Zarr v2, consolidated
+    xr.testing.assert_identical(open_dataset(store), ds)
+    # netCDF reads a one-element attribute array back as a scalar; values are the same
+    xr.testing.assert_equal(open_dataset(nc), ds)
+
+
+def test_zarr_overwrite_and_interrupted_write(tmp_path, monkeypatch):
+    pytest.importorskip("zarr")
+    first, second = _example(), _example()
+    path = to_zarr(first, tmp_path / "x.zarr")
+    to_zarr(second, path)  # replaces the store
+    np.testing.assert_array_equal(open_dataset(path)["tau"].values, second["tau"].values)
+    assert [p.name for p in tmp_path.iterdir()] == ["x.zarr"]
+
+    def fail(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(xr.Dataset, "to_zarr", fail)
+    with pytest.raises(KeyboardInterrupt):
+        to_zarr(first, path)
+    np.testing.assert_array_equal(open_dataset(path)["tau"].values, second["tau"].values)
+    assert [p.name for p in tmp_path.iterdir()] == ["x.zarr"]  # no temporary left
+
+
+def test_zarr_missing_names_the_extra(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "zarr", None)  # makes `import zarr` fail
+    with pytest.raises(ImportError, match=r"skytorch\[zarr\]"):
+        to_zarr(_example(), tmp_path / "x.zarr")
+    with pytest.raises(ImportError, match=r"skytorch\[zarr\]"):
+        write_dataset(_example(), tmp_path / "y.zarr")
+    with pytest.raises(ImportError, match=r"skytorch\[zarr\]"):
+        open_dataset(tmp_path / "y.zarr")
+    assert list(tmp_path.iterdir()) == []
+    write_dataset(_example(), tmp_path / "x.nc")  # netCDF needs nothing optional

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -105,20 +109,25 @@ def test_dask_existing_client():
     xr.testing.assert_identical(serial.drop_attrs(), second.drop_attrs())
 
 
-def test_resume_after_interruption(tmp_path):
+@pytest.mark.parametrize("store_name", ["chunks", "chunks.zarr"])
+def test_resume_after_interruption(tmp_path, store_name):
+    suffix = ".zarr" if store_name.endswith(".zarr") else ".nc"
+    if suffix == ".zarr":
+        pytest.importorskip("zarr")
+    store = tmp_path / store_name
     n_points = len(TURBIDITY) * len(OZONE_DU)
     CALLS["fail_at"] = 8  # dies during the 8th call: chunks 0-2 and 3-5 are finished
     with pytest.raises(RuntimeError, match="simulated interruption"):
-        run(chunk_size=3, store=tmp_path)
-    stored = sorted(tmp_path.glob("*/chunk_*.nc"))
-    assert len(stored) == 2
+        run(chunk_size=3, store=store)
+    stored = sorted(store.glob("*/chunk_*"))
+    assert [p.suffix for p in stored] == [suffix, suffix]
     CALLS["fail_at"] = None
     CALLS["count"] = 0
-    resumed = run(chunk_size=3, store=tmp_path)
+    resumed = run(chunk_size=3, store=store)
     assert CALLS["count"] == n_points - 6  # only the two missing chunks
     np.testing.assert_allclose(resumed["transmittance"].values, reference_loop(), rtol=1e-14)
     CALLS["count"] = 0
-    again = run(chunk_size=3, store=tmp_path)
+    again = run(chunk_size=3, store=store)
     assert CALLS["count"] == 0
     xr.testing.assert_identical(resumed.drop_attrs(), again.drop_attrs())
     xr.testing.assert_identical(run().drop_attrs(), again.drop_attrs())
@@ -266,3 +275,158 @@ def test_results_changing_type_are_rejected():
                  x=[1.0, 2.0])
     with pytest.raises(ValueError, match="change"):
         st.sweep(lambda x: {"a": x} if x > 1 else {"b": x}, progress=False, x=[1.0, 2.0])
+
+
+def test_cli_sweep_zarr_output(tmp_path, monkeypatch):
+    from skytorch.cli import main
+
+    pytest.importorskip("zarr")
+    config = tmp_path / "sweep.toml"
+    config.write_text('function = "skytorch.spectrum:bv_to_temperature"\n'
+                      "[parameters]\nbv = [0.0, 0.65, 1.5]\n")
+    output = tmp_path / "sweep.zarr"
+    assert main(["sweep", str(config), "-o", str(output), "--no-progress"]) == 0
+    assert (output / ".zmetadata").is_file()
+    ds = open_dataset(output)
+    expected = [4600.0 * (1 / (0.92 * bv + 1.7) + 1 / (0.92 * bv + 0.62))  # Ballesteros 2012
+                for bv in (0.0, 0.65, 1.5)]
+    np.testing.assert_allclose(ds["result"].values, expected, rtol=1e-12)
+    assert ds.attrs["sweep_function"] == "skytorch.spectrum:bv_to_temperature"
+    # without zarr: a clear message naming the extra, before anything is computed
+    monkeypatch.setitem(sys.modules, "zarr", None)
+    assert main(["sweep", str(config), "-o", str(tmp_path / "other.zarr")]) == 2
+    assert not (tmp_path / "other.zarr").exists()
+    with pytest.raises(ImportError, match=r"skytorch\[zarr\]"):
+        run(store=tmp_path / "chunks.zarr")
+    assert CALLS["count"] == 0
+
+
+# --- dask worker processes and a remote scheduler ------------------------------------------------
+
+def square_and_pid(x):
+    """Module-level function: worker processes import it from this module by name."""
+    return {"square": x * x, "pid": os.getpid()}
+
+
+def test_dask_worker_processes():
+    # the sweep's own LocalCluster with two single-threaded worker processes
+    ds = st.sweep(square_and_pid, progress=False, backend="dask", n_workers=2, chunk_size=1,
+                  cluster_options={"processes": True}, x=[1.0, 2.0, 3.0, 4.0])
+    assert ds["square"].values.tolist() == [1.0, 4.0, 9.0, 16.0]
+    pids = set(ds["pid"].values.tolist())
+    assert os.getpid() not in pids and 1 <= len(pids) <= 2
+
+
+def test_dask_scheduler_address_identical_to_serial():
+    from distributed import LocalCluster
+
+    mu0, mu, phase = [0.3, 0.9], [0.5, 1.0], [0.2, 1.1, 2.0]
+    serial_module = st.sweep(st.moon.reflectance, progress=False, mu0=mu0, mu=mu,
+                             phase_angle_rad=phase)
+    serial = run()
+    # a scheduler on the loopback interface, reached only through its address string as a
+    # remote cluster would be: tasks, the pickled function and results all cross TCP
+    # (worker processes are covered by test_dask_worker_processes; in-process workers
+    # keep this test fast)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
+                      host="127.0.0.1", dashboard_address=":0") as cluster:
+        address = cluster.scheduler_address
+        assert isinstance(address, str) and address.startswith("tcp://127.0.0.1:")
+        remote = run(backend="dask", scheduler_address=address, chunk_size=3)
+        # a callable module as the swept function travels to the workers by name
+        remote_module = st.sweep(st.moon.reflectance, progress=False, backend="dask",
+                                 scheduler_address=address, chunk_size=4, mu0=mu0, mu=mu,
+                                 phase_angle_rad=phase)
+        assert len(cluster.scheduler_info["workers"]) == 2  # the sweep left the cluster up
+    xr.testing.assert_identical(serial.drop_attrs(), remote.drop_attrs())
+    np.testing.assert_allclose(remote["transmittance"].values, reference_loop(), rtol=1e-14)
+    xr.testing.assert_identical(serial_module.drop_attrs(), remote_module.drop_attrs())
+    assert "skytorch.moon.reflectance.reflectance" in remote_module.attrs["parameters"]
+
+
+# --- the store key follows the function's code ---------------------------------------------------
+
+def test_store_key_follows_function_code(tmp_path):
+    calls = []
+
+    def shift(x):
+        calls.append(x)
+        return x + 1.0
+
+    versions = [shift]
+
+    def shift(x):  # same qualified name, edited body
+        calls.append(x)
+        return x + 2.0
+
+    versions.append(shift)
+    grid = {"x": [0.0, 10.0, 20.0], "store": tmp_path, "chunk_size": 1, "progress": False}
+    first = st.sweep(versions[0], **grid)
+    assert len(calls) == 3 and first["result"].values.tolist() == [1.0, 11.0, 21.0]
+    second = st.sweep(versions[1], **grid)  # nothing of the first version is reused
+    assert len(calls) == 6 and second["result"].values.tolist() == [2.0, 12.0, 22.0]
+    again = st.sweep(versions[0], **grid)  # the first version's chunks are still there
+    assert len(calls) == 6 and again["result"].values.tolist() == [1.0, 11.0, 21.0]
+    assert len(list(tmp_path.glob("*/chunk_*.nc"))) == 6
+
+    def scaled(factor):
+        return lambda x: calls.append(x) or x * factor
+
+    st.sweep(scaled(2.0), **grid)
+    doubled = st.sweep(scaled(2.0), **grid)  # same code and captured value: resumed
+    tripled = st.sweep(scaled(3.0), **grid)  # same code, another captured value
+    assert len(calls) == 12
+    assert doubled["result"].values.tolist() == [0.0, 20.0, 40.0]
+    assert tripled["result"].values.tolist() == [0.0, 30.0, 60.0]
+
+
+#: a function whose code has a set constant (a frozenset, ordered by string hashes)
+MEMBER_SOURCE = "import numpy as np\ndef member(x):\n    return x in {'alpha', 'beta', 'gamma'}\n"
+
+
+def _compiled(source: str, name: str):
+    namespace = {"__name__": "generated"}
+    exec(compile(source, "<generated>", "exec"), namespace)  # no source file: bytecode hashed
+    return namespace[name]
+
+
+def test_function_fingerprint_without_source():
+    from skytorch.sweep import function_fingerprint
+
+    def fingerprint(source):
+        return function_fingerprint(_compiled("import numpy as np\n" + source, "f"))
+
+    base = fingerprint("def f(x):\n    return np.sin(x) + 1\n")
+    assert fingerprint("def f(x):\n    return np.sin(x) + 1\n") == base
+    assert fingerprint("def f(x):\n    return np.sin(x) + 2\n") != base  # a constant
+    assert fingerprint("def f(x):\n    return np.cos(x) + 1\n") != base  # a name used
+    assert fingerprint("def f(x, y=1):\n    return np.sin(x) + 1\n") != base  # a default
+    nested = "def f(x):\n    g = lambda: {0}\n    return g()\n"
+    assert fingerprint(nested.format(1)) != fingerprint(nested.format(2))  # nested code
+    add = _compiled("def add(x, y):\n    return x + y\n", "add")
+    assert (function_fingerprint(functools.partial(add, y=1.0))
+            != function_fingerprint(functools.partial(add, y=2.0)))
+    assert (function_fingerprint(st.moon.reflectance)
+            == function_fingerprint(st.moon.reflectance.reflectance))
+    assert len(base) == 64 and int(base, 16) >= 0
+
+
+def test_function_fingerprint_same_in_another_process():
+    from skytorch.sweep import function_fingerprint
+
+    script = (
+        "import sys; sys.path.insert(0, sys.argv[1])\n"
+        "import test_sweep as t\n"
+        "from skytorch.sweep import function_fingerprint as fp\n"
+        "print(fp(t._compiled(t.MEMBER_SOURCE, 'member')), fp(t.transmittance_like))\n"
+    )
+    here = os.path.dirname(__file__)
+    expected = [function_fingerprint(_compiled(MEMBER_SOURCE, "member")),
+                function_fingerprint(transmittance_like)]
+    # another string-hash seed than this process (random unless set), so another frozenset
+    # order in the bytecode constants
+    seed = "1" if os.environ.get("PYTHONHASHSEED") == "2" else "2"
+    env = {**os.environ, "PYTHONHASHSEED": seed}
+    out = subprocess.run([sys.executable, "-c", script, here], env=env, check=True,
+                         capture_output=True, text=True).stdout.split()
+    assert out == expected

@@ -1,4 +1,4 @@
-"""``skytorch sweep``: a parameter sweep described in a TOML file, written to netCDF.
+"""``skytorch sweep``: a parameter sweep described in a TOML file, written to netCDF or Zarr.
 
 The TOML file names the function by import path and gives one list per swept parameter;
 constant keyword arguments go in ``[fixed]`` and options of :func:`skytorch.sweep.sweep`
@@ -12,14 +12,19 @@ in ``[options]``::
     [fixed]        # optional: keyword arguments passed unchanged at every point
 
     [options]      # optional: backend, chunk_size, memory_budget_bytes, store, key,
-    backend = "serial"   # n_workers, scheduler_address, units = {bv = "mag"}
+    backend = "serial"   # n_workers, scheduler_address, cluster_options, units = {bv = "mag"}
+
+The output format follows the suffix of ``-o``: ``*.zarr`` writes a Zarr store (optional
+``zarr`` package, ``pip install 'skytorch[zarr]'``), anything else netCDF-4.
 
 Examples
 --------
 ::
 
     skytorch sweep sweep.toml -o out/sweep.nc
+    skytorch sweep sweep.toml -o out/sweep.zarr
     skytorch sweep sweep.toml -o out/sweep.nc --backend dask --workers 2 --store out/chunks
+    skytorch sweep sweep.toml -o out/sweep.nc --backend dask --workers 2 --processes
 
 TOML is read with the standard library's ``tomllib`` (Python >= 3.11) or, on Python 3.10,
 with the ``tomli`` package when it is installed.
@@ -37,7 +42,7 @@ logger = logging.getLogger(__name__)
 
 #: option names accepted in the TOML ``[options]`` table
 OPTIONS = ("backend", "chunk_size", "memory_budget_bytes", "store", "key", "n_workers",
-           "scheduler_address", "units", "progress")
+           "scheduler_address", "cluster_options", "units", "progress")
 
 
 def _toml_loads(text: str) -> dict:
@@ -100,20 +105,29 @@ def load_config(path: str | Path) -> dict:
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="TOML file naming the function and the parameter grids")
-    parser.add_argument("-o", "--output", required=True, help="netCDF file to write")
+    parser.add_argument("-o", "--output", required=True,
+                        help="netCDF file to write, or a Zarr store if it ends in .zarr")
     parser.add_argument("--backend", choices=("serial", "broadcast", "dask"),
                         help="override the backend of the configuration")
     parser.add_argument("--chunk-size", type=int, help="grid points per chunk")
     parser.add_argument("--store", help="directory of resumable chunk results")
     parser.add_argument("--workers", type=int, help="LocalCluster workers for --backend dask")
     parser.add_argument("--scheduler", help="dask scheduler address (instead of a LocalCluster)")
+    parser.add_argument("--processes", action="store_true",
+                        help="LocalCluster workers as processes (--backend dask; the function "
+                             "must be importable by the workers)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
-    from skytorch.dataset import to_netcdf
+    from skytorch.dataset import ZARR_SUFFIX, _import_zarr, write_dataset
     from skytorch.sweep import sweep
 
+    if Path(args.output).suffix.lower() == ZARR_SUFFIX:
+        try:
+            _import_zarr()  # before the sweep runs, not after
+        except ImportError as error:
+            raise ValueError(str(error)) from error
     config = load_config(args.config)
     options = config["options"]
     for option, value in (("backend", args.backend), ("chunk_size", args.chunk_size),
@@ -123,12 +137,14 @@ def run(args: argparse.Namespace) -> int:
             options[option] = value
     if args.no_progress:
         options["progress"] = False
+    if args.processes:
+        options["cluster_options"] = {**options.get("cluster_options", {}), "processes": True}
     fn = config["function"]
     if config["fixed"]:
         fn = functools.partial(fn, **config["fixed"])
     dataset = sweep(fn, **options, **config["parameters"])
     dataset.attrs["sweep_function"] = config["function_path"]
-    path = to_netcdf(dataset, args.output)
+    path = write_dataset(dataset, args.output)
     logger.info("wrote %s", path)
     print(f"wrote {path}: {dict(dataset.sizes)}")
     return 0
