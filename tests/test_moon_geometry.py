@@ -45,13 +45,61 @@ def test_optical_libration_meeus_53a(dtype):
 
 
 def test_axis_position_angle_meeus_53a():
-    """Meeus ex. 53.a: P = 15.08° (with physical libration, ≲ 0.03°, not modelled here)."""
-    p = g.axis_position_angle(torch.tensor(MEEUS_MOON_RA * DEGREE, dtype=torch.float64),
-                              torch.tensor(4.194 * DEGREE, dtype=torch.float64),
-                              torch.tensor(MEEUS_T, dtype=torch.float64),
-                              torch.tensor(23.440636 * DEGREE, dtype=torch.float64),
-                              torch.tensor(MEEUS_DPSI * DEGREE, dtype=torch.float64))
-    assert abs(float(p) - 15.08 * DEGREE) < 0.03 * DEGREE
+    """Meeus ex. 53.a: P = 15.08° with physical libration (b = 4.20°); 15.066° without."""
+    args = (torch.tensor(MEEUS_T, dtype=torch.float64),
+            torch.tensor(23.440636 * DEGREE, dtype=torch.float64),
+            torch.tensor(MEEUS_DPSI * DEGREE, dtype=torch.float64))
+    ra = torch.tensor(MEEUS_MOON_RA * DEGREE, dtype=torch.float64)
+    p = g.axis_position_angle(ra, torch.tensor(4.1998 * DEGREE, dtype=torch.float64), *args)
+    assert abs(float(p) - 15.08 * DEGREE) < MEEUS_TOTAL_TOLERANCE_DEG * DEGREE
+    optical = g.axis_position_angle(ra, torch.tensor(4.194 * DEGREE, dtype=torch.float64),
+                                    *args, physical=False)
+    assert abs(float(p - optical)) > 0.01 * DEGREE  # the physical terms matter at this level
+
+
+#: Meeus ex. 53.a: ρ = −0.01042°, σ = −0.01574°, τ = +0.02673°; l″ = −0.025°, b″ = +0.006°
+MEEUS_53A_RHO_SIGMA_TAU_DEG = (-0.01042, -0.01574, 0.02673)
+MEEUS_53A_PHYSICAL_DEG = (-0.025, 0.006)
+#: Meeus prints the totals l = −1.23°, b = +4.20° and P = 15.08° to 0.01°
+MEEUS_TOTAL_TOLERANCE_DEG = 0.006
+
+
+def test_physical_libration_meeus_53a(dtype):
+    """Meeus ex. 53.a: the ρ, σ, τ series, l″, b″ and the totals l = −1.23°, b = +4.20°."""
+    t = torch.tensor(MEEUS_T, dtype=dtype)
+    angles = g.physical_libration_angles(t)
+    for value, expected in zip(angles, MEEUS_53A_RHO_SIGMA_TAU_DEG, strict=True):
+        assert value.dtype == dtype
+        assert abs(float(value) - expected * DEGREE) < 0.000006 * DEGREE
+    moon = (torch.tensor(MEEUS_MOON_LON * DEGREE, dtype=dtype),
+            torch.tensor(MEEUS_MOON_LAT * DEGREE, dtype=dtype), t,
+            torch.tensor(MEEUS_DPSI * DEGREE, dtype=dtype))
+    extra = g.physical_libration(*moon)
+    for value, expected in zip(extra, MEEUS_53A_PHYSICAL_DEG, strict=True):
+        assert abs(float(value) - expected * DEGREE) < 0.0006 * DEGREE
+    lon, lat = g.libration(*moon)
+    assert abs(float(lon) - (-1.23) * DEGREE) < MEEUS_TOTAL_TOLERANCE_DEG * DEGREE
+    assert abs(float(lat) - 4.20 * DEGREE) < MEEUS_TOTAL_TOLERANCE_DEG * DEGREE
+    optical = g.libration(*moon, physical=False)
+    assert torch.equal(optical[0], g.optical_libration(*moon)[0])
+
+
+def test_physical_libration_bounded_and_differentiable():
+    """Over 1900–2050 |l″|, |b″| stay below the series bound; finite gradients.
+
+    Bound: the τ amplitudes of Meeus ch. 53 sum to 0.0505°, the ρ and σ ones to 0.058°
+    each, times tan b′ ≤ tan 7° for l″: |l″| < 0.058°, |b″| ≤ √2 · 0.058° < 0.083°.
+    """
+    t = torch.linspace(-1.0, 0.5, 2001, dtype=torch.float64, requires_grad=True)
+    # mean longitude (Meeus eq. 47.1, linear part) and β ≈ 5.128° sin F of the Moon
+    lam = (218.3164477 + 481267.88123421 * t) * DEGREE
+    beta = 5.128 * DEGREE * torch.sin(g.mean_lunar_elements(t)[0])
+    lon, lat = g.physical_libration(lam, beta, t)
+    assert float(lon.detach().abs().max()) < 0.058 * DEGREE
+    assert float(lat.detach().abs().max()) < 0.083 * DEGREE
+    assert float(lon.detach().abs().max()) > 0.02 * DEGREE  # τ's 0.025° annual term
+    (lon.sum() + lat.sum()).backward()
+    assert torch.isfinite(t.grad).all()
 
 
 def test_orientation_matrix_is_rotation():
@@ -73,10 +121,14 @@ def test_moon_geometry_dataset_reproduces_meeus():
     from skytorch.moon import moon_geometry
 
     ds = moon_geometry("1992-04-12T00:00:00")
-    assert abs(float(ds.libration_longitude[0]) - (-1.206)) < 0.003
-    assert abs(float(ds.libration_latitude[0]) - 4.194) < 0.003
+    assert abs(float(ds.optical_libration_longitude[0]) - (-1.206)) < 0.003
+    assert abs(float(ds.optical_libration_latitude[0]) - 4.194) < 0.003
+    # totals with physical libration, printed to 0.01° by Meeus: l = −1.23°, b = +4.20°
+    assert abs(float(ds.libration_longitude[0]) - (-1.23)) < MEEUS_TOTAL_TOLERANCE_DEG
+    assert abs(float(ds.libration_latitude[0]) - 4.20) < MEEUS_TOTAL_TOLERANCE_DEG
     assert abs(float(ds.bright_limb_angle[0]) - 285.0) < 0.1
-    assert abs(float(ds.axis_position_angle[0]) - 15.08) < 0.05
+    # DE421 at 0h UT instead of Meeus's ELP at 0h TD moves P by 0.003° (tensor test: 0.004°)
+    assert abs(float(ds.axis_position_angle[0]) - 15.08) < 0.01
     assert abs(float(ds.illuminated_fraction[0]) - 0.6786) < 2e-4
     assert ds.magnitude.attrs["long_name"]
 

@@ -61,11 +61,14 @@ from skytorch.moon.geometry import (
     axis_position_angle,
     bright_limb_position_angle,
     illuminated_fraction,
+    libration,
     optical_libration,
     orientation_matrix,
     parallactic_angle,
     phase_angle,
     phase_angle_from_radec,
+    physical_libration,
+    physical_libration_angles,
 )
 from skytorch.moon.module import MoonPhotometry
 from skytorch.moon.reflectance import (
@@ -101,6 +104,7 @@ __all__ = [
     "illuminated_fraction",
     "integrate_disc",
     "lambert_phase_function",
+    "libration",
     "lit_disc_quadrature",
     "lommel_seeliger",
     "lunar_irradiance",
@@ -116,6 +120,8 @@ __all__ = [
     "parallactic_angle",
     "phase_angle",
     "phase_angle_from_radec",
+    "physical_libration",
+    "physical_libration_angles",
     "radiance_to_mag_arcsec2",
     "reflectance",
     "sun_direction",

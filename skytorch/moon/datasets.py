@@ -43,15 +43,24 @@ _SPECS = {
                                       "Position angle of the midpoint of the illuminated limb, "
                                       "from the north point of the disc through east "
                                       "(Meeus eq. 48.5), geocentric."),
-    "libration_longitude": VariableSpec("degree", "optical libration in longitude",
-                                        "Optical libration l' (Meeus eq. 53.1), geocentric; "
-                                        "physical libration not included."),
-    "libration_latitude": VariableSpec("degree", "optical libration in latitude",
-                                       "Optical libration b' (Meeus eq. 53.1), geocentric."),
+    "libration_longitude": VariableSpec("degree", "libration in longitude",
+                                        "Total libration l = l' + l'' (optical, Meeus eq. "
+                                        "53.1, plus physical, Meeus ch. 53), geocentric: "
+                                        "selenographic longitude of the sub-Earth point."),
+    "libration_latitude": VariableSpec("degree", "libration in latitude",
+                                       "Total libration b = b' + b'' (optical plus physical, "
+                                       "Meeus ch. 53), geocentric: selenographic latitude of "
+                                       "the sub-Earth point."),
+    "optical_libration_longitude": VariableSpec(
+        "degree", "optical libration in longitude",
+        "Optical libration l' (Meeus eq. 53.1), geocentric."),
+    "optical_libration_latitude": VariableSpec(
+        "degree", "optical libration in latitude",
+        "Optical libration b' (Meeus eq. 53.1), geocentric."),
     "axis_position_angle": VariableSpec("degree", "position angle of the lunar axis",
                                         "Position angle of the northern end of the Moon's "
                                         "rotation axis, from north through east (Meeus ch. 53, "
-                                        "without physical libration), geocentric."),
+                                        "with physical libration), geocentric."),
     "apparent_diameter": VariableSpec("degree", "apparent angular diameter of the Moon",
                                       "2 asin(R_moon / d) with d the observer-Moon distance."),
     "magnitude": VariableSpec("mag", "V magnitude of the Moon",
@@ -82,7 +91,8 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     -------
     xarray.Dataset
         Dimension ``time``; variables ``phase_angle``, ``illuminated_fraction``,
-        ``bright_limb_angle``, ``libration_longitude``, ``libration_latitude``,
+        ``bright_limb_angle``, ``libration_longitude``, ``libration_latitude`` (optical
+        plus physical), ``optical_libration_longitude``, ``optical_libration_latitude``,
         ``axis_position_angle``, ``apparent_diameter``, ``magnitude`` (+
         ``parallactic_angle`` with an observer).
     """
@@ -111,7 +121,8 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     lam = torch.atan2(y_ecl, x)
     beta = torch.atan2(z_ecl, torch.sqrt(x * x + y_ecl * y_ecl))
     centuries = (torch.as_tensor(np.atleast_1d(t.tt), dtype=torch.float64) - 2451545.0) / 36525
-    lib_lon, lib_lat = _geometry.optical_libration(lam, beta, centuries, dpsi)
+    optical_lon, optical_lat = _geometry.optical_libration(lam, beta, centuries, dpsi)
+    lib_lon, lib_lat = _geometry.libration(lam, beta, centuries, dpsi)
     axis_pa = _geometry.axis_position_angle(moon_ra, lib_lat, centuries, epsilon, dpsi)
 
     moon_distance = moon.norm(dim=-1)
@@ -139,6 +150,8 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
         "bright_limb_angle": chi / DEGREE,
         "libration_longitude": lib_lon / DEGREE,
         "libration_latitude": lib_lat / DEGREE,
+        "optical_libration_longitude": optical_lon / DEGREE,
+        "optical_libration_latitude": optical_lat / DEGREE,
         "axis_position_angle": axis_pa / DEGREE,
         "magnitude": magnitude(phase, distance_m=moon_distance,
                                sun_distance_m=(sun - moon).norm(dim=-1)),

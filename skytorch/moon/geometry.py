@@ -27,6 +27,10 @@ Notes
   with the inclination of the mean lunar equator to the ecliptic I = 1.54242° and the
   mean elements F (argument of latitude, Meeus eq. 47.5) and Ω (longitude of the mean
   ascending node, Meeus eq. 47.7).
+* Physical libration (Meeus ch. 53): the forced librations ρ, σ (of the rotation axis)
+  and τ (in longitude), series in the mean elements D, M, M′, F, Ω; then
+  ``l″ = −τ + (ρ cos A + σ sin A) tan b′`` and ``b″ = σ cos A − ρ sin A``, added to the
+  optical values: ``l = l′ + l″``, ``b = b′ + b″`` (:func:`libration`).
 * Parallactic angle (Meeus eq. 14.1): ``q = atan2(sin H, tan φ cos δ − sin δ cos H)``,
   written as ``atan2(sin H cos φ, sin φ cos δ − cos φ sin δ cos H)`` so that it stays
   finite at the poles.
@@ -63,12 +67,15 @@ __all__ = [
     "axis_position_angle",
     "bright_limb_position_angle",
     "illuminated_fraction",
+    "libration",
     "mean_lunar_elements",
     "optical_libration",
     "orientation_matrix",
     "parallactic_angle",
     "phase_angle",
     "phase_angle_from_radec",
+    "physical_libration",
+    "physical_libration_angles",
     "radec_to_vector",
 ]
 
@@ -239,14 +246,104 @@ def mean_lunar_elements(julian_centuries_tt) -> tuple[torch.Tensor, torch.Tensor
     the 483202° T term alone would lose ~0.01°.
     """
     t_in = _tensor("julian_centuries_tt", julian_centuries_tt, None)
+    return (_mean_element(t_in, _ARGUMENT_OF_LATITUDE), _mean_element(t_in, _ASCENDING_NODE))
+
+
+#: Meeus (1998) eq. 47.2–47.7: coefficients [deg] of 1, T, T², and the divisors of T³, T⁴
+_MEAN_ELONGATION = (297.8501921, 445267.1114034, -0.0018819, 545868.0, -113065000.0)
+_SUN_MEAN_ANOMALY = (357.5291092, 35999.0502909, -0.0001536, 24490000.0, math.inf)
+_MOON_MEAN_ANOMALY = (134.9633964, 477198.8675055, 0.0087414, 69699.0, -14712000.0)
+_ARGUMENT_OF_LATITUDE = (93.2720950, 483202.0175233, -0.0036539, -3526000.0, 863310000.0)
+_ASCENDING_NODE = (125.0445479, -1934.1362891, 0.0020754, 467441.0, -60616000.0)
+
+
+def _mean_element(t_in: torch.Tensor, coefficients) -> torch.Tensor:
+    """c0 + c1 T + c2 T² + T³/c3 + T⁴/c4 [deg], evaluated in float64, reduced, in [rad]."""
     t = t_in.to(torch.float64)
-    f_deg = (93.2720950 + 483202.0175233 * t - 0.0036539 * t**2 - t**3 / 3526000.0
-             + t**4 / 863310000.0)
-    node_deg = (125.0445479 - 1934.1362891 * t + 0.0020754 * t**2 + t**3 / 467441.0
-                - t**4 / 60616000.0)
-    f = torch.remainder(f_deg, 360.0) * DEGREE
-    node = torch.remainder(node_deg, 360.0) * DEGREE
-    return f.to(t_in.dtype), node.to(t_in.dtype)
+    c0, c1, c2, c3, c4 = coefficients
+    value = c0 + c1 * t + c2 * t**2 + t**3 / c3 + t**4 / c4
+    return (torch.remainder(value, 360.0) * DEGREE).to(t_in.dtype)
+
+
+#: Meeus (1998, ch. 53) physical-libration series [deg]: (amplitude, function, multiples
+#: of (D, M, M′, F)); "sinE" terms carry the eccentricity factor E, "sinK1", "sinK2" and
+#: "sinNode" are sin K1, sin K2 and sin Ω
+_RHO_TERMS = (
+    (-0.02752, "cos", (0, 0, 1, 0)), (-0.02245, "sin", (0, 0, 0, 1)),
+    (0.00684, "cos", (0, 0, 1, -2)), (-0.00293, "cos", (0, 0, 0, 2)),
+    (-0.00085, "cos", (-2, 0, 0, 2)), (-0.00054, "cos", (-2, 0, 1, 0)),
+    (-0.00020, "sin", (0, 0, 1, 1)), (-0.00020, "cos", (0, 0, 1, 2)),
+    (-0.00020, "cos", (0, 0, 1, -1)), (0.00014, "cos", (-2, 0, 1, 2)),
+)
+_SIGMA_TERMS = (
+    (-0.02816, "sin", (0, 0, 1, 0)), (0.02244, "cos", (0, 0, 0, 1)),
+    (-0.00682, "sin", (0, 0, 1, -2)), (-0.00279, "sin", (0, 0, 0, 2)),
+    (-0.00083, "sin", (-2, 0, 0, 2)), (0.00069, "sin", (-2, 0, 1, 0)),
+    (0.00040, "cos", (0, 0, 1, 1)), (-0.00025, "sin", (0, 0, 2, 0)),
+    (-0.00023, "sin", (0, 0, 1, 2)), (0.00020, "cos", (0, 0, 1, -1)),
+    (0.00019, "sin", (0, 0, 1, -1)), (0.00013, "sin", (-2, 0, 1, 2)),
+    (-0.00010, "cos", (0, 0, 1, -3)),
+)
+_TAU_TERMS = (
+    (0.02520, "sinE", (0, 1, 0, 0)), (0.00473, "sin", (0, 0, 2, -2)),
+    (-0.00467, "sin", (0, 0, 1, 0)), (0.00396, "sinK1", ()),
+    (0.00276, "sin", (-2, 0, 2, 0)), (0.00196, "sinNode", ()),
+    (-0.00183, "cos", (0, 0, 1, -1)), (0.00115, "sin", (-2, 0, 1, 0)),
+    (-0.00096, "sin", (-1, 0, 1, 0)), (0.00046, "sin", (-2, 0, 0, 2)),
+    (-0.00039, "sin", (0, 0, 1, -1)), (-0.00032, "sin", (-1, -1, 1, 0)),
+    (0.00027, "sin", (-2, -1, 2, 0)), (0.00023, "sinK2", ()),
+    (-0.00014, "sin", (2, 0, 0, 0)), (0.00014, "cos", (0, 0, 2, -2)),
+    (-0.00012, "sin", (0, 0, 1, -2)), (-0.00012, "sin", (0, 0, 2, 0)),
+    (0.00011, "sin", (-2, -2, 2, 0)),
+)
+
+
+def physical_libration_angles(julian_centuries_tt) -> tuple[torch.Tensor, torch.Tensor,
+                                                             torch.Tensor]:
+    """Forced physical libration ρ, σ, τ of the Moon (Meeus 1998, ch. 53) [rad].
+
+    Parameters
+    ----------
+    julian_centuries_tt : Tensor (...)
+        T, Julian centuries of TT from J2000.0.
+
+    Returns
+    -------
+    (ρ, σ, τ) : tuple of Tensor (...)
+        ρ and σ: displacements of the rotation axis (in inclination and node), τ: the
+        libration in longitude; each ≲ 0.03° [rad].
+
+    Notes
+    -----
+    Meeus's 10 + 13 + 19 periodic terms (after Eckhardt's theory) in the mean elongation
+    D, the mean anomalies M (Sun) and M′ (Moon), the argument of latitude F, the node
+    Ω (eq. 47.2–47.7), the eccentricity factor E = 1 − 0.002516 T − 0.0000074 T² and
+    K1 = 119.75° + 131.849° T, K2 = 72.56° + 20.186° T.
+    """
+    t_in = _tensor("julian_centuries_tt", julian_centuries_tt, None)
+    t = t_in.to(torch.float64)
+    args = [_mean_element(t, c).to(torch.float64) for c in
+            (_MEAN_ELONGATION, _SUN_MEAN_ANOMALY, _MOON_MEAN_ANOMALY, _ARGUMENT_OF_LATITUDE)]
+    node = _mean_element(t, _ASCENDING_NODE).to(torch.float64)
+    eccentricity = 1.0 - 0.002516 * t - 0.0000074 * t**2
+    k1 = (119.75 + 131.849 * t) * DEGREE
+    k2 = (72.56 + 20.186 * t) * DEGREE
+    special = {"sinK1": torch.sin(k1), "sinK2": torch.sin(k2), "sinNode": torch.sin(node)}
+
+    def series(terms):
+        total = torch.zeros_like(t)
+        for amplitude, kind, multiples in terms:
+            if kind in special:
+                total = total + amplitude * special[kind]
+                continue
+            angle = sum(m * a for m, a in zip(multiples, args, strict=False) if m)
+            value = torch.cos(angle) if kind == "cos" else torch.sin(angle)
+            if kind == "sinE":
+                value = value * eccentricity
+            total = total + amplitude * value
+        return (total * DEGREE).to(t_in.dtype)
+
+    return series(_RHO_TERMS), series(_SIGMA_TERMS), series(_TAU_TERMS)
 
 
 def optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt,
@@ -270,6 +367,13 @@ def optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt,
         Positive l brings the east limb (Mare Crisium) towards the observer; positive b
         brings the north pole into view. Physical libration (≲ 0.04°) is not included.
     """
+    libration_lon, libration_lat, _ = _optical_libration(moon_lon_rad, moon_lat_rad,
+                                                         julian_centuries_tt, nutation_lon_rad)
+    return libration_lon, libration_lat
+
+
+def _optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt, nutation_lon_rad):
+    """(l′, b′, A) of Meeus eq. 53.1 [rad]."""
     dtype = common_dtype(moon_lon_rad, moon_lat_rad, julian_centuries_tt, nutation_lon_rad)
     lam = _tensor("moon_lon_rad", moon_lon_rad, dtype)
     beta = _tensor("moon_lat_rad", moon_lat_rad, dtype)
@@ -280,14 +384,83 @@ def optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt,
     sin_i, cos_i = math.sin(inclination), math.cos(inclination)
     a = torch.atan2(torch.sin(w) * torch.cos(beta) * cos_i - torch.sin(beta) * sin_i,
                     torch.cos(w) * torch.cos(beta))
-    libration_lon = torch.remainder(a - f + math.pi, 2.0 * math.pi) - math.pi
+    libration_lon = _wrap(a - f)
     sin_b = -torch.sin(w) * torch.cos(beta) * sin_i - torch.sin(beta) * cos_i
     libration_lat = torch.asin(sin_b)  # |b'| <= I + |β| < 7°, far from the asin poles
-    return libration_lon, libration_lat
+    return libration_lon, libration_lat, a
+
+
+def _wrap(angle: torch.Tensor) -> torch.Tensor:
+    """Angle wrapped to (−π, π]."""
+    return torch.remainder(angle + math.pi, 2.0 * math.pi) - math.pi
+
+
+def physical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt,
+                       nutation_lon_rad=0.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Physical libration in longitude l″ and latitude b″ (Meeus 1998, ch. 53) [rad].
+
+    Parameters
+    ----------
+    moon_lon_rad, moon_lat_rad, julian_centuries_tt, nutation_lon_rad : Tensor (...)
+        As in :func:`optical_libration`.
+
+    Returns
+    -------
+    (l″, b″) : tuple of Tensor (...)
+        ``l″ = −τ + (ρ cos A + σ sin A) tan b′``, ``b″ = σ cos A − ρ sin A`` [rad] with ρ,
+        σ, τ from :func:`physical_libration_angles` and A, b′ of the optical libration;
+        |l″|, |b″| ≲ 0.04°.
+    """
+    _, optical_lat, a = _optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt,
+                                           nutation_lon_rad)
+    rho, sigma, tau = physical_libration_angles(julian_centuries_tt)
+    rho, sigma, tau = (x.to(a.dtype) for x in (rho, sigma, tau))
+    cos_a, sin_a = torch.cos(a), torch.sin(a)
+    return (-tau + (rho * cos_a + sigma * sin_a) * torch.tan(optical_lat),
+            sigma * cos_a - rho * sin_a)
+
+
+def libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt, nutation_lon_rad=0.0,
+              physical: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
+    """Total geocentric libration l = l′ + l″, b = b′ + b″ (Meeus 1998, ch. 53) [rad].
+
+    Parameters
+    ----------
+    moon_lon_rad, moon_lat_rad, julian_centuries_tt, nutation_lon_rad : Tensor (...)
+        As in :func:`optical_libration`.
+    physical : bool
+        Add the physical libration (:func:`physical_libration`); False gives the optical
+        libration alone.
+
+    Returns
+    -------
+    (l, b) : tuple of Tensor (...)
+        Libration in longitude, wrapped to (−π, π], and in latitude [rad]; the
+        selenographic longitude and latitude of the sub-Earth point.
+
+    Examples
+    --------
+    >>> import math, torch
+    >>> from skytorch.moon.geometry import libration
+    >>> deg = math.pi / 180  # Meeus ex. 53.a, 1992 April 12 0h TD
+    >>> t = torch.tensor((2448724.5 - 2451545.0) / 36525.0, dtype=torch.float64)
+    >>> l, b = libration(torch.tensor(133.167265 * deg, dtype=torch.float64),
+    ...                  torch.tensor(-3.229126 * deg, dtype=torch.float64), t,
+    ...                  torch.tensor(0.004610 * deg, dtype=torch.float64))
+    >>> round(float(l) / deg, 2), round(float(b) / deg, 2)
+    (-1.23, 4.2)
+    """
+    lon, lat = optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt,
+                                 nutation_lon_rad)
+    if not physical:
+        return lon, lat
+    extra_lon, extra_lat = physical_libration(moon_lon_rad, moon_lat_rad,
+                                              julian_centuries_tt, nutation_lon_rad)
+    return _wrap(lon + extra_lon), lat + extra_lat
 
 
 def axis_position_angle(moon_ra_rad, libration_lat_rad, julian_centuries_tt, obliquity_rad,
-                        nutation_lon_rad=0.0) -> torch.Tensor:
+                        nutation_lon_rad=0.0, physical: bool = True) -> torch.Tensor:
     """Position angle P of the Moon's axis of rotation (Meeus 1998, ch. 53) [rad].
 
     Parameters
@@ -295,25 +468,29 @@ def axis_position_angle(moon_ra_rad, libration_lat_rad, julian_centuries_tt, obl
     moon_ra_rad : Tensor (...)
         Apparent right ascension α of the Moon [rad].
     libration_lat_rad : Tensor (...)
-        Libration in latitude b [rad] (optical, from :func:`optical_libration`).
+        Libration in latitude b [rad] (total, from :func:`libration`, or optical).
     julian_centuries_tt : Tensor (...)
         T, Julian centuries of TT from J2000.0 (for Ω).
     obliquity_rad : Tensor (...)
         True obliquity of the ecliptic ε [rad].
     nutation_lon_rad : Tensor (...), optional
         Nutation in longitude Δψ [rad].
+    physical : bool
+        Include the physical libration of the axis (ρ, σ of
+        :func:`physical_libration_angles`); without it P changes by ≲ 0.03° (Meeus ex.
+        53.a: 15.08° with it, 15.066° without).
 
     Returns
     -------
     Tensor (...)
         P in (−π/2, π/2], the position angle of the northern end of the axis, from north
-        through east [rad]. Physical libration (ρ, σ ≲ 0.03°) is neglected: Meeus ex. 53.a
-        gives 15.08° with it, this function 15.066°.
+        through east [rad].
 
     Notes
     -----
-    ``V = Ω + Δψ``, ``X = sin I sin V``, ``Y = sin I cos V cos ε − cos I sin ε``,
-    ``ω = atan2(X, Y)``, ``sin P = √(X² + Y²) cos(α − ω) / cos b``.
+    ``V = Ω + Δψ + σ / sin I``, ``X = sin(I + ρ) sin V``,
+    ``Y = sin(I + ρ) cos V cos ε − cos(I + ρ) sin ε``, ``ω = atan2(X, Y)``,
+    ``sin P = √(X² + Y²) cos(α − ω) / cos b`` (ρ = σ = 0 without physical libration).
     """
     dtype = common_dtype(moon_ra_rad, libration_lat_rad, julian_centuries_tt, obliquity_rad,
                          nutation_lon_rad)
@@ -321,12 +498,17 @@ def axis_position_angle(moon_ra_rad, libration_lat_rad, julian_centuries_tt, obl
     b = _tensor("libration_lat_rad", libration_lat_rad, dtype)
     eps = _tensor("obliquity_rad", obliquity_rad, dtype)
     dpsi = _tensor("nutation_lon_rad", nutation_lon_rad, dtype)
-    _, node = mean_lunar_elements(_tensor("julian_centuries_tt", julian_centuries_tt, dtype))
-    inclination = MEAN_LUNAR_EQUATOR_INCLINATION_RAD
+    centuries = _tensor("julian_centuries_tt", julian_centuries_tt, dtype)
+    _, node = mean_lunar_elements(centuries)
+    inclination = torch.full_like(node, MEAN_LUNAR_EQUATOR_INCLINATION_RAD)
     v = node + dpsi
-    x = math.sin(inclination) * torch.sin(v)
-    y = (math.sin(inclination) * torch.cos(v) * torch.cos(eps)
-         - math.cos(inclination) * torch.sin(eps))
+    if physical:
+        rho, sigma, _ = physical_libration_angles(centuries)
+        v = v + sigma / math.sin(MEAN_LUNAR_EQUATOR_INCLINATION_RAD)
+        inclination = inclination + rho
+    x = torch.sin(inclination) * torch.sin(v)
+    y = (torch.sin(inclination) * torch.cos(v) * torch.cos(eps)
+         - torch.cos(inclination) * torch.sin(eps))
     omega = torch.atan2(x, y)
     sin_p = torch.sqrt(x * x + y * y) * torch.cos(ra - omega) / torch.cos(b)
     return torch.asin(sin_p.clamp(-1.0, 1.0))

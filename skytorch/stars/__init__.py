@@ -17,6 +17,8 @@ from skytorch.stars.catalog import (
 )
 from skytorch.stars.observation import observe, observe_tensors, refract, refraction_table
 from skytorch.stars.photometry import (
+    apparent_color,
+    apparent_color_table,
     bv_to_srgb,
     extinction,
     extinction_coefficient,
@@ -39,6 +41,8 @@ from skytorch.stars.visibility import (
 
 __all__ = [
     "apparent_altaz",
+    "apparent_color",
+    "apparent_color_table",
     "bright_stars",
     "bv_to_srgb",
     "count_visible",
