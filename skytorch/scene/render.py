@@ -658,6 +658,10 @@ _COORD_SPECS = {
     "azimuth": _coord_spec("degree", "azimuth", "Azimuth of the pixel centre from north "
                                                 "through east."),
     "direction": _coord_spec("1", "direction index", "Index of the view direction."),
+    "camera_x": _coord_spec("degree", "camera x angle", "Angle from the image centre along "
+                                                        "the image's horizontal axis (right +)."),
+    "camera_y": _coord_spec("degree", "camera y angle", "Angle from the image centre along "
+                                                        "the image's vertical axis (zenith +)."),
 }
 
 

@@ -14,6 +14,12 @@ Views
 ``"panorama"``
     Equirectangular ``size × 2 size`` grid of elevation (0–90°) by azimuth (0–360°,
     from north through east). Dimensions ``(elevation, azimuth)``.
+``"camera"``
+    A gnomonic (pinhole-camera) image of ``size × size`` pixels and ``fov_deg`` across,
+    centred on a given altitude and azimuth or on the Sun or Moon (their apparent,
+    refracted places), zenith up: a telescope's view that resolves the lunar disc.
+    Dimensions ``(camera_y, camera_x)``, coordinates the angles from the centre along
+    the image axes [degree].
 directions
     A mapping or pair of arrays of altitude and azimuth [degree]: dimension
     ``direction``. Point sources (Sun disc, Moon disc, stars) occupy no direction of
@@ -30,6 +36,7 @@ True
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
@@ -42,7 +49,9 @@ import torch
 from skytorch._validate import check_choice, check_int, check_positive, check_range
 
 #: view kinds of a scene
-VIEWS = ("fisheye", "panorama", "directions")
+VIEWS = ("fisheye", "panorama", "directions", "camera")
+#: what a camera view may be centred on
+CAMERA_TARGETS = ("moon", "sun")
 #: outputs a scene can produce
 OUTPUTS = ("spectral", "xyz", "srgb", "v_mag")
 #: fidelity presets (see :data:`skytorch.scene.planner.FIDELITY`)
@@ -121,6 +130,8 @@ class View:
             row = torch.floor((1.0 - y) * 0.5 * n).long()
             index = row * n + column
             inside = (altitude >= 0.0) & (column >= 0) & (column < n) & (row >= 0) & (row < n)
+        elif self.kind == "camera":
+            return self._camera_index(altitude, azimuth)
         else:
             n_el, n_az = self.shape
             row = torch.floor(altitude / (0.5 * math.pi) * n_el).long()
@@ -134,6 +145,64 @@ class View:
             index = torch.where(index >= 0, torch.where(flat_valid[index.clamp(min=0)], index,
                                                         outside), outside)
         return index
+
+
+    def _camera_index(self, altitude: torch.Tensor, azimuth: torch.Tensor) -> torch.Tensor:
+        centre, right, up, half_width = self.frame
+        point = torch.stack([torch.cos(altitude) * torch.cos(azimuth),
+                             torch.cos(altitude) * torch.sin(azimuth),
+                             torch.sin(altitude)], dim=-1)
+        depth = point @ centre
+        safe = torch.where(depth > 0, depth, torch.ones_like(depth))
+        x = (point @ right) / safe / half_width
+        y = (point @ up) / safe / half_width
+        n = self.shape[0]
+        column = torch.floor((x + 1.0) * 0.5 * n).long()
+        row = torch.floor((1.0 - y) * 0.5 * n).long()
+        inside = (depth > 0) & (column >= 0) & (column < n) & (row >= 0) & (row < n)
+        index = torch.where(inside, row * n + column, torch.full_like(column, -1))
+        flat_valid = self.valid.reshape(-1)
+        return torch.where(index >= 0, torch.where(flat_valid[index.clamp(min=0)], index,
+                                                   torch.full_like(index, -1)), index)
+
+
+def camera_view(altitude_deg: float, azimuth_deg: float, fov_deg: float, size: int,
+                dtype=torch.float64) -> View:
+    r"""Gnomonic view of ``size × size`` pixels, ``fov_deg`` across, centred on a direction.
+
+    The image plane is tangent to the sphere at the centre, ``x`` to the right (towards
+    azimuth + 90°) and ``y`` up (towards the zenith). A pixel of the plane of side
+    :math:`\Delta` at :math:`(x, y)` (in units of the focal length) subtends
+    :math:`\Delta^2 / (1 + x^2 + y^2)^{3/2}` sr. Pixels below the horizon hold no sky.
+    """
+    size = check_int("size", size, 2)
+    check_range("camera fov_deg", fov_deg, 0.0, 120.0, low_inclusive=False, unit="degree")
+    check_range("camera altitude_deg", altitude_deg, -90.0, 90.0, unit="degree")
+    h, a = math.radians(float(altitude_deg)), math.radians(float(azimuth_deg))
+    centre = torch.tensor([math.cos(h) * math.cos(a), math.cos(h) * math.sin(a), math.sin(h)],
+                          dtype=torch.float64)
+    right = torch.tensor([-math.sin(a), math.cos(a), 0.0], dtype=torch.float64)
+    up = torch.tensor([-math.sin(h) * math.cos(a), -math.sin(h) * math.sin(a), math.cos(h)],
+                      dtype=torch.float64)
+    half_width = math.tan(0.5 * math.radians(float(fov_deg)))
+    centres = ((torch.arange(size, dtype=torch.float64) + 0.5) / size * 2.0 - 1.0) * half_width
+    y, x = torch.meshgrid(-centres, centres, indexing="ij")
+    direction = centre + x[..., None] * right + y[..., None] * up
+    direction = direction / torch.linalg.vector_norm(direction, dim=-1, keepdim=True)
+    altitude = torch.asin(direction[..., 2].clamp(-1.0, 1.0))
+    azimuth = torch.remainder(torch.atan2(direction[..., 1], direction[..., 0]), 2 * math.pi)
+    valid = altitude >= 0.0
+    pixel = (2.0 * half_width / size) ** 2
+    solid_angle = torch.where(valid, pixel / (1.0 + x * x + y * y) ** 1.5,
+                              torch.zeros_like(x))
+    coords = {"camera_y": np.degrees(np.arctan(-centres.numpy())),
+              "camera_x": np.degrees(np.arctan(centres.numpy()))}
+    view = View("camera", ("camera_y", "camera_x"), coords,
+                (0.5 * math.pi - altitude).to(dtype), azimuth.to(dtype),
+                solid_angle.to(dtype), valid, 2.0 * math.atan(half_width) / size)
+    view.frame = (centre, right, up, half_width)
+    view._unit = direction
+    return view
 
 
 @lru_cache(maxsize=8)
@@ -214,6 +283,10 @@ class Scene:
         Pixels across a fisheye (``size × size``) or elevations of a panorama.
     directions : mapping, optional
         ``{"altitude_deg": [...], "azimuth_deg": [...]}`` for ``view="directions"``.
+    camera : mapping, optional
+        For ``view="camera"``: ``fov_deg`` (field across [degree]) and either
+        ``target`` (one of :data:`CAMERA_TARGETS`) or ``altitude_deg`` and ``azimuth_deg``
+        of the centre.
     wavelengths : str or sequence of float
         A preset of :func:`skytorch.spectrum.wavelength_grid` ("rgb", "bands15",
         "cie5") or wavelengths [nm].
@@ -251,6 +324,7 @@ class Scene:
     view: str = "fisheye"
     size: int = 256
     directions: Mapping | None = None
+    camera: Mapping | None = None
     wavelengths: object = "rgb"
     turbidity: float = 2.0
     ozone_du: float = 300.0
@@ -296,6 +370,15 @@ class Scene:
         if self.view == "directions" and self.directions is None:
             raise ValueError("view='directions' needs directions={'altitude_deg': [...], "
                              "'azimuth_deg': [...]}")
+        if self.view == "camera":
+            camera = dict(self.camera or {})
+            if "fov_deg" not in camera or not ("target" in camera or {"altitude_deg",
+                                                                     "azimuth_deg"} <= set(camera)):
+                raise ValueError("view='camera' needs camera={'fov_deg': ..., 'target': 'moon'} "
+                                 "or {'fov_deg': ..., 'altitude_deg': ..., 'azimuth_deg': ...}; "
+                                 f"got {self.camera}")
+            if "target" in camera:
+                check_choice("camera target", camera["target"], CAMERA_TARGETS)
         if self.dtype not in (torch.float32, torch.float64):
             raise TypeError(f"dtype must be torch.float32 or torch.float64; got {self.dtype}")
 
@@ -315,8 +398,25 @@ class Scene:
             return fisheye_view(self.size, self.dtype)
         if self.view == "panorama":
             return panorama_view(self.size, self.dtype)
+        if self.view == "camera":
+            return camera_view(*self.camera_centre(), self.camera["fov_deg"], self.size,
+                               self.dtype)
         return directions_view(self.directions["altitude_deg"], self.directions["azimuth_deg"],
                                self.dtype)
+
+    def camera_centre(self) -> tuple[float, float]:
+        """Altitude and azimuth [degree] of a camera view's centre: given, or the apparent
+        (refracted) place of its target."""
+        if "target" not in self.camera:
+            return float(self.camera["altitude_deg"]), float(self.camera["azimuth_deg"])
+        from skytorch.scene.geometry import scene_geometry
+        from skytorch.scene.render import refracted_altitude
+
+        g = scene_geometry(self)
+        body = self.camera["target"]
+        altitude = getattr(g, f"{body}_altitude_deg")
+        apparent = math.degrees(refracted_altitude(self, math.radians(altitude)))
+        return apparent, getattr(g, f"{body}_azimuth_deg")
 
     def atmosphere(self):
         """The scene's :class:`skytorch.atmosphere.Atmosphere` (cached per parameters)."""
@@ -345,6 +445,8 @@ class Scene:
                 value = ",".join(value)
             elif f.name == "directions":
                 value = "none" if value is None else "given"
+            elif f.name == "camera":
+                value = "none" if value is None else json.dumps(dict(value), sort_keys=True)
             elif isinstance(value, tuple):
                 value = list(value)
             out[f.name] = value
@@ -369,7 +471,8 @@ class Scene:
         """Build a scene from a mapping (the TOML scene format, see ``docs/scene.md``).
 
         Tables ``[observer]`` (lat_deg, lon_deg, elevation_m), ``[view]`` (kind, size,
-        altitude_deg, azimuth_deg), ``[atmosphere]`` (turbidity, ozone_du), ``[lights]``
+        altitude_deg, azimuth_deg; for a camera also fov_deg and target),
+        ``[atmosphere]`` (turbidity, ozone_du), ``[lights]``
         (``file`` = a netCDF light map, or ``synthetic_city`` = keyword table of
         :func:`skytorch.skyglow.citymap.synthetic_city`; observer_xy, lamp),
         ``[planner]`` (tolerance, fidelity, force, exclude) and top-level time,
@@ -384,6 +487,9 @@ class Scene:
             kwargs["view"] = view.pop("kind")
         if "size" in view:
             kwargs["size"] = view.pop("size")
+        if kwargs.get("view") == "camera":
+            kwargs["camera"] = {k: view.pop(k) for k in ("fov_deg", "target", "altitude_deg",
+                                                         "azimuth_deg") if k in view}
         if "altitude_deg" in view or "azimuth_deg" in view:
             kwargs["directions"] = {"altitude_deg": view.pop("altitude_deg"),
                                     "azimuth_deg": view.pop("azimuth_deg")}
