@@ -359,7 +359,7 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
                     emission: str = "garstang1986",
                     emission_parameters: Mapping[str, float] | None = None,
                     n_steps: int = 8, source_radius_m: float = 10.0,
-                    quadrature: str = "single", chunk_size: int = 16384) -> torch.Tensor:
+                    quadrature: str = "single", chunk_size: int = 4096) -> torch.Tensor:
     """Radiance scattered once towards the observer from a unit-flux ground source.
 
     Parameters
@@ -390,7 +390,8 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
         Radius ``a`` of the lit area that replaces the point source's ``1/s^2`` by
         ``1/(s^2 + a^2)`` [m]; keeps the kernel finite for a source at the observer.
     chunk_size : int
-        Number of geometries evaluated at once (bounds memory).
+        Number of geometries evaluated at once (bounds memory; 4096 keeps a chunk's
+        arrays in a core's L2 cache, measured 10–50 % faster than 16384 in float32).
 
     Returns
     -------

@@ -275,7 +275,7 @@ class SkyglowModel(nn.Module):
                    n_steps: int | None = 8, quadrature_tolerance: float = 1e-3,
                    source_radius_m: float | None = None, distance_spacing: str = "linear",
                    normalize: bool = True, phase_functions=None, progress: bool = True,
-                   keep_kernel: bool = False, chunk_size: int = 16384,
+                   keep_kernel: bool = False, chunk_size: int = 4096,
                    medium: Medium | None = None, quadrature: str = "single",
                    compute_dtype: torch.dtype = torch.float64) -> SkyglowModel:
         """Tabulate kernels, fit the PCA basis and transform it over azimuth.
@@ -325,8 +325,11 @@ class SkyglowModel(nn.Module):
         medium : Medium, optional
             Reuse atmosphere tables built before (must hold the same wavelengths).
         compute_dtype : torch.dtype
-            dtype of the kernel quadrature (float32 is about twice as fast; the tables
-            are stored in float64).
+            dtype of the kernel quadrature; the PCA and the stored tables are float64.
+            float32 is about twice as fast and, with the kernel's cancellation-free
+            geometry, within 0.01 % of float64 even on grazing rays (0.0073 % at most,
+            ``docs/skyglow.md``): the recommended choice for large grids such as the
+            paper's (``benchmarks/bench_skyglow.py --paper``).
 
         Returns
         -------
@@ -373,6 +376,7 @@ class SkyglowModel(nn.Module):
         bar = tqdm(total=n_observer_altitude * n_distance, desc="skyglow kernels",
                    unit="distance", disable=not progress or not sys.stderr.isatty())
         fits, kernels = [], []
+        kernel_seconds = pca_seconds = kernel_cpu_seconds = pca_cpu_seconds = 0.0
         # multiplicity of the integrated azimuths in the full circle (the PCA of the half
         # images with these weights is that of the full images)
         multiplicity = torch.tensor([1.0 if i in (0, n_azimuth - i) else 2.0
@@ -383,6 +387,7 @@ class SkyglowModel(nn.Module):
             table = torch.empty(n_distance, n_source_altitude, half, n_elevation,
                                 wavelength.numel(), dtype=torch.float64)
             block = max(1, 4 * chunk_size // (half * n_elevation * n_source_altitude))
+            clock, cpu_clock = time.perf_counter(), time.process_time()
             for start in range(0, n_distance, block):
                 stop = min(start + block, n_distance)
                 values = kernel_radiance(
@@ -393,11 +398,16 @@ class SkyglowModel(nn.Module):
                     n_steps=n_steps, chunk_size=chunk_size, **kernel_arguments)
                 table[start:stop] = values.to(torch.float64)
                 bar.update(stop - start)
+            kernel_seconds += time.perf_counter() - clock
+            kernel_cpu_seconds += time.process_time() - cpu_clock
+            clock, cpu_clock = time.perf_counter(), time.process_time()
             fit = fit_basis(table.reshape(n_distance * n_source_altitude, -1), n_components,
                             normalize=normalize, feature_weights=feature_weights)
             fit.basis = fit.basis.reshape(-1, half, n_elevation * wavelength.numel())[
                 :, mirror].reshape(fit.basis.shape[0], -1)
             fits.append(fit)
+            pca_seconds += time.perf_counter() - clock
+            pca_cpu_seconds += time.process_time() - cpu_clock
             if keep_kernel:
                 kernels.append(table[:, :, mirror])
         bar.close()
@@ -422,6 +432,11 @@ class SkyglowModel(nn.Module):
             "compute_dtype": str(compute_dtype).replace("torch.", ""),
             "atmosphere": atmosphere_parameters,
             "precompute_seconds": time.perf_counter() - started,
+            "precompute_kernel_seconds": kernel_seconds,
+            "precompute_pca_seconds": pca_seconds,
+            "precompute_kernel_cpu_seconds": kernel_cpu_seconds,
+            "precompute_pca_cpu_seconds": pca_cpu_seconds,
+            "precompute_threads": torch.get_num_threads(),
         }
         model = cls(azimuth_rad=azimuth, elevation_rad=elevation, distance_m=distance,
                     distance_edges_m=edges, source_altitude_m=source_altitude,
