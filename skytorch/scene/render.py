@@ -2,8 +2,8 @@
 
 Every component is a spectral radiance image ``(*view, wavelength)``
 [W m^-2 sr^-1 nm^-1]; the image is their sum (Müller et al. 2012, §5: atmosphere,
-then stars, Moon and Sun added as light sources; the Moon's disc and the stars behind it
-overlap in at most one pixel and are not occluded here):
+then stars, Moon and Sun added as light sources; stars behind the Moon's disc are
+occulted):
 
 * ``natural`` — airglow, zodiacal light and unresolved stars: a constant background
   of ``scene.natural_mag_arcsec2`` (22.0 V mag arcsec^-2 at the zenith, Falchi et al.
@@ -408,7 +408,8 @@ def _star_site_tables(turbidity: float, ozone_du: float, elevation_m: float,
 
 def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
     """Catalogue stars at their apparent places with extincted magnitudes (tensor layer of
-    :func:`skytorch.stars.observe`: positions, refraction and extinction tables cached)."""
+    :func:`skytorch.stars.observe`: positions, refraction and extinction tables cached);
+    stars behind the Moon's disc (:func:`occulted`) are left out."""
     from skytorch.ephemeris import parse_times
     from skytorch.stars import observe_tensors, time_operators
 
@@ -422,11 +423,30 @@ def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tens
     result = observe_tensors(vectors, vmag, bv, operators, velocity, refraction_tab,
                              extinction_tab)
     altitude, azimuth = result["altitude"][0], result["azimuth"][0]
-    up = altitude > 0
+    up = (altitude > 0) & ~occulted(scene, geometry, altitude, azimuth, refraction)
     mag = result["magnitude"][0][up]
     unit = _catalogue_spectra(float(scene.star_limit_mag), tuple(wavelength.tolist()))[up]
     flux = unit * (10.0 ** (-0.4 * mag))[:, None]
     return _splat(view, altitude[up], azimuth[up], flux, wavelength.numel(), scene.dtype)
+
+
+def occulted(scene, geometry, altitude_rad, azimuth_rad, refraction: bool) -> torch.Tensor:
+    """Whether points (star,) at apparent altitude and azimuth [rad] lie behind the Moon.
+
+    A point is occulted when its angular distance from the Moon's apparent (refracted when
+    ``refraction``) centre is less than the Moon's topocentric angular radius. Both places
+    are refracted alike, so the small flattening of the disc by differential refraction
+    (under 1 % of its radius above 10° altitude) is neglected.
+    """
+    moon = _apparent(scene, geometry.moon_altitude_deg, refraction)
+    if moon + geometry.moon_radius_rad < 0.0:
+        return torch.zeros(altitude_rad.shape, dtype=torch.bool)
+    moon_azimuth = math.radians(geometry.moon_azimuth_deg)
+    altitude = altitude_rad.to(torch.float64)
+    azimuth = azimuth_rad.to(torch.float64)
+    cosine = (torch.sin(altitude) * math.sin(moon) + torch.cos(altitude) * math.cos(moon)
+              * torch.cos(azimuth - moon_azimuth))
+    return cosine > math.cos(geometry.moon_radius_rad)
 
 
 @lru_cache(maxsize=1)
