@@ -17,18 +17,34 @@ import logging
 logger = logging.getLogger(__name__)
 
 
-def configure(parser: argparse.ArgumentParser) -> None:
-    """Add the arguments of ``skytorch stars``."""
+def add_time_and_observer(parser: argparse.ArgumentParser, step: str = "10min") -> None:
+    """``--time`` or ``--start/--end/--step`` (UTC) and ``--lat/--lon/--elevation``."""
     when = parser.add_argument_group("times (UTC, ISO 8601)")
     when.add_argument("--time", nargs="+", metavar="TIME", help="one or more instants")
     when.add_argument("--start", help="first instant of a range")
     when.add_argument("--end", help="last instant of a range (inclusive)")
-    when.add_argument("--step", default="10min", help="spacing of a range (default 10min)")
+    when.add_argument("--step", default=step, help=f"spacing of a range (default {step})")
     where = parser.add_argument_group("observer")
     where.add_argument("--lat", type=float, required=True, help="geodetic latitude [deg]")
     where.add_argument("--lon", type=float, required=True, help="east longitude [deg]")
     where.add_argument("--elevation", type=float, default=0.0,
                        help="height above the ellipsoid [m] (default 0)")
+
+
+def times_from(args: argparse.Namespace):
+    """The instants given by :func:`add_time_and_observer`'s arguments."""
+    from skytorch.commands.ephemeris import time_range
+
+    if args.time:
+        return args.time
+    if args.start and args.end:
+        return time_range(args.start, args.end, args.step)
+    raise ValueError("give --time, or --start and --end")
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``skytorch stars``."""
+    add_time_and_observer(parser)
     sky = parser.add_argument_group("catalogue and sky")
     sky.add_argument("--limit-magnitude", type=float, default=6.5,
                      help="faintest catalogue V magnitude (default 6.5)")
@@ -50,16 +66,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Compute the observation, write netCDF (and the chart); 0 on success."""
-    from skytorch.commands.ephemeris import time_range
     from skytorch.dataset import to_netcdf
     from skytorch.stars import bright_stars, observe, read_bsc5
 
-    if args.time:
-        times = args.time
-    elif args.start and args.end:
-        times = time_range(args.start, args.end, args.step)
-    else:
-        raise ValueError("give --time, or --start and --end")
+    times = times_from(args)
     catalog = (read_bsc5(args.bsc5, args.limit_magnitude) if args.bsc5
                else bright_stars(args.limit_magnitude))
     if args.no_atmosphere:

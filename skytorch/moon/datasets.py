@@ -17,13 +17,14 @@ import numpy as np
 import torch
 import xarray as xr
 
+from skytorch._validate import check_range
 from skytorch.constants import DEGREE
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.moon import geometry as _geometry
 from skytorch.moon.brightness import magnitude
 from skytorch.moon.disc import disc_image
 
-__all__ = ["moon_disc_image", "moon_geometry"]
+__all__ = ["moon_disc_image", "moon_disc_images", "moon_geometry"]
 
 _REFERENCES = [
     "Meeus, J. 1998, Astronomical Algorithms, 2nd ed., Willmann-Bell, ch. 14, 48, 53",
@@ -67,6 +68,11 @@ _SPECS = {
                               "Disc-integrated Johnson V magnitude above the atmosphere from "
                               "the Hapke reflectance law, solar spectrum and actual distances "
                               "(earthshine included), at the observer-Moon distance."),
+    "distance": VariableSpec("m", "observer-Moon distance",
+                             "Distance from the observer (the Earth's centre without one) to "
+                             "the Moon's centre."),
+    "sun_distance": VariableSpec("m", "Moon-Sun distance",
+                                 "Distance from the Moon's centre to the Sun's centre."),
     "parallactic_angle": VariableSpec("degree", "parallactic angle of the Moon",
                                       "Angle at the Moon from the north celestial pole to the "
                                       "zenith, positive west (Meeus eq. 14.1), topocentric."),
@@ -93,14 +99,18 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
         Dimension ``time``; variables ``phase_angle``, ``illuminated_fraction``,
         ``bright_limb_angle``, ``libration_longitude``, ``libration_latitude`` (optical
         plus physical), ``optical_libration_longitude``, ``optical_libration_latitude``,
-        ``axis_position_angle``, ``apparent_diameter``, ``magnitude`` (+
-        ``parallactic_angle`` with an observer).
+        ``axis_position_angle``, ``apparent_diameter``, ``magnitude``, ``distance``,
+        ``sun_distance`` (+ ``parallactic_angle`` with an observer).
     """
     from skyfield.api import wgs84
     from skyfield.nutationlib import iau2000b_radians, mean_obliquity
 
     from skytorch.ephemeris import load_ephemeris, parse_times, skyfield_time, sun_moon_vectors
 
+    if lat_deg is not None and lon_deg is not None:
+        lat_deg = float(check_range("lat_deg", lat_deg, -90.0, 90.0, unit=" deg"))
+        lon_deg = float(check_range("lon_deg", lon_deg, -180.0, 360.0, unit=" deg"))
+        elevation_m = float(check_range("elevation_m", elevation_m, -500.0, 1e5, unit=" m"))
     values = parse_times(times)
     t = skyfield_time(values)
     vectors = sun_moon_vectors(values)
@@ -159,6 +169,8 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     if observer is not None:
         data["parallactic_angle"] = q / DEGREE
     data["apparent_diameter"] = _geometry.apparent_diameter(moon_distance) / DEGREE
+    data["distance"] = moon_distance
+    data["sun_distance"] = (sun - moon).norm(dim=-1)
     return build_dataset(
         {name: variable(("time",), value, _SPECS[name]) for name, value in data.items()},
         {"time": time_coordinate(values)},
@@ -171,6 +183,29 @@ def _radec(vector: torch.Tensor):
     ra = torch.remainder(torch.atan2(y, x), 2.0 * math.pi)
     dec = torch.atan2(z, torch.sqrt(x * x + y * y))
     return ra, dec
+
+
+def _disc_dataset(image: torch.Tensor, leading: tuple[str, ...], wl: torch.Tensor,
+                  n_pixels: int, coords: dict, parameters: dict) -> xr.Dataset:
+    centres = (np.arange(n_pixels) + 0.5) * (2.0 / n_pixels) - 1.0
+    position = "{} on the lunar disc in units of the lunar radius ({})"
+    return build_dataset(
+        {"radiance": variable(leading + ("y", "x", "wavelength"), image, VariableSpec(
+            "W m-2 sr-1 nm-1", "spectral radiance of the lunar disc",
+            "Sunlight (and earthshine) reflected by the Moon (Hapke law, Muller albedo "
+            "colour), above the Earth's atmosphere; 0 outside the disc. North up (y), "
+            "west to the right (x)."))},
+        {**coords,
+         "y": coordinate("y", centres, VariableSpec("1", "y", position.format("y", "north"))),
+         "x": coordinate("x", centres, VariableSpec("1", "x", position.format("x", "west"))),
+         "wavelength": coordinate("wavelength", wl, VariableSpec("nm", "wavelength",
+                                                                 "vacuum wavelength"))},
+        title="Image of the lunar disc", references=_REFERENCES, parameters=parameters)
+
+
+def _wavelengths(wavelength_nm) -> torch.Tensor:
+    return torch.tensor([680.0, 550.0, 440.0] if wavelength_nm is None else wavelength_nm,
+                        dtype=torch.float64)
 
 
 def moon_disc_image(phase_angle_deg: float, bright_limb_angle_deg: float = 270.0,
@@ -193,23 +228,45 @@ def moon_disc_image(phase_angle_deg: float, bright_limb_angle_deg: float = 270.0
     xarray.Dataset
         ``radiance`` (y, x, wavelength) [W m-2 sr-1 nm-1]; x west and y north in lunar radii.
     """
-    wl = torch.tensor([680.0, 550.0, 440.0] if wavelength_nm is None else wavelength_nm,
-                      dtype=torch.float64)
+    wl = _wavelengths(wavelength_nm)
     image = disc_image(torch.tensor(phase_angle_deg * DEGREE, dtype=torch.float64),
                        torch.tensor(bright_limb_angle_deg * DEGREE, dtype=torch.float64),
                        n_pixels=n_pixels, wavelength_nm=wl, **kwargs)
-    centres = (np.arange(n_pixels) + 0.5) * (2.0 / n_pixels) - 1.0
-    position = "{} on the lunar disc in units of the lunar radius ({})"
-    return build_dataset(
-        {"radiance": variable(("y", "x", "wavelength"), image, VariableSpec(
-            "W m-2 sr-1 nm-1", "spectral radiance of the lunar disc",
-            "Sunlight (and earthshine) reflected by the Moon (Hapke law, Muller albedo "
-            "colour), above the Earth's atmosphere; 0 outside the disc."))},
-        {"y": coordinate("y", centres, VariableSpec("1", "y", position.format("y", "north"))),
-         "x": coordinate("x", centres, VariableSpec("1", "x", position.format("x", "west"))),
-         "wavelength": coordinate("wavelength", wl, VariableSpec("nm", "wavelength",
-                                                                 "vacuum wavelength"))},
-        title="Image of the lunar disc", references=_REFERENCES,
-        parameters={"phase_angle_deg": float(phase_angle_deg),
-                    "bright_limb_angle_deg": float(bright_limb_angle_deg),
-                    "n_pixels": int(n_pixels)})
+    return _disc_dataset(image, (), wl, n_pixels, {},
+                         {"phase_angle_deg": float(phase_angle_deg),
+                          "bright_limb_angle_deg": float(bright_limb_angle_deg),
+                          "n_pixels": int(n_pixels)})
+
+
+def moon_disc_images(geometry: xr.Dataset, n_pixels: int = 64,
+                     wavelength_nm=None) -> xr.Dataset:
+    """Disc images for every time of a :func:`moon_geometry` Dataset.
+
+    Parameters
+    ----------
+    geometry : xarray.Dataset
+        From :func:`moon_geometry` (``phase_angle``, ``bright_limb_angle``, ``distance``,
+        ``sun_distance`` over ``time``).
+    n_pixels : int
+        Pixels across the lunar diameter.
+    wavelength_nm : sequence of float, optional
+        Wavelengths [nm]; default (680, 550, 440).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``radiance`` (time, y, x, wavelength) [W m-2 sr-1 nm-1] with the actual Moon–Sun
+        and Earth–Moon distances (earthshine included), north up, west to the right.
+    """
+    wl = _wavelengths(wavelength_nm)
+
+    def tensor(name):
+        return torch.as_tensor(np.asarray(geometry[name].values, dtype=float))
+
+    image = disc_image(tensor("phase_angle") * DEGREE, tensor("bright_limb_angle") * DEGREE,
+                       n_pixels=n_pixels, wavelength_nm=wl,
+                       sun_distance_m=tensor("sun_distance"),
+                       distance_m=tensor("distance"))
+    return _disc_dataset(image, ("time",), wl, n_pixels,
+                         {"time": geometry["time"].variable.copy()},
+                         {"n_pixels": int(n_pixels)})

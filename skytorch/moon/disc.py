@@ -287,6 +287,8 @@ def disc_radiance(normal, phase_angle_rad, wavelength_nm, bright_limb_angle_rad=
         alpha = _phase_of(sun_dir)
         ratio = earthshine_irradiance_ratio(alpha, distance_m=distance_m)
         g_earth = earth_angular_radius(distance_m).to(dtype)
+        if g_earth.ndim:  # batched distances against the disc points
+            g_earth = g_earth.unsqueeze(-1)
         mu = normal[..., 2]
         r_earth = reflectance(mu, mu, g_earth, model=model, wavelength_nm=wl,
                               parameters=parameters)  # (n_point, n_wl) or broadcast
