@@ -136,8 +136,11 @@ def test_skipped_effects_are_never_called(monkeypatch, name):
     # the render evaluates the disc-averaged shadow once, only for an eclipsed Moon
     assert calls.count("eclipse_factor") == (1 if "eclipse" in plan.computed else 0)
     assert ("shadow_illuminance" in calls) == ("eclipse" in plan.computed)
-    assert ("refracted_altitude" in calls) == ("refraction" in plan.computed
-                                              and bool({"sun", "moon"} & set(plan.computed)))
+    # refraction of the Sun's or Moon's place: to draw them, or for stars occulted by a
+    # Moon above the horizon
+    moon_up = plan.geometry.moon_altitude_deg > 0.0
+    assert ("refracted_altitude" in calls) == ("refraction" in plan.computed and bool(
+        {"sun", "moon"} & set(plan.computed) or ("stars" in plan.computed and moon_up)))
 
 
 def test_earthshine_flag_follows_the_plan(monkeypatch):

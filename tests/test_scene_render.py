@@ -51,16 +51,36 @@ def test_sunset_sky_reddens_towards_the_horizon():
     assert xy[-1, 0] > 0.5
 
 
+def _dark_night(**kwargs):
+    return st.Scene(time="2015-09-13T23:00", lat_deg=52.52, lon_deg=13.40,
+                    view="directions", fidelity="fast",
+                    directions={"altitude_deg": ALTITUDES, "azimuth_deg": [0.0] * 7},
+                    **kwargs)
+
+
 def test_night_sky_without_lights_reaches_the_natural_background():
-    scene = st.Scene(time="2015-09-13T23:00", lat_deg=52.52, lon_deg=13.40,
-                     view="directions", fidelity="fast",
-                     directions={"altitude_deg": ALTITUDES, "azimuth_deg": [0.0] * 7})
-    ds = scene.render()
+    ds = _dark_night(natural_model="constant").render()
     assert ds.attrs["effects_computed"] == ""
     np.testing.assert_allclose(ds["v_mag_arcsec2"].values, NATURAL_ZENITH_MAG,
                                atol=0.01 * MAG)
     np.testing.assert_allclose(ds["component_v_mag_arcsec2"].sel(component="natural").values,
                                NATURAL_ZENITH_MAG, atol=0.01 * MAG)
+
+
+@pytest.mark.parametrize(("fraction", "height_m"), [(0.6, 90e3), (1.0, 130e3)])
+def test_natural_background_follows_van_rhijn(fraction, height_m):
+    """Garstang (1989, eq. 29) / Patat (2003, eq. C.1): b(z) = b0 [(1 - f) + f X] with the
+    van Rhijn (1921) path factor X = (1 - (R / (R + h))^2 sin^2 z)^(-1/2); Garstang's
+    0.96 is h = 130 km."""
+    ds = _dark_night(airglow_fraction=fraction, airglow_height_m=height_m).render()
+    zenith = np.radians(90.0 - np.asarray(ALTITUDES))
+    ratio2 = 0.96 if height_m == 130e3 else (6_371e3 / (6_371e3 + height_m)) ** 2
+    closed_form = (1.0 - fraction) + fraction / np.sqrt(1.0 - ratio2 * np.sin(zenith) ** 2)
+    expected = NATURAL_ZENITH_MAG - 2.5 * np.log10(closed_form)
+    # Garstang's rounded 0.96 against (6371 / 6501)^2 = 0.9604: within 0.01 mag
+    np.testing.assert_allclose(ds["v_mag_arcsec2"].values, expected, atol=0.01 * MAG)
+    assert ds["v_mag_arcsec2"].values[0] == pytest.approx(NATURAL_ZENITH_MAG, abs=0.01 * MAG)
+    assert np.all(np.diff(ds["v_mag_arcsec2"].values) < 0.0)  # brighter towards the horizon
 
 
 @pytest.mark.parametrize("time", ["2015-06-21T12:00", "2015-09-28T02:47"])

@@ -19,7 +19,9 @@ is always part of the image.
 
 Estimates
 ---------
-* natural background: the zenith value (22.0 V mag arcsec^-2) over the hemisphere;
+* natural background: the zenith value (22.0 V mag arcsec^-2) over the hemisphere (a
+  lower bound: the van Rhijn gradient brightens it towards the horizon, so every share
+  computed against it is an upper bound);
 * sky: single-scattering radiance (:meth:`Atmosphere.sky_radiance`) at 9 directions,
   averaged and spread over the hemisphere; a function of the Sun's altitude only, so it
   is tabulated per atmosphere (every 0.25°, in 5° segments computed when first needed)

@@ -5,10 +5,10 @@ Every component is a spectral radiance image ``(*view, wavelength)``
 then stars, Moon and Sun added as light sources; stars behind the Moon's disc are
 occulted):
 
-* ``natural`` — airglow, zodiacal light and unresolved stars: a constant background
-  of ``scene.natural_mag_arcsec2`` (22.0 V mag arcsec^-2 at the zenith, Falchi et al.
-  2016) with the solar spectral shape (zodiacal light is scattered sunlight). The
-  van Rhijn brightening of airglow towards the horizon is not modelled.
+* ``natural`` — airglow, zodiacal light and unresolved stars: ``scene.natural_mag_arcsec2``
+  at the zenith (22.0 V mag arcsec^-2, Falchi et al. 2016) with the solar spectral shape
+  (zodiacal light is scattered sunlight); the airglow share brightens towards the
+  horizon by the van Rhijn factor (:func:`natural_gradient`, Garstang 1989).
 * ``sky`` — single-scattered sunlight (:meth:`Atmosphere.sky_radiance`), tabulated on a
   (view zenith, relative azimuth) grid for the scene's Sun and interpolated bilinearly;
   the zenith nodes are denser towards the horizon (:math:`z = \\tfrac{\\pi}{2}\\sin
@@ -297,8 +297,63 @@ def _point_transmittance(scene, altitude_rad: float, wavelength) -> torch.Tensor
                                             scene.elevation_m)
 
 
+def natural_gradient(zenith_rad, airglow_fraction: float = 0.6,
+                     airglow_height_m: float = 90_000.0, planet_radius_m: float = 6_371_000.0,
+                     observer_height_m: float = 0.0):
+    r"""Natural background relative to the zenith: :math:`(1 - f) + f\,V(z)`.
+
+    Parameters
+    ----------
+    zenith_rad : Tensor (...)
+        Zenith distance of the line of sight [rad], in [0, π/2].
+    airglow_fraction : float
+        Share :math:`f` of the zenith background emitted by the airglow layer.
+    airglow_height_m, planet_radius_m, observer_height_m : float
+        Height of the thin emitting layer, the planet's radius and the observer's height
+        [m].
+
+    Returns
+    -------
+    Tensor (...)
+        1 at the zenith, growing towards the horizon (4.0 there for the defaults).
+
+    Notes
+    -----
+    A thin layer of uniform emission at height :math:`h` is crossed by a line of sight at
+    zenith distance :math:`z` over a path longer than the vertical one by the van Rhijn
+    (1921) factor
+
+    .. math:: V(z) = \left[1 - \left(\frac{R + h_o}{R + h}\right)^2 \sin^2 z
+              \right]^{-1/2},
+
+    the rest of the background (zodiacal light, starlight) does not depend on the
+    path (Garstang 1989, eq. 29; Patat 2003, eq. C.1, with :math:`f = 0.6`).
+    Extinction of the background along the line of sight is not applied; light scattered
+    into it from the rest of the glowing sky partly makes up for it (Garstang 1989).
+
+    References
+    ----------
+    1. van Rhijn, P. J. 1921, Publ. Astron. Lab. Groningen 31, 1.
+    2. Garstang, R. H. 1989, PASP 101, 306, doi:10.1086/132436.
+    3. Leinert, Ch. et al. 1998, A&AS 127, 1, doi:10.1051/aas:1998105.
+    4. Patat, F. 2003, A&A 400, 1183, doi:10.1051/0004-6361:20030015.
+
+    Examples
+    --------
+    >>> import math, torch
+    >>> round(float(natural_gradient(torch.tensor(math.pi / 2))), 2)
+    4.0
+    """
+    ratio = (planet_radius_m + observer_height_m) / (planet_radius_m + airglow_height_m)
+    sine = torch.sin(zenith_rad)
+    van_rhijn = torch.rsqrt(1.0 - ratio * ratio * sine * sine)
+    return (1.0 - airglow_fraction) + airglow_fraction * van_rhijn
+
+
 def natural_component(scene, view, wavelength) -> torch.Tensor:
-    """Constant natural background of ``scene.natural_mag_arcsec2`` (solar shape)."""
+    """Natural background: ``scene.natural_mag_arcsec2`` at the zenith with the solar
+    spectral shape (zodiacal light is scattered sunlight), times
+    :func:`natural_gradient` for ``natural_model="vanrhijn1921"``."""
     from skytorch.moon.sky import radiance_to_mag_arcsec2
     from skytorch.spectrum import solar_irradiance
 
@@ -306,7 +361,13 @@ def natural_component(scene, view, wavelength) -> torch.Tensor:
     mag = float(radiance_to_mag_arcsec2(shape, wavelength.to(torch.float64)))
     spectrum = shape * 10.0 ** (-0.4 * (scene.natural_mag_arcsec2 - mag))
     valid = view.valid[..., None].to(scene.dtype)
-    return valid * spectrum.to(scene.dtype)
+    image = valid * spectrum.to(scene.dtype)
+    if scene.natural_model == "constant":
+        return image
+    gradient = natural_gradient(view.zenith_rad.to(torch.float64), scene.airglow_fraction,
+                                scene.airglow_height_m, scene.atmosphere().planet_radius_m,
+                                float(scene.elevation_m))
+    return image * gradient[..., None].to(scene.dtype)
 
 
 def sun_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
@@ -438,9 +499,12 @@ def occulted(scene, geometry, altitude_rad, azimuth_rad, refraction: bool) -> to
     are refracted alike, so the small flattening of the disc by differential refraction
     (under 1 % of its radius above 10° altitude) is neglected.
     """
-    moon = _apparent(scene, geometry.moon_altitude_deg, refraction)
-    if moon + geometry.moon_radius_rad < 0.0:
+    from skytorch.scene.planner import HORIZON_REFRACTION_RAD
+
+    if (math.radians(geometry.moon_altitude_deg) + geometry.moon_radius_rad
+            + HORIZON_REFRACTION_RAD < 0.0):  # below the horizon even when refracted
         return torch.zeros(altitude_rad.shape, dtype=torch.bool)
+    moon = _apparent(scene, geometry.moon_altitude_deg, refraction)
     moon_azimuth = math.radians(geometry.moon_azimuth_deg)
     altitude = altitude_rad.to(torch.float64)
     azimuth = azimuth_rad.to(torch.float64)

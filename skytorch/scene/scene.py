@@ -54,6 +54,8 @@ VIEWS = ("fisheye", "panorama", "directions", "camera")
 CAMERA_TARGETS = ("moon", "sun")
 #: outputs a scene can produce
 OUTPUTS = ("spectral", "xyz", "srgb", "v_mag")
+#: gradients of the natural background (see :func:`skytorch.scene.render.natural_gradient`)
+NATURAL_MODELS = ("vanrhijn1921", "constant")
 #: fidelity presets (see :data:`skytorch.scene.planner.FIDELITY`)
 FIDELITY_PRESETS = ("fast", "default", "reference")
 
@@ -313,6 +315,17 @@ class Scene:
     natural_mag_arcsec2 : float
         Natural sky background at the zenith (airglow + zodiacal light + faint stars)
         [V mag arcsec^-2]; 22.0 after Falchi et al. (2016).
+    natural_model : {"vanrhijn1921", "constant"}
+        Gradient of the natural background with zenith distance
+        (:data:`NATURAL_MODELS`, :func:`skytorch.scene.render.natural_gradient`): the
+        airglow part brightens towards the horizon by the van Rhijn (1921) factor, or the
+        background is the zenith value everywhere.
+    airglow_fraction : float
+        Share of the zenith background emitted by the airglow layer (0.6, Garstang 1989;
+        Patat 2003); the rest comes from beyond the atmosphere and is uniform.
+    airglow_height_m : float
+        Height of the emitting airglow layer [m] (90 km: the OI 557.7 nm, Na and OH
+        layers at 85–100 km, Leinert et al. 1998).
     dtype : torch.dtype
         Floating type of the computation.
     """
@@ -338,6 +351,9 @@ class Scene:
     outputs: Sequence[str] = ("spectral", "xyz", "srgb", "v_mag")
     star_limit_mag: float = 6.5
     natural_mag_arcsec2: float = 22.0
+    natural_model: str = "vanrhijn1921"
+    airglow_fraction: float = 0.6
+    airglow_height_m: float = 90_000.0
     dtype: torch.dtype = torch.float64
 
     def __post_init__(self):
@@ -356,6 +372,10 @@ class Scene:
         check_range("tolerance", self.tolerance, 0.0, 1.0)
         check_choice("fidelity", self.fidelity, FIDELITY_PRESETS)
         check_positive("turbidity", self.turbidity)
+        check_choice("natural_model", self.natural_model, NATURAL_MODELS)
+        check_range("airglow_fraction", self.airglow_fraction, 0.0, 1.0)
+        check_range("airglow_height_m", self.airglow_height_m, 10_000.0, 1_000_000.0,
+                    unit="m")
         check_range("ozone_du", self.ozone_du, 0.0, 1000.0, unit="DU")
         self.force = _tuple(self.force)
         self.exclude = _tuple(self.exclude)
