@@ -243,8 +243,9 @@ def test_apparent_colour_zenith_near_catalogue_horizon_redder(atm, colour_observ
     assert ((ds.color.values >= 0.0) & (ds.color.values <= 1.0 + 1e-12)).all()
 
 
-def test_no_atmosphere_colour_is_exoatmospheric():
-    ds = observe(bright_stars(1.5), ["2025-09-07T20:00", "2025-09-08T02:00"], 52.5, 13.4,
-                 atmosphere=False)
-    assert ds.color.dims == ("time", "star", "channel")
-    assert np.array_equal(ds.color.values[1], ds.color_exoatmospheric.values)
+def test_no_atmosphere_colour_is_exoatmospheric(atm):
+    times = ["2025-09-07T20:00", "2025-09-08T02:00"]
+    for options in ({"atmosphere": False}, {"atmosphere": atm, "reddening": False}):
+        ds = observe(bright_stars(1.5), times, 52.5, 13.4, **options)
+        assert ds.color.dims == ("time", "star", "channel")
+        assert np.array_equal(ds.color.values[1], ds.color_exoatmospheric.values)

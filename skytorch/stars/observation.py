@@ -346,7 +346,7 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
             sky_brightness_mag_arcsec2=22.0, control_magnitude: float = 6.0,
             visibility: str = "schaefer1990", aperture_m: float = 0.007,
             exposure_s: float = 0.1, twinkle_samples: int = 0,
-            twinkle_interval_s: float = 0.01, seed: int = 0,
+            twinkle_interval_s: float = 0.01, seed: int = 0, reddening: bool = True,
             dtype: torch.dtype = torch.float64) -> xr.Dataset:
     """Apparent positions, magnitudes, colours and visibility of catalogue stars.
 
@@ -386,6 +386,10 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         Sample spacing of the twinkle sequence [s] (correlation time 10 ms).
     seed : int
         Seed of the twinkle sequence.
+    reddening : bool
+        ``color`` after the spectral extinction along each path (default); False skips
+        that step (about 60 % of the Dataset's cost for 9 000 stars × 1 440 times) and
+        repeats the exo-atmospheric colour over time.
     dtype : torch.dtype
         Computation dtype of the per-star quantities (float64 or float32).
 
@@ -423,7 +427,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
                                 control_magnitude=control_magnitude, visibility=visibility,
                                 aperture_m=aperture_m, exposure_s=exposure_s,
                                 twinkle_samples=twinkle_samples,
-                                twinkle_interval_s=twinkle_interval_s, seed=seed, dtype=dtype)
+                                twinkle_interval_s=twinkle_interval_s, seed=seed,
+                                reddening=reddening, dtype=dtype)
     lat = float(check_range("lat_deg", lat_deg, -90.0, 90.0, unit=" deg"))
     lon = float(check_range("lon_deg", lon_deg, -180.0, 360.0, unit=" deg"))
     elevation = float(check_range("elevation_m", elevation_m, 0.0, 1e4, unit=" m"))
@@ -466,7 +471,7 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     scint = scintillation_index(result["airmass"].clamp_min(1.0), aperture_m, exposure_s,
                                 elevation)
     color_exo = bv_to_srgb(bv).to(dtype)
-    if has_atmosphere:
+    if has_atmosphere and reddening:
         color = apparent_color(bv, result["altitude"],
                                apparent_color_table(atmosphere, elevation,
                                                     refraction=refraction))
@@ -519,7 +524,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         "refraction": bool(refraction and has_atmosphere), "control_magnitude":
         float(control_magnitude), "visibility": visibility, "aperture_m": float(aperture_m),
         "exposure_s": float(exposure_s), "twinkle_samples": int(twinkle_samples),
-        "seed": int(seed), "dtype": str(dtype).replace("torch.", ""),
+        "seed": int(seed), "reddening": bool(reddening and has_atmosphere),
+        "dtype": str(dtype).replace("torch.", ""),
         "sky_brightness_mag_arcsec2": np.asarray(sky_brightness_mag_arcsec2, float),
         "catalog": catalog.attrs.get("title", ""),
     }
