@@ -108,3 +108,67 @@ def test_large_observer_batches_equal_single_renders(resampling):
         single = model.render(city, observer_xy=xy[i], as_dataset=False,
                               resampling=resampling)["luminance"]
         torch.testing.assert_close(batch[i], single, rtol=1e-10, atol=0.0)
+
+
+def _random_cells(n_side, extent_m, seed, altitude=None):
+    generator = torch.Generator().manual_seed(seed)
+    coords = torch.linspace(-extent_m, extent_m, n_side, dtype=torch.float64)
+    flux = torch.rand(n_side, n_side, generator=generator, dtype=torch.float64) * 1e5
+    flux[flux < 3e4] = 0.0  # dark cells too
+    alt = None if altitude is None else torch.full_like(flux, float(altitude))
+    return light_map_arrays(flux, x_m=coords, y_m=coords, altitude_m=alt)
+
+
+def test_splat_plan_conserves_flux_within_range(dtype):
+    # independent reference: the flux of the cells closer than max_distance_m
+    model = cached_model()
+    cells = {k: v.to(dtype) for k, v in _random_cells(40, 18e3, seed=3).items()}
+    observers = torch.tensor([[0.0, 0.0], [6e3, -2e3]], dtype=dtype)
+    plan = model.splat_plan(cells["x"].reshape(-1), cells["y"].reshape(-1),
+                            cells["altitude"].reshape(-1), observers)
+    assert plan.index.dtype == torch.int32
+    polar = plan.apply(cells["flux"])
+    assert polar.shape == (2, model.azimuth_rad.numel(), model.distance_m.numel(), 1)
+    for i in range(2):
+        r = torch.hypot(cells["x"] - observers[i, 0], cells["y"] - observers[i, 1])
+        expected = cells["flux"][r <= float(model.distance_edges_m[-1])].sum()
+        rtol = 1e-12 if dtype == torch.float64 else 1e-5
+        torch.testing.assert_close(polar[i].sum(), expected, rtol=rtol, atol=0.0)
+
+
+def test_reused_splat_plan_follows_the_geometry():
+    # the plan kept by the model must match a fresh splat after every change of fluxes,
+    # coordinates, altitudes, observers or dtype
+    model = cached_model(n_elevation=8, n_source_altitude=6,
+                         source_altitude_range_m=(0.0, 1400.0), n_components=128)
+    variants = [(_random_cells(30, 15e3, seed=1, altitude=300.0), (0.0, 0.0)),
+                (_random_cells(30, 15e3, seed=2, altitude=300.0), (0.0, 0.0)),  # new fluxes
+                (_random_cells(30, 15e3, seed=2, altitude=900.0), (0.0, 0.0)),  # altitudes
+                (_random_cells(30, 14e3, seed=2, altitude=900.0), (0.0, 0.0)),  # coordinates
+                (_random_cells(30, 14e3, seed=2, altitude=900.0), (2e3, 1e3))]  # observer
+    for cells, observer in variants:
+        reused = model.radiance_per_lumen(cells, observer)
+        fresh = model.radiance_per_lumen(cells, observer, reuse_splat=False)
+        torch.testing.assert_close(reused, fresh, rtol=1e-12, atol=0.0)
+    cells32 = {k: v.float() for k, v in cells.items()}
+    assert model.radiance_per_lumen(cells32, observer).dtype == torch.float32
+
+
+def test_reused_splat_plan_gradient_and_altitude_warning():
+    model = cached_model(n_elevation=8, n_source_altitude=6,
+                         source_altitude_range_m=(0.0, 1400.0), n_components=128)
+    cells = _random_cells(6, 8e3, seed=4, altitude=200.0)
+    flux = cells["flux"].clone().requires_grad_(True)
+
+    def zenith_sum(f):
+        return model.radiance_per_lumen(dict(cells, flux=f), (0.0, 0.0))[0, -1].sum()
+
+    model.radiance_per_lumen(cells, (0.0, 0.0))  # builds the plan
+    assert torch.autograd.gradcheck(zenith_sum, (flux,), eps=1.0, atol=1e-12, rtol=1e-6)
+    high = dict(cells, altitude=cells["altitude"].clone())
+    high["altitude"][0, 0] = 3000.0
+    high["flux"] = cells["flux"].clone()
+    high["flux"][0, 0] = 1e4
+    for _ in range(2):  # building the plan, then with the kept plan
+        with pytest.warns(UserWarning, match="source altitude"):
+            model.radiance_per_lumen(high, (0.0, 0.0))

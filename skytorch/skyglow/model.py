@@ -49,7 +49,7 @@ from skytorch._validate import as_tensor, check_choice, check_int, check_positiv
 from skytorch.skyglow.basis import fit_basis, resolve_components
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
 
-__all__ = ["DISTANCE_SPACINGS", "RESAMPLINGS", "SkyglowModel", "light_map_arrays"]
+__all__ = ["DISTANCE_SPACINGS", "RESAMPLINGS", "SkyglowModel", "SplatPlan", "light_map_arrays"]
 
 logger = logging.getLogger(__name__)
 
@@ -97,6 +97,9 @@ def _linear_weights(grid: torch.Tensor, value: torch.Tensor):
 
 #: from this many observers on, :meth:`SkyglowModel.convolve` keeps them innermost
 _MANY_OBSERVERS = 16
+
+#: largest splat plan (corner × observer × cell entries) that a model keeps for reuse
+SPLAT_PLAN_ENTRIES = 2**21
 
 #: tolerance beyond the tabulated altitude range before a warning [m]
 _ALTITUDE_SLACK_M = 1.0
@@ -196,6 +199,52 @@ def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
     x_m, y_m = x_m.to(flux.dtype), y_m.to(flux.dtype)
     return {"flux": flux, "x": x_m[None, :].expand_as(flux), "y": y_m[:, None].expand_as(flux),
             "altitude": altitude_m, "x_coord": x_m, "y_coord": y_m}
+
+
+class SplatPlan:
+    """Indices and weights that splat cell fluxes onto an observer set's polar nodes.
+
+    Built by :meth:`SkyglowModel.splat_plan`; :meth:`apply` maps fluxes (cell,) to
+    (observer, azimuth, distance, source_altitude) [lm] with one gather, one multiply and
+    one ``index_add`` over int32 indices.
+
+    Attributes
+    ----------
+    index : Tensor (corner · pair,)
+        Flat polar node of each corner of each (observer, cell) pair.
+    weight : Tensor (corner, pair)
+        Bilinear weights (zero beyond ``max_distance_m``).
+    cell : Tensor (pair,)
+        Cell of each pair.
+    """
+
+    def __init__(self, *, index, weight, cell, shape, n_cells, outside_cells, altitude_m,
+                 source_altitude_m):
+        self.index, self.weight, self.cell = index, weight, cell
+        self.shape, self.n_cells = tuple(shape), int(n_cells)
+        self._outside_cells, self._altitude = outside_cells, altitude_m
+        self._source_altitude_m = source_altitude_m
+
+    @property
+    def n_entries(self) -> int:
+        """Number of (corner, observer, cell) entries."""
+        return self.index.numel()
+
+    def apply(self, flux: torch.Tensor) -> torch.Tensor:
+        """Polar node fluxes (observer, azimuth, distance, source_altitude) [lm] of the cell
+        fluxes ``flux`` (cell,) [lm] (differentiable in ``flux``)."""
+        flux = flux.reshape(-1)
+        if flux.numel() != self.n_cells:
+            raise ValueError(f"flux must have {self.n_cells} cells; got {flux.numel()}")
+        if self._outside_cells.numel():
+            lit = flux.detach()[self._outside_cells] != 0
+            _warn_outside("source altitude", self._altitude[self._outside_cells[lit]],
+                          self._source_altitude_m)
+        values = self.weight.to(flux.dtype) * flux.index_select(0, self.cell)
+        n_t, n_r, n_h, n_obs = self.shape
+        out = values.new_zeros(n_t * n_r * n_h * n_obs)
+        out.index_add_(0, self.index, values.reshape(-1))
+        return out.reshape(n_t, n_r, n_h, n_obs).permute(3, 0, 1, 2)
 
 
 class SkyglowModel(nn.Module):
@@ -499,14 +548,46 @@ class SkyglowModel(nn.Module):
             Flux per polar node [lm]; the total over nodes equals the flux of the cells
             within ``max_distance_m``.
         """
-        dtype = flux.dtype
+        return self.splat_plan(x_m, y_m, altitude_m, observer_xy, dtype=flux.dtype,
+                               compact=False).apply(flux)
+
+    def splat_plan(self, x_m, y_m, altitude_m, observer_xy, *, dtype=None,
+                   compact: bool = True) -> SplatPlan:
+        """The linear map from cell fluxes to polar node fluxes, for reuse across renders.
+
+        Each cell's flux is distributed bilinearly over the four polar nodes (azimuth ×
+        distance; × 2 source-altitude nodes with a terrain) around it, as seen from each
+        observer. The indices and weights depend only on the geometry, so a plan built once
+        per map grid and observer set turns every later splat into one gather, one multiply
+        and one ``index_add`` (:meth:`radiance_per_lumen` keeps the last plan).
+
+        Parameters
+        ----------
+        x_m, y_m, altitude_m : Tensor (cell,)
+            Cell centres east/north [m] and source altitudes [m].
+        observer_xy : Tensor (observer, 2)
+            Observer positions east/north [m].
+        dtype : torch.dtype, optional
+            dtype of the weights (default that of ``x_m``).
+        compact : bool
+            Drop the (observer, cell) pairs beyond ``max_distance_m`` (they carry no flux).
+
+        Returns
+        -------
+        SplatPlan
+            ``plan.apply(flux)`` gives (observer, azimuth, distance, source_altitude).
+        """
+        dtype = x_m.dtype if dtype is None else dtype
+        x_m, y_m = x_m.to(dtype).reshape(-1), y_m.to(dtype).reshape(-1)
+        altitude_m = altitude_m.to(dtype).reshape(-1)
+        observer_xy = observer_xy.to(dtype)
         n_t = self.azimuth_rad.numel()
         n_r = self.distance_m.numel()
         n_h = self.source_altitude_m.numel()
-        n_obs = observer_xy.shape[0]
-        dx = x_m[None, :] - observer_xy[:, :1]
-        dy = y_m[None, :] - observer_xy[:, 1:2]
-        r = torch.sqrt(dx**2 + dy**2)
+        n_obs, n_cells = observer_xy.shape[0], x_m.numel()
+        dx = x_m[None, :] - observer_xy[:, 0:1].contiguous()
+        dy = y_m[None, :] - observer_xy[:, 1:2].contiguous()
+        r = torch.sqrt(dx * dx + dy * dy)
         ft = torch.remainder(torch.atan2(dx, dy), 2 * math.pi) * (n_t / (2 * math.pi))
         i0 = ft.detach().floor().clamp(0, n_t - 1)
         wt = ft - i0
@@ -518,26 +599,39 @@ class SkyglowModel(nn.Module):
             jr = jr.long()
         else:
             jr, wr = _linear_weights(self._buffer("distance_m", dtype), r)
-        inside = (r <= float(self.distance_edges_m[-1])).to(dtype)
-        _warn_outside("source altitude", altitude_m[flux.detach() != 0], self.source_altitude_m)
+        inside = r <= float(self.distance_edges_m[-1])
         jh, wh = _linear_weights(self._buffer("source_altitude_m", dtype),
                                  altitude_m[None, :].expand_as(r))
-        # one flat index per cell into storage ordered (azimuth, r, h_c, observer) — the
+        # one flat index per pair into storage ordered (azimuth, r, h_c, observer) — the
         # layout :meth:`convolve` multiplies without a copy; the other corners are offsets
         # from it (the azimuth offset wraps around from the last node to the first)
         i0 = i0.long()
-        base = (((i0 * n_r + jr) * n_h + jh) * n_obs + torch.arange(n_obs)[:, None]).reshape(-1)
-        wrap = n_r * n_h * n_obs * torch.where(i0 == n_t - 1, 1 - n_t, 1).reshape(-1)
-        corners = [(0, (flux[None, :] * inside).reshape(-1))]
+        base = ((i0 * n_r + jr) * n_h + jh) * n_obs + torch.arange(n_obs)[:, None]
+        wrap = n_r * n_h * n_obs * torch.where(i0 == n_t - 1, 1 - n_t, 1)
+        corners = [(torch.zeros_like(base), inside.to(dtype))]
         for stride, w, n in ((wrap, wt, 2), (n_h * n_obs, wr, n_r), (n_obs, wh, n_h)):
             if n > 1:
-                w = w.reshape(-1)
                 corners = [item for offset, value in corners for item in (
                     (offset, value * (1 - w)), (offset + stride, value * w))]
-        out = torch.zeros(n_obs * n_t * n_r * n_h, dtype=dtype)
-        for offset, value in corners:  # in place: a copy of `out` per corner costs more
-            out.index_add_(0, base + offset, value)
-        return out.reshape(n_t, n_r, n_h, n_obs).permute(3, 0, 1, 2)
+        index = torch.stack([base + offset for offset, _ in corners])  # (corner, obs, cell)
+        weight = torch.stack([value for _, value in corners])
+        cell = torch.arange(n_cells).expand(n_obs, n_cells)
+        if compact:
+            keep = inside.detach()
+            index, weight, cell = index[:, keep], weight[:, keep], cell[keep]
+        else:
+            index, weight, cell = (v.reshape(*v.shape[:-2], -1) for v in (index, weight, cell))
+        n_nodes = n_obs * n_t * n_r * n_h
+        small = torch.int32 if max(n_nodes, n_cells) < 2**31 else torch.int64
+        index, cell = index.to(small), cell.to(small)
+        low, high = float(self.source_altitude_m[0]), float(self.source_altitude_m[-1])
+        with torch.no_grad():
+            beyond = ((altitude_m < low - _ALTITUDE_SLACK_M)
+                      | (altitude_m > high + _ALTITUDE_SLACK_M))
+        return SplatPlan(index=index.reshape(-1), weight=weight, cell=cell,
+                         shape=(n_t, n_r, n_h, n_obs), n_cells=n_cells,
+                         outside_cells=torch.nonzero(beyond)[:, 0], altitude_m=altitude_m,
+                         source_altitude_m=self.source_altitude_m)
 
     def polar_sample(self, cells: Mapping[str, torch.Tensor], observer_xy,
                      oversampling: int = 1) -> torch.Tensor:
@@ -669,10 +763,36 @@ class SkyglowModel(nn.Module):
         _warn_outside("observer_altitude_m", observer_altitude_m, grid)
         return _linear_weights(grid, observer_altitude_m.to(torch.float64))
 
+    def _reusable_plan(self, cells, observer_xy, dtype) -> SplatPlan | None:
+        """The cached splat plan of this geometry (built if needed), or None if too big."""
+        observer_xy = as_tensor("observer_xy", observer_xy, dtype=dtype).reshape(-1, 2)
+        n_cells = cells["flux"].numel()
+        corners = 4 * (2 if self.source_altitude_m.numel() > 1 else 1)
+        if observer_xy.shape[0] * n_cells * corners > SPLAT_PLAN_ENTRIES or any(
+                cells[k].requires_grad for k in ("x", "y", "altitude")) or (
+                observer_xy.requires_grad):
+            return None  # too big to keep, or differentiated through the geometry
+        with torch.no_grad():
+            if "x_coord" in cells and "y_coord" in cells:
+                geometry = (cells["x_coord"], cells["y_coord"], cells["altitude"])
+            else:
+                geometry = (cells["x"], cells["y"], cells["altitude"])
+            geometry = tuple(g.detach() for g in geometry) + (observer_xy.detach(),)
+            cached = self.__dict__.get("_splat_cache")
+            if cached is not None and cached[0] == (dtype, tuple(cells["flux"].shape)) and all(
+                    a.shape == b.shape and torch.equal(a, b)
+                    for a, b in zip(cached[1], geometry, strict=True)):
+                return cached[2]
+            plan = self.splat_plan(*(cells[k].reshape(-1) for k in ("x", "y", "altitude")),
+                                   observer_xy, dtype=dtype)
+            self.__dict__["_splat_cache"] = ((dtype, tuple(cells["flux"].shape)),
+                                             tuple(g.clone() for g in geometry), plan)
+        return plan
+
     def radiance_per_lumen(self, cells: Mapping[str, torch.Tensor], observer_xy,
                            observer_altitude_m=0.0, *, resampling: str = "splat",
-                           oversampling: int = 1, max_pairs: int = 4_000_000
-                           ) -> torch.Tensor:
+                           oversampling: int = 1, max_pairs: int = 4_000_000,
+                           reuse_splat: bool = True) -> torch.Tensor:
         """``Σ_cells flux · b`` for each observer (the tensor core of :meth:`render`).
 
         Parameters
@@ -687,12 +807,18 @@ class SkyglowModel(nn.Module):
         resampling : {"splat", "sample"}
             How the map reaches the polar grid: ``"splat"`` distributes each lit cell's
             flux over its four polar nodes (:meth:`polar_flux`; exact flux, cost ∝ lit
-            cells); ``"sample"`` samples a gridded map's flux density in each polar cell
+            cells, or ∝ cells in range with a reused :class:`SplatPlan`); ``"sample"``
+            samples a gridded map's flux density in each polar cell
             (:meth:`polar_sample`; cost independent of the number of cells).
         oversampling : int
             Sample points per polar cell and axis for ``"sample"``.
         max_pairs : int
             Bound on observer × cell pairs handled at once (memory).
+        reuse_splat : bool
+            For ``"splat"``: keep the :class:`SplatPlan` of the last map geometry
+            (coordinates, altitudes, observers, dtype) and reuse it while they stay the
+            same, so that renders of new fluxes on the same grid skip the polar
+            coordinates (plans of up to :data:`SPLAT_PLAN_ENTRIES` entries).
 
         Returns
         -------
@@ -701,7 +827,12 @@ class SkyglowModel(nn.Module):
         check_choice("resampling", resampling, RESAMPLINGS)
         flux = cells["flux"]
         dtype = flux.dtype
-        if resampling == "sample":
+        plan = None
+        if resampling == "splat" and reuse_splat:
+            plan = self._reusable_plan(cells, observer_xy, dtype)
+        if plan is not None:
+            polar_cells = None
+        elif resampling == "sample":
             polar_cells = cells
         elif flux.requires_grad:
             flux, x, y, altitude = (cells[k].reshape(-1).to(dtype)
@@ -722,11 +853,13 @@ class SkyglowModel(nn.Module):
         n_wl = self.wavelength_nm.numel()
         per_observer = (self.azimuth_rad.numel() * self.distance_m.numel() * oversampling**2
                         if resampling == "sample" else flux.numel())
-        step = max(1, max_pairs // max(per_observer, 1))
+        step = n_obs if plan is not None else max(1, max_pairs // max(per_observer, 1))
         pieces = []
         for start in range(0, n_obs, step):
             stop = min(start + step, n_obs)
-            if resampling == "sample":
+            if plan is not None:
+                polar = plan.apply(flux)
+            elif resampling == "sample":
                 polar = self.polar_sample(polar_cells, observer_xy[start:stop], oversampling)
             else:
                 polar = self.polar_flux(x, y, flux, altitude, observer_xy[start:stop])
