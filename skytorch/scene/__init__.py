@@ -5,6 +5,7 @@
   (:data:`EFFECTS`, :data:`FIDELITY`);
 * :func:`render` — per-component spectral radiance, XYZ, sRGB, V mag arcsec^-2;
   :func:`render_times` — the same over several instants (dimension ``time``);
+  :func:`render_observers` — a scene with several observers (dimension ``observer``);
 * :func:`tonemap`, :func:`scene_png` — exposure, night vision, PNG.
 
 Examples
@@ -17,9 +18,9 @@ Examples
 """
 
 from skytorch.scene.planner import EFFECTS, FIDELITY, Plan, plan
-from skytorch.scene.render import COMPONENTS, render, render_times
+from skytorch.scene.render import COMPONENTS, render, render_observers, render_times
 from skytorch.scene.scene import OUTPUTS, VIEWS, Scene, View
 from skytorch.scene.tonemap import scene_png, tonemap
 
 __all__ = ["COMPONENTS", "EFFECTS", "FIDELITY", "OUTPUTS", "VIEWS", "Plan", "Scene", "View",
-           "plan", "render", "render_times", "scene_png", "tonemap"]
+           "plan", "render", "render_observers", "render_times", "scene_png", "tonemap"]

@@ -622,9 +622,12 @@ def render_components(scene, plan, view) -> tuple[dict, dict]:
 
 
 def render(scene, plan=None):
-    """Render ``scene`` to a Dataset (see :func:`skytorch.scene.dataset.scene_dataset`)."""
+    """Render ``scene`` to a Dataset (see :func:`scene_dataset`); a scene with several
+    observers goes to :func:`render_observers`."""
     from skytorch.scene.planner import plan as make_plan
 
+    if scene.n_observers > 1:
+        return render_observers(scene, plan)
     view = scene.make_view()
     plan = make_plan(scene, view) if plan is None else plan
     start = _time.perf_counter()
@@ -632,6 +635,51 @@ def render(scene, plan=None):
     total = sum(components.values())
     seconds["total"] = _time.perf_counter() - start
     return scene_dataset(scene, view, plan, components, total, seconds)
+
+
+def render_observers(scene, plans=None):
+    """Render a scene with several observers, stacked along a dimension ``observer``.
+
+    The Sun and Moon of all observers come from one ephemeris evaluation
+    (:func:`skytorch.scene.geometry.geometries`); each observer is planned on its own (the
+    Moon may be up for one and set for another) and its decisions are kept as the string
+    variables ``effects_computed`` and ``effects_skipped`` over ``observer``; the
+    Dataset attributes list the union of the computed effects. Coordinates ``latitude``,
+    ``longitude`` and ``elevation`` over ``observer`` give the sites.
+
+    Parameters
+    ----------
+    scene : Scene
+        With sequences ``lat_deg``, ``lon_deg``, ``elevation_m`` (``n_observers``).
+    plans : list of Plan, optional
+        One per observer (:meth:`Scene.plan`).
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    from skytorch.dataset import VariableSpec, coordinate, variable
+
+    singles = scene.observers()
+    plans = scene.plan() if plans is None else plans
+    if len(plans) != len(singles):
+        raise ValueError(f"plans: one per observer ({len(singles)}); got {len(plans)}")
+    frames = [render(single, plan) for single, plan in zip(singles, plans, strict=True)]
+    index = coordinate("observer", np.arange(len(singles)), VariableSpec(
+        "1", "observer index", "Index of the observer."))
+    stacked = _stack(frames, "observer", index, f"Sky scene at {len(singles)} observers")
+    for name, values, spec in (
+            ("latitude", scene.lat_deg, VariableSpec(
+                "degree_north", "latitude", "WGS84 geodetic latitude of the observer.",
+                "latitude")),
+            ("longitude", scene.lon_deg, VariableSpec(
+                "degree_east", "longitude", "East longitude of the observer.", "longitude")),
+            ("elevation", scene.elevation_m, VariableSpec(
+                "m", "observer height", "Height above the WGS84 ellipsoid.",
+                "height_above_reference_ellipsoid"))):
+        stacked = stacked.assign_coords({name: variable(("observer",), np.asarray(values),
+                                                        spec)})
+    return stacked
 
 
 def scene_dataset(scene, view, plan, components, total, seconds):
@@ -767,34 +815,46 @@ def render_times(scene, times):
     -------
     xarray.Dataset
     """
-    import xarray as xr
-
-    from skytorch.dataset import VariableSpec, time_coordinate, variable
+    from skytorch.dataset import time_coordinate
     from skytorch.ephemeris import parse_times
-    from skytorch.scene.planner import EFFECTS
 
     values = parse_times(times)
     frames = [scene.replace(time=str(t)).render() for t in values]
+    return _stack(frames, "time", time_coordinate(values),
+                  f"Sky scene at {len(values)} times")
+
+
+def _stack(frames, dim: str, coordinate, title: str):
+    """Stack rendered scenes along ``dim``: the changing variables get the dimension,
+    the planner's decisions become string variables over it, the attributes that differ
+    between frames are dropped and ``effects_computed`` lists the union."""
+    import xarray as xr
+
+    from skytorch.dataset import VariableSpec, variable
+    from skytorch.scene.planner import EFFECTS
+
     computed = [f.attrs["effects_computed"] for f in frames]
     skipped = [f.attrs["effects_skipped"] for f in frames]
     varying = [k for k in frames[0].attrs if any(f.attrs.get(k) != frames[0].attrs[k]
                                                   for f in frames[1:])]
     static = ("altitude", "azimuth_of_view", "solid_angle")
-    changing = [name for name in frames[0].data_vars if name not in static]
+    changing = [name for name in frames[0].data_vars
+                if name not in static or any(not f[name].equals(frames[0][name])
+                                             for f in frames[1:])]
     fill = {name: (np.nan if "mag" in name else 0.0) for name in changing}
-    stacked = xr.concat([_no_attrs(f) for f in frames], dim="time", data_vars=changing,
+    stacked = xr.concat([_no_attrs(f) for f in frames], dim=dim, data_vars=changing,
                         coords="minimal", compat="override", join="outer", fill_value=fill)
-    stacked = stacked.assign_coords(time=time_coordinate(values))
-    stacked["effects_computed"] = variable(("time",), np.array(computed, dtype=object),
+    stacked = stacked.assign_coords({dim: coordinate})
+    stacked["effects_computed"] = variable((dim,), np.array(computed, dtype=object),
                                            VariableSpec("1", "effects computed",
-                                                        "Planner decision at each time."))
-    stacked["effects_skipped"] = variable(("time",), np.array(skipped, dtype=object),
+                                                        f"Planner decision per {dim}."))
+    stacked["effects_skipped"] = variable((dim,), np.array(skipped, dtype=object),
                                           VariableSpec("1", "effects skipped",
                                                        "Skipped effects and reasons."))
     stacked.attrs = {k: v for k, v in frames[0].attrs.items() if k not in varying}
     union = {e for c in computed for e in c.split(",") if e}
     stacked.attrs["effects_computed"] = ",".join(e for e in EFFECTS if e in union)
-    stacked.attrs["title"] = f"Sky scene at {len(values)} times"
+    stacked.attrs["title"] = title
     return stacked
 
 

@@ -275,9 +275,11 @@ class Scene:
     ----------
     time : str, datetime or datetime64
         UTC instant of the scene.
-    lat_deg, lon_deg : float
-        Geodetic latitude and east longitude of the observer [degree].
-    elevation_m : float
+    lat_deg, lon_deg : float or sequence of float
+        Geodetic latitude and east longitude of the observer [degree]. Sequences (with
+        ``elevation_m``, broadcast to one length) give several observers: the render then
+        has a dimension ``observer`` (:func:`skytorch.scene.render.render_observers`).
+    elevation_m : float or sequence of float
         Observer height above the ellipsoid [m].
     view : {"fisheye", "panorama", "directions"}
         Image geometry (module docstring).
@@ -297,8 +299,9 @@ class Scene:
     light_map : xarray.Dataset, optional
         City lights (``flux`` [lm] on ``(y, x)`` [m] around the observer), see
         :meth:`skytorch.skyglow.SkyglowModel.render`.
-    observer_xy : (float, float)
-        Observer position in the light map's frame [m].
+    observer_xy : (float, float) or sequence of them
+        Observer position in the light map's frame [m]; one pair per observer, or one
+        pair for all.
     lamp : str
         Lamp spectrum of the lights (:data:`skytorch.skyglow.lamps.LAMPS`).
     tolerance : float
@@ -367,6 +370,7 @@ class Scene:
         check_range("lat_deg", self.lat_deg, -90.0, 90.0, unit="degree")
         check_range("lon_deg", self.lon_deg, -180.0, 360.0, unit="degree")
         check_range("elevation_m", self.elevation_m, -500.0, 20_000.0, unit="m")
+        self._observers()
         check_choice("view", self.view, VIEWS)
         self.size = check_int("size", self.size, 2)
         check_range("tolerance", self.tolerance, 0.0, 1.0)
@@ -401,6 +405,43 @@ class Scene:
                 check_choice("camera target", camera["target"], CAMERA_TARGETS)
         if self.dtype not in (torch.float32, torch.float64):
             raise TypeError(f"dtype must be torch.float32 or torch.float64; got {self.dtype}")
+
+    # ------------------------------------------------------------------ observers
+    def _observers(self) -> None:
+        """Broadcast sequences of observer coordinates to tuples of one length."""
+        values = [np.asarray(v, dtype=float) for v in (self.lat_deg, self.lon_deg,
+                                                       self.elevation_m)]
+        if all(v.ndim == 0 for v in values):
+            return
+        if any(v.ndim > 1 for v in values):
+            raise ValueError("lat_deg, lon_deg, elevation_m: scalars or 1-D sequences; got "
+                             f"shapes {[v.shape for v in values]}")
+        try:
+            values = np.broadcast_arrays(*(np.atleast_1d(v) for v in values))
+        except ValueError as error:
+            raise ValueError("lat_deg, lon_deg, elevation_m: sequences of one length; got "
+                             f"lengths {[np.atleast_1d(v).size for v in values]}") from error
+        self.lat_deg, self.lon_deg, self.elevation_m = (tuple(float(x) for x in v)
+                                                        for v in values)
+        pairs = np.asarray(self.observer_xy, dtype=float)
+        if pairs.ndim == 2 and pairs.shape != (len(self.lat_deg), 2):
+            raise ValueError(f"observer_xy: one (x, y) pair or one per observer "
+                             f"({len(self.lat_deg)}); got shape {pairs.shape}")
+
+    @property
+    def n_observers(self) -> int:
+        """Number of observers (1 for scalar coordinates)."""
+        return len(self.lat_deg) if isinstance(self.lat_deg, tuple) else 1
+
+    def observers(self) -> list[Scene]:
+        """One-observer scenes, one per observer (the scene itself for one observer)."""
+        if not isinstance(self.lat_deg, tuple):
+            return [self]
+        pairs = np.asarray(self.observer_xy, dtype=float)
+        return [replace(self, lat_deg=lat, lon_deg=lon, elevation_m=height,
+                        observer_xy=tuple(pairs[i]) if pairs.ndim == 2 else self.observer_xy)
+                for i, (lat, lon, height) in enumerate(zip(self.lat_deg, self.lon_deg,
+                                                           self.elevation_m, strict=True))]
 
     # ------------------------------------------------------------------ pieces
     def wavelength_nm(self) -> torch.Tensor:
@@ -467,6 +508,8 @@ class Scene:
                 value = "none" if value is None else "given"
             elif f.name == "camera":
                 value = "none" if value is None else json.dumps(dict(value), sort_keys=True)
+            elif f.name == "observer_xy":
+                value = [float(v) for v in np.asarray(value, dtype=float).reshape(-1)]
             elif isinstance(value, tuple):
                 value = list(value)
             out[f.name] = value
@@ -474,10 +517,15 @@ class Scene:
 
     # ------------------------------------------------------------------ actions
     def plan(self):
-        """Decide the effects to compute (:func:`skytorch.scene.planner.plan`)."""
+        """Decide the effects to compute (:func:`skytorch.scene.planner.plan`); a list of
+        plans, one per observer, for several observers."""
+        from skytorch.scene.geometry import geometries
         from skytorch.scene.planner import plan
 
-        return plan(self)
+        if self.n_observers == 1:
+            return plan(self)
+        geometries(self.time, self.lat_deg, self.lon_deg, self.elevation_m)  # one call
+        return [plan(scene) for scene in self.observers()]
 
     def render(self, plan=None):
         """Render the scene to a Dataset (:func:`skytorch.scene.render.render`)."""
