@@ -10,14 +10,18 @@ torch work per grid point. Rows:
 * sweep serial, chunks of 10 — chunking overhead;
 * sweep broadcast — one batched call per slab of 10 points ((1, 1) turbidity, (1, 10) ozone);
 * sweep dask, 1 and 2 workers — LocalCluster threads (torch releases the GIL), chunks of 10
-  points; started by each sweep (the default) or an existing client reused across sweeps.
+  points; started by each sweep (the default) or an existing client reused across sweeps;
+* sweep dask, 1 and 2 worker processes — a reused LocalCluster with ``processes=True``
+  (the function and results are pickled between processes).
 
 All rows but the first run torch with one intra-op thread, so that workers do not compete
 for the two cores.
 
 A second table times the real job of issue 7: the 2015-09-28 lunar eclipse light curve
 (``lunar_eclipse``, 50 times) swept over a 10 x 10 turbidity x ozone grid, serial and on
-dask with 1 and 2 workers (one run each; ``--eclipse-grid 0`` skips it).
+dask with 1 and 2 thread workers and 1 and 2 worker processes (one run each, each in a
+fresh process; the process clusters are started and every worker warmed up with one
+call before the clock starts; ``--eclipse-grid 0`` skips it).
 
 Run: ``python benchmarks/bench_sweep.py [--append]`` (``--append`` adds the table to
 ``docs/benchmarks.md``). Timings on a shared 2-core machine are noisy.
@@ -100,21 +104,50 @@ ECLIPSE_CASES = {
     "serial": {},
     "dask, 1 worker": {"backend": "dask", "n_workers": 1},
     "dask, 2 workers": {"backend": "dask", "n_workers": 2},
+    "dask, 1 worker process": {"backend": "dask", "n_workers": 1, "processes": True},
+    "dask, 2 worker processes": {"backend": "dask", "n_workers": 2, "processes": True},
 }
+
+
+def _warm_up() -> None:
+    """One light curve at a point outside the grid: imports, ephemeris and caches."""
+    torch.set_num_threads(1)
+    eclipse_light_curve(2.2, 310.0)
+
+
+def process_cluster(n_workers: int):
+    """A LocalCluster of single-threaded worker processes, set up as ``st.sweep`` sets up
+    its own (glibc's malloc trimming, see ``skytorch.sweep.WORKER_PROCESS_CONFIG``)."""
+    import dask
+    from distributed import LocalCluster
+
+    from skytorch.sweep import WORKER_PROCESS_CONFIG
+
+    with dask.config.set(WORKER_PROCESS_CONFIG):
+        return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                            dashboard_address=":0")
 
 
 def eclipse_case(label: str, n: int) -> float:
     """Seconds for the n x n eclipse light-curve sweep with one backend (after a warm-up
-    call at a point outside the grid: imports, ephemeris and parameter-independent caches)."""
+    call at a point outside the grid in this process and, for worker processes, in each
+    worker)."""
     import time
 
-    torch.set_num_threads(1)
-    eclipse_light_curve(2.2, 310.0)
-    start = time.perf_counter()
-    st.sweep(eclipse_light_curve, progress=False,
-             turbidity=[1.0 + 0.5 * i for i in range(n)],
-             ozone_du=[200.0 + 20.0 * i for i in range(n)], **ECLIPSE_CASES[label])
-    return time.perf_counter() - start
+    options = dict(ECLIPSE_CASES[label])
+    _warm_up()
+    with contextlib.ExitStack() as stack:
+        if options.pop("processes", False):
+            cluster = stack.enter_context(process_cluster(options.pop("n_workers")))
+            from distributed import Client
+
+            options["client"] = stack.enter_context(Client(cluster))
+            options["client"].run(_warm_up)
+        start = time.perf_counter()
+        st.sweep(eclipse_light_curve, progress=False,
+                 turbidity=[1.0 + 0.5 * i for i in range(n)],
+                 ozone_du=[200.0 + 20.0 * i for i in range(n)], **options)
+        return time.perf_counter() - start
 
 
 def eclipse_rows(n: int) -> list[dict[str, object]]:
@@ -151,9 +184,11 @@ def main(argv=None) -> int:
     stack = contextlib.ExitStack()
     clients = {}
     for workers in (1, 2):
-        cluster = stack.enter_context(LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=False, dashboard_address=":0"))
-        clients[workers] = stack.enter_context(Client(cluster))
+        threads = LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
+                               dashboard_address=":0")
+        for processes, cluster in ((False, threads), (True, process_cluster(workers))):
+            stack.enter_context(cluster)
+            clients[workers, processes] = stack.enter_context(Client(cluster))
     # One intra-op torch thread everywhere except the first row: on a shared, oversubscribed
     # 2-core machine OpenMP's barriers make 2-thread torch calls up to 10x slower.
     cases = [
@@ -168,9 +203,13 @@ def main(argv=None) -> int:
         ("sweep dask, 2 workers", 1, lambda: run_sweep(backend="dask", n_workers=2,
                                                        chunk_size=10)),
         ("sweep dask, 1 worker, reused client", 1,
-         lambda: run_sweep(backend="dask", client=clients[1], chunk_size=10)),
+         lambda: run_sweep(backend="dask", client=clients[1, False], chunk_size=10)),
         ("sweep dask, 2 workers, reused client", 1,
-         lambda: run_sweep(backend="dask", client=clients[2], chunk_size=10)),
+         lambda: run_sweep(backend="dask", client=clients[2, False], chunk_size=10)),
+        ("sweep dask, 1 worker process, reused client", 1,
+         lambda: run_sweep(backend="dask", client=clients[1, True], chunk_size=10)),
+        ("sweep dask, 2 worker processes, reused client", 1,
+         lambda: run_sweep(backend="dask", client=clients[2, True], chunk_size=10)),
     ]
     # Cases are timed round-robin (one run of each per round) so that load from other
     # processes on the shared machine affects every case alike; medians over rounds.
@@ -197,8 +236,12 @@ def main(argv=None) -> int:
                      "torch threads": threads or torch.get_num_threads(),
                      "median [s]": seconds, "vs plain loop": seconds / baseline,
                      "identical to loop": "yes" if identical[label] else "no"})
-    dask_1, dask_2 = rows[-4]["median [s]"], rows[-3]["median [s]"]
-    reused_1, reused_2 = rows[-2]["median [s]"], rows[-1]["median [s]"]
+    seconds = {row["case (10 x 10 grid)"]: row["median [s]"] for row in rows}
+    dask_1, dask_2 = seconds["sweep dask, 1 worker"], seconds["sweep dask, 2 workers"]
+    reused_1 = seconds["sweep dask, 1 worker, reused client"]
+    reused_2 = seconds["sweep dask, 2 workers, reused client"]
+    process_1 = seconds["sweep dask, 1 worker process, reused client"]
+    process_2 = seconds["sweep dask, 2 worker processes, reused client"]
     table = markdown_table(rows)
     text = (
         f"\n## Parameter sweeps (`benchmarks/bench_sweep.py`)\n\n"
@@ -207,16 +250,18 @@ def main(argv=None) -> int:
         f"\n\n{table}\n\n"
         f"Dask speed-up with 2 workers vs 1 (one torch thread each): {dask_1 / dask_2:.2f}x "
         f"with a LocalCluster started per sweep, {reused_1 / reused_2:.2f}x with a reused "
-        f"client.\n"
+        f"client, {process_1 / process_2:.2f}x with reused worker processes.\n"
     )
     if args.eclipse_grid:
         eclipse = eclipse_rows(args.eclipse_grid)
-        serial, one, two = (row["seconds (one run)"] for row in eclipse)
+        serial, one, two, process_one, process_two = (row["seconds (one run)"]
+                                                      for row in eclipse)
         text += (
             f"\nThe 2015-09-28 lunar eclipse light curve (`lunar_eclipse`, 50 times, 15 bands, "
             f"V and B-V) swept over turbidity x ozone:\n\n{markdown_table(eclipse)}\n\n"
             f"Target (issue 7): 10 x 10 within 60 s. Dask speed-up 2 workers vs 1: "
-            f"{one / two:.2f}x; vs serial: {serial / two:.2f}x.\n"
+            f"{one / two:.2f}x with threads, {process_one / process_two:.2f}x with worker "
+            f"processes; 2 worker processes vs serial: {serial / process_two:.2f}x.\n"
         )
     print(text)
     if args.append:

@@ -109,6 +109,12 @@ POINT_DIM = "sweep_point"
 RESULT_NAME = "result"
 #: default number of LocalCluster workers for ``backend="dask"``
 DEFAULT_WORKERS = 2
+#: dask configuration for the LocalCluster started by :func:`sweep`: dask sets
+#: ``MALLOC_TRIM_THRESHOLD_=65536`` in worker processes, which makes glibc hand the memory of
+#: every large tensor back to the OS at once; allocation-heavy torch code then ran 1.6-3x
+#: slower in worker processes than in the calling process. glibc's default is kept instead
+#: (a ``MALLOC_TRIM_THRESHOLD_`` exported by the user still applies).
+WORKER_PROCESS_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 #: units inferred from a parameter name's suffix (``ozone_du``, ``wavelength_nm``, ...)
 _UNIT_SUFFIXES = {
     "_nm": "nm", "_m": "m", "_km": "km", "_k": "K", "_deg": "degree", "_rad": "rad",
@@ -497,10 +503,14 @@ def _dask_client(client, scheduler_address, n_workers, cluster_options) -> Itera
         with Client(scheduler_address) as remote:
             yield remote
         return
+    import dask
+
     options = {"n_workers": DEFAULT_WORKERS if n_workers is None else n_workers,
                "threads_per_worker": 1, "processes": False, "dashboard_address": ":0"}
     options.update(cluster_options or {})
-    with LocalCluster(**options) as cluster, Client(cluster) as local:
+    with dask.config.set(WORKER_PROCESS_CONFIG):  # read when the workers are created
+        cluster = LocalCluster(**options)
+    with cluster, Client(cluster) as local:
         yield local
 
 
@@ -639,8 +649,9 @@ def sweep(
         Further ``distributed.LocalCluster`` arguments, overriding the defaults
         ``threads_per_worker=1, processes=False, dashboard_address=":0"`` (a free port; e.g.
         ``{"processes": True}`` for worker processes, free of GIL contention but slower
-        to start). Starting a LocalCluster costs about a second; pass ``client=`` to reuse
-        one across sweeps.
+        to start; see :data:`WORKER_PROCESS_CONFIG`). Starting a LocalCluster costs about
+        a second with threads, 5-15 s with processes; pass ``client=`` to reuse one across
+        sweeps.
     units : mapping of str to str, optional
         Units of the swept parameters for the coordinates' metadata; by default inferred
         from suffixes (``_nm`` nm, ``_m`` m, ``_k`` K, ``_deg`` degree, ``_du`` DU, ...),
