@@ -56,9 +56,10 @@ is the airless occlusion exactly (tested). Every term is positive, so deep-umbra
 Options: a cloud-top altitude below which rays are blocked (on a fraction of the limb),
 terrain attenuation near the
 ground (rays with periapsis altitude ``h`` weighted by ``clamp(h / (2 h_terrain), 0, 1)``,
-Schneegans et al. 2025 §5.2, mean land elevation 240 m for Earth). Light scattered into
-the shadow is not included (single scattering by the limb is a higher-order term that
-Schneegans et al. find to matter for dusty atmospheres such as Mars).
+Schneegans et al. 2025 §5.2, mean land elevation 240 m for Earth), and sunlight scattered
+once by the atmosphere ring towards the point (``scattering=True``, straight legs, the
+method in :mod:`skytorch.eclipse.shadow_scattering`; Schneegans et al. find it to matter
+after volcanic eruptions and for dusty atmospheres such as Mars).
 
 References
 ----------
@@ -313,11 +314,91 @@ def _spline(coefficients: torch.Tensor, s: torch.Tensor) -> torch.Tensor:
     return c0 + t * (c1 + t * (c2 + t * c3))
 
 
+class _ImpactGrid:
+    """Impact altitude ``beta(s)`` on the table coordinate ``s`` in [0, 1].
+
+    Without kinks ``beta = beta_min + (beta_top - beta_min) sigma^2`` with ``sigma = s``
+    (dense near the ground). Each kink ``beta_j`` of the profile (an impact altitude where
+    the bending varies like ``sqrt(beta_j - beta)`` from below) becomes a node: the range
+    of ``sigma`` is cut at ``sigma_j`` and every piece below a kink is mapped from its
+    stretch of ``s`` by ``sigma = sigma_a + (sigma_b - sigma_a) x (2 - x)`` (``x`` from 0
+    to 1 along the piece). Then ``beta_j - beta`` is quadratic in ``s`` near the kink and
+    the square root becomes linear: a cubic per piece interpolates it.
+    """
+
+    def __init__(self, beta_min_m: float, beta_top_m: float, n_rows: int, kinks_m=()):
+        self.beta_min_m, self.span = float(beta_min_m), float(beta_top_m) - float(beta_min_m)
+        intervals = n_rows - 1
+        nodes, sigmas = [0], [0.0]
+        for kink in sorted(float(k) for k in kinks_m):
+            if not self.beta_min_m < kink < float(beta_top_m):
+                continue
+            sigma = math.sqrt((kink - self.beta_min_m) / self.span)
+            index = round(sigma * intervals)
+            # at least two intervals per piece (a cubic with end extrapolation)
+            if index - nodes[-1] >= 2 and intervals - index >= 2:
+                nodes.append(index)
+                sigmas.append(sigma)
+        nodes.append(intervals)
+        sigmas.append(1.0)
+        #: row indices where the pieces start and end (first 0, last n_rows - 1)
+        self.nodes = tuple(nodes)
+        self.kinks_m = tuple(self.beta_min_m + self.span * x * x for x in sigmas[1:-1])
+        self._s = torch.tensor(nodes, dtype=torch.float64) / intervals
+        self._sigma = torch.tensor(sigmas, dtype=torch.float64)
+
+    @property
+    def pieces(self) -> list[tuple[int, int]]:
+        """First and last row of each piece."""
+        return list(zip(self.nodes[:-1], self.nodes[1:], strict=True))
+
+    def _piece(self, value, edges):
+        """Index of the piece holding ``value`` (edges: the pieces' lower/upper bounds)."""
+        inner = edges[1:-1].to(value.dtype)
+        return torch.clamp(torch.searchsorted(inner, value.detach().contiguous(), right=True),
+                           0, len(self.nodes) - 2)
+
+    def _bounds(self, j, dtype):
+        s, sigma = self._s.to(dtype), self._sigma.to(dtype)
+        return s[j], s[j + 1], sigma[j], sigma[j + 1], j < len(self.nodes) - 2
+
+    def sigma(self, s: torch.Tensor):
+        """``sigma`` and ``d sigma / d s`` at the table coordinate ``s``."""
+        if len(self.nodes) == 2:
+            return s, torch.ones_like(s)
+        s_a, s_b, sigma_a, sigma_b, graded = self._bounds(self._piece(s, self._s), s.dtype)
+        x = (s - s_a) / (s_b - s_a)
+        g = torch.where(graded, x * (2.0 - x), x)
+        slope = torch.where(graded, 2.0 * (1.0 - x), torch.ones_like(x))
+        ratio = (sigma_b - sigma_a) / (s_b - s_a)
+        return sigma_a + (sigma_b - sigma_a) * g, ratio * slope
+
+    def beta(self, s: torch.Tensor) -> torch.Tensor:
+        sigma, _ = self.sigma(s)
+        return self.beta_min_m + self.span * sigma * sigma
+
+    def dbeta_ds(self, s: torch.Tensor) -> torch.Tensor:
+        sigma, slope = self.sigma(s)
+        return 2.0 * self.span * sigma * slope
+
+    def s_of_beta(self, beta_m: torch.Tensor) -> torch.Tensor:
+        sigma = torch.sqrt(torch.clamp((beta_m - self.beta_min_m) / self.span, 0.0, 1.0))
+        if len(self.nodes) == 2:
+            return sigma
+        s_a, s_b, sigma_a, sigma_b, graded = self._bounds(self._piece(sigma, self._sigma),
+                                                          sigma.dtype)
+        y = torch.clamp((sigma - sigma_a) / (sigma_b - sigma_a), 0.0, 1.0)
+        x = torch.where(graded, y / (1.0 + torch.sqrt(1.0 - y)), y)
+        return s_a + (s_b - s_a) * x
+
+
 class RingProfile:
     """Bending and transmittance of the atmosphere ring, tabulated in impact altitude.
 
     Rows ``k = 0 .. n-1`` are at ``s_k = k / (n - 1)``, impact altitude ``beta_k =
-    beta_min + (beta_top - beta_min) s_k^2`` (dense near the ground).
+    beta_min + (beta_top - beta_min) s_k^2`` (dense near the ground); with kinks of the
+    refractivity profile (``kink_betas_m``) the rows are graded towards each kink from
+    below and the table is interpolated piece by piece (:class:`_ImpactGrid`).
 
     Attributes
     ----------
@@ -325,7 +406,12 @@ class RingProfile:
         Impact altitudes of the lowest transmitting ray (ground or cloud top) and of the
         top of the atmosphere [m].
     split_betas_m : tuple of float
-        Impact altitudes where the ray weight has a kink (terrain ramp top, cloud top) [m].
+        Impact altitudes where the ray weight has a kink (terrain ramp top, cloud top) or
+        the refractivity profile has one (table nodes) [m]; the ring quadrature is split
+        there.
+    kink_betas_m : tuple of float
+        Impact altitudes of the rays whose lowest point is at a kink of the refractivity
+        profile, that are nodes of the table [m].
     terrain_height_m, cloud_top_m, cloud_fraction : float or None
         Ray weights, see :meth:`weight`.
     deviation_rad : Tensor (n,)
@@ -338,14 +424,17 @@ class RingProfile:
 
     def __init__(self, beta_min_m, beta_top_m, deviation_rad, optical_depth,
                  periapsis_altitude_m, terrain_height_m=None, split_betas_m=(),
-                 cloud_top_m=0.0, cloud_fraction=0.0):
+                 cloud_top_m=0.0, cloud_fraction=0.0, kink_betas_m=()):
         self.beta_min_m = float(beta_min_m)
         self.beta_top_m = float(beta_top_m)
         self.deviation_rad = deviation_rad
         self.optical_depth = optical_depth
         self.periapsis_altitude_m = periapsis_altitude_m
         self.terrain_height_m = terrain_height_m
-        self.split_betas_m = tuple(float(b) for b in split_betas_m)
+        self.grid = _ImpactGrid(beta_min_m, beta_top_m, int(deviation_rad.shape[0]),
+                                kink_betas_m)
+        self.kink_betas_m = self.grid.kinks_m
+        self.split_betas_m = tuple(float(b) for b in split_betas_m) + self.kink_betas_m
         self.cloud_top_m = float(cloud_top_m)
         self.cloud_fraction = float(cloud_fraction)
         # the optical depth is a sum over species of (profile integral) x (cross-section):
@@ -370,11 +459,21 @@ class RingProfile:
 
     def beta(self, s: torch.Tensor) -> torch.Tensor:
         """Impact altitude [m] at the table coordinate ``s``."""
-        return self.beta_min_m + (self.beta_top_m - self.beta_min_m) * s * s
+        return self.grid.beta(s)
 
-    def s_of_beta(self, beta_m: float) -> float:
-        return math.sqrt(max(beta_m - self.beta_min_m, 0.0)
-                         / (self.beta_top_m - self.beta_min_m))
+    def dbeta_ds(self, s: torch.Tensor) -> torch.Tensor:
+        """Derivative of :meth:`beta` [m] (one-sided at the kink nodes)."""
+        return self.grid.dbeta_ds(s)
+
+    def s_of_beta(self, beta_m):
+        """Table coordinate of the impact altitude ``beta_m`` [m] (float or Tensor)."""
+        if isinstance(beta_m, torch.Tensor):
+            return self.grid.s_of_beta(beta_m)
+        return float(self.grid.s_of_beta(torch.tensor(float(beta_m), dtype=torch.float64)))
+
+    def _piecewise_spline(self, values: torch.Tensor) -> torch.Tensor:
+        """:func:`_spline_coefficients` of each piece of the grid, concatenated."""
+        return torch.cat([_spline_coefficients(values[a:b + 1]) for a, b in self.grid.pieces])
 
     def tables(self, dtype: torch.dtype) -> dict[str, torch.Tensor]:
         """Padded interpolation tables cast to ``dtype`` (cached)."""
@@ -385,9 +484,10 @@ class RingProfile:
             coarse = list(range(0, self.n_altitude, _COARSE_STRIDE))
             if coarse[-1] != self.n_altitude - 1:
                 coarse.append(self.n_altitude - 1)
+            every = torch.cat([deviation, periapsis, factors], dim=-1)
             self._cache[dtype] = {
-                "deviation": _spline_coefficients(deviation),
-                "all": _spline_coefficients(torch.cat([deviation, periapsis, factors], dim=-1)),
+                "deviation": self._piecewise_spline(deviation),
+                "all": self._piecewise_spline(every),
                 "basis": self.optical_basis.to(dtype),
                 "nodes": deviation[coarse, 0],
                 "nodes_s": torch.linspace(0.0, 1.0, self.n_altitude, dtype=dtype)[coarse],
@@ -430,7 +530,6 @@ def _breakpoints(profile: RingProfile, tables, centre, separation, sun_radius, s
     spline, kept inside the bracket (converged to ~1e-12 in ``s``; edges outside the
     range of ``a`` give 0 or 1).
     """
-    span = profile.beta_top_m - profile.beta_min_m
     edges = torch.stack([-(separation + sun_radius), -(separation - sun_radius).abs(),
                          (separation - sun_radius).abs(), separation + sun_radius], dim=-1)
     nodes_s = tables["nodes_s"]
@@ -452,7 +551,7 @@ def _breakpoints(profile: RingProfile, tables, centre, separation, sun_radius, s
         beta = profile.beta(s)
         b = radius + beta
         a = torch.asin(b / centre) - scale * value[..., 0]
-        da = (2.0 * span * s) / torch.sqrt((centre - b) * (centre + b)) - scale * slope[..., 0]
+        da = profile.dbeta_ds(s) / torch.sqrt((centre - b) * (centre + b)) - scale * slope[..., 0]
         step = (a - edges) / torch.where(da > 0, da, 1.0)
         s = torch.minimum(torch.maximum(s - step, low), high)
     s = torch.where(index > last, 1.0, s)
@@ -469,7 +568,6 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     """
     dtype = centre.dtype
     tables = profile.tables(dtype)
-    span = profile.beta_top_m - profile.beta_min_m
     n_point = centre.shape[0]
     with torch.no_grad():
         breaks = _breakpoints(profile, tables, centre, separation, sun_radius, scale, radius)
@@ -504,7 +602,7 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     a = torch.asin(b / centre) - scale * deviation
     arc = solar_arc_integral(a.abs(), sun_radius, separation, coefficients, n_nodes=n_arc)
     solid = b / (centre * torch.sqrt((centre - b) * (centre + b)))
-    weight = arc * solid * (2.0 * span * s) * ds
+    weight = arc * solid * profile.dbeta_ds(s) * ds
     weight = weight * _ray_weight(periapsis, profile)
     # exp(-max(tau, 0)) in place on the (n_pair, m, n_batch, n_wl) temporary
     factors = values[..., 2:].reshape(*values.shape[:-1], profile.n_batch, profile.rank)
@@ -638,6 +736,12 @@ class Shadow(nn.Module):
         Gauss–Legendre nodes per piece of the ring integral and on the solar arc.
     trace_nodes : int
         Gauss–Legendre nodes of the Bouguer ray integrals.
+    scattering : bool
+        Add the sunlight scattered once by the atmosphere towards the point
+        (:mod:`skytorch.eclipse.shadow_scattering`).
+    scattering_resolution : float
+        Factor on the node counts of the scattered component (impact parameter 32,
+        in-plane Sun angle 64, path 48, ring azimuth 12 at 1).
     name : str
         Label for Datasets.
 
@@ -655,7 +759,9 @@ class Shadow(nn.Module):
                  terrain_height_m: float | None = None, limb_darkening=0.6,
                  law: str = "linear", n_altitude: int = DEFAULT_N_ALTITUDE,
                  n_ring: int = DEFAULT_RING_NODES, n_arc: int = DEFAULT_ARC_NODES,
-                 n_split: int = DEFAULT_SPLIT, trace_nodes: int = 64, name: str = "custom"):
+                 n_split: int = DEFAULT_SPLIT, trace_nodes: int = 64,
+                 scattering: bool = False, scattering_resolution: float = 1.0,
+                 name: str = "custom"):
         super().__init__()
         if atmosphere is False:
             atmosphere = None
@@ -689,8 +795,12 @@ class Shadow(nn.Module):
         self.n_arc = check_int("n_arc", n_arc, low=2, high=256)
         self.n_split = check_int("n_split", n_split, low=1, high=64)
         self.trace_nodes = check_int("trace_nodes", trace_nodes, low=4)
+        self.scattering = bool(scattering)
+        self.scattering_resolution = float(check_positive(
+            "scattering_resolution", scattering_resolution))
         self.name = str(name)
         self._profiles: dict = {}
+        self._scattering_profiles: dict = {}
 
     # ------------------------------------------------------------------ presets
     @classmethod
@@ -726,7 +836,7 @@ class Shadow(nn.Module):
     def extra_repr(self) -> str:
         return (f"name={self.name!r}, radius={self.occluder_radius_m:.0f} m, "
                 f"top={self.top_radius_m:.0f} m, refraction={self.refraction}, "
-                f"extinction={self.extinction}")
+                f"extinction={self.extinction}, scattering={self.scattering}")
 
     def parameters_dict(self) -> dict:
         """Settings of this shadow model (for Dataset attributes)."""
@@ -739,6 +849,8 @@ class Shadow(nn.Module):
             "terrain_height_m": self.terrain_height_m if self.terrain_height_m else "none",
             "limb_darkening": self.limb_darkening.tolist(), "limb_darkening_law": self.law,
             "n_altitude": self.n_altitude, "n_ring": self.n_ring, "n_arc": self.n_arc,
+            "scattering": self.scattering,
+            "scattering_resolution": self.scattering_resolution,
         }
         if self.atmosphere is not None and hasattr(self.atmosphere, "parameters_dict"):
             result["atmosphere"] = self.atmosphere.parameters_dict()
@@ -777,8 +889,11 @@ class Shadow(nn.Module):
                     splits.append(impact_of(h_t))
             if not closed and self.cloud_fraction > 0.0 and self.cloud_top_altitude_m > 0.0:
                 splits.append(impact_of(self.cloud_top_altitude_m))
-            s = torch.linspace(0.0, 1.0, self.n_altitude, dtype=torch.float64)
-            beta = beta_min + (top - beta_min) * s * s
+            # kinks of the refractivity profile (e.g. the US 1976 layer bases): table nodes
+            kinks = [impact_of(h) for h in getattr(atm, "refractivity_kinks_m", ())
+                     if lowest_altitude < h < top]
+            grid = _ImpactGrid(beta_min, top, self.n_altitude, kinks)
+            beta = grid.beta(torch.linspace(0.0, 1.0, self.n_altitude, dtype=torch.float64))
             logger.info("tracing %d grazing rays x %d wavelengths", beta.numel(),
                         wavelength.numel())
             batch = self.batch_shape
@@ -802,9 +917,34 @@ class Shadow(nn.Module):
         profile = RingProfile(beta_min, top, deviation, optical, periapsis,
                               self.terrain_height_m, splits,
                               cloud_top_m=0.0 if closed else self.cloud_top_altitude_m,
-                              cloud_fraction=0.0 if closed else self.cloud_fraction)
+                              cloud_fraction=0.0 if closed else self.cloud_fraction,
+                              kink_betas_m=grid.kinks_m)
         self._profiles[key] = profile
         return profile
+
+    def scattering_profile(self, wavelength_nm):
+        """Tabulated single-scattering kernel for these wavelengths (cached).
+
+        Returns ``None`` for an airless occluder or with ``scattering=False``.
+        """
+        if self.atmosphere is None or not self.scattering:
+            return None
+        from skytorch.eclipse.shadow_scattering import ScatteringProfile
+
+        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
+        key = tuple(round(float(x), 9) for x in wavelength)
+        if key not in self._scattering_profiles:
+            closed = self.cloud_fraction >= 1.0
+            cloud = self.cloud_top_altitude_m
+            weights = RingProfile(0.0, 1.0, torch.zeros(3), torch.zeros(3, 1), torch.zeros(3),
+                                  self.terrain_height_m, cloud_top_m=0.0 if closed else cloud,
+                                  cloud_fraction=0.0 if closed else self.cloud_fraction)
+            self._scattering_profiles[key] = ScatteringProfile(
+                self.atmosphere, wavelength, lowest_altitude_m=cloud if closed else 0.0,
+                ray_weight=lambda h: _ray_weight(h, weights),
+                resolution=self.scattering_resolution,
+                blocking_radius_m=self.occluder_radius_m + (cloud if closed else 0.0))
+        return self._scattering_profiles[key]
 
     # ------------------------------------------------------------------ illuminance
     def _geometry(self, distance_m, offset_m, sun_distance_m, dtype):
@@ -879,6 +1019,11 @@ class Shadow(nn.Module):
                                 self.occluder_radius_m, self.n_ring, self.n_arc, self.n_split)
         normalisation = solar_normalisation(rho_s, limb, self.law)
         total = direct[..., None, None] + ring / normalisation[..., None, None]
+        scattering = self.scattering_profile(wavelength)
+        if scattering is not None:
+            from skytorch.eclipse.shadow_scattering import scattered_illuminance
+
+            total = total + scattered_illuminance(scattering, centre, sigma, scale)
         if not self.batch_shape:
             return total.squeeze(-2)
         return _broadcast_batch(total, self.batch_shape)
@@ -936,8 +1081,7 @@ class Shadow(nn.Module):
         n_b, n_p = n_altitude * oversample, n_azimuth * oversample
         beta = profile.beta_min_m + span * (torch.arange(n_b, dtype=dtype) + 0.5) / n_b
         psi = (torch.arange(n_p, dtype=dtype) + 0.5) * (2.0 * math.pi / n_p) - math.pi
-        s = torch.sqrt((beta - profile.beta_min_m) / span)
-        values = _spline(tables["all"], s)
+        values = _spline(tables["all"], profile.s_of_beta(beta))
         deviation, periapsis = values[:, 0], values[:, 1]
         optical = values[:, 2:] @ tables["basis"]
         centre = angles["centre_distance_m"][..., None]
