@@ -18,13 +18,14 @@ from skytorch.skyglow.inverse import (
     skyglow_influence,
 )
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, emission_intensity, kernel_radiance
-from skytorch.skyglow.model import SkyglowModel, light_map_arrays
+from skytorch.skyglow.model import SkyglowModel, SplatPlan, light_map_arrays
 from skytorch.skyglow.naive import render_naive
 
 __all__ = [
     "EMISSION_FUNCTIONS",
     "Medium",
     "SkyglowModel",
+    "SplatPlan",
     "apply_reduction",
     "emission_intensity",
     "kernel_radiance",

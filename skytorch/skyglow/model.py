@@ -548,43 +548,26 @@ class SkyglowModel(nn.Module):
             Flux per polar node [lm]; the total over nodes equals the flux of the cells
             within ``max_distance_m``.
         """
-        return self.splat_plan(x_m, y_m, altitude_m, observer_xy, dtype=flux.dtype,
-                               compact=False).apply(flux)
+        dtype = flux.dtype
+        _warn_outside("source altitude", altitude_m[flux.detach() != 0], self.source_altitude_m)
+        base, corners, shape = self._splat_corners(x_m, y_m, altitude_m, observer_xy, dtype)
+        out = torch.zeros(math.prod(shape), dtype=dtype)
+        flux = flux[None, :]
+        for offset, weight in corners:  # in place: a copy of `out` per corner costs more
+            out.index_add_(0, (base + offset).reshape(-1), (weight * flux).reshape(-1))
+        return out.reshape(shape).permute(3, 0, 1, 2)
 
-    def splat_plan(self, x_m, y_m, altitude_m, observer_xy, *, dtype=None,
-                   compact: bool = True) -> SplatPlan:
-        """The linear map from cell fluxes to polar node fluxes, for reuse across renders.
-
-        Each cell's flux is distributed bilinearly over the four polar nodes (azimuth ×
-        distance; × 2 source-altitude nodes with a terrain) around it, as seen from each
-        observer. The indices and weights depend only on the geometry, so a plan built once
-        per map grid and observer set turns every later splat into one gather, one multiply
-        and one ``index_add`` (:meth:`radiance_per_lumen` keeps the last plan).
-
-        Parameters
-        ----------
-        x_m, y_m, altitude_m : Tensor (cell,)
-            Cell centres east/north [m] and source altitudes [m].
-        observer_xy : Tensor (observer, 2)
-            Observer positions east/north [m].
-        dtype : torch.dtype, optional
-            dtype of the weights (default that of ``x_m``).
-        compact : bool
-            Drop the (observer, cell) pairs beyond ``max_distance_m`` (they carry no flux).
-
-        Returns
-        -------
-        SplatPlan
-            ``plan.apply(flux)`` gives (observer, azimuth, distance, source_altitude).
-        """
-        dtype = x_m.dtype if dtype is None else dtype
+    def _splat_corners(self, x_m, y_m, altitude_m, observer_xy, dtype):
+        """Flat polar index of each (observer, cell) pair's first corner, the corners'
+        (offset, weight) and the storage shape (azimuth, distance, source_altitude,
+        observer); weights are zero beyond ``max_distance_m``."""
         x_m, y_m = x_m.to(dtype).reshape(-1), y_m.to(dtype).reshape(-1)
         altitude_m = altitude_m.to(dtype).reshape(-1)
         observer_xy = observer_xy.to(dtype)
         n_t = self.azimuth_rad.numel()
         n_r = self.distance_m.numel()
         n_h = self.source_altitude_m.numel()
-        n_obs, n_cells = observer_xy.shape[0], x_m.numel()
+        n_obs = observer_xy.shape[0]
         dx = x_m[None, :] - observer_xy[:, 0:1].contiguous()
         dy = y_m[None, :] - observer_xy[:, 1:2].contiguous()
         r = torch.sqrt(dx * dx + dy * dy)
@@ -613,11 +596,44 @@ class SkyglowModel(nn.Module):
             if n > 1:
                 corners = [item for offset, value in corners for item in (
                     (offset, value * (1 - w)), (offset + stride, value * w))]
+        return base, corners, (n_t, n_r, n_h, n_obs)
+
+    def splat_plan(self, x_m, y_m, altitude_m, observer_xy, *, dtype=None,
+                   compact: bool = True) -> SplatPlan:
+        """The linear map from cell fluxes to polar node fluxes, for reuse across renders.
+
+        Each cell's flux is distributed bilinearly over the four polar nodes (azimuth ×
+        distance; × 2 source-altitude nodes with a terrain) around it, as seen from each
+        observer. The indices and weights depend only on the geometry, so a plan built once
+        per map grid and observer set turns every later splat into one gather, one multiply
+        and one ``index_add`` (:meth:`radiance_per_lumen` keeps the last plan).
+
+        Parameters
+        ----------
+        x_m, y_m, altitude_m : Tensor (cell,)
+            Cell centres east/north [m] and source altitudes [m].
+        observer_xy : Tensor (observer, 2)
+            Observer positions east/north [m].
+        dtype : torch.dtype, optional
+            dtype of the weights (default that of ``x_m``).
+        compact : bool
+            Drop the (observer, cell) pairs beyond ``max_distance_m`` (they carry no flux).
+
+        Returns
+        -------
+        SplatPlan
+            ``plan.apply(flux)`` gives (observer, azimuth, distance, source_altitude).
+        """
+        dtype = x_m.dtype if dtype is None else dtype
+        base, corners, shape = self._splat_corners(x_m, y_m, altitude_m, observer_xy, dtype)
+        n_t, n_r, n_h, n_obs = shape
+        n_cells = base.shape[1]
+        altitude_m = altitude_m.to(dtype).reshape(-1)
         index = torch.stack([base + offset for offset, _ in corners])  # (corner, obs, cell)
         weight = torch.stack([value for _, value in corners])
         cell = torch.arange(n_cells).expand(n_obs, n_cells)
         if compact:
-            keep = inside.detach()
+            keep = weight.detach().sum(dim=0) > 0  # within max_distance_m
             index, weight, cell = index[:, keep], weight[:, keep], cell[keep]
         else:
             index, weight, cell = (v.reshape(*v.shape[:-2], -1) for v in (index, weight, cell))
