@@ -37,6 +37,13 @@ def test_demo_quick_writes_netcdf_and_png(tmp_path, capsys):
     assert float(volcanic["v_magnitude"].max()) > float(typical["v_magnitude"].max())
     totality = open_dataset(tmp_path / "allsky_2_totality.nc")
     assert {"moon", "eclipse", "skyglow"} <= set(totality.attrs["effects_computed"].split(","))
+    # the close-up at partial ingress resolves the umbra's edge: part of the disc is more
+    # than 5 mag arcsec^-2 fainter than the sunlit part
+    assert (tmp_path / "moon_camera_three_phases.png").stat().st_size > 10_000
+    closeup = open_dataset(tmp_path / "moon_camera_1_partial.nc")
+    disc = closeup["component_v_mag_arcsec2"].sel(component="moon").values
+    disc = disc[disc < np.nanmedian(disc) - 3.0]
+    assert disc.max() - disc.min() > 5.0
     sweep = open_dataset(tmp_path / "sweep_moon_colour.nc")
     assert set(sweep["b_minus_v"].dims) == {"turbidity", "ozone_du"}
     assert np.isfinite(sweep["b_minus_v"].values).all()

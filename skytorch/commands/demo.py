@@ -11,7 +11,9 @@ The 2015-09-28 total lunar eclipse, end to end:
    molecular atmosphere, 1/2400 of sunlight (Vollmer & Gedzelman 2008);
 5. all-sky renders at three phases from Berlin with stars, the Moon and a city's
    skyglow (:class:`skytorch.Scene`): U1 + 30 min, greatest eclipse, U4 − 20 min;
-6. a 3 × 3 turbidity × ozone sweep of the Moon's colour at totality
+6. the Moon through a telescope at the same phases (a camera view of 1.2°): the edge of
+   the umbra across the disc;
+7. a 3 × 3 turbidity × ozone sweep of the Moon's colour at totality
    (:func:`skytorch.sweep`).
 
 Every part writes netCDF and PNG files into ``--output-dir`` and one line or two of the
@@ -303,6 +305,53 @@ def all_sky_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
     return [f"all-sky renders (Berlin, city 12 km SE) -> {png.name}", *lines]
 
 
+#: field of view of the Moon close-ups [degree]
+CAMERA_FOV_DEG = 1.2
+
+
+def moon_camera_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    """The Moon through a telescope (camera view) at the three phases of the all-sky part."""
+    import torch
+
+    from skytorch.dataset import to_netcdf
+    from skytorch.scene import Scene, tonemap
+
+    plt = _plt()
+    phases = _phases(state)
+    figure, axes = plt.subplots(1, len(phases), figsize=(3.4 * len(phases), 3.8))
+    figure.patch.set_facecolor("black")
+    lines = []
+    for index, (label, when) in enumerate(phases.items()):
+        scene = Scene(time=str(when)[:19], **SITE, view="camera", size=48 if quick else 192,
+                      camera={"target": "moon", "fov_deg": CAMERA_FOV_DEG},
+                      fidelity="fast" if quick else "default", exclude=["stars"],
+                      outputs=("spectral", "xyz", "v_mag"))
+        ds = scene.render()
+        stem = f"moon_camera_{index + 1}_{label.split()[0]}"
+        to_netcdf(ds, output_dir / f"{stem}.nc")
+        half = 0.5 * CAMERA_FOV_DEG
+        # exposed for the brightest part of the disc, as a photograph of the Moon would be
+        xyz = torch.as_tensor(ds["xyz"].values)
+        rgb, _ = tonemap(xyz, exposure=2.0 / float(xyz[..., 1].max()))
+        axes[index].imshow(rgb.numpy(), extent=(-half, half, -half, half))
+        axes[index].set_title(f"{label}\n{str(when)[:16]} UTC", color="white", fontsize=9)
+        axes[index].set_xlabel("degree", color="white")
+        axes[index].tick_params(colors="white")
+        moon = ds["component_v_mag_arcsec2"].sel(component="moon").values
+        disc = moon[np.isfinite(moon) & (moon < np.nanmedian(moon) - 3.0)]
+        if disc.size:
+            lines.append(f"  {label:24s} lunar disc {disc.min():.1f} .. {disc.max():.1f} "
+                         f"mag/arcsec2 -> {stem}.nc")
+    png = _save(figure, output_dir / "moon_camera_three_phases.png")
+    return [f"Moon close-ups ({CAMERA_FOV_DEG} deg field) -> {png.name}", *lines]
+
+
+def _save(figure, path: Path) -> Path:
+    from skytorch import plot
+
+    return plot.savefig(figure, path)
+
+
 def moon_colour_at_totality(turbidity, ozone_du, quick: bool = False):
     """Moon's V, B−V and sRGB colour at greatest eclipse for one atmosphere (a sweep point)."""
     from skytorch.atmosphere import Atmosphere
@@ -361,6 +410,7 @@ PARTS = (
     ("light curve", light_curve_part),
     ("shadow profile", shadow_profile_part),
     ("all-sky renders", all_sky_part),
+    ("Moon close-ups", moon_camera_part),
     ("sweep", sweep_part),
 )
 
