@@ -174,10 +174,12 @@ def paper_precompute(n_observer_altitudes: int = 16, *, compute_dtype=torch.floa
 def _paper_rows(rows, args) -> str:
     """The measured (sliced) paper-resolution precompute, extrapolated to 16 altitudes."""
     k = args.paper_slice
-    model, timings = paper_precompute(k, save=args.save)
+    dtype = getattr(torch, args.paper_dtype)
+    model, timings = paper_precompute(k, compute_dtype=dtype, save=args.save)
     scale = PAPER_PCAS / k
     label = "full" if k == PAPER_PCAS else f"{k} of 16 observer altitudes, × {scale:g}"
-    rows.append({"case": f"precompute at paper resolution, float32 kernel + float64 PCA, "
+    rows.append({"case": f"precompute at paper resolution, {args.paper_dtype} kernel + "
+                         f"float64 PCA, "
                          f"{2 * model.parameters_used['n_steps']} nodes per ray, "
                          f"{args.threads} thread(s): {label}",
                  "wall [min]": timings["wall"] * scale / 60,
@@ -204,6 +206,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--paper-slice", type=int, default=16, metavar="K",
                         help="with --paper: only the first K of the 16 observer altitudes")
     parser.add_argument("--save", help="with --paper: write the model to this netCDF file")
+    parser.add_argument("--paper-dtype", choices=("float32", "float64"), default="float32",
+                        help="with --paper: dtype of the kernel quadrature")
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
     if args.paper:
