@@ -146,3 +146,60 @@ def test_ring_phase_dims_totality_like_the_phase_curve():
     assert expected > 0.03 * MAG
     assert abs(change - expected) < RING_PHASE_TOLERANCE
     assert float(abs(ring.v_magnitude[0] - sun_only.v_magnitude[0])) < 1e-9 * MAG
+
+
+#: batched and single-member shadow tables differ only by floating-point rounding
+BATCH_TOLERANCE = 1e-9 * MAG
+
+
+def test_batched_atmosphere_equals_member_loop():
+    """A batched atmosphere (turbidity x ozone) gives Dataset dims whose members equal
+    lunar_eclipse run member by member (reference: the unbatched code path)."""
+    from skytorch.atmosphere import Atmosphere
+
+    turbidity = torch.tensor([[1.5], [3.0]], dtype=torch.float64)
+    ozone = torch.tensor([[250.0, 350.0]], dtype=torch.float64)
+    kwargs = {"n_times": 7, "n_images": 2, "image_pixels": 8, "n_disc": 6, "table_n_v": 64}
+    batched = lunar_eclipse(DATE, Atmosphere.earth(turbidity=turbidity, ozone_du=ozone),
+                            batch_dims=["haze", "ozone_du"], **kwargs)
+    assert batched.v_magnitude.dims == ("haze", "ozone_du", "time")
+    assert batched.image.dims == ("haze", "ozone_du", "image_time", "y", "x", "channel")
+    np.testing.assert_allclose(batched.ozone_du.values, [250.0, 350.0])
+    assert batched.angstrom_beta.dims == ("haze",)
+    assert list(batched.haze.values) == [0, 1]
+    for i in range(2):
+        for j in range(2):
+            single = lunar_eclipse(DATE, Atmosphere.earth(turbidity=float(turbidity[i, 0]),
+                                                          ozone_du=float(ozone[0, j])),
+                                   **kwargs)
+            member = batched.isel(haze=i, ozone_du=j)
+            for name in ("v_magnitude", "b_magnitude", "image_v_magnitude"):
+                np.testing.assert_allclose(member[name].values, single[name].values, rtol=0,
+                                           atol=BATCH_TOLERANCE)
+            np.testing.assert_allclose(member.image.values, single.image.values, atol=1e-9)
+            np.testing.assert_allclose(member.spectral_irradiance.values,
+                                       single.spectral_irradiance.values, rtol=1e-9)
+            assert float(member.greatest_v_magnitude) == pytest.approx(
+                float(single.attrs["parameter_greatest_v_magnitude"]), abs=BATCH_TOLERANCE)
+            assert float(member.danjon_l) == pytest.approx(
+                float(single.attrs["parameter_danjon_l"]), abs=1e-9)
+    # more aerosol, darker totality
+    greatest = batched.greatest_v_magnitude.values
+    assert (greatest[1] > greatest[0]).all()
+
+
+def test_batched_dataset_round_trip_and_dimension_names(tmp_path):
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.dataset import open_dataset, to_netcdf
+
+    atmosphere = Atmosphere.earth(turbidity=torch.tensor([1.5, 3.0], dtype=torch.float64))
+    curve = lunar_eclipse(DATE, atmosphere, n_times=4, n_images=0, n_disc=4, table_n_v=48)
+    assert curve.v_magnitude.dims == ("atmosphere_0", "time")
+    restored = open_dataset(to_netcdf(curve, tmp_path / "batched.nc"))
+    np.testing.assert_allclose(restored.v_magnitude.values, curve.v_magnitude.values)
+    with pytest.raises(ValueError, match="select a member"):
+        plot_lunar_eclipse(curve)
+    plot_lunar_eclipse(curve.isel(atmosphere_0=1), tmp_path / "member.png")
+    with pytest.raises(ValueError, match="batch_dims"):
+        lunar_eclipse(DATE, atmosphere, n_times=3, n_images=0, table_n_v=32,
+                      batch_dims=["time"])

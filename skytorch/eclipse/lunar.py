@@ -58,6 +58,7 @@ from skytorch.eclipse.shadow_table import ShadowTable
 
 __all__ = [
     "DANJON_ANCHORS",
+    "DANJON_RELATION",
     "Shadow",
     "ShadowTable",
     "danjon_l",
@@ -74,6 +75,9 @@ logger = logging.getLogger(__name__)
 #: a bright eclipse without stratospheric aerosol), and L = 0 at V = +2, the faint end of
 #: the totality range the project adopts from Keen 1983 (not a fitted relation)
 DANJON_ANCHORS = ((0.0, 2.0), (4.0, -3.3))
+#: how :func:`danjon_l` maps magnitude to L (stored with every light-curve Dataset)
+DANJON_RELATION = ("linear brightness proxy L = 4 (V - 2) / (-3.3 - 2), clipped to [0, 4]; "
+                   "not a published L-magnitude relation")
 
 
 def volcanic_atmosphere(turbidity=2.0, ozone_du=300.0, *, density_factor=2.0,
@@ -206,7 +210,7 @@ def _eclipse_times(date, n_times: int, enlargement: str):
 
 
 def _disc_images(shadow_fn, sun, moon, wavelength, n_pixels, sun_distance, ring_phase=True):
-    """sRGB images (n, y, x, 3) of the lunar disc and the flux per pixel."""
+    """Spectral radiance images (*B, n, y, x, n_wavelength) of the lunar disc."""
     from skytorch.moon.disc import disc_radiance
 
     centres = (torch.arange(n_pixels, dtype=torch.float64) + 0.5) * (2.0 / n_pixels) - 1.0
@@ -216,9 +220,11 @@ def _disc_images(shadow_fn, sun, moon, wavelength, n_pixels, sun_distance, ring_
     zz = torch.sqrt((1.0 - rr).clamp_min(0.0))
     normal = torch.stack([xx, yy, zz], dim=-1).reshape(-1, 3)
     _, lit = _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance,
-                               disc_radiance, ring_phase)
-    lit = lit * inside[None, :, None].to(lit.dtype)
-    return lit.reshape(sun.shape[0], n_pixels, n_pixels, -1)
+                               disc_radiance, ring_phase)  # (n, p, *B, n_wl)
+    batch = lit.shape[2:-1]
+    lit = lit * inside.reshape(1, -1, *(1,) * (len(batch) + 1)).to(lit.dtype)
+    lit = lit.movedim(1, -2).movedim(0, len(batch))  # (*B, n, p, n_wl)
+    return lit.reshape(*batch, sun.shape[0], n_pixels, n_pixels, -1)
 
 
 def _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance, disc_radiance,
@@ -304,6 +310,12 @@ _SPECS = {
                           "of each image scaled to 1); x west, y north"),
     "image_v_magnitude": VariableSpec("mag", "V magnitude at the image times",
                                       "Disc-integrated V magnitude at the image times"),
+    "greatest_v_magnitude": VariableSpec(
+        "mag", "V magnitude at greatest eclipse",
+        "Disc-integrated V magnitude at the time closest to the shadow axis"),
+    "danjon_l": VariableSpec("1", "Danjon L estimate",
+                             "Danjon luminosity L from the V magnitude at greatest eclipse "
+                             "(see the danjon_l_relation attribute)"),
     "wavelength": VariableSpec("nm", "wavelength", "Vacuum wavelength",
                                standard_name="radiation_wavelength"),
     "channel": VariableSpec("1", "sRGB channel", "R, G, B"),
@@ -427,7 +439,8 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
                   wavelength_nm=None, n_disc: int = 12, n_images: int = 9,
                   image_pixels: int = 48, enlargement: str = "danjon", shadow=None,
                   table_n_v: int = 384, table_n_u: int = 3,
-                  progress: bool = False, ring_phase: bool = True) -> xr.Dataset:
+                  progress: bool = False, ring_phase: bool = True,
+                  batch_dims=None) -> xr.Dataset:
     """Brightness, colour and images of the Moon through the lunar eclipse nearest a date.
 
     Parameters
@@ -435,7 +448,9 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     time_or_date : str, datetime or datetime64
         A date or time within 20 days of the eclipse (UTC).
     atmosphere : Atmosphere, optional
-        The Earth's atmosphere (default ``Atmosphere.earth()``); ``False`` for none.
+        The Earth's atmosphere (default ``Atmosphere.earth()``); ``False`` for none. It may
+        be batched (e.g. ``Atmosphere.earth(turbidity=torch.tensor([1.5, 3.0]))``): its
+        batch dimensions become Dataset dimensions, see ``batch_dims``.
     n_times : int
         Times from 5 % of the P1–P4 duration before P1 to as much after P4.
     wavelength_nm : Tensor (wavelength,), optional
@@ -447,7 +462,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     enlargement : {"danjon", "chauvenet", "none"}
         Convention for the circumstances (contacts, magnitudes).
     shadow : Shadow, optional
-        A prepared shadow model (overrides ``atmosphere``).
+        A prepared shadow model (overrides ``atmosphere``; may be batched too).
     table_n_u, table_n_v : int
         Size of the (u, v) shadow table over the Moon's distances.
     progress : bool
@@ -457,29 +472,50 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         Earth's limb ring (``asin(R_earth / d)``, about 1°) instead of the Sun's (0.2–0.5°
         at mid-totality); the lunar opposition surge makes totality about 0.05 mag
         fainter (2015-09-28). ``False``: the Sun's phase angle for all light.
+    batch_dims : sequence of str, optional
+        Names of the Dataset dimensions of a batched atmosphere, one per batch dimension
+        (default ``atmosphere_0``, ``atmosphere_1``, ...). Each gets an index coordinate,
+        unless it is named after an atmosphere parameter that varies along it alone (e.g.
+        ``"ozone_du"``), whose values then label it; every batched parameter is also
+        stored as a coordinate over the dimensions it varies along.
 
     Returns
     -------
     xarray.Dataset
-        Dims ``time``, ``wavelength``, ``channel``, ``image_time``, ``y``, ``x``:
-        ``v_magnitude``, ``b_magnitude``, ``b_minus_v``, ``colour``,
-        ``relative_brightness``, ``spectral_irradiance``, ``shadow_axis_distance``,
-        ``image``; attributes: the circumstances, ``greatest_v_magnitude``,
-        ``danjon_l`` and the shadow parameters.
+        Dims ``time``, ``wavelength``, ``channel``, ``image_time``, ``y``, ``x`` (and the
+        batch dims ``B`` of a batched atmosphere, leading): ``v_magnitude``,
+        ``b_magnitude``, ``b_minus_v``, ``relative_brightness`` (*B, time), ``colour``
+        (*B, time, channel), ``spectral_irradiance`` (*B, time, wavelength),
+        ``shadow_axis_distance`` (time), ``image`` (*B, image_time, y, x, channel),
+        ``image_v_magnitude`` (*B, image_time); attributes: the circumstances,
+        ``greatest_v_magnitude``, ``danjon_l`` and the shadow parameters. For a batched
+        atmosphere ``greatest_v_magnitude`` and (for a total eclipse) ``danjon_l`` are
+        also variables over ``B``.
+
+    Examples
+    --------
+    >>> import torch
+    >>> from skytorch.atmosphere import Atmosphere
+    >>> atmosphere = Atmosphere.earth(turbidity=torch.tensor([1.5, 3.0], dtype=torch.float64))
+    >>> ds = lunar_eclipse("2015-09-28", atmosphere, n_times=5, n_images=0, table_n_v=64,
+    ...                    batch_dims=["turbidity_case"])
+    >>> ds.v_magnitude.dims, ds.sizes["turbidity_case"]
+    (('turbidity_case', 'time'), 2)
     """
-    from skytorch.spectrum import spectrum_to_magnitude
+    from skytorch.spectrum import spectrum_to_magnitude, spectrum_to_xyz
 
     n_images = check_int("n_images", n_images, low=0)
     image_pixels = check_int("image_pixels", image_pixels, low=4)
     curve = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
                          enlargement, shadow, table_n_u, table_n_v, progress, ring_phase)
-    if curve["shadow"].batch_shape:
-        raise ValueError("lunar_eclipse needs an unbatched atmosphere; use "
-                         "lunar_light_curve (or skytorch.sweep) for batched atmospheres")
     times, row, shadow, table = curve["times"], curve["row"], curve["shadow"], curve["table"]
     sun, moon, wavelength = curve["sun"], curve["moon"], curve["wavelength"]
     sun_distance = curve["sun_distance"]
-    flux, flux_full, axis_distance = curve["flux"], curve["flux_full"], curve["axis_distance"]
+    batch = tuple(table.batch_shape)
+    dims = _batch_dims(batch, batch_dims)
+    # (*B, time, wavelength): batch dimensions lead
+    flux = curve["flux"].movedim(0, len(batch))
+    flux_full, axis_distance = curve["flux_full"], curve["axis_distance"]
     image_index = (np.round(np.linspace(0, n_times - 1, n_images)).astype(int)
                    if n_images else np.zeros(0, dtype=int))
     v_mag, b_mag, v_full = (spectrum_to_magnitude(f, wavelength, band)
@@ -487,15 +523,17 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     colour = _colour(flux, wavelength)
 
     greatest = int(torch.argmin(axis_distance))
-    greatest_v = float(v_mag[greatest])
+    greatest_v = v_mag[..., greatest]
+    total = str(row.kind.values) == "total"
     data_vars = {
-        "v_magnitude": variable(("time",), to_numpy(v_mag), _SPECS["v_magnitude"]),
-        "b_magnitude": variable(("time",), to_numpy(b_mag), _SPECS["b_magnitude"]),
-        "b_minus_v": variable(("time",), to_numpy(b_mag - v_mag), _SPECS["b_minus_v"]),
-        "colour": variable(("time", "channel"), to_numpy(colour), _SPECS["colour"]),
-        "relative_brightness": variable(("time",), to_numpy(10 ** (-0.4 * (v_mag - v_full))),
+        "v_magnitude": variable((*dims, "time"), to_numpy(v_mag), _SPECS["v_magnitude"]),
+        "b_magnitude": variable((*dims, "time"), to_numpy(b_mag), _SPECS["b_magnitude"]),
+        "b_minus_v": variable((*dims, "time"), to_numpy(b_mag - v_mag), _SPECS["b_minus_v"]),
+        "colour": variable((*dims, "time", "channel"), to_numpy(colour), _SPECS["colour"]),
+        "relative_brightness": variable((*dims, "time"),
+                                        to_numpy(10 ** (-0.4 * (v_mag - v_full))),
                                         _SPECS["relative_brightness"]),
-        "spectral_irradiance": variable(("time", "wavelength"), to_numpy(flux),
+        "spectral_irradiance": variable((*dims, "time", "wavelength"), to_numpy(flux),
                                         _SPECS["spectral_irradiance"]),
         "shadow_axis_distance": variable(("time",), to_numpy(axis_distance),
                                          _SPECS["shadow_axis_distance"]),
@@ -504,19 +542,24 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         "time": time_coordinate(times),
         "wavelength": coordinate("wavelength", to_numpy(wavelength), _SPECS["wavelength"]),
         "channel": coordinate("channel", np.array(["R", "G", "B"]), _SPECS["channel"]),
+        **_batch_coordinates(shadow, batch, dims),
     }
+    if batch:
+        data_vars["greatest_v_magnitude"] = variable(dims, to_numpy(greatest_v),
+                                                     _SPECS["greatest_v_magnitude"])
+        if total:
+            data_vars["danjon_l"] = variable(dims, to_numpy(danjon_l(greatest_v)),
+                                             _SPECS["danjon_l"])
     if n_images:
         pixels = _disc_images(_shadow_lookup(table, sun[image_index]), sun[image_index],
                               moon[image_index], wavelength, image_pixels, sun_distance,
                               ring_phase)
-        from skytorch.spectrum import spectrum_to_xyz
-
         images = _display(spectrum_to_xyz(pixels, wavelength), 3)
         centres = (np.arange(image_pixels) + 0.5) * (2.0 / image_pixels) - 1.0
-        data_vars["image"] = variable(("image_time", "y", "x", "channel"), to_numpy(images),
-                                      _SPECS["image"])
-        data_vars["image_v_magnitude"] = variable(("image_time",),
-                                                  to_numpy(v_mag[image_index]),
+        data_vars["image"] = variable((*dims, "image_time", "y", "x", "channel"),
+                                      to_numpy(images), _SPECS["image"])
+        data_vars["image_v_magnitude"] = variable((*dims, "image_time"),
+                                                  to_numpy(v_mag[..., image_index]),
                                                   _SPECS["image_v_magnitude"])
         coords["image_time"] = time_coordinate(times[image_index], dim="image_time")
         coords["x"] = coordinate("x", centres, _SPECS["x"])
@@ -526,20 +569,82 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         value = row[name].values
         return "NaT" if np.isnat(value) else np.datetime_as_string(value, unit="s")
 
+    def scalar_or_list(value: torch.Tensor):
+        return float(value) if value.ndim == 0 else to_numpy(value).tolist()
+
     parameters = {
         "kind": str(row.kind.values), "umbral_magnitude": float(row.umbral_magnitude),
         "penumbral_magnitude": float(row.penumbral_magnitude), "gamma": float(row.gamma),
         "greatest_eclipse": when("time"), **{c: when(c) for c in ("p1", "u1", "u2", "u3",
                                                                   "u4", "p4")},
-        "enlargement": enlargement, "greatest_v_magnitude": greatest_v,
+        "enlargement": enlargement, "greatest_v_magnitude": scalar_or_list(greatest_v),
         "greatest_time": np.datetime_as_string(times[greatest], unit="s"),
-        "danjon_l": float(danjon_l(greatest_v)) if str(row.kind.values) == "total" else "none",
+        "danjon_l": scalar_or_list(danjon_l(greatest_v)) if total else "none",
+        "danjon_l_relation": DANJON_RELATION,
         "n_disc": n_disc, "table_n_u": table_n_u, "table_n_v": table_n_v,
         "ring_phase": str(bool(ring_phase)),
         "shadow": shadow.parameters_dict(),
     }
     return build_dataset(data_vars, coords, title="Lunar eclipse light curve",
                          references=_REFERENCES, parameters=parameters)
+
+
+def _parameter_units(name: str) -> str:
+    """UDUNITS string of an atmosphere parameter, from the unit suffix of its name."""
+    for suffix, units in (("_m_s2", "m s-2"), ("_kg_mol", "kg mol-1"), ("_pa", "Pa"),
+                          ("_du", "DU"), ("_k", "K"), ("_m", "m")):
+        if name.endswith(suffix):
+            return units
+    return "1"
+
+
+def _batch_dims(batch: tuple[int, ...], names) -> tuple[str, ...]:
+    """Dataset dimension names of an atmosphere batch shape (validated)."""
+    if names is None:
+        return tuple(f"atmosphere_{k}" for k in range(len(batch)))
+    names = tuple(str(name) for name in names)
+    reserved = {"time", "wavelength", "channel", "image_time", "x", "y"}
+    if (len(names) != len(batch) or len(set(names)) != len(names)
+            or reserved.intersection(names)):
+        raise ValueError(
+            f"batch_dims must name each of the {len(batch)} atmosphere batch dimensions "
+            f"(shape {batch}) once, avoiding {sorted(reserved)}; got {list(names)}")
+    return names
+
+
+def _batch_coordinates(shadow, batch: tuple[int, ...], dims: tuple[str, ...]) -> dict:
+    """Coordinates of the atmosphere batch dimensions.
+
+    Every atmosphere parameter with a batch shape becomes a coordinate over the dimensions
+    along which it varies; a dimension named after a parameter that varies along it alone
+    takes that parameter's values, any other an index.
+    """
+    coords = {}
+    atmosphere = getattr(shadow, "atmosphere", None)
+    parameters = ()
+    if atmosphere is not None and hasattr(atmosphere, "parameters_dict"):
+        parameters = [key for key, value in atmosphere.parameters_dict().items()
+                      if isinstance(value, list)]
+    for key in parameters:
+        values = getattr(atmosphere, key).detach().to(torch.float64)
+        values = values.reshape((1,) * (len(batch) - values.ndim) + tuple(values.shape))
+        along = tuple(k for k, size in enumerate(values.shape) if size > 1)
+        if not along:
+            continue
+        index = tuple(slice(None) if k in along else 0 for k in range(len(batch)))
+        spec = VariableSpec(_parameter_units(key), key.replace("_", " "),
+                            f"Atmosphere parameter {key} of the batch members")
+        coords[key] = variable(tuple(dims[k] for k in along), to_numpy(values[index]), spec)
+    for k, (dim, size) in enumerate(zip(dims, batch, strict=True)):
+        if dim in coords and coords[dim].dims == (dim,):
+            continue  # labelled by the parameter's values
+        if dim in coords:  # a parameter of that name varies along other dims too
+            raise ValueError(f"batch dimension {dim!r} is named after a parameter that "
+                             f"varies along {coords[dim].dims}")
+        coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
+            "1", "atmosphere batch index", f"Index of the atmosphere along batch "
+            f"dimension {k}"))
+    return coords
 
 
 def _shadow_lookup(table, sun):
@@ -586,6 +691,10 @@ def plot_lunar_eclipse(dataset: xr.Dataset, path=None):
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
+    extra = [dim for dim in dataset.v_magnitude.dims if dim != "time"]
+    if extra:
+        raise ValueError(f"plot_lunar_eclipse shows one atmosphere; select a member of the "
+                         f"batch dimensions {extra}, e.g. dataset.isel({extra[0]}=0)")
     n_images = dataset.sizes.get("image_time", 0)
     figure = plt.figure(figsize=(max(8.0, 1.2 * n_images), 6.5))
     grid = figure.add_gridspec(2, max(n_images, 1), height_ratios=(1, 2.2))
@@ -607,10 +716,15 @@ def plot_lunar_eclipse(dataset: xr.Dataset, path=None):
     axis.legend(loc="upper right")
     axis.grid(alpha=0.3)
     attrs = dataset.attrs
+    # a member selected from a batched Dataset carries its values as variables
+    greatest = (dataset["greatest_v_magnitude"] if "greatest_v_magnitude" in dataset
+                else attrs.get("parameter_greatest_v_magnitude", math.nan))
     title = (f"lunar eclipse {attrs.get('parameter_greatest_eclipse', '')}: greatest V "
-             f"{float(attrs.get('parameter_greatest_v_magnitude', math.nan)):.2f}")
-    if attrs.get("parameter_danjon_l", "none") != "none":
-        title += f", Danjon L ≈ {float(attrs['parameter_danjon_l']):.1f}"
+             f"{float(greatest):.2f}")
+    if "danjon_l" in dataset:
+        title += f", Danjon L ≈ {float(dataset['danjon_l']):.1f} (proxy)"
+    elif attrs.get("parameter_danjon_l", "none") != "none":
+        title += f", Danjon L ≈ {float(attrs['parameter_danjon_l']):.1f} (proxy)"
     axis.set_title(title, fontsize=10)
     figure.tight_layout()
     if path is not None:
