@@ -133,6 +133,27 @@ def test_resume_after_interruption(tmp_path, store_name):
     xr.testing.assert_identical(run().drop_attrs(), again.drop_attrs())
 
 
+@pytest.mark.parametrize("suffix", [".nc", ".zarr"])
+def test_unreadable_chunk_is_recomputed(tmp_path, suffix, caplog):
+    import shutil
+
+    if suffix == ".zarr":
+        pytest.importorskip("zarr")
+    store = tmp_path / f"chunks{suffix}"
+    run(chunk_size=3, store=store)
+    damaged = sorted(store.glob("*/chunk_*"))[1]
+    if damaged.is_dir():  # a Zarr store without its metadata
+        shutil.rmtree(damaged)
+        damaged.mkdir()
+    else:
+        damaged.write_bytes(b"not netCDF")
+    CALLS["count"] = 0
+    ds = run(chunk_size=3, store=store)
+    assert CALLS["count"] == 3  # only the damaged chunk
+    assert "unreadable sweep chunk" in caplog.text
+    np.testing.assert_allclose(ds["transmittance"].values, reference_loop(), rtol=1e-14)
+
+
 def test_resume_with_dask(tmp_path):
     # every point with turbidity 3 fails: the dask backend still finishes and persists the
     # other chunks (one turbidity value per chunk of 3 points) before raising
