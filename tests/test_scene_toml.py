@@ -38,3 +38,21 @@ def test_render_command_writes_netcdf_and_png(tmp_path, capsys):
     assert np.isfinite(ds["radiance"].values).all()
     assert png.stat().st_size > 200
     assert "computed: sky,sun" in capsys.readouterr().out
+
+
+def test_camera_view_and_several_observers_from_toml(tmp_path, capsys):
+    path = tmp_path / "moon.toml"
+    path.write_text('time = "2015-09-28T02:47"\nnatural_model = "constant"\n'
+                    '[observer]\nlat_deg = [52.52, 48.85]\nlon_deg = [13.40, 2.35]\n'
+                    '[view]\nkind = "camera"\nsize = 8\nfov_deg = 1.5\ntarget = "moon"\n'
+                    '[planner]\nexclude = ["stars"]\n')
+    scene = st.Scene.from_toml(path)
+    assert scene.n_observers == 2 and scene.camera == {"fov_deg": 1.5, "target": "moon"}
+    out, png = tmp_path / "moon.nc", tmp_path / "moon.png"
+    assert main(["render", str(path), "-o", str(out), "--png", str(png),
+                 "--fidelity", "fast"]) == 0
+    ds = open_dataset(out)
+    assert ds.sizes["observer"] == 2 and ds.sizes["camera_x"] == 8
+    assert (tmp_path / "moon_0.png").stat().st_size > 100
+    assert (tmp_path / "moon_1.png").stat().st_size > 100
+    assert "observer 1: computed: moon" in capsys.readouterr().out

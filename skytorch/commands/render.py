@@ -8,13 +8,16 @@ Examples
     skytorch render scene.toml -o sky.nc --size 128 --fidelity fast --night
 
 The TOML format is documented in ``docs/scene.md``; ``data/scene_example.toml`` is a
-complete example. Options given on the command line override the file.
+complete example. Options given on the command line override the file. With several
+observers (lists in ``[observer]``) the plan is printed per observer and the PNG is
+written once per observer (``sky_0.png``, ``sky_1.png``, ...).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+from pathlib import Path
 
 logger = logging.getLogger(__name__)
 
@@ -45,10 +48,22 @@ def run(args: argparse.Namespace) -> int:
         scene = scene.replace(**changes)
     ds = scene.render()
     path = to_netcdf(ds, args.output)
-    print(f"computed: {ds.attrs['effects_computed']}")
-    print(f"skipped: {ds.attrs['effects_skipped']}")
+    frames = ([ds.isel(observer=i) for i in range(ds.sizes["observer"])]
+              if "observer" in ds.dims else [ds])
+    for index, frame in enumerate(frames):
+        label = f"observer {index}: " if len(frames) > 1 else ""
+        computed = (frame["effects_computed"].item() if "effects_computed" in frame
+                    else frame.attrs["effects_computed"])
+        skipped = (frame["effects_skipped"].item() if "effects_skipped" in frame
+                   else frame.attrs["effects_skipped"])
+        print(f"{label}computed: {computed}")
+        print(f"{label}skipped: {skipped}")
     print(f"wrote {path}")
     if args.png:
-        png = scene_png(ds, args.png, exposure=args.exposure, night=args.night)
-        print(f"wrote {png}")
+        for index, frame in enumerate(frames):
+            target = Path(args.png)
+            if len(frames) > 1:  # one image per observer: sky_0.png, sky_1.png, ...
+                target = target.with_name(f"{target.stem}_{index}{target.suffix}")
+            png = scene_png(frame, target, exposure=args.exposure, night=args.night)
+            print(f"wrote {png}")
     return 0

@@ -48,6 +48,8 @@ logger = logging.getLogger(__name__)
 
 #: components of an image, in composition order
 COMPONENTS = ("natural", "sky", "skyglow", "stars", "moon", "sun")
+#: pixels a disc must cover to be shaded pixel by pixel (fewer: the disc-averaged factor)
+RESOLVED_DISC_PIXELS = 16
 #: largest view zenith angle of the moonlit-sky table [rad] (its valid range is < 90°)
 _MAX_MOONLIT_ZENITH = math.radians(89.9)
 
@@ -249,8 +251,9 @@ def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux
     Pixels whose centres lie within the radius share the flux in proportion to their
     solid angle; a disc smaller than a pixel falls in the pixel that holds its centre.
     ``shade`` (optional) multiplies the radiance of each disc pixel: a function of the
-    pixels' unit directions (n, 3) returning (n, wl), called with ``None`` for the factor
-    of a disc smaller than a pixel (wl,).
+    pixels' unit directions (n, 3) returning (n, wl) for a disc over at least
+    :data:`RESOLVED_DISC_PIXELS` pixels, called with ``None`` for the disc-averaged factor
+    (wl,) of a smaller disc (whose few pixel centres would sample the disc too coarsely).
     """
     n_wavelength = flux.shape[-1]
     if view.kind == "directions" or altitude_rad + radius_rad < 0.0:
@@ -270,7 +273,10 @@ def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux
     radiance = flux.to(torch.float64) / float((weight * view.solid_angle_sr).sum())
     image = weight[..., None] * radiance
     if shade is not None:
-        image[inside] = image[inside] * shade(view.unit_vectors()[inside])
+        if int(inside.sum()) < RESOLVED_DISC_PIXELS:
+            image = image * shade(None)
+        else:
+            image[inside] = image[inside] * shade(view.unit_vectors()[inside])
     return image.to(dtype)
 
 
@@ -536,24 +542,37 @@ def _skyglow_key(scene, wavelength, settings) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+#: skyglow models kept in memory (besides the disk cache)
+_SKYGLOW_MODELS_IN_MEMORY = 4
+_skyglow_models: dict = {}
+
+
 def skyglow_model(scene, wavelength, settings):
-    """The skyglow model for the scene's atmosphere and fidelity (disk-cached)."""
+    """The skyglow model for the scene's atmosphere and fidelity (cached on disk, and the
+    last few in memory)."""
     from skytorch.atmosphere.tables import cache_directory
     from skytorch.skyglow import SkyglowModel
 
     path = cache_directory() / f"skyglow_{_skyglow_key(scene, wavelength, settings)}.nc"
+    if str(path) in _skyglow_models:
+        return _skyglow_models[str(path)]
+    model = None
     if path.exists():
         try:
-            return SkyglowModel.load(path)
+            model = SkyglowModel.load(path)
         except (OSError, ValueError, KeyError) as error:  # rebuilt below
             logger.warning("skyglow cache %s unreadable (%s); rebuilding", path, error)
-    model = SkyglowModel.precompute(scene.atmosphere(), wavelength_nm=wavelength.to(
-        torch.float64), progress=False, **settings)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        model.save(path)
-    except OSError as error:
-        logger.warning("could not cache the skyglow model at %s: %s", path, error)
+    if model is None:
+        model = SkyglowModel.precompute(scene.atmosphere(), wavelength_nm=wavelength.to(
+            torch.float64), progress=False, **settings)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            model.save(path)
+        except OSError as error:
+            logger.warning("could not cache the skyglow model at %s: %s", path, error)
+    while len(_skyglow_models) >= _SKYGLOW_MODELS_IN_MEMORY:
+        _skyglow_models.pop(next(iter(_skyglow_models)))
+    _skyglow_models[str(path)] = model
     return model
 
 
