@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 import torch
@@ -101,19 +102,27 @@ def apparent_geocentric(time) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]
     rotation : Tensor (3, 3) float64
         ICRS -> Earth-fixed (true equator of date rotated by the apparent sidereal time).
     """
-    from skytorch.ephemeris import _earth_rotation, aberrate, load_ephemeris, skyfield_time
+    from skytorch.ephemeris import _earth_rotation, aberrate, skyfield_time
 
     t = skyfield_time([time])
-    kernel = load_ephemeris()
-    earth = kernel["earth"].at(t)
+    earth_body, *bodies = _bodies()
+    earth = earth_body.at(t)
     earth_position = np.asarray(earth.position.m, np.float64).reshape(3)
     earth_velocity = torch.from_numpy(np.asarray(earth.velocity.m_per_s, np.float64).reshape(3))
-    vectors = []
-    for name in ("sun", "moon"):
-        relative = torch.from_numpy(_light_time(kernel[name].at(t), earth_position))
-        distance = torch.linalg.vector_norm(relative)
-        vectors.append(distance * aberrate(relative / distance, earth_velocity))
+    relative = torch.from_numpy(np.stack([_light_time(body.at(t), earth_position)
+                                          for body in bodies]))  # (2, 3): Sun, Moon
+    distance = torch.linalg.vector_norm(relative, dim=-1, keepdim=True)
+    vectors = distance * aberrate(relative / distance, earth_velocity)
     return vectors[0], vectors[1], _earth_rotation(t)[0]
+
+
+@lru_cache(maxsize=1)
+def _bodies():
+    """The Earth, Sun and Moon of DE421 (skyfield vector sums, built once)."""
+    from skytorch.ephemeris import load_ephemeris
+
+    kernel = load_ephemeris()
+    return kernel["earth"], kernel["sun"], kernel["moon"]
 
 
 def site_geometries(time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
@@ -140,12 +149,14 @@ def site_geometries(time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
     lon = torch.deg2rad(torch.as_tensor(np.asarray(lon_deg, float).reshape(-1)))
     height = torch.as_tensor(np.asarray(elevation_m, float).reshape(-1))
     rows = _horizontal_rows(lat, lon)  # (observer, 3, 3) Earth-fixed -> horizontal
-    observer = (rows @ _geodetic_to_itrs(lat, lon, height)[..., None])[..., 0]
-    to_horizontal = rows @ rotation
-    sun_h = (to_horizontal @ sun) - observer
-    moon_h = (to_horizontal @ moon) - observer
-    sun_alt, sun_az = altaz_from_horizontal(sun_h)
-    moon_alt, moon_az = altaz_from_horizontal(moon_h)
+    # a few 3-vectors per observer: numpy from here (cheaper than torch for tiny arrays)
+    observer = np.einsum("oij,oj->oi", rows.numpy(), _geodetic_to_itrs(lat, lon, height).numpy())
+    to_horizontal = rows.numpy() @ rotation.numpy()
+    sun_h = to_horizontal @ sun.numpy() - observer
+    moon_h = to_horizontal @ moon.numpy() - observer
+    sun_alt, sun_az = (v.numpy() for v in altaz_from_horizontal(torch.from_numpy(sun_h)))
+    moon_alt, moon_az = (v.numpy() for v in altaz_from_horizontal(torch.from_numpy(moon_h)))
+    moon_range = np.linalg.norm(moon_h, axis=-1)
 
     sun_distance = float(torch.linalg.vector_norm(sun))
     sun_hat = sun / sun_distance
@@ -157,15 +168,15 @@ def site_geometries(time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
     shared = {"sun_distance_m": sun_distance, "phase_angle_rad": float(phase_angle(sun, moon)),
               "shadow_distance_m": along, "shadow_offset_m": offset,
               "penumbra_radius_m": float(penumbra), "umbra_radius_m": float(umbra)}
-    return [Geometry(sun_altitude_deg=math.degrees(float(sun_alt[i])),
-                     sun_azimuth_deg=math.degrees(float(sun_az[i])),
-                     moon_altitude_deg=math.degrees(float(moon_alt[i])),
-                     moon_azimuth_deg=math.degrees(float(moon_az[i])),
-                     moon_distance_m=float(torch.linalg.vector_norm(moon_h[i])),
+    return [Geometry(sun_altitude_deg=math.degrees(sun_alt[i]),
+                     sun_azimuth_deg=math.degrees(sun_az[i]),
+                     moon_altitude_deg=math.degrees(moon_alt[i]),
+                     moon_azimuth_deg=math.degrees(moon_az[i]),
+                     moon_distance_m=float(moon_range[i]),
                      sun_horizontal_m=tuple(sun_h[i].tolist()),
                      moon_horizontal_m=tuple(moon_h[i].tolist()),
                      observer_horizontal_m=tuple(observer[i].tolist()), **shared)
-            for i in range(lat.numel())]
+            for i in range(len(observer))]
 
 
 #: geometries kept per (time, latitude, longitude, height)
