@@ -10,14 +10,15 @@ Tensor functions (batched, differentiable, dtype following the inputs):
 * :mod:`~skytorch.moon.disc` — sample points on the visible disc, exact quadrature of the
   sunlit part, radiance images (reused by the eclipse light curve).
 * :mod:`~skytorch.moon.brightness` — disc-integrated irradiance and V magnitude from
-  first principles; Krisciunas & Schaefer's (1991) observed phase curve for validation.
+  first principles; the observed phase curves of Krisciunas & Schaefer (1991) and ROLO
+  (Kieffer & Stone 2005) for validation.
 * :mod:`~skytorch.moon.earthshine` — Müller's eq. 4 and a physical earthshine model.
 * :mod:`~skytorch.moon.sky` — moonlit sky brightness: Krisciunas & Schaefer (1991) and
   single scattering through :class:`skytorch.atmosphere.Atmosphere`.
 
 Module: :class:`MoonPhotometry` (reflectance law and parameters fixed, reference magnitude
-as a buffer). Dataset builders: :func:`moon_geometry` (over time, from the ephemeris) and
-:func:`moon_disc_image`.
+as a buffer). Dataset builders: :func:`moon_geometry` (over time, from the ephemeris),
+:func:`moon_disc_image` and :func:`moon_disc_images`.
 
 Examples
 --------
@@ -35,12 +36,13 @@ from __future__ import annotations
 from skytorch.moon import reflectance
 from skytorch.moon.brightness import (
     disc_integrated_reflectance,
+    disc_reflectance_rolo2005,
     geometric_albedo,
     lunar_irradiance,
     magnitude,
     magnitude_ks1991,
 )
-from skytorch.moon.datasets import moon_disc_image, moon_geometry
+from skytorch.moon.datasets import moon_disc_image, moon_disc_images, moon_geometry
 from skytorch.moon.disc import (
     dark_disc_quadrature,
     disc_grid,
@@ -97,6 +99,7 @@ __all__ = [
     "disc_image",
     "disc_integrated_reflectance",
     "disc_radiance",
+    "disc_reflectance_rolo2005",
     "disc_reflectance",
     "earthshine_irradiance_ratio",
     "earthshine_muller2012",
@@ -111,6 +114,7 @@ __all__ = [
     "magnitude",
     "magnitude_ks1991",
     "moon_disc_image",
+    "moon_disc_images",
     "moon_geometry",
     "moonlit_sky_ks1991",
     "moonlit_sky_single_scattering",

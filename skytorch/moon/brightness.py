@@ -31,6 +31,8 @@ References
 2. Hapke, B. 2012, *Theory of Reflectance and Emittance Spectroscopy*, 2nd ed., Cambridge
    University Press, doi:10.1017/CBO9781139025683, ch. 11 (integrated brightness).
 3. Bessell, M. S. 1990, "UBVRI passbands", PASP 102, 1181, doi:10.1086/132749.
+4. Kieffer, H. H., Stone, T. C. 2005, "The spectral irradiance of the Moon", AJ 129, 2887,
+   doi:10.1086/430185 (ROLO, eq. 10 and Table 4; reference only).
 
 Examples
 --------
@@ -43,6 +45,7 @@ Examples
 from __future__ import annotations
 
 import math
+from types import MappingProxyType
 
 import torch
 
@@ -57,8 +60,10 @@ from skytorch.moon.disc import dark_disc_quadrature, lit_disc_quadrature
 from skytorch.moon.reflectance import albedo, reflectance
 
 __all__ = [
+    "ROLO2005_553NM",
     "V_BAND_WAVELENGTHS_NM",
     "disc_integrated_reflectance",
+    "disc_reflectance_rolo2005",
     "geometric_albedo",
     "lunar_irradiance",
     "magnitude",
@@ -67,6 +72,15 @@ __all__ = [
 
 #: wavelength grid covering the Bessell (1990) V passband (470–700 nm), 5 nm steps [nm]
 V_BAND_WAVELENGTHS_NM = tuple(float(w) for w in range(470, 705, 5))
+
+#: Kieffer & Stone (2005), ROLO eq. 10, Table 4 row of the 553.8 nm band: a0..a3 (phase
+#: polynomial, g in rad), d1..d3 (opposition terms) and the band-independent p1..p4 [deg]
+ROLO2005_553NM = MappingProxyType({
+    "a": (-2.12504, -1.65970, 0.38409, -0.20655),
+    "d": (0.37206, -0.10745, 0.00347),
+    "p_deg": (4.06054, 12.8802, -30.5858, 16.7498),
+    "phase_range_deg": (1.55, 97.0),
+})
 
 
 def _phase(phase_angle_rad):
@@ -83,6 +97,35 @@ def magnitude_ks1991(phase_angle_rad) -> torch.Tensor:
     """
     alpha_deg = _phase(phase_angle_rad) / DEGREE
     return -12.73 + 0.026 * alpha_deg + 4e-9 * alpha_deg**4
+
+
+def disc_reflectance_rolo2005(phase_angle_rad) -> torch.Tensor:
+    """ROLO disc-equivalent reflectance A(g) at 553.8 nm (Kieffer & Stone 2005, eq. 10).
+
+    The observed lunar phase curve of the USGS ROLO programme at zero libration, valid for
+    1.55° ≤ |g| ≤ 97°; a reference for :func:`disc_integrated_reflectance` (ROLO defines
+    I = A Ω_M E_sun / π with Ω_M = π (R/d)², so A is the disc integral Q), not used by it.
+    The odd terms in the Sun's selenographic longitude (the waxing/waning asymmetry of the
+    maria) are left out: they cancel in the mean of waxing and waning Moons.
+
+    Parameters
+    ----------
+    phase_angle_rad : Tensor (...)
+        Phase angle g [rad] (the sign is ignored).
+
+    Returns
+    -------
+    Tensor (...)
+        A(g), dimensionless.
+    """
+    g = _phase(phase_angle_rad)
+    g_deg = g / DEGREE
+    a0, a1, a2, a3 = ROLO2005_553NM["a"]
+    d1, d2, d3 = ROLO2005_553NM["d"]
+    p1, p2, p3, p4 = ROLO2005_553NM["p_deg"]
+    log_a = (a0 + a1 * g + a2 * g**2 + a3 * g**3 + d1 * torch.exp(-g_deg / p1)
+             + d2 * torch.exp(-g_deg / p2) + d3 * torch.cos((g_deg - p3) / p4))
+    return torch.exp(log_a)
 
 
 def disc_integrated_reflectance(phase_angle_rad, *, model: str = "hapke2012",
