@@ -142,7 +142,7 @@ _BLOCK = 16
 #: stretch of the path nodes x = X sinh(a t) / sinh(a)
 _PATH_STRETCH = 3.0
 #: points per chunk in the illuminance sum (bounds the temporaries)
-_CHUNK = 512
+_CHUNK = 2048
 #: rays per chunk in the kernel precomputation
 _RAY_CHUNK = 65536
 
@@ -304,6 +304,7 @@ class ScatteringProfile:
                                   dtype=torch.float64)
         self._done = torch.zeros(intervals // _BLOCK, dtype=torch.bool)
         self._cache: dict = {}
+        self._kernels: dict = {}
 
     def angles(self, index) -> torch.Tensor:
         """``epsilon`` of grid nodes ``index`` [rad]."""
@@ -312,9 +313,11 @@ class ScatteringProfile:
     def ensure(self, index: torch.Tensor) -> None:
         """Compute the blocks holding nodes ``index`` and ``index + 1`` (if missing)."""
         with torch.no_grad():
-            blocks = torch.unique(torch.cat([index.reshape(-1) // _BLOCK,
-                                             (index.reshape(-1) + 1) // _BLOCK]))
-            blocks = blocks[(blocks < self._done.shape[0])]
+            if index.numel() == 0:
+                return
+            first = int(index.min()) // _BLOCK
+            last = min((int(index.max()) + 1) // _BLOCK, self._done.shape[0] - 1)
+            blocks = torch.arange(first, last + 1)
             blocks = blocks[~self._done[blocks]]
             if blocks.numel() == 0:
                 return
@@ -331,6 +334,13 @@ class ScatteringProfile:
                 values = kernel[name].reshape(*kernel[name].shape[:2], -1)
                 self.kernel[species][:, nodes] = values
             self._done[blocks] = True
+
+    def kernel_matrix(self, dtype: torch.dtype) -> torch.Tensor:
+        """Kernel of both species as one (2 n_impact n_angle, n_batch n_wl) matrix."""
+        key = (dtype, int(self._done.sum()))
+        if key not in self._kernels:
+            self._kernels = {key: self.kernel.reshape(-1, self.kernel.shape[-1]).to(dtype)}
+        return self._kernels[key]
 
     def tables(self, dtype: torch.dtype) -> dict[str, torch.Tensor]:
         """Nodes and weights cast to ``dtype`` (cached)."""
@@ -398,18 +408,32 @@ def scattered_illuminance(profile: ScatteringProfile, centre_distance_m, separat
         w = (f - i.to(dtype))[..., None]
         solid = sin_t / (big_l * cos_t) * wb[:, None]  # b db / (L sqrt(L^2 - b^2))
         weight = (solid * wpsi / (k * k))  # (p, n_b, n_psi)
-        index = (rows + i).reshape(-1)
         phase = (rayleigh_phase(cos_theta)[..., None],
                  _aerosol_phase(profile.atmosphere, cos_theta, profile.n_batch))
-        total = 0.0
-        for species in (0, 1):
-            table = profile.kernel[species].reshape(n_b * n_e, -1)
-            low = table.index_select(0, index).to(dtype).reshape(*i.shape, -1)
-            high = table.index_select(0, index + 1).to(dtype).reshape(*i.shape, -1)
-            value = low + w * (high - low)  # (p, n_b, n_psi, n_batch * n_wl)
-            value = value.reshape(*i.shape, profile.n_batch, profile.n_wavelength)
-            factor = weight[..., None] * phase[species]  # (p, n_b, n_psi, n_batch)
-            total = total + torch.einsum("pjkb,pjkbl->pbl", factor, value)
+        # sparse (point x kernel row) matrix: two interpolation nodes per (b, psi) sample
+        n_p = i.shape[0]
+        point = torch.arange(n_p)[:, None, None].expand(i.shape).reshape(-1)
+        column = (rows + i).reshape(-1)
+        w = w[..., 0]
+        batched_phase = profile.n_batch > 1 and bool((phase[1] != phase[1][..., :1]).any())
+        kernel = profile.kernel_matrix(dtype)
+        per_member = []
+        for member in range(profile.n_batch) if batched_phase else (0,):
+            values = []
+            for species in (0, 1):
+                value = (weight * phase[species][..., member if species else 0]).reshape(-1)
+                values += [value * (1.0 - w.reshape(-1)), value * w.reshape(-1)]
+            offset = n_b * n_e
+            indices = torch.stack([point.repeat(4),
+                                   torch.cat([column, column + 1, column + offset,
+                                              column + offset + 1])])
+            matrix = torch.sparse_coo_tensor(indices, torch.cat(values), (n_p, 2 * offset),
+                                             check_invariants=False)
+            columns = kernel.reshape(kernel.shape[0], profile.n_batch, -1)[:, member] if (
+                batched_phase) else kernel
+            per_member.append(torch.sparse.mm(matrix, columns))
+        total = (torch.stack(per_member, dim=1) if batched_phase else per_member[0].reshape(
+            n_p, profile.n_batch, profile.n_wavelength))
         pieces.append(total)
     result = torch.cat(pieces) if pieces else centre.new_zeros(
         (0, profile.n_batch, profile.n_wavelength))
