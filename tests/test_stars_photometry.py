@@ -138,6 +138,8 @@ def test_float32_observation_matches_float64(atm):
     above = double.above_horizon.values
     assert np.abs(single.magnitude.values - double.magnitude.values)[above].max() < 1e-3 * MAG
     assert np.isfinite(single.magnitude.values).all()
+    assert single.color.dtype == np.float32 and np.isfinite(single.color.values).all()
+    assert np.abs(single.color.values - double.color.values).max() < 1e-4
 
 
 def test_hazy_atmosphere_huge_horizon_extinction_stays_finite():
@@ -249,3 +251,22 @@ def test_no_atmosphere_colour_is_exoatmospheric(atm):
         ds = observe(bright_stars(1.5), times, 52.5, 13.4, **options)
         assert ds.color.dims == ("time", "star", "channel")
         assert np.array_equal(ds.color.values[1], ds.color_exoatmospheric.values)
+
+
+def test_apparent_colour_hard_cases_finite_with_gradients(atm, dtype):
+    """Zenith, horizon, below the horizon, B − V at and beyond the grid ends."""
+    from skytorch.stars.photometry import apparent_color, apparent_color_table
+
+    table = apparent_color_table(atm, 0.0)
+    altitude = torch.tensor([[math.pi / 2, 0.0, -0.05, 0.3]], dtype=dtype, requires_grad=True)
+    bv = torch.tensor([-0.5, 0.65, 3.0, 4.0], dtype=dtype, requires_grad=True)
+    colour = apparent_color(bv, altitude, table)
+    assert colour.shape == (1, 4, 3) and colour.dtype == dtype
+    assert torch.isfinite(colour).all()
+    assert torch.allclose(colour.detach().amax(dim=-1), torch.ones(1, 4, dtype=dtype))
+    colour.sum().backward()
+    assert torch.isfinite(altitude.grad).all() and torch.isfinite(bv.grad).all()
+    # the horizon is redder than the zenith for the same star
+    pair = apparent_color(bv[1:2].detach(), torch.tensor([[math.pi / 2], [0.0]], dtype=dtype),
+                          table)
+    assert float(pair[1, 0, 2]) < float(pair[0, 0, 2])
