@@ -121,3 +121,24 @@ def test_sky_flux_table_matches_direct_estimate(altitude):
     # log-linear interpolation between 0.25-degree nodes: within 1 %
     assert planner._sky_flux(scene, g) == pytest.approx(_direct_sky_flux(scene, altitude),
                                                         rel=0.01)
+
+
+@pytest.mark.parametrize("offset_km", [0.0, 2_000.0, 4_400.0, 5_000.0, 6_000.0, 8_000.0])
+def test_eclipse_bound_shortcut_agrees_with_the_visible_fraction(offset_km):
+    """Inside the umbra of the opaque sphere the shortcut returns 0, as the limb-darkened
+    visible fraction (Sun fully hidden) does; outside, the fraction itself."""
+    from skytorch.constants import EARTH_MEAN_RADIUS_M, EARTH_TOP_OF_ATMOSPHERE_M, SUN_RADIUS_M
+    from skytorch.eclipse import sun_visible_fraction
+    from skytorch.eclipse.shadow import shadow_angles
+    from skytorch.scene.geometry import Geometry
+
+    distance, sun = 3.8e8, 1.496e11
+    offset = offset_km * 1e3 + planner.MOON_RADIUS_M  # the disc's nearest point at offset_km
+    g = Geometry(0.0, 0.0, 0.0, 0.0, distance, sun, 3.1, distance, offset, 0.0, 0.0)
+    angles = shadow_angles(torch.tensor(distance, dtype=torch.float64),
+                           torch.tensor(offset_km * 1e3, dtype=torch.float64), sun,
+                           SUN_RADIUS_M, EARTH_MEAN_RADIUS_M + EARTH_TOP_OF_ATMOSPHERE_M)
+    expected = float(sun_visible_fraction(angles["sun_radius_rad"],
+                                          angles["occluder_radius_rad"],
+                                          angles["separation_rad"]))
+    assert planner._eclipse_bounds(g) == pytest.approx(expected, abs=1e-12)

@@ -311,16 +311,23 @@ def _eclipse_bounds(geometry: Geometry) -> float:
     The fraction of the Sun visible past an opaque sphere as large as the top of the
     atmosphere (:func:`skytorch.eclipse.sun_visible_fraction`, limb-darkened) at the
     point of the disc nearest the shadow axis: light through the atmosphere only adds to
-    it, and the visible fraction grows with the offset from the axis.
+    it, and the visible fraction grows with the offset from the axis. Zero without
+    further work when that point lies in the umbra of that sphere
+    (:func:`skytorch.eclipse.shadow_radii`, no enlargement).
     """
-    from skytorch.eclipse import sun_visible_fraction
+    from skytorch.eclipse import shadow_radii, sun_visible_fraction
     from skytorch.eclipse.shadow import shadow_angles
 
     nearest = max(geometry.shadow_offset_m - _moon_radius(), 0.0)
-    angles = shadow_angles(torch.tensor(geometry.shadow_distance_m, dtype=torch.float64),
+    opaque = EARTH_MEAN_RADIUS_M + EARTH_TOP_OF_ATMOSPHERE_M
+    distance = torch.tensor(geometry.shadow_distance_m, dtype=torch.float64)
+    umbra, _ = shadow_radii(distance, geometry.sun_distance_m, SUN_RADIUS_M, opaque,
+                            enlargement="none")
+    if nearest < float(umbra):
+        return 0.0
+    angles = shadow_angles(distance,
                            torch.tensor(nearest, dtype=torch.float64),
-                           geometry.sun_distance_m, SUN_RADIUS_M,
-                           EARTH_MEAN_RADIUS_M + EARTH_TOP_OF_ATMOSPHERE_M)
+                           geometry.sun_distance_m, SUN_RADIUS_M, opaque)
     return float(sun_visible_fraction(angles["sun_radius_rad"], angles["occluder_radius_rad"],
                                       angles["separation_rad"]))
 
