@@ -4,8 +4,12 @@ Rows:
 
 * :func:`skytorch.eclipse.sun_visible_fraction` on 1e7 random partial overlaps
   (Sun radius 4.65 mrad, occluder 0.1 to 3.1 Sun radii, separations across the whole
-  overlap) in float64 and float32 and for several Gauss–Legendre node counts, without
-  gradients; and with a backward pass on 1e6 evaluations. Target: 1e7 evaluations <= 1 s.
+  overlap) in float64 and float32, without gradients, side by side with the previous
+  implementation (the file as of commit ``PREVIOUS_COMMIT``, read with ``git show``): the
+  two are called alternately in every repetition, with torch's default thread count and
+  with one thread, and the medians and their ratio are reported; then other
+  Gauss–Legendre node counts, and a backward pass on 1e6 evaluations. Target: 1e7
+  evaluations <= 1 s. The load average before and after is printed with the table.
 * :func:`skytorch.eclipse.lunar_eclipses` over 100 years (1950–2050), with the share spent
   in the ephemeris (:func:`skytorch.ephemeris.sun_moon_vectors`, skyfield + DE421) measured
   separately. Target: <= 5 s.
@@ -17,8 +21,13 @@ has two cores shared with other jobs: medians are noisy.
 from __future__ import annotations
 
 import argparse
+import gc
+import os
+import statistics
+import subprocess
 import sys
 import time
+import types
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +39,8 @@ from benchmarks._harness import machine_description, markdown_table, median_seco
 
 SUN_RADIUS = 4.65e-3
 N_OCCLUSION = 10_000_000
+#: last commit with the previous sun_visible_fraction kernel (compared side by side)
+PREVIOUS_COMMIT = "a2f365b"
 TARGET_OCCLUSION_S = 1.0
 TARGET_ECLIPSES_S = 5.0
 
@@ -40,6 +51,36 @@ def _inputs(n: int, dtype: torch.dtype):
     rho_o = SUN_RADIUS * ratio
     d = (SUN_RADIUS + rho_o) * torch.rand(n, generator=generator, dtype=torch.float64)
     return rho_o.to(dtype), d.to(dtype)
+
+
+def _previous_implementation():
+    """``sun_visible_fraction`` of commit :data:`PREVIOUS_COMMIT`, or None without git."""
+    root = Path(__file__).resolve().parents[1]
+    try:
+        source = subprocess.run(
+            ["git", "-C", str(root), "show", f"{PREVIOUS_COMMIT}:skytorch/eclipse/occlusion.py"],
+            capture_output=True, text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    module = types.ModuleType("previous_occlusion")
+    exec(compile(source, f"occlusion.py@{PREVIOUS_COMMIT}", "exec"), module.__dict__)
+    return module.sun_visible_fraction
+
+
+def _alternating_medians(functions: dict, repeat: int, warmup: int = 1) -> dict[str, float]:
+    """Median wall time of each function, the functions called in turn in every repetition
+    (so that a change of machine load affects all of them alike) [s]."""
+    for _ in range(warmup):
+        for function in functions.values():
+            function()
+    samples = {name: [] for name in functions}
+    for _ in range(repeat):
+        for name, function in functions.items():
+            gc.collect()
+            start = time.perf_counter()
+            function()
+            samples[name].append(time.perf_counter() - start)
+    return {name: statistics.median(values) for name, values in samples.items()}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,19 +96,41 @@ def main(argv: list[str] | None = None) -> int:
     from skytorch.eclipse import circumstances as circumstances_module
     from skytorch.eclipse import lunar_eclipses, sun_visible_fraction
 
+    load_before = os.getloadavg()
     rows = []
     scale = N_OCCLUSION / args.n
-    for dtype, n_nodes in ((torch.float64, 8), (torch.float32, 8), (torch.float64, 7),
-                           (torch.float64, 12)):
+    previous = _previous_implementation()
+    threads = torch.get_num_threads()
+    for dtype, n_threads in ((torch.float64, threads), (torch.float32, threads),
+                             (torch.float64, 1)):
         rho_o, d = _inputs(args.n, dtype)
+        functions = {"new": lambda rho_o=rho_o, d=d: sun_visible_fraction(
+            SUN_RADIUS, rho_o, d, 0.6)}
+        if previous is not None:
+            functions["previous"] = lambda rho_o=rho_o, d=d: previous(SUN_RADIUS, rho_o, d, 0.6)
+        torch.set_num_threads(n_threads)
+        try:
+            with torch.no_grad():
+                medians = _alternating_medians(functions, repeat=args.repeat)
+        finally:
+            torch.set_num_threads(threads)
+        new = medians["new"] * scale
+        old = medians.get("previous", float("nan")) * scale
+        rows.append({"workload": f"sun_visible_fraction 1e7 ({str(dtype)[6:]}, 8 nodes, "
+                                 f"{n_threads} thread{'s' if n_threads > 1 else ''})",
+                     "previous s": old, "median s": new, "previous / new": old / new,
+                     "target s": TARGET_OCCLUSION_S, "ratio to target": new / TARGET_OCCLUSION_S})
+    for n_nodes in (7, 12):
+        rho_o, d = _inputs(args.n, torch.float64)
 
         def occlusion(rho_o=rho_o, d=d, n_nodes=n_nodes):
             with torch.no_grad():
                 sun_visible_fraction(SUN_RADIUS, rho_o, d, 0.6, n_nodes=n_nodes)
 
         seconds = median_seconds(occlusion, repeat=args.repeat, warmup=1) * scale
-        rows.append({"workload": f"sun_visible_fraction 1e7 ({str(dtype)[6:]}, {n_nodes} nodes)",
-                     "median s": seconds, "target s": TARGET_OCCLUSION_S,
+        rows.append({"workload": f"sun_visible_fraction 1e7 (float64, {n_nodes} nodes)",
+                     "previous s": float("nan"), "median s": seconds,
+                     "previous / new": float("nan"), "target s": TARGET_OCCLUSION_S,
                      "ratio to target": seconds / TARGET_OCCLUSION_S})
 
     rho_o, d = _inputs(args.n // 10, torch.float64)
@@ -78,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
 
     seconds = median_seconds(with_gradient, repeat=args.repeat, warmup=1) * scale * 10
     rows.append({"workload": "sun_visible_fraction 1e7 forward + backward (scaled from 1e6)",
-                 "median s": seconds, "target s": float("nan"), "ratio to target": float("nan")})
+                 "previous s": float("nan"), "median s": seconds, "previous / new": float("nan"),
+                 "target s": float("nan"), "ratio to target": float("nan")})
 
     # lunar eclipses over a century; the ephemeris share measured by wrapping its call
     spent = {"ephemeris": 0.0}
@@ -101,15 +165,19 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         circumstances_module._Geometry.__init__ = original
     rows.append({"workload": f"lunar_eclipses 1950-2050 ({count['n']} eclipses)",
-                 "median s": seconds, "target s": TARGET_ECLIPSES_S,
-                 "ratio to target": seconds / TARGET_ECLIPSES_S})
+                 "previous s": float("nan"), "median s": seconds, "previous / new": float("nan"),
+                 "target s": TARGET_ECLIPSES_S, "ratio to target": seconds / TARGET_ECLIPSES_S})
     rows.append({"workload": "  of which ephemeris (sun_moon_vectors at Chebyshev nodes)",
-                 "median s": spent["ephemeris"], "target s": float("nan"),
+                 "previous s": float("nan"), "median s": spent["ephemeris"],
+                 "previous / new": float("nan"), "target s": float("nan"),
                  "ratio to target": float("nan")})
 
     table = markdown_table(rows)
+    load_after = os.getloadavg()
     text = (f"\n### Eclipse geometry (`benchmarks/bench_eclipse_geometry.py`)\n\n"
-            f"Machine: {machine_description()}.\n\n{table}\n")
+            f"Machine: {machine_description()}; load average (1 min) {load_before[0]:.1f} "
+            f"before, {load_after[0]:.1f} after. `previous`: `sun_visible_fraction` as of "
+            f"commit {PREVIOUS_COMMIT}, called alternately with the new one.\n\n{table}\n")
     print(text)
     if args.append:
         path = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"

@@ -176,6 +176,7 @@ def test_many_chunks_agree_with_single_evaluations(monkeypatch):
     from skytorch.eclipse import occlusion
 
     monkeypatch.setattr(occlusion, "_CHUNK", 4_096)
+    monkeypatch.setattr(occlusion, "_SERIAL_CHUNK", 4_096)
     monkeypatch.setattr(occlusion, "_NODE_CHUNK", 1_000)  # rim sub-chunks, uneven split
     generator = torch.Generator().manual_seed(3)
     rho_o = SUN_RADIUS * (0.1 + 3 * torch.rand(40_000, generator=generator, dtype=torch.float64))
@@ -184,6 +185,31 @@ def test_many_chunks_agree_with_single_evaluations(monkeypatch):
     picks = [0, 4_095, 4_096, 39_999]
     single = torch.stack([sun_visible_fraction(SUN_RADIUS, rho_o[i], d[i]) for i in picks])
     assert torch.allclose(batch[picks], single, atol=1e-15)
+
+
+def test_threaded_chunks_equal_one_thread(monkeypatch):
+    # without gradients, chunks of configurations are spread over a thread pool (tasks and
+    # rim sub-chunks of a different size than on one thread); every configuration is
+    # computed by the same element-wise operations, so the results are identical
+    from skytorch.eclipse import occlusion
+
+    monkeypatch.setattr(occlusion, "_TASK_ELEMENTS", 2_048)
+    generator = torch.Generator().manual_seed(5)
+    rho_s = SUN_RADIUS * (0.5 + torch.rand(20_000, generator=generator, dtype=torch.float64))
+    rho_o = rho_s * (0.1 + 3 * torch.rand(20_000, generator=generator, dtype=torch.float64))
+    d = (rho_s + rho_o) * torch.rand(20_000, generator=generator, dtype=torch.float64)
+    threads = torch.get_num_threads()
+    try:
+        torch.set_num_threads(1)
+        serial = sun_visible_fraction(rho_s, rho_o, d, 0.6)
+        torch.set_num_threads(3)
+        threaded = sun_visible_fraction(rho_s, rho_o, d, 0.6)
+    finally:
+        torch.set_num_threads(threads)
+    assert torch.equal(serial, threaded)
+    # and both equal the path with gradients (the previous kernel, autograd-capable)
+    with_gradient = sun_visible_fraction(rho_s, rho_o, d.clone().requires_grad_(True), 0.6)
+    assert torch.allclose(serial, with_gradient.detach(), rtol=0.0, atol=1e-13)
 
 
 def test_gradients_over_rim_sub_chunks_agree_with_single_evaluations(monkeypatch):
