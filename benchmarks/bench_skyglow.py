@@ -175,7 +175,8 @@ def _paper_rows(rows, args) -> str:
     """The measured (sliced) paper-resolution precompute, extrapolated to 16 altitudes."""
     k = args.paper_slice
     dtype = getattr(torch, args.paper_dtype)
-    model, timings = paper_precompute(k, compute_dtype=dtype, save=args.save)
+    model, timings = paper_precompute(k, compute_dtype=dtype, n_steps=args.paper_steps,
+                                      save=args.save)
     scale = PAPER_PCAS / k
     label = "full" if k == PAPER_PCAS else f"{k} of 16 observer altitudes, × {scale:g}"
     rows.append({"case": f"precompute at paper resolution, {args.paper_dtype} kernel + "
@@ -208,6 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--save", help="with --paper: write the model to this netCDF file")
     parser.add_argument("--paper-dtype", choices=("float32", "float64"), default="float32",
                         help="with --paper: dtype of the kernel quadrature")
+    parser.add_argument("--paper-steps", type=int, default=8,
+                        help="with --paper: half the Gauss nodes per view ray (default 8)")
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
     if args.paper:
