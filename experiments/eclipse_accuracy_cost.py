@@ -15,7 +15,15 @@ at 0.95, 1.0 and 1.05 mean lunar distances, for R, G, B (the blue umbra centre i
 Cost: wall time of the evaluation (tables built beforehand; their build time is reported
 for the table knobs). Writes ``eclipse_accuracy_cost.nc`` / ``.png``.
 
-Run: ``python experiments/eclipse_accuracy_cost.py [--quick] [--output-dir DIR]``.
+A second part varies ``scattering_resolution`` of the single-scattered component
+(:mod:`skytorch.eclipse.shadow_scattering`) against resolution 4: maximum relative error of
+the scattered illuminance ``E_sca / E_sun`` alone over the same points for the typical and
+the volcanic Earth atmosphere, and over the shadow of Mars at Phobos' and Deimos' orbits;
+cost: kernel precomputation + evaluation. Writes ``eclipse_scattering_accuracy_cost.nc`` /
+``.png`` (run alone with ``--scattering-only``).
+
+Run: ``python experiments/eclipse_accuracy_cost.py [--quick] [--output-dir DIR]
+[--scattering-only]``.
 """
 
 from __future__ import annotations
@@ -50,8 +58,96 @@ def _timed(function):
     return value, time.perf_counter() - start
 
 
+SCATTERING_RESOLUTIONS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0)
+SCATTERING_REFERENCE = 4.0
+
+
+def scattering(quick: bool, output_dir) -> dict:
+    """Error of the scattered component vs ``scattering_resolution`` (module docstring)."""
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.constants import DEIMOS_SEMI_MAJOR_AXIS_M, PHOBOS_SEMI_MAJOR_AXIS_M
+    from skytorch.eclipse.lunar import volcanic_atmosphere
+    from skytorch.eclipse.shadow import Shadow
+
+    distance, offset = _points(quick)
+    mars_distance = torch.tensor([PHOBOS_SEMI_MAJOR_AXIS_M, DEIMOS_SEMI_MAJOR_AXIS_M],
+                                 dtype=torch.float64)[:, None]
+    mars_offset = torch.linspace(0.0, 3.4e6, 8 if quick else 35, dtype=torch.float64)[None, :]
+    mars_points = torch.broadcast_tensors(mars_distance, mars_offset)
+    cases = {
+        "earth typical": (lambda **k: Shadow.earth(Atmosphere.earth(), **k), (distance, offset)),
+        "earth volcanic": (lambda **k: Shadow.earth(volcanic_atmosphere(), **k),
+                           (distance, offset)),
+        "mars": (lambda **k: Shadow.mars(**k), mars_points),
+    }
+    resolutions = SCATTERING_RESOLUTIONS[:2] if quick else SCATTERING_RESOLUTIONS
+    reference_resolution = 1.0 if quick else SCATTERING_REFERENCE
+    names, values, errors, seconds = [], [], [], []
+    for name, (make, points) in cases.items():
+        base = make().relative_illuminance(*points, RGB)
+
+        def scattered(resolution, make=make, points=points, base=base):
+            shadow = make(scattering=True, scattering_resolution=resolution)
+            shadow.ring_profile(RGB)
+            start = time.perf_counter()
+            total = shadow.relative_illuminance(*points, RGB)
+            return total - base, time.perf_counter() - start
+
+        reference, _ = scattered(reference_resolution)
+        for resolution in resolutions:
+            result, elapsed = scattered(resolution)
+            relative = float(((result - reference).abs() / reference.clamp_min(1e-300)).max())
+            names.append(name)
+            values.append(resolution)
+            errors.append(relative)
+            seconds.append(elapsed)
+            print(f"scattering {name:>15} resolution {resolution:>5}: max rel. error "
+                  f"{relative:.3g}, {elapsed:.3f} s")
+    dataset = build_dataset(
+        {"max_relative_error": variable(("variant",), np.array(errors), VariableSpec(
+            "1", "maximum relative error of the scattered illuminance",
+            f"against scattering_resolution {reference_resolution}, R G B")),
+         "seconds": variable(("variant",), np.array(seconds), VariableSpec(
+             "s", "wall time", "kernel precomputation + evaluation of all points")),
+         "case": variable(("variant",), np.array(names), VariableSpec(
+             "1", "occluder and atmosphere", "Earth at 0.95-1.05 lunar distances, Mars at "
+             "Phobos and Deimos")),
+         "resolution": variable(("variant",), np.array(values), VariableSpec(
+             "1", "scattering_resolution", "factor on the node counts"))},
+        {"variant": coordinate("variant", np.arange(len(names)),
+                               VariableSpec("1", "variant", "row number"))},
+        title="Single-scattered light in the shadow: accuracy vs cost",
+        references=["Schneegans, S. et al. 2025, Computer Graphics Forum, "
+                    "doi:10.1111/cgf.70220"],
+        parameters={"reference_resolution": reference_resolution, "quick": bool(quick)})
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(7, 4.5))
+    for name in cases:
+        mask = np.array(names) == name
+        axis.loglog(np.array(seconds)[mask], np.maximum(np.array(errors)[mask], 1e-16), "o-",
+                    label=name)
+        for x, y, v in zip(np.array(seconds)[mask], np.array(errors)[mask],
+                           np.array(values)[mask], strict=True):
+            axis.annotate(f"{v:g}", (x, max(y, 1e-16)), fontsize=7)
+    axis.set_xlabel("wall time: kernel + evaluation [s]")
+    axis.set_ylabel("max relative error of E_sca / E_sun")
+    axis.set_title("single-scattered light vs scattering_resolution")
+    axis.grid(alpha=0.3, which="both")
+    axis.legend(fontsize=8)
+    figure.tight_layout()
+    save_outputs(dataset, figure, output_dir, "eclipse_scattering_accuracy_cost")
+    return dict(zip(zip(names, values, strict=True), errors, strict=True))
+
+
 def main(argv=None) -> int:
+    argv = list(argv) if argv is not None else sys.argv[1:]
+    only_scattering = "--scattering-only" in argv
+    argv = [a for a in argv if a != "--scattering-only"]
     args = parse_arguments(__doc__.splitlines()[0], argv)
+    scattering(args.quick, args.output_dir)
+    if only_scattering:
+        return 0
     from skytorch.atmosphere import Atmosphere
     from skytorch.eclipse.shadow import Shadow
     from skytorch.eclipse.shadow_table import ShadowTable

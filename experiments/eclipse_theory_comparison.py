@@ -7,7 +7,9 @@ Four parts, each written as netCDF + PNG:
     the V band) for: geometry only; refraction only; + molecular extinction; + ozone
     (300 DU); + typical aerosols (Preetham turbidity 2); + volcanic aerosols (2015 after
     Calbuco: aerosol density x2, scale height 1.2 -> 3 km, i.e. column x5); + clouds
-    (tops at 8 km on 60 % of the limb, an illustrative choice). Reference facts: umbra
+    (tops at 8 km on 60 % of the limb, an illustrative choice); the molecular, typical and
+    volcanic cases again with single-scattered light (``scattering=True``). Reference facts:
+    umbra
     centre ~1/2400 of sunlight for molecules without ozone (Vollmer & Gedzelman 2008,
     energy 400–700 nm); about 100x darker with aerosols, ozone and clouds (same paper);
     bluish umbra rim from ozone.
@@ -19,7 +21,7 @@ Four parts, each written as netCDF + PNG:
     11.75 mag; Keen 2016: 33 % dimmer than expected for a clear stratosphere).
 ``eclipse_theory_mars``
     The Martian shadow at Phobos' and Deimos' distances (Schneegans et al. 2025, Fig. 12
-    right; scattered light is not modelled here).
+    right), refracted light only and with single-scattered light.
 
 Run: ``python experiments/eclipse_theory_comparison.py [--quick] [--output-dir DIR]``.
 """
@@ -99,6 +101,9 @@ def profiles(quick: bool):
         "volcanic": Shadow.earth(atmospheres["volcanic"]),
         "clouds": Shadow.earth(atmospheres["aerosols"], cloud_top_altitude_m=CLOUD_TOP_M,
                                cloud_fraction=CLOUD_FRACTION),
+        "molecules+scattering": Shadow.earth(atmospheres["molecules"], scattering=True),
+        "aerosols+scattering": Shadow.earth(atmospheres["aerosols"], scattering=True),
+        "volcanic+scattering": Shadow.earth(atmospheres["volcanic"], scattering=True),
     }
     step = 20.0 if quick else 10.0
     wavelength = torch.arange(400.0, 720.0 + 0.5 * step, step, dtype=torch.float64)
@@ -121,7 +126,18 @@ def profiles(quick: bool):
         "darkening_aerosols_ozone_vs_molecules":
             centre_energy["molecules"] / centre_energy["aerosols"],
         "refraction_only_centre": float(v_band[1, 0]),
+        "molecules_scattering_centre_energy_400_700": centre_energy["molecules+scattering"],
+        "molecules_scattering_centre_over_vg2008":
+            centre_energy["molecules+scattering"] / VG2008_CENTRE,
     }
+    for name in ("molecules", "aerosols", "volcanic"):
+        index = names.index(name)
+        with_light = names.index(f"{name}+scattering")
+        for label, k in (("v", None), ("b440", rgb_index[2]), ("r680", rgb_index[0])):
+            plain = v_band[index, 0] if k is None else spectra[index, 0, k]
+            scattered = v_band[with_light, 0] if k is None else spectra[with_light, 0, k]
+            summary[f"scattered_share_centre_{label}_{name}"] = float(
+                (scattered - plain) / scattered)
     # ozone rim: blue/green ratio near the umbra edge with and without ozone
     rim = int(torch.argmin((offset - 4.4e6).abs()))
     b, g = rgb_index[2], rgb_index[1]
@@ -148,12 +164,13 @@ def profiles(quick: bool):
     figure, axes = plt.subplots(2, 2, figsize=(11, 8), sharex=True)
     colours = plt.cm.viridis(np.linspace(0, 0.9, len(names)))
     km = offset.numpy() / 1e3
+    styles = ["--" if "+scattering" in name else "-" for name in names]
     panels = [("R 680 nm", spectra[..., rgb_index[0]]), ("G 550 nm", spectra[..., g]),
               ("B 440 nm", spectra[..., b]), ("V band", v_band)]
     for axis, (title, values) in zip(axes.flat, panels, strict=True):
         for i, name in enumerate(names):
             axis.semilogy(km, values[i].clamp_min(1e-12).numpy(), color=colours[i],
-                          label=name)
+                          ls=styles[i], label=name)
         axis.axhline(VG2008_CENTRE, color="r", ls=":", lw=1,
                      label="1/2400 (Vollmer & Gedzelman 2008)")
         axis.set_title(title)
@@ -228,9 +245,12 @@ def light_curves(quick: bool):
     n_times = 25 if quick else 200
     curves = {}
     for name in ("aerosols", "volcanic"):
-        curves[name] = lunar_eclipse("2015-09-28", n_times=n_times, n_images=0,
-                                     n_disc=6 if quick else 12,
-                                     shadow=Shadow.earth(atmospheres[name]))
+        for scattering in (False, True):
+            key = f"{name}+scattering" if scattering else name
+            curves[key] = lunar_eclipse("2015-09-28", n_times=n_times, n_images=0,
+                                        n_disc=6 if quick else 12,
+                                        shadow=Shadow.earth(atmospheres[name],
+                                                            scattering=scattering))
     v = np.stack([curves[name].v_magnitude.values for name in curves])
     full = float(curves["aerosols"].v_magnitude.values[0])
     greatest = {name: float(c.attrs["parameter_greatest_v_magnitude"])
@@ -248,6 +268,16 @@ def light_curves(quick: bool):
         "danjon_l_typical": float(curves["aerosols"].attrs["parameter_danjon_l"]),
         "danjon_l_volcanic": float(curves["volcanic"].attrs["parameter_danjon_l"]),
     }
+    for name in ("aerosols", "volcanic"):
+        for key in (name, f"{name}+scattering"):
+            curve = curves[key]
+            middle = int(np.argmax(curve.v_magnitude.values))
+            summary[f"greatest_b_minus_v_{key}"] = float(curve.b_magnitude.values[middle]
+                                                         - curve.v_magnitude.values[middle])
+    summary["greatest_v_typical_scattering"] = greatest["aerosols+scattering"]
+    summary["greatest_v_volcanic_scattering"] = greatest["volcanic+scattering"]
+    summary["volcanic_over_typical_brightness_scattering"] = 10 ** (
+        -0.4 * (greatest["volcanic+scattering"] - greatest["aerosols+scattering"]))
     times = curves["aerosols"].time.values
     dataset = build_dataset(
         {"v_magnitude": variable(("case", "time"), v,
@@ -279,7 +309,8 @@ def mars(quick: bool):
     from skytorch.eclipse.shadow import Shadow
     from skytorch.eclipse.shadow_table import shadow_uv_inverse
 
-    shadow = Shadow.mars()
+    shadows = {"refraction": Shadow.mars(), "scattering": Shadow.mars(scattering=True)}
+    shadow = shadows["scattering"]
     wavelength = torch.tensor(RGB, dtype=torch.float64)
     n = 21 if quick else 201
     # the penumbra is a thin shell (phi_occ >> phi_sun near Mars): sample it densely
@@ -298,40 +329,57 @@ def mars(quick: bool):
                                              + axis_angles["occluder_radius_rad"])
         position = shadow_uv_inverse(u.expand(n), v, shadow.sun_distance_m,
                                      shadow.sun_radius_m, shadow.top_radius_m)
-        rows.append(shadow.relative_illuminance(position["distance_m"], position["offset_m"],
-                                                wavelength))
+        rows.append(torch.stack([case.relative_illuminance(
+            position["distance_m"], position["offset_m"], wavelength)
+            for case in shadows.values()]))
         offsets.append(position["offset_m"])
-    values = torch.stack(rows)
+    values = torch.stack(rows)  # (moon, case, v, wavelength)
+    summary = {}
+    for m, name in enumerate(("phobos", "deimos")):
+        for k, w in enumerate(RGB):
+            summary[f"mars_{name}_centre_{w:.0f}nm_scattering"] = float(values[m, 1, 0, k])
+            summary[f"mars_{name}_centre_{w:.0f}nm_refraction"] = float(values[m, 0, 0, k])
+        summary[f"mars_{name}_centre_red_over_blue"] = float(values[m, 1, 0, 0]
+                                                             / values[m, 1, 0, 2])
+        half = int(torch.argmin((v - 0.5).abs()))
+        summary[f"mars_{name}_v05_red_over_blue"] = float(values[m, 1, half, 0]
+                                                          / values[m, 1, half, 2])
+        summary[f"mars_{name}_v05_{RGB[1]:.0f}nm_scattering"] = float(values[m, 1, half, 1])
     dataset = build_dataset(
-        {"relative_illuminance": variable(("moon", "v", "wavelength"), values.numpy(),
+        {"relative_illuminance": variable(("moon", "case", "v", "wavelength"), values.numpy(),
                                           VariableSpec("1", "relative illuminance",
                                                        "I / I_sun")),
          "offset": variable(("moon", "v"), torch.stack(offsets).numpy(),
                             VariableSpec("m", "distance from the shadow axis", ""))},
         {"moon": coordinate("moon", np.array(["Phobos", "Deimos"]),
                             VariableSpec("1", "Martian moon", "orbit radius")),
+         "case": coordinate("case", np.array(list(shadows)),
+                            VariableSpec("1", "light in the shadow", "refracted only, or "
+                                         "refracted + single-scattered")),
          "v": coordinate("v", v.numpy(), VariableSpec("1", "shadow coordinate v",
                                                       "0 on the axis, 1 at the penumbra edge")),
          "wavelength": coordinate("wavelength", wavelength.numpy(),
                                   VariableSpec("nm", "wavelength", ""))},
         title="Shadow of Mars at Phobos and Deimos", references=REFERENCES,
-        parameters=shadow.parameters_dict())
+        parameters={**shadow.parameters_dict(), **summary})
     import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
     for axis, name, row, offset in zip(axes, ("Phobos", "Deimos"), values, offsets,
                                        strict=True):
         for k, colour in enumerate("rgb"):
-            axis.semilogy(offset.numpy() / 1e3, row[:, k].clamp_min(1e-12).numpy(),
-                          color=colour, label=f"{RGB[k]:.0f} nm")
+            axis.semilogy(offset.numpy() / 1e3, row[0, :, k].clamp_min(1e-12).numpy(),
+                          color=colour, ls=":", label=f"{RGB[k]:.0f} nm, refracted")
+            axis.semilogy(offset.numpy() / 1e3, row[1, :, k].clamp_min(1e-12).numpy(),
+                          color=colour, label=f"{RGB[k]:.0f} nm, + scattered")
         axis.set_title(f"Mars' shadow at {name}")
         axis.set_xlabel("distance from the shadow axis [km]")
-        axis.set_ylim(1e-6, 2)
+        axis.set_ylim(1e-11, 2)
         axis.grid(alpha=0.3)
     axes[0].set_ylabel("I / I_sun")
-    axes[0].legend()
+    axes[0].legend(fontsize=7)
     figure.tight_layout()
-    return dataset, figure
+    return dataset, figure, summary
 
 
 def limb_views(quick: bool):
