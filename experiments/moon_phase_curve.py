@@ -45,8 +45,8 @@ KS_TOLERANCE_MAG = 0.15
 
 
 def run(quick: bool = False):
-    step = 10.0 if quick else 1.0
-    n_quadrature = 16 if quick else 48
+    step = 15.0 if quick else 1.0
+    n_quadrature = 8 if quick else 48
     alpha_deg = np.arange(2.0, 150.0 + step / 2, step)
     alpha = torch.tensor(alpha_deg * DEGREE, dtype=torch.float64)
     model = torch.stack([magnitude(alpha, parameters=p, n_quadrature=n_quadrature)
