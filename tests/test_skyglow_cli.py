@@ -45,3 +45,16 @@ def test_skyglow_command_reports_bad_map(tmp_path, capsys):
     status = main(["skyglow", "--lights", str(bad), "-o", str(tmp_path / "o.nc"), *SMALL])
     assert status == 2
     assert "non-negative" in capsys.readouterr().err
+
+
+def test_skyglow_command_float32_kernel_matches_float64(tmp_path):
+    # the float32 kernel (PCA in float64) against the default float64 kernel, same grid
+    outputs = {}
+    for dtype in ("float64", "float32"):
+        out, model = tmp_path / f"sky_{dtype}.nc", tmp_path / f"model_{dtype}.nc"
+        assert main(["skyglow", "--synthetic", "-o", str(out), "--save-model", str(model),
+                     "--kernel-dtype", dtype, *SMALL]) == 0
+        assert open_dataset(model).attrs["parameters"].count(f'"compute_dtype": "{dtype}"') == 1
+        outputs[dtype] = open_dataset(out)["luminance"].values
+    relative = abs(outputs["float32"] - outputs["float64"]) / outputs["float64"]
+    assert relative.max() < 1e-3  # 0.1 %, as the kernel test's float32 tolerance

@@ -54,6 +54,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     model.add_argument("--steps", type=int, default=8,
                        help="Gauss nodes per half view ray (default 8: kernel error 0.014 %% "
                             "mean, 0.36 %% max)")
+    model.add_argument("--kernel-dtype", choices=("float64", "float32"), default="float64",
+                       help="dtype of the kernel quadrature (float32: about twice as fast, "
+                            "within 0.01 %% of float64; the PCA stays float64)")
     parser.add_argument("--lamp", default="led4000k",
                         help="lamp spectrum: white, incandescent, led3000k, led4000k, hps, lps")
     parser.add_argument("-o", "--output", required=True, help="netCDF file to write")
@@ -90,13 +93,16 @@ def run(args: argparse.Namespace) -> int:
     if args.model:
         model = SkyglowModel.load(args.model)
     else:
+        import torch
+
         from skytorch.atmosphere import Atmosphere
 
         model = SkyglowModel.precompute(
             Atmosphere.earth(turbidity=args.turbidity), n_azimuth=args.n_azimuth,
             n_elevation=args.n_elevation, n_distance=args.n_distance,
             max_distance_m=args.max_distance, n_components=args.components,
-            emission=args.emission, n_steps=args.steps, progress=not args.no_progress)
+            emission=args.emission, n_steps=args.steps, progress=not args.no_progress,
+            compute_dtype=getattr(torch, args.kernel_dtype))
         if args.save_model:
             model.save(args.save_model)
             logger.info("model written to %s", args.save_model)
