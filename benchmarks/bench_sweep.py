@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import statistics
 import sys
 from pathlib import Path
@@ -178,6 +179,7 @@ def main(argv=None) -> int:
         print(eclipse_case(args.eclipse_case, args.eclipse_grid))
         return 0
 
+    load_before = os.getloadavg()
     reference = plain_loop()
     from distributed import Client, LocalCluster
 
@@ -245,8 +247,10 @@ def main(argv=None) -> int:
     table = markdown_table(rows)
     text = (
         f"\n## Parameter sweeps (`benchmarks/bench_sweep.py`)\n\n"
-        f"Machine: {machine_description()}. Medians of {args.repeat} interleaved rounds "
-        f"(one sample for the first row); the machine is shared, so timings are noisy."
+        f"Machine: {machine_description()}; load average (1 min) {load_before[0]:.1f} at "
+        f"the start, {os.getloadavg()[0]:.1f} after the toy sweeps. Medians of {args.repeat} "
+        f"interleaved rounds (one sample for the first row); the machine is shared, so "
+        f"timings are noisy."
         f"\n\n{table}\n\n"
         f"Dask speed-up with 2 workers vs 1 (one torch thread each): {dask_1 / dask_2:.2f}x "
         f"with a LocalCluster started per sweep, {reused_1 / reused_2:.2f}x with a reused "
@@ -261,7 +265,8 @@ def main(argv=None) -> int:
             f"V and B-V) swept over turbidity x ozone:\n\n{markdown_table(eclipse)}\n\n"
             f"Target (issue 7): 10 x 10 within 60 s. Dask speed-up 2 workers vs 1: "
             f"{one / two:.2f}x with threads, {process_one / process_two:.2f}x with worker "
-            f"processes; 2 worker processes vs serial: {serial / process_two:.2f}x.\n"
+            f"processes; 2 worker processes vs serial: {serial / process_two:.2f}x. Load "
+            f"average (1 min) after these runs: {os.getloadavg()[0]:.1f}.\n"
         )
     print(text)
     if args.append:
