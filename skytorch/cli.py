@@ -23,6 +23,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "ephemeris": ("skytorch.commands.ephemeris", "Sun and Moon positions over time"),
     "eclipse": ("skytorch.commands.eclipse", "lunar eclipse circumstances and light curve"),
     "stars": ("skytorch.commands.stars", "apparent star positions, magnitudes and a chart"),
+    "moon": ("skytorch.commands.moon",
+             "phase, illumination, libration, brightness and disc images of the Moon"),
     "skyglow": ("skytorch.commands.skyglow", "artificial sky brightness from a light map"),
     "render": ("skytorch.commands.render", "render a scene described in a TOML file"),
     "sweep": ("skytorch.commands.sweep", "parameter sweep described in a TOML file"),
