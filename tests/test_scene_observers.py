@@ -15,7 +15,7 @@ TIME = "2015-09-28T02:47"
 
 
 def _scene(**kwargs):
-    options = {"size": 24, "fidelity": "fast", "star_limit_mag": 4.0}
+    options = {"size": 16, "fidelity": "fast", "star_limit_mag": 3.0}
     options.update(kwargs)
     return st.Scene(time=TIME, **options)
 
