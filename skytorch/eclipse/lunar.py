@@ -140,14 +140,19 @@ _REFERENCES = [
 def danjon_l(v_magnitude) -> torch.Tensor:
     """Danjon L estimated from the V magnitude of the Moon at mid-totality.
 
-    A brightness proxy, not a published L–magnitude relation: ``L`` is linear in V
-    between the anchors :data:`DANJON_ANCHORS`,
-    ``L = 4 (V - 2) / (-3.3 - 2)``, clipped to [0, 4]. No fitted relation between L and
-    the magnitude of the eclipsed Moon was found in the literature at hand (Danjon 1921
-    defines L by colour and visibility; Hernitschek et al. 2008 give magnitudes, -3.32 and
-    -1.7 mag for 1990-02-09 and 2007-03-03, but no L relation). One magnitude corresponds
-    to about 0.75 in L; the visual L also weighs colour and the umbral rim, which this
-    proxy ignores.
+    **A brightness proxy, not a published L–magnitude relation** (recorded as
+    :data:`DANJON_RELATION` in every light-curve Dataset): ``L`` is linear in V between the
+    anchors :data:`DANJON_ANCHORS`, ``L = 4 (V - 2) / (-3.3 - 2)``, clipped to [0, 4]; one
+    magnitude is about 0.75 in L. No fitted relation between L and the magnitude of the
+    eclipsed Moon could be found: Danjon 1921 and the scale as published by Espenak
+    (NASA/EclipseWise) define L by colour and visibility only; Hernitschek et al. 2008 give
+    photometric magnitudes (-3.32 and -1.7 mag for 1990-02-09 and 2007-03-03) but no L;
+    Keen 1983 converts observed brightness to aerosol optical depth, not to L; Vital's
+    eclipse reports (2004-2021) analyse magnitude and L estimates side by side without a
+    conversion; the texts of Matsushima 1972 and of a "Danjon scale and umbral magnitude"
+    relation were not available (docs/eclipse.md, "Lunar eclipses: batched atmospheres,
+    Danjon L and 2015-09-28", lists the searches). The visual L also weighs colour and the
+    brightness of the umbral rim, which this proxy ignores.
 
     Parameters
     ----------

@@ -102,7 +102,7 @@ _SERIAL_CHUNK = 32_768
 #: without gradients on several threads: configurations per task, and the largest array
 #: (elements) of a task, below ATen's grain size (32768) so that every operation runs on
 #: the calling thread (see _thread_pool)
-_TASK_ELEMENTS = 16_384
+_TASK_ELEMENTS = 32_000
 
 # binomial series of 1/sqrt(1 - b t) = sum_n c_n (b t)^n, c_n = C(2n, n) / 4^n
 _SERIES = tuple(math.comb(2 * n, n) / 4.0**n for n in range(8))
