@@ -64,6 +64,7 @@ References
 from __future__ import annotations
 
 import math
+import os
 from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 
@@ -445,8 +446,14 @@ def _fraction_without_gradient(rho_s, rho_o, d, coefficients, s, weight, out: to
     return fraction.clamp_(0.0, 1.0).masked_fill_(hidden, 0.0)
 
 
-@lru_cache(maxsize=4)
 def _thread_pool(workers: int) -> ThreadPoolExecutor:
+    """Threads that evaluate chunks of configurations concurrently (one pool per process:
+    a pool inherited through ``fork`` has no threads in the child)."""
+    return _process_thread_pool(workers, os.getpid())
+
+
+@lru_cache(maxsize=4)
+def _process_thread_pool(workers: int, pid: int) -> ThreadPoolExecutor:
     """Threads that evaluate chunks of configurations concurrently.
 
     Every array of the kernel without gradients is smaller than ATen's grain size, so
