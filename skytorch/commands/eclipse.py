@@ -112,8 +112,10 @@ def _summary(dataset) -> str:
              f"{float(attrs.get('parameter_umbral_magnitude')):.4f})"]
     for name in ("p1", "u1", "u2", "u3", "u4", "p4"):
         lines.append(f"  {name.upper():<9} {attrs.get('parameter_' + name)}")
+    danjon = attrs.get("parameter_danjon_l", "none")
+    danjon = "none (not total)" if danjon == "none" else f"{float(danjon):.1f}"
     lines.append(f"  V at greatest eclipse {float(attrs['parameter_greatest_v_magnitude']):.2f}"
-                 f" mag; Danjon L estimate {attrs.get('parameter_danjon_l')}")
+                 f" mag; Danjon L {danjon} (brightness proxy, not a published relation)")
     return "\n".join(lines)
 
 

@@ -17,7 +17,7 @@ point, expressed as (distance along the anti-Sun axis, offset from it). The shad
 evaluated through a (u, v) table restricted to the Moon's distances during the eclipse
 (:class:`~skytorch.eclipse.shadow_table.ShadowTable`, bilinear in ``log I``). From ``F``
 follow the V and B magnitudes (Bessell passbands), B − V and the sRGB colour; the
-magnitude at greatest eclipse gives a Danjon L estimate (:func:`danjon_l`).
+magnitude at greatest eclipse gives a Danjon L estimate (a brightness proxy, :func:`danjon_l`).
 
 References
 ----------
