@@ -61,9 +61,27 @@ def test_preetham_turbidity_aerosol_optical_depth():
 
 
 def test_refractivity_scales_with_density():
-    atm = Atmosphere.earth()
+    atm = Atmosphere.earth(refractivity_profile="exponential")
     n1 = atm.refractivity(torch.tensor([0.0, 8000.0], dtype=torch.float64))
     assert float(n1[0]) == pytest.approx(2.77e-4, rel=1e-12)
     assert float(n1[1]) == pytest.approx(2.77e-4 / math.e, rel=1e-12)
     mars = Atmosphere.mars()
     assert float(mars.refractivity(0.0)) == pytest.approx(3.38e-6, rel=1e-12)
+
+
+#: U.S. Standard Atmosphere 1976, tabulated densities at geometric altitudes 5, 10, 20 and
+#: 50 km [kg m^-3] and at sea level (NOAA-S/T 76-1562, Table I)
+US1976_TABLE_DENSITY = {5e3: 0.73643, 10e3: 0.41351, 20e3: 0.088910, 50e3: 1.0269e-3}
+US1976_SEA_LEVEL_DENSITY = 1.2250
+
+
+def test_default_refractivity_follows_the_us1976_table():
+    """The default Earth refractivity is n - 1 = 2.77e-4 at the ground (Schneegans 2025)
+    scaled by the U.S. Standard Atmosphere 1976 density ratio (5-digit table values)."""
+    atm = Atmosphere.earth()
+    assert atm.refractivity_profile == "us1976"
+    altitude = torch.tensor([0.0, *US1976_TABLE_DENSITY], dtype=torch.float64)
+    ratio = atm.refractivity(altitude) / 2.77e-4
+    expected = torch.tensor([US1976_SEA_LEVEL_DENSITY, *US1976_TABLE_DENSITY.values()],
+                            dtype=torch.float64) / US1976_SEA_LEVEL_DENSITY
+    assert torch.allclose(ratio, expected, rtol=5e-5, atol=0)  # 5 significant digits

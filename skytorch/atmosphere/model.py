@@ -18,9 +18,10 @@ times a spectral extinction coefficient at the reference level :math:`k_s(\\lamb
 The refractivity :math:`n - 1` is proportional to the gas density,
 :math:`(n-1)(h) = (n-1)_{ref}\\,(p/p_{ref})(T_{ref}/T)\\,\\rho(h)` (2.77e-4 at
 1013.25 hPa, 288.15 K on Earth; 3.38e-6 at 610 Pa, 215 K on Mars, ref. 1), with
-:math:`\\rho` the molecular profile or, with ``refractivity_profile="us1976"``, the
-U.S. Standard Atmosphere 1976 density (a realistic lapse rate for refraction near the
-horizon, while optical depths keep the molecular profile).
+:math:`\\rho` the molecular profile or, with ``refractivity_profile="us1976"`` (the
+default of :meth:`Atmosphere.earth`), the U.S. Standard Atmosphere 1976 density (a
+realistic lapse rate for refraction near the horizon, while optical depths keep the
+molecular profile).
 
 Every physical parameter may be a tensor with batch dimensions; parameters and ray
 geometry broadcast together by torch rules and spectral outputs have shape
@@ -102,9 +103,9 @@ EARTH_AEROSOL_ASYMMETRY = 0.8
 #: breakpoints of exponential profiles above the lowest point of a leg, in scale heights;
 #: the last one ends the integration (exp(-30) = 9e-14 of the leg's peak density)
 _EXPONENTIAL_LEVELS = (0.5, 1.5, 4.0, 10.0, 30.0)
-#: integral of the US 1976 density ratio over altitude, in metres (computed once)
-_US1976_BREAKS_M = (1000.0, 2000.0, 4000.0, 8000.0, 11_019.1, 20_063.1, 32_161.9, 47_350.1,
-                    51_412.5, 71_802.0, 86_000.0)
+#: quadrature levels of the US 1976 profile [m]: its layer bases (kinks) and, below the
+#: first, levels that resolve the exponential-like decay near the ground
+_US1976_BREAKS_M = (1000.0, 2000.0, 4000.0, 8000.0, *_profiles.US1976_KINK_ALTITUDES_M)
 
 #: rays per chunk in column integrals (keeps intermediates in cache)
 _CHUNK = 4096
@@ -143,10 +144,11 @@ class Atmosphere(nn.Module):
         Shape of the molecular density (optical depths, scattering).
     refractivity_profile : {"exponential", "us1976"}, optional
         Shape of the refractivity :math:`n - 1` with altitude (refraction); default: the
-        ``molecule_profile``. The refraction near the horizon depends on the density
-        gradient in the lowest kilometres, which the isothermal 8 km exponential
-        overstates (horizon refraction 37.3' instead of Bennett's 33.9' at 1013.25 hPa,
-        15 degC; US 1976: 32.9'; see ``docs/atmosphere.md``).
+        ``molecule_profile`` (:meth:`earth`: ``"us1976"``). The refraction near the
+        horizon depends on the density gradient in the lowest kilometres, which the
+        isothermal 8 km exponential overstates (horizon refraction 37.3' instead of
+        Bennett's 34.0' at 1013.25 hPa, 15 degC; US 1976: 32.9'; see
+        ``docs/refraction.md``).
     rayleigh_scale_height_m : float or Tensor
         Scale height of the exponential molecular profile [m].
     angstrom_beta, angstrom_alpha : float or Tensor
@@ -259,7 +261,13 @@ class Atmosphere(nn.Module):
     @classmethod
     def earth(cls, turbidity=2.0, ozone_du=300.0, *, aerosol_optical_depth=None,
               angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA, **kwargs) -> Atmosphere:
-        """Earth: air, 8 km exponential molecules, Preetham aerosols, ozone tent.
+        """Earth: air, 8 km exponential molecules, US 1976 refractivity, Preetham aerosols,
+        ozone tent.
+
+        The refractive index follows the U.S. Standard Atmosphere 1976 density
+        (``refractivity_profile="us1976"``; horizon refraction 32.9' at 1013.25 hPa,
+        15 degC, Bennett 1982: 34.0'); pass ``refractivity_profile="exponential"`` for the
+        isothermal 8 km profile of the optical depths (37.3').
 
         Parameters
         ----------
@@ -285,7 +293,8 @@ class Atmosphere(nn.Module):
             beta = _aerosol.preetham_angstrom_beta(turbidity)
             alpha = angstrom_alpha
         options = {"planet_radius_m": EARTH_MEAN_RADIUS_M,
-                   "top_altitude_m": EARTH_TOP_OF_ATMOSPHERE_M, "name": "earth"}
+                   "top_altitude_m": EARTH_TOP_OF_ATMOSPHERE_M, "name": "earth",
+                   "refractivity_profile": "us1976"}
         options.update(kwargs)
         return cls(angstrom_beta=beta, angstrom_alpha=alpha, ozone_du=ozone_du, **options)
 
@@ -495,8 +504,27 @@ class Atmosphere(nn.Module):
 
     @property
     def refractivity_breakpoints_m(self) -> tuple[float, ...]:
-        """Altitudes where the refractivity profile has kinks [m] (US 1976 layer bases)."""
+        """Altitudes where the quadrature of refracted rays is split [m].
+
+        The kinks of the refractivity profile (:attr:`refractivity_kinks_m`) and, for
+        the US 1976 profile, levels at 1, 2, 4 and 8 km (panels of the Gauss–Legendre
+        rules along the ray); empty for the exponential profile.
+        """
         return _US1976_BREAKS_M if self.refractivity_profile == "us1976" else ()
+
+    @property
+    def refractivity_kinks_m(self) -> tuple[float, ...]:
+        """Altitudes where :math:`\\mathrm{d}n/\\mathrm{d}h` jumps [m].
+
+        The U.S. Standard Atmosphere 1976 layer bases (its lapse rate jumps there); empty
+        for the exponential profile. The bending of a ray whose lowest point lies just
+        below a kink varies like the square root of the distance to it, so tables over
+        impact parameter place nodes there (e.g.
+        :meth:`skytorch.eclipse.shadow.Shadow.ring_profile`).
+        """
+        if self.refractivity_profile != "us1976":
+            return ()
+        return tuple(h for h in _profiles.US1976_KINK_ALTITUDES_M if h < self.top_altitude_m)
 
     def refractivity(self, altitude_m, wavelength_nm=None) -> torch.Tensor:
         """Refractivity :math:`n - 1` of the gas at ``altitude_m``.

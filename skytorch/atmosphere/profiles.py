@@ -41,7 +41,8 @@ import torch
 
 from skytorch._validate import as_tensor
 
-__all__ = ["PROFILES", "exponential", "tent", "us1976", "US1976_SCALE_HEIGHT_M"]
+__all__ = ["PROFILES", "US1976_KINK_ALTITUDES_M", "US1976_SCALE_HEIGHT_M", "exponential",
+           "tent", "us1976"]
 
 #: model keywords for the molecular profile
 PROFILES = ("exponential", "us1976")
@@ -82,6 +83,11 @@ def _us1976_layers() -> tuple[list[float], list[float], list[float]]:
 
 
 _US1976_TEMPERATURE, _US1976_LOG_PRESSURE, _ = _us1976_layers()
+
+#: geometric altitudes of the US 1976 layer bases above the ground, z = r0 H / (r0 - H)
+#: [m]: the lapse rate, hence the density gradient, jumps there (kinks of the profile)
+US1976_KINK_ALTITUDES_M = tuple(_US1976_EARTH_RADIUS_M * h / (_US1976_EARTH_RADIUS_M - h)
+                                for h in _US1976_BASE_HEIGHT_M[1:])
 
 
 def exponential(altitude_m, scale_height_m) -> torch.Tensor:

@@ -123,6 +123,8 @@ DEFAULT_NODES = 64  #: Gauss–Legendre nodes of the Bouguer integrals
 DEFAULT_STEP_M = 10e3  #: RK4 step along the ray (Schneegans et al. 2025, Seron et al. 2004)
 DEFAULT_MAX_DH_M = 1e3  #: RK4 step limit: altitude change per step [m]
 TABLE_NODES = 32  #: Gauss–Legendre nodes for the deviation table (0.02" from converged)
+#: RK4 steps that reach a kink of the refractivity profile end this far past it [m]
+_KINK_OVERSHOOT_M = 1e-3
 
 
 # --- small helpers -------------------------------------------------------------------------
@@ -164,10 +166,15 @@ def _breakpoints(atm, top: float, dtype: torch.dtype) -> torch.Tensor | None:
     levels = getattr(atm, "refractivity_breakpoints_m", None)
     if levels is None and getattr(atm, "molecule_profile", None) == "us1976":
         from skytorch.atmosphere.model import _US1976_BREAKS_M as levels
+    return _inside(levels, top, dtype)
+
+
+def _inside(levels, top: float, dtype: torch.dtype) -> torch.Tensor | None:
+    """Sorted ``levels`` strictly inside (0, top) as a tensor, None when there are none."""
     if levels is None:
         return None
-    levels = sorted(float(v) for v in torch.as_tensor(levels).reshape(-1).tolist()
-                    if 0.0 < float(v) < top)
+    levels = sorted(v for v in torch.as_tensor(levels, dtype=torch.float64).reshape(-1).tolist()
+                    if 0.0 < v < top)
     return torch.tensor(levels, dtype=dtype) if levels else None
 
 
@@ -188,6 +195,10 @@ class _Geometry:
                 f"atmosphere needs planet_radius_m > 0 and top_altitude_m > 0; got "
                 f"{self.radius!r} and {self.top!r}")
         self.breakpoints = _breakpoints(atm, self.top, dtype)
+        kinks = getattr(atm, "refractivity_kinks_m", None)
+        #: altitudes where dn/dh jumps, inside (0, top) [m] (RK4 steps end there)
+        self.kinks = (self.breakpoints if kinks is None
+                      else _inside(kinks, self.top, dtype))
         self.parameters_need_grad = _needs_grad(atm)
         zero = torch.zeros((), dtype=dtype)
         self.nu0, slope0 = self.refractivity_and_slope(zero)
@@ -882,11 +893,18 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
 
     active = active[~finished(r0, radial, travelled)]
     limit = torch.full_like(r0, math.inf)  # step limit after a rejected step
+    kink_radii = None if geometry.kinks is None else radius + geometry.kinks.to(dtype)
     while active.numel():
         pa, va, rad = p[active], v[active], radial[active]
         ra = torch.linalg.vector_norm(pa, dim=-1)
         ds = torch.minimum(torch.full_like(ra, step_m),
                            max_dh_m / torch.clamp(rad.abs(), min=1e-12))
+        k1p, k1v, k1k = derivative(pa, va)
+        if kink_radii is not None:
+            # end the step just past a kink of the profile (dn/dr jumps there: a step
+            # across it would make the scheme first order)
+            to_kink = _distance_to_spheres(pa, va, k1v, kink_radii)
+            ds = torch.where(to_kink <= ds, to_kink + _KINK_OVERSHOOT_M, ds)
         # land on the ground rather than step across it (dn/dr jumps there): the
         # straight-line distance to the sphere r = R, in a form without cancellation
         # (stop 0.1 % short first, so that no RK4 stage falls below the ground, where
@@ -897,7 +915,6 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
         lands = meets & (to_ground <= 1.0)
         ds = torch.where(lands, to_ground, torch.where(meets, 0.999 * to_ground, ds))
         h2 = ds.unsqueeze(-1)
-        k1p, k1v, k1k = derivative(pa, va)
         k2p, k2v, k2k = derivative(pa + 0.5 * h2 * k1p, va + 0.5 * h2 * k1v)
         k3p, k3v, k3k = derivative(pa + 0.5 * h2 * k2p, va + 0.5 * h2 * k2v)
         k4p, k4v, k4k = derivative(pa + h2 * k3p, va + h2 * k3v)
@@ -939,6 +956,43 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
         active = active[~stop]
     direction_out = v / torch.linalg.vector_norm(v, dim=-1, keepdim=True)
     return direction_out, r_min, tau
+
+
+def _distance_to_spheres(position, velocity, gradient, radii):
+    """Path length [m] to the first crossing of any sphere r = ``radii`` (K,) farther than
+    :data:`_KINK_OVERSHOOT_M` (inf when none), (N,).
+
+    The estimate never lies beyond the crossing, so that a step of that length ends
+    before the sphere (or within :data:`_KINK_OVERSHOOT_M` past it) and the next steps
+    approach it. A ray bends towards the centre, so it leaves a sphere after the
+    straight line does (``a = 1`` below). It meets a sphere below it before the straight
+    line does: there the ray is continued as the parabola ``p + s d + s^2 c / 2`` with
+    twice the curvature vector at the start, ``c = (grad n - (grad n . d) d) / n`` (the
+    curvature grows downwards), so that ``|p(s)|^2 = r^2 + 2 (p.d) s + a s^2`` with
+    ``a = 1 + 2 p.c``. Near roots are written without cancellation:
+    ``q / (-p.d + sqrt(disc))`` from outside a sphere and ``-q / (p.d + sqrt(disc))``
+    from inside it when moving out, ``q = r^2 - rho^2``, ``disc = (p.d)^2 - a q``.
+    """
+    n = torch.linalg.vector_norm(velocity, dim=-1, keepdim=True)
+    direction = velocity / n
+    along = (position * direction).sum(-1, keepdim=True)
+    r = torch.linalg.vector_norm(position, dim=-1, keepdim=True)
+    across = ((position * gradient).sum(-1, keepdim=True)
+              - along * (direction * gradient).sum(-1, keepdim=True))
+    excess = (r - radii) * (r + radii)
+    outside = excess > 0.0
+    a = torch.where(outside, torch.clamp(1.0 + 2.0 * across / n, min=0.1), 1.0)
+    disc = along * along - a * excess
+    root = torch.sqrt(torch.clamp(disc, min=0.0))
+    # from outside: the near root when the ray comes down and meets the sphere
+    meets = outside & (along < 0.0) & (disc >= 0.0)
+    inward = excess / torch.where(meets, root - along, torch.ones_like(root))
+    # from inside (or on) the sphere: the forward root
+    outward = torch.where(along > 0.0, -excess / torch.where(along > 0.0, along + root, 1.0),
+                          root - along)
+    distance = torch.where(outside, torch.where(meets, inward, math.inf), outward)
+    distance = torch.where(distance > _KINK_OVERSHOOT_M, distance, math.inf)
+    return distance.min(-1).values
 
 
 def _straight_to_ground(position, velocity, r, radius):
