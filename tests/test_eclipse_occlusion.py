@@ -178,6 +178,7 @@ def test_many_chunks_agree_with_single_evaluations(monkeypatch):
     monkeypatch.setattr(occlusion, "_CHUNK", 4_096)
     monkeypatch.setattr(occlusion, "_SERIAL_CHUNK", 4_096)
     monkeypatch.setattr(occlusion, "_NODE_CHUNK", 1_000)  # rim sub-chunks, uneven split
+    monkeypatch.setattr(occlusion, "_SERIAL_RIM_ROWS", 1_000)
     generator = torch.Generator().manual_seed(3)
     rho_o = SUN_RADIUS * (0.1 + 3 * torch.rand(40_000, generator=generator, dtype=torch.float64))
     d = (SUN_RADIUS + rho_o) * torch.rand(40_000, generator=generator, dtype=torch.float64)

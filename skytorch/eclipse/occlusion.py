@@ -100,6 +100,10 @@ _NODE_CHUNK = 16_384
 #: configurations per chunk without gradients on one thread: the few dozen temporaries of
 #: the per-configuration work stay in the CPU cache
 _SERIAL_CHUNK = 32_768
+#: rim rows per sub-chunk without gradients on one thread: the three (rows, n_nodes) node
+#: buffers stay in a 512 KB L2 cache (CPU time 155 ns per configuration at 4096 rows
+#: against 283 ns at 16384, 8 nodes, measured side by side)
+_SERIAL_RIM_ROWS = 4_096
 #: without gradients on several threads: configurations per task, and the largest array
 #: (elements) of a task, below ATen's grain size (32768) so that every operation runs on
 #: the calling thread (see _thread_pool)
@@ -366,7 +370,7 @@ def _rim_integral(half_phi_max, hav_o_d, sin_d_o, sin_o_d, two_sin_d_cos_o, minu
 
 
 def _fraction_without_gradient(rho_s, rho_o, d, coefficients, s, weight, out: torch.Tensor,
-                               rim_rows: int = _NODE_CHUNK) -> torch.Tensor:
+                               rim_rows: int = _SERIAL_RIM_ROWS) -> torch.Tensor:
     """Same result as :func:`_visible_fraction_flat`, for inputs that need no gradient.
 
     Written for speed: six sines and three square roots per configuration instead of eight
@@ -583,7 +587,7 @@ def sun_visible_fraction(
         result = torch.empty(max(n, 1), dtype=dtype)
         workers = min(torch.get_num_threads(), -(-max(n, 1) // _TASK_ELEMENTS))
         chunk, rim_rows = ((_TASK_ELEMENTS, _TASK_ELEMENTS // n_nodes) if workers > 1
-                           else (_SERIAL_CHUNK, _NODE_CHUNK))
+                           else (_SERIAL_CHUNK, _SERIAL_RIM_ROWS))
 
         def task(start: int) -> None:
             with torch.no_grad():
