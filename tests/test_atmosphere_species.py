@@ -85,3 +85,23 @@ def test_default_refractivity_follows_the_us1976_table():
     expected = torch.tensor([US1976_SEA_LEVEL_DENSITY, *US1976_TABLE_DENSITY.values()],
                             dtype=torch.float64) / US1976_SEA_LEVEL_DENSITY
     assert torch.allclose(ratio, expected, rtol=5e-5, atol=0)  # 5 significant digits
+
+
+def test_reference_extinction_gives_vertical_optical_depths():
+    """Reference coefficients times each profile's height integral are the vertical optical
+    depths: Rayleigh vs Bodhaine et al. 1999 eq. 30 (0.0971 at 550 nm, 1 %), aerosol vs the
+    Preetham/Angstrom closed form, and their refracted-path integrals add up to the total."""
+    atm = Atmosphere.earth(turbidity=3.0, ozone_du=300.0)
+    wavelength = torch.tensor([550.0], dtype=torch.float64)
+    k = atm.reference_extinction(wavelength)
+    assert set(k) == {"rayleigh", "aerosol", "ozone"}
+    assert float(k["rayleigh"][0]) * 8000.0 == pytest.approx(0.0971, rel=1e-2)
+    beta = 0.04608 * 3.0 - 0.04586
+    assert float(k["aerosol"][0]) * 1200.0 == pytest.approx(beta * 0.55 ** -1.3, rel=1e-9)
+    zenith = torch.tensor([0.3, 1.5], dtype=torch.float64)
+    parts = atm.optical_depth(wavelength, zenith, refraction=True, per_species=True)
+    total = atm.optical_depth(wavelength, zenith, refraction=True)
+    assert torch.allclose(parts["rayleigh"] + parts["aerosol"] + parts["ozone"], total,
+                          rtol=1e-12)
+    with pytest.raises(ValueError, match="wavelength_nm"):
+        atm.reference_extinction(torch.tensor([-1.0]))

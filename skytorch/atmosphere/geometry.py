@@ -32,6 +32,8 @@ Examples
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 __all__ = [
@@ -40,6 +42,8 @@ __all__ = [
     "ray_hits_ground",
     "ray_segment",
     "safe_sqrt",
+    "texture_coordinates",
+    "texture_rays",
 ]
 
 
@@ -171,3 +175,78 @@ def ray_segment(r, mu, planet_radius, top_radius) -> dict[str, torch.Tensor]:
     t_start = torch.minimum(t_start, t_end)
     return {"t_start": t_start, "t_end": t_end, "excess_sq": excess_sq, "hits_ground": hits,
             "length": t_end - t_start}
+
+
+def texture_rays(x_r, x_mu, planet_radius, top_radius) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Ray origin altitude and zenith cosine at texture coordinates (Bruneton 2017).
+
+    Parameters
+    ----------
+    x_r, x_mu : Tensor (...)
+        Texture coordinates in [0, 1] (broadcast): ``x_r`` the altitude coordinate,
+        ``x_mu`` the direction coordinate (0: zenith, 1: the ray tangent to the ground).
+    planet_radius, top_radius : float
+        Radii of the ground and of the top of the atmosphere [m].
+
+    Returns
+    -------
+    tuple of Tensor (...)
+        Altitude of the ray origin [m] (computed as :math:`\rho^2/(r + R)`, without
+        cancellation) and the cosine of the ray's zenith angle [1].
+
+    Notes
+    -----
+    :math:`H = \sqrt{R_t^2 - R^2}`, :math:`\rho = x_r H`, :math:`r = \sqrt{\rho^2 + R^2}`,
+    distance to the top :math:`d = d_{min} + x_\mu (d_{max} - d_{min})` with
+    :math:`d_{min} = R_t - r`, :math:`d_{max} = \rho + H`, and
+    :math:`\mu = (H^2 - \rho^2 - d^2)/(2 r d)` (1 where :math:`d = 0`): Bruneton's
+    ``GetRMuFromTransmittanceTextureUv`` without the half-texel offsets, the
+    parametrisation of Schneegans et al. 2025 (eq. 2) for their deviation table.
+
+    Examples
+    --------
+    >>> import torch
+    >>> h, mu = texture_rays(torch.tensor([0.0, 1.0]), torch.tensor([1.0, 0.0]), 6.371e6,
+    ...                      6.471e6)
+    >>> [round(float(v)) for v in h], [round(float(v), 6) for v in mu]
+    ([0, 100000], [0.0, 1.0])
+    """
+    horizon = math.sqrt(top_radius**2 - planet_radius**2)
+    rho = x_r * horizon
+    r = torch.sqrt(rho * rho + planet_radius**2)
+    d_min = top_radius - r
+    d_max = rho + horizon
+    d = d_min + x_mu * (d_max - d_min)
+    safe_d = torch.where(d > 0.0, d, torch.ones_like(d))
+    mu = torch.where(d > 0.0, (horizon**2 - rho * rho - d * d) / (2.0 * r * safe_d),
+                     torch.ones_like(d))
+    return rho * rho / (r + planet_radius), torch.clamp(mu, -1.0, 1.0)
+
+
+def texture_coordinates(altitude_m, mu, planet_radius, top_radius
+                        ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Inverse of :func:`texture_rays`: texture coordinates ``(x_r, x_mu)`` (...).
+
+    Parameters
+    ----------
+    altitude_m : Tensor (...)
+        Altitude of the ray origin, in [0, top] [m].
+    mu : Tensor (...)
+        Cosine of the ray's zenith angle [1].
+    planet_radius, top_radius : float
+        Radii of the ground and of the top of the atmosphere [m].
+
+    Returns
+    -------
+    tuple of Tensor (...)
+        ``x_r`` and ``x_mu``, in [0, 1] for rays that miss the ground; ``x_mu > 1`` below
+        the geometric horizon (not clamped, so callers can tell).
+    """
+    horizon = math.sqrt(top_radius**2 - planet_radius**2)
+    r = planet_radius + altitude_m
+    rho = safe_sqrt(altitude_m * (r + planet_radius))
+    d = distance_to_top(r, mu, top_radius)
+    d_min = top_radius - r
+    d_max = rho + horizon
+    span = torch.clamp(d_max - d_min, min=1e-9 * top_radius)
+    return rho / horizon, (d - d_min) / span

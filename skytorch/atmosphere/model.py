@@ -440,6 +440,44 @@ class Atmosphere(nn.Module):
                      wavelength_nm)
         return {"rayleigh": rayleigh, "aerosol": aerosol, "ozone": ozone}
 
+    def reference_extinction(self, wavelength_nm) -> dict[str, torch.Tensor]:
+        """Extinction coefficient of each species where its relative density is 1.
+
+        The extinction coefficient of species ``s`` at altitude ``h`` is
+        ``relative_density(s, h) * reference_extinction(wavelength_nm)[s]``, so the
+        optical depth along any path, straight or refracted, is the path integral of the
+        relative density times this coefficient
+        (:func:`skytorch.atmosphere.refraction.bent_optical_depth` integrates the
+        densities once and multiplies them here, for every wavelength at once).
+
+        Parameters
+        ----------
+        wavelength_nm : Tensor (wavelength,)
+            Wavelength [nm].
+
+        Returns
+        -------
+        dict of Tensor (..., wavelength)
+            ``"rayleigh"``, ``"aerosol"`` (scattering plus absorption) and ``"ozone"``
+            [1/m]; leading dims are the batch dims of the parameters.
+
+        Notes
+        -----
+        Rayleigh: :math:`N_{col}\\,\\sigma_R(\\lambda)/\\int\\rho\\,dh`; aerosol:
+        :math:`\\beta\\,(\\lambda/1000\\,\\mathrm{nm})^{-\\alpha}/H_a`; ozone:
+        :math:`\\mathrm{DU}\\,N_{DU}\\,\\sigma_{O_3}(\\lambda)/w` (tent half width
+        :math:`w`).
+
+        Examples
+        --------
+        >>> import torch
+        >>> atm = Atmosphere.earth(turbidity=1.0, ozone_du=0.0)
+        >>> k = atm.reference_extinction(torch.tensor([550.0], dtype=torch.float64))
+        >>> round(float(k["rayleigh"][0]) * 8000.0, 3)   # vertical Rayleigh optical depth
+        0.097
+        """
+        return self._coefficients(self._wavelength(wavelength_nm, common_dtype(wavelength_nm)))
+
     @staticmethod
     def _wavelength(wavelength_nm, dtype=None) -> torch.Tensor:
         wavelength = check_positive("wavelength_nm", wavelength_nm, unit=" nm", dtype=dtype)

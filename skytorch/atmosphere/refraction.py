@@ -98,7 +98,7 @@ import numpy as np
 import torch
 
 from skytorch._validate import as_tensor, check_choice, check_int, check_range, common_dtype
-from skytorch.atmosphere.geometry import distance_to_top, safe_sqrt
+from skytorch.atmosphere.geometry import texture_coordinates, texture_rays
 
 __all__ = [
     "METHODS",
@@ -636,8 +636,8 @@ def bent_optical_depth(
         Alias of ``n_nodes`` (the straight-ray integrators' name for their resolution).
     per_species : bool
         Return ``{"rayleigh", "aerosol", "ozone"}`` optical depths separately; needs an
-        :class:`~skytorch.atmosphere.Atmosphere` (``relative_density`` and its reference
-        coefficients).
+        :class:`~skytorch.atmosphere.Atmosphere` (``relative_density`` and
+        ``reference_extinction``).
     **unused
         Options of the straight-ray integrators (``rtol``) have no meaning here and are
         ignored.
@@ -707,7 +707,7 @@ def bent_optical_depth(
     if not per_species:
         return tau
     # columns of relative density times the model's reference-level coefficients
-    reference = atm._coefficients(wavelength)
+    reference = atm.reference_extinction(wavelength)
     return {s: tau[..., i, None] * reference[s].to(dtype) for i, s in enumerate(species)}
 
 
@@ -1095,40 +1095,6 @@ def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
 # --- deviation / contact-radius table (Schneegans et al. 2025, Fig. 6) --------------------------
 
 
-def _schneegans_rays(x_r, x_mu, planet_radius, top_radius):
-    r"""Observer altitude and view-zenith cosine from the texture coordinates (eq. 2).
-
-    :math:`\rho = x_r H`, :math:`r = \sqrt{\rho^2 + R^2}`, distance to the top
-    :math:`d = d_{min} + x_\mu (d_{max} - d_{min})` with :math:`d_{min} = R_t - r`,
-    :math:`d_{max} = \rho + H` and :math:`\mu = (H^2 - \rho^2 - d^2)/(2 r d)` (1 where
-    :math:`d = 0`), :math:`H = \sqrt{R_t^2 - R^2}` (Bruneton 2017).
-    """
-    horizon = math.sqrt(top_radius**2 - planet_radius**2)
-    rho = x_r * horizon
-    r = torch.sqrt(rho * rho + planet_radius**2)
-    d_min = top_radius - r
-    d_max = rho + horizon
-    d = d_min + x_mu * (d_max - d_min)
-    safe_d = torch.where(d > 0.0, d, torch.ones_like(d))
-    mu = torch.where(d > 0.0, (horizon**2 - rho * rho - d * d) / (2.0 * r * safe_d),
-                     torch.ones_like(d))
-    # altitude r - R without cancellation
-    altitude = rho * rho / (r + planet_radius)
-    return altitude, torch.clamp(mu, -1.0, 1.0)
-
-
-def _schneegans_coordinates(altitude_m, mu, planet_radius, top_radius):
-    """Inverse of :func:`_schneegans_rays`: texture coordinates (x_r, x_mu) in [0, 1]."""
-    horizon = math.sqrt(top_radius**2 - planet_radius**2)
-    r = planet_radius + altitude_m
-    rho = safe_sqrt(altitude_m * (r + planet_radius))
-    d = distance_to_top(r, mu, top_radius)
-    d_min = top_radius - r
-    d_max = rho + horizon
-    span = torch.clamp(d_max - d_min, min=1e-9 * top_radius)
-    return rho / horizon, (d - d_min) / span
-
-
 def _table_specs():
     from skytorch.dataset import VariableSpec
 
@@ -1231,7 +1197,7 @@ def deviation_table(
     top_radius = radius + float(atm.top_altitude_m)
     x_r = torch.linspace(0.0, 1.0, n_altitude, dtype=dtype)
     x_mu = torch.linspace(0.0, 1.0, n_angle, dtype=dtype)
-    altitude, mu = _schneegans_rays(x_r[:, None], x_mu[None, :], radius, top_radius)
+    altitude, mu = texture_rays(x_r[:, None], x_mu[None, :], radius, top_radius)
     altitude = altitude.expand(n_altitude, n_angle)
     elevation = torch.asin(mu)
     deviation = torch.empty_like(mu)
@@ -1333,7 +1299,7 @@ class DeviationTable(torch.nn.Module):
         height = check_range("altitude_m", altitude_m, 0.0, top, unit=" m", dtype=dtype)
         zenith = check_range("zenith_rad", zenith_rad, 0.0, math.pi, unit=" rad", dtype=dtype)
         height, zenith = torch.broadcast_tensors(height, zenith)
-        x_r, x_mu = _schneegans_coordinates(height, torch.cos(zenith), self.planet_radius_m,
+        x_r, x_mu = texture_coordinates(height, torch.cos(zenith), self.planet_radius_m,
                                             self.planet_radius_m + top)
         below = x_mu > 1.0
         deviation = _bilinear(self.deviation_rad.to(dtype), x_r, x_mu)

@@ -180,7 +180,7 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     # parameters broadcast against the geometry (...) with one extra sample dim (n)
     with atmosphere._extra_geometry_dims(1):
         # local coefficients of each species along the ray (..., n, wavelength)
-        coefficients = atmosphere._coefficients(wavelength)
+        coefficients = atmosphere.reference_extinction(wavelength)
         local = {name: atmosphere._density(name, dtype)(height)[..., None]
                  * coefficients[name] for name in coefficients}
         # transmittance towards the Sun from each sample (zero in the planet's shadow)

@@ -61,7 +61,12 @@ import torch
 from torch import nn
 
 from skytorch._validate import check_finite, check_int, common_dtype
-from skytorch.atmosphere.geometry import distance_to_ground, distance_to_top, ray_hits_ground
+from skytorch.atmosphere.geometry import (
+    distance_to_ground,
+    ray_hits_ground,
+    texture_coordinates,
+    texture_rays,
+)
 from skytorch.dataset import (
     VariableSpec,
     build_dataset,
@@ -141,33 +146,6 @@ def radius_nodes(atmosphere, n_r: int) -> torch.Tensor:
     return torch.cat([*pieces, torch.ones(1, dtype=torch.float64)])
 
 
-def _geometry(x_r, x_mu, planet_radius, top_radius):
-    """(r, mu) of texture coordinates (broadcast)."""
-    horizon = math.sqrt(top_radius ** 2 - planet_radius ** 2)
-    rho = horizon * x_r
-    r = torch.sqrt(rho * rho + planet_radius ** 2)
-    d_min = top_radius - r
-    d_max = rho + horizon
-    d = d_min + x_mu * (d_max - d_min)
-    safe_d = torch.where(d == 0, torch.ones_like(d), d)
-    mu = torch.where(d == 0, torch.ones_like(d),
-                     (horizon * horizon - rho * rho - d * d) / (2.0 * r * safe_d))
-    return r, torch.clamp(mu, -1.0, 1.0)
-
-
-def _coordinates(r, mu, planet_radius, top_radius):
-    """Texture coordinates (x_r, x_mu) in [0, 1] of (r, mu) for rays that miss the ground."""
-    horizon = math.sqrt(top_radius ** 2 - planet_radius ** 2)
-    rho = torch.sqrt(torch.clamp((r - planet_radius) * (r + planet_radius), min=0.0))
-    d = distance_to_top(r, mu, top_radius)
-    d_min = top_radius - r
-    d_max = rho + horizon
-    span = d_max - d_min
-    x_mu = torch.where(span > 0, (d - d_min) / torch.where(span > 0, span, 1.0),
-                       torch.zeros_like(d))
-    return torch.clamp(rho / horizon, 0.0, 1.0), torch.clamp(x_mu, 0.0, 1.0)
-
-
 def table_key(atmosphere, wavelength_nm, n_mu: int, n_r: int, method: str,
               n_steps: int | None) -> str:
     """SHA-256 hex digest of every parameter that affects the table."""
@@ -212,12 +190,11 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
     wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
     x_r = radius_nodes(atmosphere, n_r)
     x_mu = torch.linspace(0.0, 1.0, n_mu, dtype=torch.float64)
-    r, mu = _geometry(x_r[:, None], x_mu[None, :], atmosphere.planet_radius_m,
-                      atmosphere.top_radius_m)
+    altitude, mu = texture_rays(x_r[:, None], x_mu[None, :], atmosphere.planet_radius_m,
+                                atmosphere.top_radius_m)
     # the last column is the ray tangent to the ground: nudge it above the horizon so that
     # it counts as reaching the top (continuity with its neighbours)
     mu = torch.where(x_mu[None, :] == 1.0, mu * (1.0 - 1e-12), mu)
-    altitude = torch.clamp(r - atmosphere.planet_radius_m, min=0.0)
     tau = atmosphere.optical_depth(wavelength, torch.acos(mu), altitude, method=method,
                                    n_steps=n_steps)
     key = table_key(atmosphere, wavelength, n_mu, n_r, method, n_steps)
@@ -357,9 +334,11 @@ class TransmittanceTable(nn.Module):
             dataset = transmittance_table(atmosphere, wavelength_nm, **kwargs)
         return cls.from_dataset(dataset)
 
-    def _lookup(self, r, mu):
-        """Bilinear interpolation at (r, mu) (rays missing the ground) -> (..., wavelength)."""
-        x_r, x_mu = _coordinates(r, mu, self.planet_radius_m, self.top_radius_m)
+    def _lookup(self, altitude, mu):
+        """Bilinear interpolation at (altitude, mu) (rays missing the ground) -> (...,
+        wavelength)."""
+        x_r, x_mu = texture_coordinates(altitude, mu, self.planet_radius_m, self.top_radius_m)
+        x_r, x_mu = torch.clamp(x_r, 0.0, 1.0), torch.clamp(x_mu, 0.0, 1.0)
         table = self.table.to(x_r.dtype)
         n_r, n_mu, n_wl = table.shape
         nodes = self.x_r.to(x_r.dtype)
@@ -399,12 +378,12 @@ class TransmittanceTable(nn.Module):
         mu = torch.cos(zenith)
         r, mu = torch.broadcast_tensors(r, mu)
         hits = ray_hits_ground(r, mu, self.planet_radius_m)
-        up = self._lookup(r, torch.where(hits, -mu, mu))
+        up = self._lookup(r - self.planet_radius_m, torch.where(hits, -mu, mu))
         d = distance_to_ground(r, mu, self.planet_radius_m)
         planet = self.planet_radius_m
         # mu at the ground point (looking down) from r mu + d = R mu_g
         mu_ground = torch.clamp((r * mu + d) / planet, -1.0, 0.0)
-        from_ground = self._lookup(torch.full_like(r, planet), -mu_ground)
+        from_ground = self._lookup(torch.zeros_like(r), -mu_ground)
         down = torch.clamp(from_ground - up, min=0.0)
         return torch.where(hits[..., None], down, up)
 
