@@ -458,3 +458,31 @@ def test_function_fingerprint_same_in_another_process():
     out = subprocess.run([sys.executable, "-c", script, MEMBER_SOURCE], env=env, check=True,
                          capture_output=True, text=True).stdout.split()
     assert out == expected
+
+
+def test_cli_dask_options_reach_sweep(tmp_path, monkeypatch):
+    import importlib
+
+    from skytorch.cli import main
+
+    module = importlib.import_module("skytorch.sweep")
+
+    seen = {}
+    real = module.sweep
+
+    def spy(fn, **options):
+        seen.update(options)
+        return real(fn, **{k: v for k, v in options.items()
+                           if k not in ("backend", "cluster_options", "n_workers")})
+
+    monkeypatch.setattr(module, "sweep", spy)
+    config = tmp_path / "sweep.toml"
+    config.write_text('function = "skytorch.spectrum:bv_to_temperature"\n'
+                      "[parameters]\nbv = [0.0, 1.5]\n"
+                      '[options]\ncluster_options = {memory_limit = "1GiB"}\n')
+    output = tmp_path / "sweep.nc"
+    assert main(["sweep", str(config), "-o", str(output), "--no-progress", "--backend", "dask",
+                 "--workers", "2", "--processes"]) == 0
+    assert seen["backend"] == "dask" and seen["n_workers"] == 2
+    assert seen["cluster_options"] == {"memory_limit": "1GiB", "processes": True}
+    assert open_dataset(output)["bv"].values.tolist() == [0.0, 1.5]
