@@ -234,10 +234,18 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
             periapsis = rs * torch.sqrt(torch.clamp(1.0 - mu_sun * mu_sun, min=0.0))
             blocked = (mu_sun < 0.0) & (periapsis < blocking)
             shape = mu_sun.shape
-            sun = atmosphere.column_integrals(
-                torch.acos(mu_sun).reshape(*shape, *ones),
-                altitude[:, None, :].expand(shape).reshape(*shape, *ones))
-            sun = {s: _members(c, batch, 3) for s, c in sun.items()}  # (n_b, n_e, n_x, nb)
+            # sun legs only where the Sun is not hidden by the planet (its shadow)
+            lit = torch.nonzero(~blocked.reshape(-1)).squeeze(-1)
+            if lit.numel() == 0:  # (keep one ray: empty tensors through the quadrature)
+                lit = torch.zeros(1, dtype=torch.long)
+            columns = atmosphere.column_integrals(
+                torch.acos(mu_sun.reshape(-1)[lit]).reshape(-1, *ones),
+                altitude[:, None, :].expand(shape).reshape(-1)[lit].reshape(-1, *ones))
+            sun = {}
+            for name, value in columns.items():
+                value = _members(value, batch, 1)  # (n_lit, nb)
+                full = value.new_zeros((math.prod(shape), value.shape[-1]))
+                sun[name] = full.index_copy(0, lit, value).reshape(*shape, -1)
             tau = sum((view[s][:, None, :, :, None] + sun[s][..., None]) * k[s]
                       for s in ("rayleigh", "aerosol", "ozone"))  # (n_b, n_e, n_x, nb, n_wl)
             transmittance = torch.where(blocked[..., None, None], 0.0, torch.exp(-tau))
