@@ -35,6 +35,7 @@ tensor([1., 0.])
 
 from __future__ import annotations
 
+import functools
 import math
 
 import torch
@@ -157,25 +158,26 @@ def us1976(altitude_m) -> torch.Tensor:
     z = as_tensor("altitude_m", altitude_m)
     geopotential = _US1976_EARTH_RADIUS_M * z / (_US1976_EARTH_RADIUS_M + z)
     g_over_r = _US1976_G0 * _US1976_MOLAR_MASS / _US1976_GAS_CONSTANT
-    result = torch.zeros_like(geopotential)
-    n_layers = len(_US1976_BASE_HEIGHT_M)
-    for i in range(n_layers):
-        base = _US1976_BASE_HEIGHT_M[i]
-        lapse = _US1976_LAPSE_K_PER_M[i]
-        t_base = _US1976_TEMPERATURE[i]
-        if i == 0:
-            lower = torch.full_like(geopotential, -math.inf)
-        else:
-            lower = torch.full_like(geopotential, base)
-        upper = _US1976_BASE_HEIGHT_M[i + 1] if i + 1 < n_layers else math.inf
-        inside = (geopotential >= lower) & (geopotential < upper)
-        dh = geopotential - base
-        if lapse == 0.0:
-            temperature = torch.full_like(geopotential, t_base)
-            log_p = _US1976_LOG_PRESSURE[i] - g_over_r * dh / t_base
-        else:
-            temperature = torch.clamp(t_base + lapse * dh, min=1.0)
-            log_p = _US1976_LOG_PRESSURE[i] - g_over_r / lapse * torch.log(temperature / t_base)
-        density = torch.exp(log_p - torch.log(temperature / _US1976_T0))
-        result = torch.where(inside, density, result)
-    return result
+    # the constants of each point's layer, gathered once (the lowest layer is continued
+    # below the ground, the highest above 84.852 km)
+    tables = _us1976_tables(geopotential.dtype, geopotential.device)
+    layer = torch.clamp(torch.bucketize(geopotential.detach(), tables["base"][1:], right=True),
+                        0, len(_US1976_BASE_HEIGHT_M) - 1)
+    base, lapse, t_base, log_p_base = (tables[key][layer] for key in
+                                       ("base", "lapse", "temperature", "log_pressure"))
+    dh = geopotential - base
+    isothermal = lapse == 0.0
+    safe_lapse = torch.where(isothermal, torch.ones_like(lapse), lapse)
+    temperature = torch.clamp(t_base + lapse * dh, min=1.0)
+    log_p = log_p_base - g_over_r * torch.where(
+        isothermal, dh / t_base, torch.log(temperature / t_base) / safe_lapse)
+    return torch.exp(log_p - torch.log(temperature / _US1976_T0))
+
+
+@functools.lru_cache(maxsize=8)
+def _us1976_tables(dtype: torch.dtype, device: torch.device) -> dict[str, torch.Tensor]:
+    """Layer bases [m], lapse rates [K/m], base temperatures [K] and log pressure ratios."""
+    values = {"base": _US1976_BASE_HEIGHT_M, "lapse": _US1976_LAPSE_K_PER_M,
+              "temperature": _US1976_TEMPERATURE, "log_pressure": _US1976_LOG_PRESSURE}
+    return {key: torch.tensor(value, dtype=dtype, device=device)
+            for key, value in values.items()}
