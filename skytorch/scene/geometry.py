@@ -53,6 +53,8 @@ class Geometry:
     The vectors are tuples of floats in the observer's horizontal frame (north, east, up)
     [m]: ``sun_horizontal_m`` and ``moon_horizontal_m`` from the observer to the apparent
     Sun and Moon, ``observer_horizontal_m`` from the Earth's centre to the observer.
+    ``phase_angle_rad`` is the topocentric Sun–Moon–observer angle (it differs from the
+    geocentric one by up to the Moon's horizontal parallax, ~1°).
     """
 
     sun_altitude_deg: float
@@ -74,6 +76,13 @@ class Geometry:
     def moon_radius_rad(self) -> float:
         """Apparent (topocentric) angular radius of the Moon [rad]."""
         return math.asin(MOON_RADIUS_M / self.moon_distance_m)
+
+    @property
+    def moon_sun_distance_m(self) -> float:
+        """Distance from the Moon to the Sun [m] (the Earth–Sun distance when the vectors
+        are not given)."""
+        distance = math.dist(self.sun_horizontal_m, self.moon_horizontal_m)
+        return distance if distance > 0.0 else self.sun_distance_m
 
 
 def _light_time(body, earth_position: np.ndarray) -> np.ndarray:
@@ -165,7 +174,9 @@ def site_geometries(time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
     umbra, penumbra = shadow_radii(torch.tensor(max(along, 1.0), dtype=torch.float64),
                                    sun_distance, SUN_RADIUS_M, EARTH_MEAN_RADIUS_M,
                                    enlargement="danjon")
-    shared = {"sun_distance_m": sun_distance, "phase_angle_rad": float(phase_angle(sun, moon)),
+    phase = phase_angle(torch.from_numpy(sun_h), torch.from_numpy(moon_h),
+                        torch.zeros(3, dtype=torch.float64)).numpy()  # topocentric
+    shared = {"sun_distance_m": sun_distance,
               "shadow_distance_m": along, "shadow_offset_m": offset,
               "penumbra_radius_m": float(penumbra), "umbra_radius_m": float(umbra)}
     return [Geometry(sun_altitude_deg=math.degrees(sun_alt[i]),
@@ -173,6 +184,7 @@ def site_geometries(time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
                      moon_altitude_deg=math.degrees(moon_alt[i]),
                      moon_azimuth_deg=math.degrees(moon_az[i]),
                      moon_distance_m=float(moon_range[i]),
+                     phase_angle_rad=float(phase[i]),
                      sun_horizontal_m=tuple(sun_h[i].tolist()),
                      moon_horizontal_m=tuple(moon_h[i].tolist()),
                      observer_horizontal_m=tuple(observer[i].tolist()), **shared)

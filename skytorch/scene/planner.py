@@ -275,7 +275,7 @@ def _moon_fluxes(geometry: Geometry) -> tuple[float, float]:
     fu, fv = u - i, v - j
     values = ((1 - fu) * (1 - fv) * table[i, j] + fu * (1 - fv) * table[i + 1, j]
               + (1 - fu) * fv * table[i, j + 1] + fu * fv * table[i + 1, j + 1])
-    scale = (ASTRONOMICAL_UNIT_M / geometry.sun_distance_m) ** 2
+    scale = (ASTRONOMICAL_UNIT_M / geometry.moon_sun_distance_m) ** 2
     total, sunlit = float(values[0]) * scale, float(values[1]) * scale
     return total, total - sunlit
 

@@ -187,49 +187,134 @@ def _rotation(source: torch.Tensor, target: torch.Tensor):
     return rotate
 
 
-def eclipse_factor(scene, geometry, wavelength, n_disc: int = 8) -> torch.Tensor:
+class MoonDisc:
+    r"""The Moon's visible disc as the observer sees it, pixel by pixel.
+
+    For a line of sight through the disc: the lunar surface point it meets (after rotation
+    by the refraction of the Moon's centre), that point's normal, its radiance by the lunar
+    reflectance law (:func:`skytorch.moon.disc_radiance`, with earthshine on the whole disc
+    when ``earthshine``) and, with ``eclipse``, the relative illuminance of the Earth's
+    shadow there (:func:`shadow_illuminance`).
+
+    Parameters
+    ----------
+    scene : Scene
+    geometry : Geometry
+        Sun and Moon at the observer (:mod:`skytorch.scene.geometry`).
+    wavelength : Tensor (wavelength,)
+        [nm].
+    apparent_altitude_rad : float
+        Altitude of the Moon's apparent (refracted) centre [rad].
+    earthshine, eclipse : bool
+        Effects the planner computes.
+
+    Notes
+    -----
+    Disc frame (as in :mod:`skytorch.moon.disc`, with the vertical in place of north):
+    :math:`\hat z` from the Moon's centre towards the observer, :math:`\hat y` the
+    zenith's direction projected on the disc (north when the Moon is at the zenith) and
+    :math:`\hat x = \hat z \times \hat y` to the right of an observer facing the Moon. The
+    unit vector :math:`s` from the Moon to the Sun in that frame gives the topocentric
+    phase angle :math:`\alpha = \angle(s, \hat z)` and the position angle of the bright
+    limb from the vertical through the left, :math:`\chi = \operatorname{atan2}(-s_x,
+    s_y)` (the bright-limb angle of Meeus eq. 48.5 less the parallactic angle), so that
+    :func:`skytorch.moon.sun_direction` :math:`(\alpha, \chi) = s`. Radiances follow the
+    distances Moon–Sun and Moon–observer of the scene's geometry.
+    """
+
+    def __init__(self, scene, geometry, wavelength, apparent_altitude_rad: float, *,
+                 earthshine: bool, eclipse: bool):
+        self.scene, self.geometry, self.wavelength = scene, geometry, wavelength
+        self.earthshine, self.eclipse = earthshine, eclipse
+        self.centre = torch.tensor(geometry.moon_horizontal_m, dtype=torch.float64)
+        line = self.centre / torch.linalg.vector_norm(self.centre)
+        azimuth = math.radians(geometry.moon_azimuth_deg)
+        self.apparent = torch.tensor([math.cos(apparent_altitude_rad) * math.cos(azimuth),
+                                      math.cos(apparent_altitude_rad) * math.sin(azimuth),
+                                      math.sin(apparent_altitude_rad)], dtype=torch.float64)
+        self.rotate = _rotation(self.apparent, line)
+        z_axis = -line
+        vertical = torch.tensor([0.0, 0.0, 1.0] if abs(float(line[2])) < 0.999999
+                                else [1.0, 0.0, 0.0], dtype=torch.float64)
+        y_axis = vertical - (vertical @ z_axis) * z_axis
+        y_axis = y_axis / torch.linalg.vector_norm(y_axis)
+        self.axes = torch.stack([torch.linalg.cross(z_axis, y_axis), y_axis, z_axis])  # rows
+        to_sun = torch.tensor(geometry.sun_horizontal_m, dtype=torch.float64) - self.centre
+        s = self.axes @ (to_sun / torch.linalg.vector_norm(to_sun))
+        self.phase_angle_rad = torch.atan2(torch.linalg.vector_norm(s[:2]), s[2])
+        self.bright_limb_rad = torch.atan2(-s[0], s[1])
+        self.mean_shadow = eclipse_factor(scene, geometry, wavelength, disc=self) \
+            if eclipse else None
+
+    def normals(self, directions: torch.Tensor) -> torch.Tensor:
+        """Disc-frame normals (n, 3) of the surface points seen along apparent directions
+        (n, 3) (unit, horizontal frame); a line that misses the sphere takes its point of
+        closest approach (a limb normal)."""
+        outward = moon_surface_points(self.geometry, self.rotate(directions)) - self.centre
+        outward = outward / torch.linalg.vector_norm(outward, dim=-1, keepdim=True)
+        return outward @ self.axes.T
+
+    def radiance(self, normals: torch.Tensor) -> torch.Tensor:
+        """Spectral radiance (n, wl) [W m^-2 sr^-1 nm^-1] above the atmosphere at disc-frame
+        normals (n, 3), uneclipsed (:func:`skytorch.moon.disc_radiance`)."""
+        from skytorch.moon.disc import disc_radiance
+
+        g = self.geometry
+        return disc_radiance(normals, self.phase_angle_rad, self.wavelength.to(torch.float64),
+                             self.bright_limb_rad, sun_distance_m=g.moon_sun_distance_m,
+                             distance_m=g.moon_distance_m, earthshine=self.earthshine)
+
+    def points(self, normals: torch.Tensor) -> torch.Tensor:
+        """Lunar surface points (n, 3) [m] from the observer (horizontal frame) at
+        disc-frame normals (n, 3)."""
+        return self.centre + MOON_RADIUS_M * (normals @ self.axes)
+
+    def __call__(self, directions):
+        """Relative radiance (n, wl) and shadow factor (n, wl) (``None`` without eclipse)
+        of pixels with apparent directions (n, 3); for ``None``, the factor (wl,) of a disc
+        smaller than a pixel (the disc-averaged shadow) or ``None``."""
+        if directions is None:
+            return self.mean_shadow
+        normals = self.normals(directions)
+        shadow = (shadow_illuminance(self.scene, self.geometry, self.points(normals),
+                                     self.wavelength) if self.eclipse else None)
+        return self.radiance(normals), shadow
+
+    def bright_point(self) -> tuple[float, float]:
+        r"""Apparent altitude and azimuth [rad] of the centroid of the sunlit part of the
+        disc, :math:`\tfrac{4}{3\pi}(1 - \cos\alpha)` lunar radii from the centre towards
+        the bright limb (where a crescent narrower than the pixels is drawn)."""
+        offset = 4.0 / (3.0 * math.pi) * (1.0 - math.cos(float(self.phase_angle_rad)))
+        angle = offset * self.geometry.moon_radius_rad
+        chi = float(self.bright_limb_rad)
+        towards = -math.sin(chi) * self.axes[0] + math.cos(chi) * self.axes[1]
+        towards = towards - (towards @ self.apparent) * self.apparent
+        towards = towards / torch.linalg.vector_norm(towards)
+        point = math.cos(angle) * self.apparent + math.sin(angle) * towards
+        return math.asin(float(point[2])), math.atan2(float(point[1]), float(point[0]))
+
+
+def eclipse_factor(scene, geometry, wavelength, n_disc: int = 8, disc=None) -> torch.Tensor:
     """Relative illuminance of the Earth's shadow averaged over the Moon's visible disc
-    (n_wavelength,) (area-weighted over :func:`skytorch.moon.disc_grid` points on the near
-    hemisphere; a uniformly bright disc, as drawn by the render)."""
+    (n_wavelength,), weighted by the uneclipsed radiance of the disc (the flux-weighted
+    mean over :func:`skytorch.moon.disc_grid` points, 8 × 16 polar nodes by default).
+
+    ``disc`` is the scene's :class:`MoonDisc` (its phase and earthshine set the weights);
+    without it the disc is weighted by area.
+    """
     from skytorch.moon.disc import disc_grid
 
     grid = disc_grid(n_disc, dtype=torch.float64)
-    centre = torch.tensor(geometry.moon_horizontal_m, dtype=torch.float64)
-    line = centre / torch.linalg.vector_norm(centre)
-    helper = torch.tensor([0.0, 0.0, 1.0] if abs(float(line[2])) < 0.9 else [1.0, 0.0, 0.0],
-                          dtype=torch.float64)
-    first = helper - (helper @ line) * line
-    first = first / torch.linalg.vector_norm(first)
-    second = torch.linalg.cross(line, first)
-    depth = torch.sqrt((1.0 - grid["x"] ** 2 - grid["y"] ** 2).clamp(min=0.0))
-    points = centre + MOON_RADIUS_M * (grid["x"][:, None] * first + grid["y"][:, None] * second
-                                       - depth[:, None] * line)
-    factor = shadow_illuminance(scene, geometry, points, wavelength)
-    weight = grid["weight"] / grid["weight"].sum()
-    return (weight[:, None] * factor).sum(0)
-
-
-def moon_shade(scene, geometry, wavelength, apparent_altitude_rad: float, mean):
-    """Shadow factor of the pixels of the Moon's disc: a function of their apparent
-    directions (n, 3) -> (n, wl), each pixel's factor at the lunar surface point its
-    centre sees (the apparent directions rotated by the refraction of the Moon's centre),
-    and ``mean`` (wl,), the disc average (:func:`eclipse_factor`), for a disc smaller than
-    a pixel."""
-    centre = torch.tensor(geometry.moon_horizontal_m, dtype=torch.float64)
-    true = centre / torch.linalg.vector_norm(centre)
-    azimuth = math.radians(geometry.moon_azimuth_deg)
-    apparent = torch.tensor([math.cos(apparent_altitude_rad) * math.cos(azimuth),
-                             math.cos(apparent_altitude_rad) * math.sin(azimuth),
-                             math.sin(apparent_altitude_rad)], dtype=torch.float64)
-    rotate = _rotation(apparent, true)
-
-    def shade(directions):
-        if directions is None:
-            return mean
-        return shadow_illuminance(scene, geometry,
-                                  moon_surface_points(geometry, rotate(directions)), wavelength)
-
-    return shade
+    if disc is None:
+        disc = MoonDisc(scene, geometry, wavelength, math.radians(geometry.moon_altitude_deg),
+                        earthshine=False, eclipse=False)
+        weight = grid["weight"][:, None]
+    else:
+        weight = grid["weight"][:, None] * disc.radiance(grid["normal"])
+    factor = shadow_illuminance(scene, geometry, disc.points(grid["normal"]), wavelength)
+    total = weight.sum(0)
+    return torch.where(total > 0, (weight * factor).sum(0) / total.clamp(min=1e-300),
+                       factor.mean(0))
 
 
 def _splat(view, altitude_rad, azimuth_rad, flux, n_wavelength, dtype) -> torch.Tensor:
@@ -245,38 +330,49 @@ def _splat(view, altitude_rad, azimuth_rad, flux, n_wavelength, dtype) -> torch.
 
 
 def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux,
-          dtype, shade=None) -> torch.Tensor:
+          dtype, pattern=None) -> torch.Tensor:
     """A disc of angular radius ``radius_rad`` and total flux (wl,) as radiance.
 
-    Pixels whose centres lie within the radius share the flux in proportion to their
-    solid angle; a disc smaller than a pixel falls in the pixel that holds its centre.
-    ``shade`` (optional) multiplies the radiance of each disc pixel: a function of the
-    pixels' unit directions (n, 3) returning (n, wl) for a disc over at least
-    :data:`RESOLVED_DISC_PIXELS` pixels, called with ``None`` for the disc-averaged factor
-    (wl,) of a smaller disc (whose few pixel centres would sample the disc too coarsely).
+    Without ``pattern`` the pixels whose centres lie within the radius share the flux in
+    proportion to their solid angle (a uniformly bright disc). ``pattern`` (a
+    :class:`MoonDisc`) shapes a disc over at least :data:`RESOLVED_DISC_PIXELS` pixels:
+    each pixel's radiance is proportional to the pattern's relative radiance at its centre,
+    normalised so that the pixels carry ``flux``, and then multiplied by the pattern's
+    shadow factor; when no pixel centre falls on a lit part (a crescent narrower than the
+    pixels) the flux goes to the pixel of the pattern's ``bright_point``. A smaller disc
+    (whose few pixel centres would sample it too coarsely), or one smaller than a pixel,
+    is uniform (or falls in the pixel that holds its centre) times ``pattern(None)``, the
+    disc-averaged factor.
     """
     n_wavelength = flux.shape[-1]
     if view.kind == "directions" or altitude_rad + radius_rad < 0.0:
         return torch.zeros(*view.shape, n_wavelength, dtype=dtype)
+    mean = pattern(None) if pattern is not None else None
+    scaled = flux if mean is None else flux * mean
     point = torch.tensor([math.cos(altitude_rad) * math.cos(azimuth_rad),
                           math.cos(altitude_rad) * math.sin(azimuth_rad),
                           math.sin(altitude_rad)], dtype=torch.float64)
     cos_distance = view.unit_vectors() @ point
     inside = (cos_distance >= math.cos(radius_rad)) & (view.solid_angle_sr > 0)
-    zenith = view.zenith_rad.to(torch.float64)
     if not bool(inside.any()):
-        if shade is not None:
-            flux = flux * shade(None)
         return _splat(view, torch.tensor([altitude_rad]), torch.tensor([azimuth_rad]),
-                      flux[None], n_wavelength, dtype)
-    weight = torch.where(inside, torch.ones_like(zenith), torch.zeros_like(zenith))
-    radiance = flux.to(torch.float64) / float((weight * view.solid_angle_sr).sum())
-    image = weight[..., None] * radiance
-    if shade is not None:
-        if int(inside.sum()) < RESOLVED_DISC_PIXELS:
-            image = image * shade(None)
-        else:
-            image[inside] = image[inside] * shade(view.unit_vectors()[inside])
+                      scaled[None], n_wavelength, dtype)
+    solid = view.solid_angle_sr.to(torch.float64)
+    if pattern is None or int(inside.sum()) < RESOLVED_DISC_PIXELS:
+        weight = inside.to(torch.float64)
+        return (weight[..., None] * (scaled.to(torch.float64)
+                                     / float((weight * solid).sum()))).to(dtype)
+    brightness, shadow = pattern(view.unit_vectors()[inside].to(torch.float64))
+    norm = (brightness * solid[inside][:, None]).sum(0)
+    if not bool((norm > 0).all()):  # no lit pixel centre: a crescent below a pixel
+        altitude, azimuth = pattern.bright_point()
+        return _splat(view, torch.tensor([altitude]), torch.tensor([azimuth]), scaled[None],
+                      n_wavelength, dtype)
+    radiance = flux.to(torch.float64) * brightness / norm
+    if shadow is not None:
+        radiance = radiance * shadow
+    image = torch.zeros(*view.shape, n_wavelength, dtype=torch.float64)
+    image[inside] = radiance
     return image.to(dtype)
 
 
@@ -392,28 +488,29 @@ def sun_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor
 
 def moon_component(scene, view, geometry, wavelength, knobs, *, earthshine: bool,
                    eclipse: bool, refraction: bool) -> torch.Tensor:
-    """The Moon (*view, wl) [W m^-2 sr^-1 nm^-1]: its disc (irradiance times transmittance;
-    with ``eclipse``, each disc pixel times the Earth's shadow at the lunar surface it
-    sees, :func:`moon_shade`) plus the moonlit sky (times the disc-averaged shadow)."""
+    """The Moon (*view, wl) [W m^-2 sr^-1 nm^-1]: its disc (irradiance times transmittance,
+    shaded pixel by pixel by the lunar reflectance law for the topocentric Sun–Moon–observer
+    geometry and, with ``eclipse``, by the Earth's shadow at the lunar surface each pixel
+    sees: :class:`MoonDisc`) plus the moonlit sky (times the disc-averaged shadow)."""
     from skytorch.moon import lunar_irradiance
 
     wl = wavelength.to(torch.float64)
     altitude = _apparent(scene, geometry.moon_altitude_deg, refraction)
     irradiance = lunar_irradiance(torch.tensor(geometry.phase_angle_rad, dtype=torch.float64),
                                   wl, distance_m=geometry.moon_distance_m,
-                                  sun_distance_m=geometry.sun_distance_m,
+                                  sun_distance_m=geometry.moon_sun_distance_m,
                                   earthshine=earthshine,
                                   n_quadrature=knobs["moon_disc_quadrature"])
     flux = irradiance * _point_transmittance(scene, max(altitude, 0.0), wavelength)
-    mean = eclipse_factor(scene, geometry, wavelength) if eclipse else None
-    shade = moon_shade(scene, geometry, wavelength, altitude, mean) if eclipse else None
+    pattern = MoonDisc(scene, geometry, wavelength, altitude, earthshine=earthshine,
+                       eclipse=eclipse)
     disc = _disc(view, altitude, math.radians(geometry.moon_azimuth_deg),
-                 geometry.moon_radius_rad, flux, scene.dtype, shade)
+                 geometry.moon_radius_rad, flux, scene.dtype, pattern)
     if altitude < 0.0:  # below the horizon: single scattering of a set Moon is omitted
         return disc
     table = moon_table(scene, geometry, knobs, wavelength)
     if eclipse:
-        table = table * mean
+        table = table * pattern.mean_shadow
     relative = view.azimuth_rad.to(torch.float64) - math.radians(geometry.moon_azimuth_deg)
     sky = _lookup(table, view.zenith_rad.to(torch.float64).clamp(max=_MAX_MOONLIT_ZENITH),
                   relative)
