@@ -38,6 +38,13 @@ FLUX_TOLERANCE = 0.001 * MAG
 #: a sub-pixel Moon against the resolved disc (the moonlit sky under the Moon's pixel is
 #: estimated from its neighbours; measured 5.8e-4 mag)
 SUBPIXEL_TOLERANCE = 0.002 * MAG
+#: earthshine flux of the night-side pixels: the pixel-centre area of the night side of the
+#: crescent (R = 45 pixels) is within 3.4 % by the bound of the module docstring, and the
+#: earthshine's radiance varies little over it (measured: 0.16 %)
+EARTHSHINE_TOLERANCE = 5 * PERCENT
+#: direction of the pixel holding a sub-pixel crescent: half a pixel diagonal seen from
+#: 2.6 pixels
+CRESCENT_PIXEL_ANGLE = math.atan(0.5 * math.sqrt(2.0) / 2.6)
 #: pixels whose lit/dark state differs from an independent ray-sphere classification:
 #: the scene's and skyfield's places of the Moon differ by < 0.5 arcsec, a few pixels on
 #: the terminator may switch
@@ -140,6 +147,26 @@ def _quantisation_bound(k, radius_pixels):
     return (error(math.pi + terminator) + k * error(2 * math.pi)) / area
 
 
+def _sunlit_pixels(view, moon, sun):
+    """Pixels whose line of sight meets a sunlit point of skyfield's Moon (ray-sphere).
+
+    The camera is centred on the refracted Moon, so the lines of sight are first turned
+    by the rotation from that centre to skyfield's unrefracted Moon."""
+    centre = view.frame[0].numpy()
+    moon_dir = moon / np.linalg.norm(moon)
+    axis = np.cross(centre, moon_dir)
+    angle = math.asin(np.linalg.norm(axis))
+    axis = axis / np.linalg.norm(axis)
+    unit = view.unit_vectors().numpy()
+    rotated = (unit * math.cos(angle) + np.cross(axis, unit) * math.sin(angle)
+               + axis * (unit @ axis)[..., None] * (1 - math.cos(angle)))
+    along = rotated @ moon
+    discriminant = along ** 2 - moon @ moon + MOON_RADIUS_M ** 2
+    hit = discriminant > 0
+    point = (along - np.sqrt(np.clip(discriminant, 0, None)))[..., None] * rotated
+    return hit & (((point - moon) * (sun - point)).sum(-1) > 0)
+
+
 def test_lit_fraction_is_the_illuminated_fraction(phase):
     """The solid-angle share of lit disc pixels is k = (1 + cos i)/2 of skyfield's
     topocentric phase angle within the pixel-quantisation bound, and the lit pixels are
@@ -154,21 +181,7 @@ def test_lit_fraction_is_the_illuminated_fraction(phase):
     fraction = solid[lit].sum() / solid[disc].sum()
     radius_pixels = radius / (math.radians(FOV_DEG) / SIZE)
     assert abs(fraction - k) < _quantisation_bound(k, radius_pixels), (fraction, k)
-    # independent classification: the camera is centred on the refracted Moon, so shift
-    # the lines of sight by the rotation from that centre to skyfield's unrefracted Moon
-    centre = view.frame[0].numpy()
-    moon_dir = moon / np.linalg.norm(moon)
-    axis = np.cross(centre, moon_dir)
-    angle = math.asin(np.linalg.norm(axis))
-    axis = axis / np.linalg.norm(axis)
-    unit = view.unit_vectors().numpy()
-    rotated = (unit * math.cos(angle) + np.cross(axis, unit) * math.sin(angle)
-               + axis * (unit @ axis)[..., None] * (1 - math.cos(angle)))
-    along = rotated @ moon
-    discriminant = along ** 2 - moon @ moon + MOON_RADIUS_M ** 2
-    hit = discriminant > 0
-    point = (along - np.sqrt(np.clip(discriminant, 0, None)))[..., None] * rotated
-    sunlit = hit & (((point - moon) * (sun - point)).sum(-1) > 0)
+    sunlit = _sunlit_pixels(view, moon, sun)
     differ = (sunlit != lit) & disc
     assert differ.sum() <= MISCLASSIFIED_SHARE * disc.sum(), (differ.sum(), disc.sum())
 
@@ -239,3 +252,69 @@ def test_disc_flux_is_the_moon_magnitude(dtype, earthshine):
     pixel = fflux[iy, ix] - background * fsolid[iy, ix]
     assert abs(_v_magnitude(pixel, wavelengths) - _v_magnitude(flux, wavelengths)) \
         < SUBPIXEL_TOLERANCE
+
+
+def test_earthshine_lights_the_dark_side():
+    """With earthshine the pixels on the night side of the crescent carry the earthshine
+    flux of st.moon.magnitude (with minus without earthshine); without it they are dark
+    (only the faint moonlit sky)."""
+    from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM
+
+    time = INSTANTS[1]
+    wavelengths = list(V_BAND_WAVELENGTHS_NM)
+    sky = _skyfield(time)
+    moon, sun = sky["moon"]["vector"], sky["sun"]["vector"]
+    fluxes = {}
+    for earthshine in (True, False):
+        scene, view, ds = _render(time, size=96, wavelengths=wavelengths,
+                                  exclude=["stars"] if earthshine else ["stars", "earthshine"],
+                                  force=["moon", "earthshine"] if earthshine else ["moon"])
+        radiance = ds["component_radiance"].sel(component="moon").values
+        unit = view.unit_vectors().numpy()
+        from_centre = np.arccos(np.clip(unit @ view.frame[0].numpy(), -1.0, 1.0))
+        radius = math.asin(MOON_RADIUS_M / np.linalg.norm(moon))
+        disc = from_centre < radius
+        ring = (from_centre > 1.1 * radius) & (from_centre < 1.3 * radius)
+        night = disc & ~_sunlit_pixels(view, moon, sun)
+        solid = view.solid_angle_sr.numpy()[..., None]
+        flux = ((radiance - np.median(radiance[ring], axis=0)) * solid)[night].sum(0)
+        altitude = math.asin(float(view.frame[0][2]))
+        fluxes[earthshine] = flux / _extinction(scene, altitude, wavelengths)
+    v_flux = {e: 10.0 ** (-0.4 * _v_magnitude(f, wavelengths)) for e, f in fluxes.items()}
+    reference = (10.0 ** (-0.4 * _reference_magnitude(sky, True))
+                 - 10.0 ** (-0.4 * _reference_magnitude(sky, False)))
+    assert v_flux[True] == pytest.approx(reference, rel=EARTHSHINE_TOLERANCE)
+    assert v_flux[False] < 1e-3 * reference
+
+
+def test_crescent_narrower_than_the_pixels():
+    """A day-old crescent (phase angle 174°, lit width 0.005 of the radius) on a disc
+    about 6 pixels across, no pixel centre on its lit part: its whole flux
+    (st.moon.magnitude) lands in one pixel on the Sun's side of the disc centre."""
+    from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM
+
+    time = "2015-10-12T11:00"
+    wavelengths = list(V_BAND_WAVELENGTHS_NM)
+    scene, view, ds = _render(time, size=8, wavelengths=wavelengths,
+                              exclude=["stars", "earthshine", "sky", "sun"])
+    sky = _skyfield(time)
+    moon = ds["component_radiance"].sel(component="moon").values
+    solid = view.solid_angle_sr.numpy()[..., None]
+    background = np.median(moon[..., 10])
+    iy, ix = np.unravel_index(np.argmax(moon[..., 10]), moon.shape[:2])
+    assert moon[iy, ix, 10] > 1e3 * background  # one pixel holds the crescent
+    flux = (moon[iy, ix] - np.median(moon.reshape(-1, moon.shape[-1]), axis=0)) * solid[iy, ix]
+    altitude = math.asin(float(view.frame[0][2]))
+    outside = flux / _extinction(scene, altitude, wavelengths)
+    assert abs(_v_magnitude(outside, wavelengths) - _reference_magnitude(sky, False)) \
+        < FLUX_TOLERANCE
+    # on the Sun's side: the pixel's offset against the Sun's direction projected on the
+    # image, within the angle a pixel subtends from the lit centroid (0.85 radii, 2.6 px)
+    _, right, up, _ = view.frame
+    moon_dir = sky["moon"]["vector"] / np.linalg.norm(sky["moon"]["vector"])
+    sun_dir = sky["sun"]["vector"] / np.linalg.norm(sky["sun"]["vector"])
+    towards = sun_dir - (sun_dir @ moon_dir) * moon_dir
+    expected = math.atan2(towards @ up.numpy(), towards @ right.numpy())
+    centre = 0.5 * (moon.shape[0] - 1)
+    measured = math.atan2(centre - iy, ix - centre)
+    assert abs(math.remainder(measured - expected, 2 * math.pi)) < CRESCENT_PIXEL_ANGLE
