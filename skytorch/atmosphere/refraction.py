@@ -123,6 +123,8 @@ DEFAULT_NODES = 64  #: Gauss–Legendre nodes of the Bouguer integrals
 DEFAULT_STEP_M = 10e3  #: RK4 step along the ray (Schneegans et al. 2025, Seron et al. 2004)
 DEFAULT_MAX_DH_M = 1e3  #: RK4 step limit: altitude change per step [m]
 TABLE_NODES = 32  #: Gauss–Legendre nodes for the deviation table (0.02" from converged)
+#: ... per panel when the profile has breakpoints (US 1976: 12 panels; 1e-4" from 32)
+TABLE_PANEL_NODES = 16
 #: RK4 steps that reach a kink of the refractivity profile end this far past it [m]
 _KINK_OVERSHOOT_M = 1e-3
 
@@ -1131,7 +1133,7 @@ def deviation_table(
     *,
     parametrisation: str = "schneegans2025",
     method: str = "bouguer",
-    n_nodes: int = TABLE_NODES,
+    n_nodes: int | None = None,
     step_m: float = DEFAULT_STEP_M,
     max_dh_m: float = DEFAULT_MAX_DH_M,
     dtype: torch.dtype = torch.float64,
@@ -1151,7 +1153,11 @@ def deviation_table(
         the half-texel offsets): grid points at ``linspace(0, 1, n)``.
     method : {"bouguer", "rk4"}
         Ray-path algorithm (``"rk4"``: Schneegans' ray marching, ``step_m`` = 10 km).
-    n_nodes, step_m, max_dh_m
+    n_nodes : int, optional
+        Gauss–Legendre nodes per panel of the Bouguer integrals (default
+        :data:`TABLE_NODES`, or :data:`TABLE_PANEL_NODES` when the refractivity profile
+        has breakpoints, e.g. the U.S. Standard Atmosphere 1976 of ``Atmosphere.earth()``).
+    step_m, max_dh_m
         Resolution, see :func:`refraction_angle`.
     dtype : torch.dtype
         Computation dtype.
@@ -1189,6 +1195,9 @@ def deviation_table(
     from skytorch.dataset import build_dataset, coordinate, variable
 
     check_choice("parametrisation", parametrisation, TABLE_PARAMETRISATIONS)
+    if n_nodes is None:
+        n_nodes = (TABLE_NODES if _Geometry(atm, dtype).breakpoints is None
+                   else TABLE_PANEL_NODES)
     method, checked_nodes = _check_method(method, n_nodes)
     n_altitude = check_int("n_altitude", n_altitude, low=2)
     n_angle = check_int("n_angle", n_angle, low=2)
