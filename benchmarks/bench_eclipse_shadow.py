@@ -16,7 +16,13 @@ Rows (medians, measured side by side in one run):
   atmospheres), and ``backend="serial"`` on a 2 x 2 corner scaled to 100 points. Target
   (issue 7): <= 60 s.
 
-Run: ``python benchmarks/bench_eclipse_shadow.py [--append] [--threads 2] [--quick]``.
+* ``--scattering``: the same table, direct evaluation and light curve without and with the
+  single-scattered light (``Shadow.earth(scattering=True)``, kernel precomputation
+  included), side by side; plus the table restricted to 0.9–1.1 lunar distances (what a
+  lunar eclipse needs). Target for the full table: <= 10 s.
+
+Run: ``python benchmarks/bench_eclipse_shadow.py [--append] [--threads 2] [--quick]
+[--scattering]``.
 The development machine has two cores shared with other jobs: medians are noisy.
 """
 
@@ -45,11 +51,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="64 x 64 table only")
     parser.add_argument("--sweep", action="store_true",
                         help="only the 10 x 10 turbidity x ozone light-curve sweep")
+    parser.add_argument("--scattering", action="store_true",
+                        help="only the rows without and with single-scattered light")
     args = parser.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
     if args.sweep:
         return _sweep(args)
+    if args.scattering:
+        return _scattering(args)
 
     from skytorch.eclipse.lunar import lunar_eclipse
     from skytorch.eclipse.shadow import Shadow
@@ -93,6 +103,60 @@ def main(argv: list[str] | None = None) -> int:
 
     text = (f"\n## Eclipse shadow (`benchmarks/bench_eclipse_shadow.py`)\n\n"
             f"Machine: {machine_description()}\n\n{markdown_table(rows)}\n")
+    return _report(text, args.append)
+
+
+def _scattering(args) -> int:
+    """Rows without and with the single-scattered light, measured side by side."""
+    from skytorch.constants import MEAN_EARTH_MOON_DISTANCE_M
+    from skytorch.eclipse.lunar import lunar_eclipse
+    from skytorch.eclipse.shadow import Shadow
+    from skytorch.eclipse.shadow_table import ShadowTable
+    from skytorch.spectrum import wavelength_grid
+
+    wavelength = wavelength_grid("bands15")
+    n = 64 if args.quick else 256
+    rows = []
+    lunar = {"min_distance_m": 0.9 * MEAN_EARTH_MOON_DISTANCE_M,
+             "max_distance_m": 1.1 * MEAN_EARTH_MOON_DISTANCE_M}
+    distance = torch.linspace(3.0e8, 5.0e8, n, dtype=torch.float64)[:, None]
+    offset = torch.linspace(0.0, 1.2e7, n, dtype=torch.float64)[None, :]
+    for label, options in (("full u range", {}), ("0.9-1.1 lunar distance", lunar)):
+        seconds = {}
+        for scattering in (False, True):
+            def build(scattering=scattering, options=options):
+                shadow = Shadow.earth(scattering=scattering)  # fresh: ring + kernel included
+                ShadowTable.compute(shadow, wavelength, n_u=n, n_v=n, progress=False,
+                                    **options)
+
+            seconds[scattering] = median_seconds(build, repeat=1, warmup=0)
+            print(f"table {label} scattering={scattering}: {seconds[scattering]:.3g} s",
+                  file=sys.stderr)
+        for scattering in (False, True):
+            rows.append({"workload": f"Earth shadow table {n}x{n}x15, {label}, scattering="
+                                     f"{scattering}", "median s": seconds[scattering],
+                         "ratio to no scattering": seconds[scattering] / seconds[False],
+                         "target s": TARGET_TABLE_S,
+                         "ratio to target": seconds[scattering] / TARGET_TABLE_S})
+    for scattering in (False, True):
+        shadow = Shadow.earth(scattering=scattering)
+        shadow.ring_profile(wavelength)
+        seconds = median_seconds(
+            lambda shadow=shadow: shadow.relative_illuminance(distance, offset, wavelength),
+            repeat=1, warmup=1)
+        rows.append({"workload": f"relative_illuminance {n * n} points x 15 (direct, kernel "
+                                 f"cached), scattering={scattering}", "median s": seconds})
+        seconds = median_seconds(lambda shadow=shadow: lunar_eclipse(
+            "2015-09-28", n_times=200, n_images=0, shadow=shadow), repeat=args.repeat,
+            warmup=1)
+        rows.append({"workload": f"lunar_eclipse 2015-09-28, 200 times, scattering="
+                                 f"{scattering}", "median s": seconds,
+                     "target s": TARGET_CURVE_S, "ratio to target": seconds / TARGET_CURVE_S})
+    keys = ("workload", "median s", "ratio to no scattering", "target s", "ratio to target")
+    rows = [{key: row.get(key, "-") for key in keys} for row in rows]
+    text = (f"\n## Eclipse shadow with single-scattered light (`benchmarks/bench_eclipse_shadow."
+            f"py --scattering`)\n\nMachine: {machine_description()}\n\n"
+            f"{markdown_table(rows)}\n")
     return _report(text, args.append)
 
 
