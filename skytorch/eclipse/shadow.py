@@ -986,7 +986,9 @@ class Shadow(nn.Module):
         Returns
         -------
         Tensor (..., n_wavelength)
-            ``I / I_sun`` in [0, 1] (1 outside the penumbra), dtype of the geometry inputs.
+            ``I / I_sun`` in [0, 1] (1 outside the penumbra), dtype of the geometry inputs;
+            with ``scattering=True`` the scattered light is added everywhere (up to ~1e-3
+            of sunlight beside the Earth's limb, 2e-7 outside the penumbra at the Moon).
             With a batched atmosphere (batch shape ``B``) the geometry broadcasts with
             ``B`` by torch rules: ``(*broadcast(..., B), n_wavelength)``; give the
             geometry trailing singleton dims (``distance_m[..., None, None]`` for a 2-D
