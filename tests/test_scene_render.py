@@ -72,7 +72,8 @@ def test_natural_background_follows_van_rhijn(fraction, height_m):
     """Garstang (1989, eq. 29) / Patat (2003, eq. C.1): b(z) = b0 [(1 - f) + f X] with the
     van Rhijn (1921) path factor X = (1 - (R / (R + h))^2 sin^2 z)^(-1/2); Garstang's
     0.96 is h = 130 km."""
-    ds = _dark_night(airglow_fraction=fraction, airglow_height_m=height_m).render()
+    ds = _dark_night(natural_model="vanrhijn1921", airglow_fraction=fraction,
+                     airglow_height_m=height_m).render()
     zenith = np.radians(90.0 - np.asarray(ALTITUDES))
     ratio2 = 0.96 if height_m == 130e3 else (6_371e3 / (6_371e3 + height_m)) ** 2
     closed_form = (1.0 - fraction) + fraction / np.sqrt(1.0 - ratio2 * np.sin(zenith) ** 2)
@@ -81,6 +82,51 @@ def test_natural_background_follows_van_rhijn(fraction, height_m):
     np.testing.assert_allclose(ds["v_mag_arcsec2"].values, expected, atol=0.01 * MAG)
     assert ds["v_mag_arcsec2"].values[0] == pytest.approx(NATURAL_ZENITH_MAG, abs=0.01 * MAG)
     assert np.all(np.diff(ds["v_mag_arcsec2"].values) < 0.0)  # brighter towards the horizon
+
+
+#: Kasten & Young's air mass against the model atmosphere's (straight rays: -0.64 % at
+#: z = 80°, i.e. 0.009 mag of k X = 1.4 mag) and the V band's curvature of k X
+NATURAL_EXTINCTION_TOLERANCE = 0.02 * MAG
+#: the direct V-band path integral against the interpolated extinction table near the
+#: horizon (tens of magnitudes of optical depth in some channels)
+NATURAL_HORIZON_TOLERANCE = 0.02 * MAG
+
+
+@pytest.mark.parametrize("turbidity", [2.0, 3.0])
+def test_natural_background_is_dimmed_by_extinction(turbidity, dtype):
+    """Garstang (1989) / Krisciunas & Schaefer (1991, eq. 2) / Patat (2003): b(z) =
+    b0 [(1 - f) + f V(z)] 10^(-0.4 k (X - 1)) with the observed zenith value b0 = 22.0
+    mag/arcsec^2, k the atmosphere's V-band zenith extinction (st.stars.extinction_coefficient)
+    and X Kasten & Young's (1989) air mass, down to 10° altitude; near the horizon, where
+    Kasten & Young's air mass no longer fits the aerosol's thin layer, the V-band
+    magnitude loss of a solar spectrum along the straight path through the atmosphere
+    (Atmosphere.transmittance) instead."""
+    from skytorch.atmosphere.optical_depth import kasten_young_air_mass
+    from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM
+    from skytorch.spectrum import solar_irradiance, spectrum_to_magnitude
+
+    scene = _dark_night(turbidity=turbidity, dtype=dtype)
+    ds = scene.render()
+    assert "refraction" not in ds.attrs["effects_computed"]  # straight rays
+    measured = ds["v_mag_arcsec2"].values.astype(np.float64)
+    zenith = np.radians(90.0 - np.asarray(ALTITUDES))
+    ratio2 = (6_371e3 / (6_371e3 + 90e3)) ** 2
+    gradient = 0.4 + 0.6 / np.sqrt(1.0 - ratio2 * np.sin(zenith) ** 2)
+    k = float(st.stars.extinction_coefficient(scene.atmosphere(), 0.0, bv=0.65))
+    air_mass = kasten_young_air_mass(torch.tensor(zenith)).numpy()
+    closed_form = NATURAL_ZENITH_MAG - 2.5 * np.log10(gradient) + k * (air_mass - 1.0)
+    high = np.asarray(ALTITUDES) >= 10.0
+    np.testing.assert_allclose(measured[high], closed_form[high],
+                               atol=NATURAL_EXTINCTION_TOLERANCE)
+    assert measured[0] == pytest.approx(NATURAL_ZENITH_MAG, abs=0.01 * MAG)
+    # near the horizon: a solar spectrum through the straight path, in V
+    wavelength = torch.tensor(V_BAND_WAVELENGTHS_NM, dtype=torch.float64)
+    transmittance = scene.atmosphere().transmittance(
+        wavelength, torch.tensor(np.append(zenith, 0.0))[:, None], 0.0)
+    spectra = solar_irradiance(wavelength) * transmittance
+    loss = spectrum_to_magnitude(spectra, wavelength).numpy().reshape(-1)
+    path = NATURAL_ZENITH_MAG - 2.5 * np.log10(gradient) + loss[:-1] - loss[-1]
+    np.testing.assert_allclose(measured, path, atol=NATURAL_HORIZON_TOLERANCE)
 
 
 @pytest.mark.parametrize("time", ["2015-06-21T12:00", "2015-09-28T02:47"])

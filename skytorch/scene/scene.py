@@ -55,7 +55,7 @@ CAMERA_TARGETS = ("moon", "sun")
 #: outputs a scene can produce
 OUTPUTS = ("spectral", "xyz", "srgb", "v_mag")
 #: gradients of the natural background (see :func:`skytorch.scene.render.natural_gradient`)
-NATURAL_MODELS = ("vanrhijn1921", "constant")
+NATURAL_MODELS = ("garstang1989", "vanrhijn1921", "constant")
 #: fidelity presets (see :data:`skytorch.scene.planner.FIDELITY`)
 FIDELITY_PRESETS = ("fast", "default", "reference")
 
@@ -318,11 +318,14 @@ class Scene:
     natural_mag_arcsec2 : float
         Natural sky background at the zenith (airglow + zodiacal light + faint stars)
         [V mag arcsec^-2]; 22.0 after Falchi et al. (2016).
-    natural_model : {"vanrhijn1921", "constant"}
-        Gradient of the natural background with zenith distance
-        (:data:`NATURAL_MODELS`, :func:`skytorch.scene.render.natural_gradient`): the
-        airglow part brightens towards the horizon by the van Rhijn (1921) factor, or the
-        background is the zenith value everywhere.
+    natural_model : {"garstang1989", "vanrhijn1921", "constant"}
+        Variation of the natural background with zenith distance (:data:`NATURAL_MODELS`,
+        :func:`skytorch.scene.render.natural_component`): ``"garstang1989"`` (Garstang
+        1989; Krisciunas & Schaefer 1991) brightens the airglow part towards the horizon by
+        the van Rhijn (1921) factor and dims the whole by the V-band extinction of the
+        atmosphere relative to the zenith (``natural_mag_arcsec2`` is the observed zenith
+        value, extinction included); ``"vanrhijn1921"``, the van Rhijn factor without
+        extinction; ``"constant"``, the zenith value everywhere.
     airglow_fraction : float
         Share of the zenith background emitted by the airglow layer (0.6, Garstang 1989;
         Patat 2003); the rest comes from beyond the atmosphere and is uniform.
@@ -354,7 +357,7 @@ class Scene:
     outputs: Sequence[str] = ("spectral", "xyz", "srgb", "v_mag")
     star_limit_mag: float = 6.5
     natural_mag_arcsec2: float = 22.0
-    natural_model: str = "vanrhijn1921"
+    natural_model: str = "garstang1989"
     airglow_fraction: float = 0.6
     airglow_height_m: float = 90_000.0
     dtype: torch.dtype = torch.float64
