@@ -192,7 +192,8 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
         (radiance per unit solar irradiance and unit phase function), float64.
     """
     n_path = check_int("n_path", n_path, low=4)
-    wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
+    wavelength = check_positive("wavelength_nm", wavelength_nm, unit=" nm",
+                                dtype=torch.float64).reshape(-1)
     b = torch.as_tensor(impact_radius_m, dtype=torch.float64).reshape(-1)
     eps = torch.as_tensor(angle_rad, dtype=torch.float64).reshape(-1)
     planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
@@ -208,10 +209,10 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
     radius = torch.sqrt(b[:, None] ** 2 + x * x)
     altitude = torch.clamp(radius - planet, min=0.0)
     n_wl = wavelength.shape[0]
-    coefficients = atmosphere._coefficients(wavelength)
+    coefficients = atmosphere.reference_extinction(wavelength)
     # reference-level coefficients per member and wavelength (n_batch, n_wl) [1/m]
     k = {s: c.expand(*batch, n_wl).reshape(-1, n_wl) for s, c in coefficients.items()}
-    albedo = atmosphere._p("aerosol_single_scattering_albedo", torch.float64)
+    albedo = atmosphere.aerosol_single_scattering_albedo.to(torch.float64)
     albedo = albedo.expand(batch).reshape(-1, 1)
     with torch.no_grad():
         # view leg from S towards P (direction -v): independent of epsilon
@@ -219,9 +220,8 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
         view = atmosphere.column_integrals(torch.acos(mu_view).reshape(*x.shape, *ones),
                                            altitude.reshape(*x.shape, *ones))
         view = {s: _members(c, batch, 2) for s, c in view.items()}  # (n_b, n_x, n_batch)
-        density = {s: _members(atmosphere._density(s, torch.float64)(
-            altitude.reshape(*x.shape, *ones, 1))[..., 0], batch, 2) for s in ("rayleigh",
-                                                                             "aerosol")}
+        density = {s: _members(atmosphere.relative_density(s, altitude.reshape(*x.shape, *ones)),
+                               batch, 2) for s in ("rayleigh", "aerosol")}
         out = {s: torch.zeros(b.shape[0], eps.shape[0], k["rayleigh"].shape[0],
                               wavelength.shape[0], dtype=torch.float64)
                for s in ("rayleigh", "aerosol")}
@@ -301,7 +301,8 @@ class ScatteringProfile:
         self.n_angle = intervals + 1
         self.angle_step_rad = 2.0 * math.pi / intervals
         self.atmosphere = atmosphere
-        self.wavelength_nm = atmosphere._wavelength(wavelength_nm, torch.float64)
+        self.wavelength_nm = check_positive("wavelength_nm", wavelength_nm, unit=" nm",
+                                            dtype=torch.float64).reshape(-1)
         self.blocking_radius_m = blocking_radius_m
         self.n_batch = max(math.prod(tuple(getattr(atmosphere, "batch_shape", ()))), 1)
         self.n_wavelength = int(self.wavelength_nm.shape[0])
@@ -364,7 +365,7 @@ class ScatteringProfile:
 def _aerosol_phase(atmosphere, cos_theta: torch.Tensor, n_batch: int) -> torch.Tensor:
     """Aerosol phase function (..., n_batch) [1/sr] for every member."""
     batch = tuple(getattr(atmosphere, "batch_shape", ()))
-    g = atmosphere._p("aerosol_asymmetry", cos_theta.dtype)
+    g = atmosphere.aerosol_asymmetry.to(cos_theta.dtype)
     from skytorch.atmosphere.scattering import phase_function
 
     if g.ndim == 0:
