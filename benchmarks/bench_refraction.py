@@ -1,12 +1,14 @@
 """Benchmark of refracted rays: the deviation/contact table and grazing rays.
 
-Rows, measured side by side in one run (Earth, 8 km exponential, n - 1 = 2.77e-4):
+Rows, measured side by side in one run (``Atmosphere.earth()``: U.S. Standard Atmosphere
+1976 refractivity, n - 1 = 2.77e-4 at the ground; and the 8 km exponential index):
 
 * :func:`skytorch.atmosphere.refraction.deviation_table` 512 x 256 (Schneegans et al. 2025
-  Fig. 6) with the Bouguer integrals (32 and 64 Gauss–Legendre nodes; 32 nodes are
-  0.02" from converged), float64 and float32. Target: <= 10 s ("refracted rays, 10 km
-  steps or better": the quadrature is more accurate than 10 km RK4 steps on every ray
-  above the ground, see docs/accuracy.md).
+  Fig. 6) with the Bouguer integrals at the table's default resolution (US 1976: 12
+  panels of 16 Gauss–Legendre nodes; exponential: 32 nodes), float64 and float32, and
+  the exponential index. Target: <= 10 s ("refracted rays, 10 km steps or better": the
+  quadrature is more accurate than 10 km RK4 steps on every ray above the ground, see
+  docs/accuracy.md).
 * the same table with Schneegans' algorithm, RK4 ray marching at 10 km steps, on a
   64 x 32 sub-grid, scaled by the number of rays (full size would take minutes here).
 * :func:`skytorch.atmosphere.refraction.trace_grazing_rays` for 4096 rays x 15
@@ -56,16 +58,18 @@ def main(argv: list[str] | None = None) -> int:
     from skytorch.atmosphere import refraction as rf
 
     atm = Atmosphere.earth()
+    exponential = Atmosphere.earth(refractivity_profile="exponential")
     rows = []
     baseline = None
-    for n_nodes, dtype in ((32, torch.float64), (32, torch.float32), (64, torch.float64)):
-        def build(n_nodes=n_nodes, dtype=dtype):
-            return rf.deviation_table(atm, *FULL, n_nodes=n_nodes, dtype=dtype,
-                                      progress=False)
+    for label, model, dtype in (("US 1976, 12 x 16 nodes", atm, torch.float64),
+                                ("US 1976, 12 x 16 nodes", atm, torch.float32),
+                                ("exponential, 32 nodes", exponential, torch.float64)):
+        def build(model=model, dtype=dtype):
+            return rf.deviation_table(model, *FULL, dtype=dtype, progress=False)
 
         seconds = median_seconds(build, repeat=args.repeat, warmup=0)
         baseline = baseline or seconds
-        rows.append({"case": f"deviation table {FULL[0]}x{FULL[1]}, Bouguer {n_nodes} nodes, "
+        rows.append({"case": f"deviation table {FULL[0]}x{FULL[1]}, Bouguer, {label}, "
                              f"{str(dtype).replace('torch.', '')}",
                      "median [s]": seconds, "CPU [s]": _cpu_seconds(build),
                      "ratio": seconds / baseline, "target [s]": TARGET_TABLE_S,
