@@ -318,3 +318,42 @@ def test_crescent_narrower_than_the_pixels():
     centre = 0.5 * (moon.shape[0] - 1)
     measured = math.atan2(centre - iy, ix - centre)
     assert abs(math.remainder(measured - expected, 2 * math.pi)) < CRESCENT_PIXEL_ANGLE
+
+
+@pytest.mark.parametrize("phase_deg", [0.0, 90.0, 180.0])
+def test_moon_at_the_zenith_and_extreme_phases(phase_deg):
+    """Hard cases of the disc frame: the Moon exactly at the zenith (no vertical to
+    orient the disc by; north is used) at full, quarter and new Moon. The shading is finite
+    and non-negative; at quarter the sunlit half (μ0 > 0 of the normal towards the Sun,
+    placed due north) is exactly the northern half of the disc."""
+    from skytorch.scene.geometry import Geometry
+    from skytorch.scene.render import MoonDisc
+
+    distance, sun_distance = 3.8e8, 1.496e11
+    alpha = math.radians(phase_deg)
+    moon = (0.0, 0.0, distance)
+    # the Sun seen from the Moon at the phase angle, towards the north
+    sun = (sun_distance * math.sin(alpha), 0.0, distance - sun_distance * math.cos(alpha))
+    g = Geometry(0.0, 0.0, 90.0, 0.0, distance, sun_distance, alpha, 0.0, 0.0, 0.0, 0.0,
+                 sun_horizontal_m=sun, moon_horizontal_m=moon)
+    scene = st.Scene(time=INSTANTS[0], **SITE)
+    wavelength = torch.tensor([550.0], dtype=torch.float64)
+    disc = MoonDisc(scene, g, wavelength, 0.5 * math.pi, earthshine=False, eclipse=False)
+    assert float(disc.phase_angle_rad) == pytest.approx(alpha, abs=1e-9)
+    offsets = torch.linspace(-0.95, 0.95, 21, dtype=torch.float64) * g.moon_radius_rad
+    north, east = torch.meshgrid(offsets, offsets, indexing="ij")
+    directions = torch.stack([north, east, torch.ones_like(north)], -1).reshape(-1, 3)
+    directions = directions / torch.linalg.vector_norm(directions, dim=-1, keepdim=True)
+    inside = (north ** 2 + east ** 2).reshape(-1) < (0.95 * g.moon_radius_rad) ** 2
+    brightness, shadow = disc(directions[inside])
+    assert shadow is None and torch.isfinite(brightness).all() and (brightness >= 0).all()
+    lit = brightness[:, 0] > 0
+    if phase_deg == 180.0:
+        assert not bool(lit.any())  # new Moon: dark without earthshine
+        altitude, _ = disc.bright_point()
+        assert math.isfinite(altitude)
+    elif phase_deg == 90.0:
+        northern = north.reshape(-1)[inside] > 0
+        assert bool((lit == northern).all())
+    else:
+        assert bool(lit.all())
