@@ -150,6 +150,8 @@ def _gauss_nodes(n: int, dtype: torch.dtype, ndim: int) -> tuple[torch.Tensor, t
 def _needs_grad(atm) -> bool:
     """Whether any tensor held by the atmosphere (parameters, buffers, attributes) requires
     gradients, in which case derivatives are propagated to it."""
+    if isinstance(atm, _Dispersive):
+        return atm.factor.requires_grad or _needs_grad(atm.wrapped)
     if isinstance(atm, torch.nn.Module):
         tensors = list(atm.parameters()) + list(atm.buffers())
     else:
@@ -378,10 +380,36 @@ def _rk4_resolution(step_m, max_dh_m) -> tuple[float, float]:
     return float(step_m), float(max_dh_m)
 
 
-def _wavelengths(wavelength_nm, dtype):
+def _wavelengths(wavelength_nm, dtype, flat: bool = True):
     wavelength_nm = check_range("wavelength_nm", wavelength_nm, low=0.0, low_inclusive=False,
                                 unit=" nm", dtype=dtype)
-    return wavelength_nm.reshape(-1)
+    return wavelength_nm.reshape(-1) if flat else wavelength_nm
+
+
+class _Dispersive:
+    """An atmosphere whose refractivity is scaled by the dispersion of air at a wavelength.
+
+    ``wavelength_nm`` (...) broadcasts with the rays like a batch dimension of the
+    atmosphere; everything but ``refractivity`` is the wrapped atmosphere's.
+    """
+
+    def __init__(self, atm, wavelength_nm: torch.Tensor):
+        from skytorch.atmosphere.rayleigh import refractivity_dispersion
+
+        self.wrapped = atm
+        self.factor = refractivity_dispersion(wavelength_nm)
+        self.planet_radius_m = atm.planet_radius_m
+        self.top_altitude_m = atm.top_altitude_m
+        for name in ("refractivity_breakpoints_m", "refractivity_kinks_m", "molecule_profile"):
+            if hasattr(atm, name):
+                setattr(self, name, getattr(atm, name))
+
+    def refractivity(self, altitude_m, wavelength_nm=None):
+        return self.wrapped.refractivity(altitude_m) * self.factor.to(
+            torch.as_tensor(altitude_m).dtype)
+
+    def extinction_coefficient(self, altitude_m, wavelength_nm):
+        return self.wrapped.extinction_coefficient(altitude_m, wavelength_nm)
 
 
 def _extinction(atm, wavelength):
@@ -435,6 +463,7 @@ def refraction_angle(
     step_m: float = DEFAULT_STEP_M,
     max_dh_m: float = DEFAULT_MAX_DH_M,
     n_steps: int | None = None,
+    wavelength_nm=None,
 ) -> torch.Tensor:
     r"""Astronomical refraction :math:`R` = apparent − true altitude [rad].
 
@@ -456,6 +485,12 @@ def refraction_angle(
         RK4 step along the ray and largest altitude change per step [m] (``"rk4"``).
     n_steps : int, optional
         Alias of ``n_nodes`` (the name the straight-ray integrators use).
+    wavelength_nm : float or Tensor (...), optional
+        Vacuum wavelength [nm], broadcast with the rays like a batch dimension: the
+        refractivity is scaled by the dispersion of air relative to 589.3 nm
+        (:func:`skytorch.atmosphere.rayleigh.refractivity_dispersion`, Peck & Reeder
+        1972). Default: grey (the refractivity as given, i.e. at 589.3 nm). With
+        ``"rk4"`` one wavelength per call.
 
     Returns
     -------
@@ -486,6 +521,12 @@ def refraction_angle(
     """
     method, n_nodes = _check_method(method, n_nodes, n_steps)
     dtype = common_dtype(apparent_altitude_rad, altitude_m)
+    if wavelength_nm is not None:
+        wavelength = _wavelengths(wavelength_nm, dtype, flat=False)
+        if method == "rk4" and wavelength.numel() != 1:
+            raise ValueError("method='rk4' takes one wavelength at a time; got wavelength_nm "
+                             f"of shape {tuple(wavelength.shape)}")
+        atm = _Dispersive(atm, wavelength.reshape(()) if method == "rk4" else wavelength)
     if method == "rk4":
         return _trace_observer_rk4(atm, apparent_altitude_rad, altitude_m, dtype, step_m,
                                    max_dh_m)["deviation_rad"]
