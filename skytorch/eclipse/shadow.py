@@ -43,7 +43,9 @@ with a Gauss–Legendre rule after the substitution ``s = (1 - cos pi t)/2`` tha
 the square roots at both ends. ``delta(beta)`` and ``T(beta, lambda) = exp(-tau)`` come from
 :func:`skytorch.atmosphere.refraction.trace_grazing_rays`, tabulated once per atmosphere
 on a grid dense near the ground (``beta = beta_min + (beta_top - beta_min) s^2``, uniform
-in ``s``) and interpolated with cubic Catmull–Rom splines. The result is normalised by the
+in ``s``; with a kinked refractivity profile such as US 1976 the rows are graded towards
+each kink and the integral is also split there) and interpolated with cubic Catmull–Rom
+splines, piece by piece. The result is normalised by the
 unobstructed solar irradiance ``2 pi C(rho_s)``, ``C = int_0^rho_s I sin(gamma) d gamma``,
 and the direct light passing above the atmosphere, :func:`sun_visible_fraction` with the
 top of the atmosphere as occluder, is added.
