@@ -12,7 +12,6 @@ Run ``python benchmarks/bench_atmosphere.py [--rays N] [--threads T]``.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
@@ -21,19 +20,21 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+from benchmarks._harness import (  # noqa: E402
+    argument_parser,
+    machine_description,
+    markdown_table,
+    median_seconds,
+    parse_arguments,
+)
 from skytorch.atmosphere import Atmosphere  # noqa: E402
 from skytorch.atmosphere.tables import transmittance_table  # noqa: E402
 
 
 def main(argv=None) -> str:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argument_parser(__doc__.splitlines()[0], repeat=5, append_option=False)
     parser.add_argument("--rays", type=int, default=1_000_000)
-    parser.add_argument("--threads", type=int, default=None)
-    parser.add_argument("--repeat", type=int, default=5)
-    arguments = parser.parse_args(argv)
-    if arguments.threads:
-        torch.set_num_threads(arguments.threads)
+    arguments = parse_arguments(parser, argv)
     atm = Atmosphere.earth(turbidity=2.5, ozone_du=300.0)
     wavelength = torch.linspace(360.0, 830.0, 15, dtype=torch.float64)
     generator = torch.Generator().manual_seed(0)

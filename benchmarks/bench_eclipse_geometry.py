@@ -20,7 +20,6 @@ has two cores shared with other jobs: medians are noisy.
 
 from __future__ import annotations
 
-import argparse
 import gc
 import os
 import statistics
@@ -35,7 +34,14 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+from benchmarks._harness import (  # noqa: E402
+    argument_parser,
+    machine_description,
+    markdown_table,
+    median_seconds,
+    parse_arguments,
+    report,
+)
 
 SUN_RADIUS = 4.65e-3
 N_OCCLUSION = 10_000_000
@@ -84,14 +90,9 @@ def _alternating_medians(functions: dict, repeat: int, warmup: int = 1) -> dict[
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads")
+    parser = argument_parser(__doc__.splitlines()[0], repeat=3)
     parser.add_argument("--n", type=int, default=N_OCCLUSION, help="occlusion evaluations")
-    args = parser.parse_args(argv)
-    if args.threads:
-        torch.set_num_threads(args.threads)
+    args = parse_arguments(parser, argv)
 
     from skytorch.eclipse import circumstances as circumstances_module
     from skytorch.eclipse import lunar_eclipses, sun_visible_fraction
@@ -178,11 +179,7 @@ def main(argv: list[str] | None = None) -> int:
             f"Machine: {machine_description()}; load average (1 min) {load_before[0]:.1f} "
             f"before, {load_after[0]:.1f} after. `previous`: `sun_visible_fraction` as of "
             f"commit {PREVIOUS_COMMIT}, called alternately with the new one.\n\n{table}\n")
-    print(text)
-    if args.append:
-        path = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
-        with path.open("a") as stream:
-            stream.write(text)
+    report(text, args.append)
     return 0
 
 

@@ -28,7 +28,6 @@ The development machine has two cores shared with other jobs: medians are noisy.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -36,7 +35,14 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+from benchmarks._harness import (  # noqa: E402
+    argument_parser,
+    machine_description,
+    markdown_table,
+    median_seconds,
+    parse_arguments,
+    report,
+)
 
 TARGET_TABLE_S = 10.0
 TARGET_CURVE_S = 2.0
@@ -44,18 +50,13 @@ TARGET_SWEEP_S = 60.0
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads")
+    parser = argument_parser(__doc__.splitlines()[0], repeat=3)
     parser.add_argument("--quick", action="store_true", help="64 x 64 table only")
     parser.add_argument("--sweep", action="store_true",
                         help="only the 10 x 10 turbidity x ozone light-curve sweep")
     parser.add_argument("--scattering", action="store_true",
                         help="only the rows without and with single-scattered light")
-    args = parser.parse_args(argv)
-    if args.threads:
-        torch.set_num_threads(args.threads)
+    args = parse_arguments(parser, argv)
     if args.sweep:
         return _sweep(args)
     if args.scattering:
@@ -162,10 +163,7 @@ def _scattering(args) -> int:
 
 def _report(text: str, append: bool) -> int:
     """Print ``text`` and, with ``append``, add it to docs/benchmarks.md."""
-    print(text)
-    if append:
-        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as f:
-            f.write(text)
+    report(text, append)
     return 0
 
 

@@ -21,7 +21,6 @@ printed).
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
@@ -31,7 +30,14 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+from benchmarks._harness import (  # noqa: E402
+    argument_parser,
+    machine_description,
+    markdown_table,
+    median_seconds,
+    parse_arguments,
+    report,
+)
 
 TARGET_TABLE_S = 10.0
 
@@ -46,13 +52,7 @@ RK4_SUBGRID = (64, 32)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads")
-    args = parser.parse_args(argv)
-    if args.threads:
-        torch.set_num_threads(args.threads)
+    args = parse_arguments(argument_parser(__doc__.splitlines()[0], repeat=3), argv)
 
     from skytorch.atmosphere import Atmosphere
     from skytorch.atmosphere import refraction as rf
@@ -107,12 +107,7 @@ def main(argv: list[str] | None = None) -> int:
               "time of one call summed over threads, less affected by the other jobs). "
               "Ratios are relative to the first row.\n")
     table = markdown_table(rows)
-    print(header)
-    print(table)
-    if args.append:
-        path = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
-        with path.open("a", encoding="utf-8") as handle:
-            handle.write("\n\n" + header + "\n" + table + "\n")
+    report("\n\n" + header + "\n" + table + "\n", args.append)
     return 0
 
 

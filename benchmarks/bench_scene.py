@@ -21,14 +21,20 @@ machine are noisy.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import skytorch as st  # noqa: E402
-from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+from benchmarks._harness import (  # noqa: E402
+    argument_parser,
+    machine_description,
+    markdown_table,
+    median_seconds,
+    parse_arguments,
+    report,
+)
 
 
 def median_cpu_seconds(function, repeat: int) -> float:
@@ -88,11 +94,9 @@ def planner_overhead(scene, repeat: int):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argument_parser(__doc__.splitlines()[0], repeat=5, thread_option=False)
     parser.add_argument("--size", type=int, default=512)
-    parser.add_argument("--repeat", type=int, default=5)
-    parser.add_argument("--append", action="store_true")
-    args = parser.parse_args(argv)
+    args = parse_arguments(parser, argv)
     night, day = scenes(args.size)
     night_plan = night.plan()
     rows = []
@@ -134,11 +138,7 @@ def main(argv=None) -> int:
              "seen); shared 2-core machine, noisy: the planner's targets are judged on CPU "
              "time (one thread).\n\n"
              + markdown_table(rows) + "\n")
-    print(table)
-    if args.append:
-        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a",
-                  encoding="utf-8") as handle:
-            handle.write(table)
+    report(table, args.append)
     return 0
 
 

@@ -39,7 +39,6 @@ altitude) and extrapolates × 16 / K; the full run is
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import statistics
@@ -53,7 +52,13 @@ import torch  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks._harness import machine_description, markdown_table  # noqa: E402
+from benchmarks._harness import (  # noqa: E402
+    argument_parser,
+    machine_description,
+    markdown_table,
+    parse_arguments,
+    report,
+)
 
 TARGET_PANORAMA_S = 5e-3
 TARGET_BATCH_S = 2.0
@@ -196,11 +201,8 @@ def _paper_rows(rows, args) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
-    parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
+    parser = argument_parser(__doc__.splitlines()[0], repeat=9, threads=1)
     parser.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
-    parser.add_argument("--repeat", type=int, default=9)
     parser.add_argument("--part", choices=("all", "runtime", "precompute"), default="all")
     parser.add_argument("--paper", action="store_true",
                         help="run the precompute at the paper's full resolution")
@@ -211,8 +213,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="with --paper: dtype of the kernel quadrature")
     parser.add_argument("--paper-steps", type=int, default=8,
                         help="with --paper: half the Gauss nodes per view ray (default 8)")
-    args = parser.parse_args(argv)
-    torch.set_num_threads(args.threads)
+    args = parse_arguments(parser, argv)
     if args.paper:
         return _paper_main(args)
 
@@ -304,10 +305,7 @@ def main(argv: list[str] | None = None) -> int:
               f"built in {build_s:.1f} s (8 Gauss nodes). Random fluxes on a fully lit "
               f"square grid of the given number of cells. Targets from the skyglow issue; "
               f"'meets' judged on CPU time.\n\n")
-    print(header + table)
-    if args.append:
-        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as f:
-            f.write(header + table + "\n")
+    report(header + table + "\n", args.append)
     return 0
 
 
@@ -327,10 +325,7 @@ def _paper_main(args) -> int:
               f"CPUs. Grid N_θ 256 × N_φ 64 × N_r 128 (10 km) × N_hc 16 × N_ho 16, 3 "
               f"wavelengths, turbidity {PAPER_TURBIDITY}; {detail}.\n\n")
     table = markdown_table(rows)
-    print(header + table)
-    if args.append:
-        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as f:
-            f.write(header + table + "\n")
+    report(header + table + "\n", args.append)
     return 0
 
 

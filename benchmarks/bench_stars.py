@@ -19,7 +19,6 @@ two cores shared with other jobs: medians are noisy.
 
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
 import sys
@@ -31,7 +30,14 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+from benchmarks._harness import (  # noqa: E402
+    argument_parser,
+    machine_description,
+    markdown_table,
+    median_seconds,
+    parse_arguments,
+    report,
+)
 
 LAT, LON, ELEVATION = 52.5, 13.4, 34.0
 TARGET_SECONDS = 1.0
@@ -52,17 +58,12 @@ def median_cpu_seconds(function, repeat: int = 3, warmup: int = 1) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
+    parser = argument_parser(__doc__.splitlines()[0], repeat=3, threads=1)
     parser.add_argument("--skyfield-times", type=int, default=12,
                         help="times measured with skyfield (scaled to all)")
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=1,
-                        help="torch intra-op threads (default 1: on a shared, oversubscribed "
-                             "machine OpenMP threads spin while waiting)")
-    args = parser.parse_args(argv)
-    if args.threads:
-        torch.set_num_threads(args.threads)
+    # --threads defaults to 1: on a shared, oversubscribed machine OpenMP threads spin
+    # while waiting
+    args = parse_arguments(parser, argv)
 
     from skyfield.api import Star, wgs84
 
@@ -144,11 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     text = (f"\n## Stars: positions and magnitudes ({machine_description()})\n\n{summary}\n\n"
             f"{table}\n")
-    print(text)
-    if args.append:
-        path = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
-        with path.open("a") as handle:
-            handle.write(text)
+    report(text, args.append)
     return 0
 
 

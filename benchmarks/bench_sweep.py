@@ -29,7 +29,6 @@ Run: ``python benchmarks/bench_sweep.py [--append]`` (``--append`` adds the tabl
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import os
 import statistics
@@ -41,7 +40,14 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import skytorch as st  # noqa: E402
-from benchmarks._harness import machine_description, markdown_table, median_seconds  # noqa: E402
+from benchmarks._harness import (  # noqa: E402
+    argument_parser,
+    machine_description,
+    markdown_table,
+    median_seconds,
+    parse_arguments,
+    report,
+)
 
 N = 10
 TURBIDITY = [1.0 + 0.5 * i for i in range(N)]
@@ -167,14 +173,12 @@ def eclipse_rows(n: int) -> list[dict[str, object]]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--append", action="store_true", help="append to docs/benchmarks.md")
-    parser.add_argument("--repeat", type=int, default=5)
+    parser = argument_parser(__doc__.splitlines()[0], repeat=5, thread_option=False)
     parser.add_argument("--eclipse-grid", type=int, default=10,
                         help="n for the n x n eclipse light-curve sweep (0 skips it)")
     parser.add_argument("--eclipse-case", choices=tuple(ECLIPSE_CASES),
                         help="time only this eclipse case and print the seconds")
-    args = parser.parse_args(argv)
+    args = parse_arguments(parser, argv)
     if args.eclipse_case:
         print(eclipse_case(args.eclipse_case, args.eclipse_grid))
         return 0
@@ -268,10 +272,7 @@ def main(argv=None) -> int:
             f"processes; 2 worker processes vs serial: {serial / process_two:.2f}x. Load "
             f"average (1 min) after these runs: {os.getloadavg()[0]:.1f}.\n"
         )
-    print(text)
-    if args.append:
-        with open(Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md", "a") as out:
-            out.write(text)
+    report(text, args.append)
     return 0
 
 
