@@ -25,7 +25,8 @@ logger = logging.getLogger(__name__)
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``skytorch render``."""
     parser.add_argument("scene", help="TOML scene file")
-    parser.add_argument("-o", "--output", required=True, help="netCDF file to write")
+    parser.add_argument("-o", "--output", required=True,
+                        help="netCDF file to write (a *.zarr path writes a Zarr store)")
     parser.add_argument("--png", help="also write the tone-mapped image to this PNG file")
     parser.add_argument("--size", type=int, help="override the view size [pixels]")
     parser.add_argument("--fidelity", choices=("fast", "default", "reference"),
@@ -38,7 +39,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Render the scene, write netCDF (and PNG), print the plan."""
-    from skytorch.dataset import to_netcdf
+    from skytorch.dataset import write_dataset
     from skytorch.scene import Scene, scene_png
 
     scene = Scene.from_toml(args.scene)
@@ -47,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     if changes:
         scene = scene.replace(**changes)
     ds = scene.render()
-    path = to_netcdf(ds, args.output)
+    path = write_dataset(ds, args.output)
     frames = ([ds.isel(observer=i) for i in range(ds.sizes["observer"])]
               if "observer" in ds.dims else [ds])
     for index, frame in enumerate(frames):
