@@ -40,10 +40,9 @@ _SUBMODULES = (
 _EXPORTS = {
     "Atmosphere": ("skytorch.atmosphere", "Atmosphere"),
     "Scene": ("skytorch.scene", "Scene"),
-    # skytorch/sweep.py makes its module object callable, so ``st.sweep(fn, ...)`` works
-    # whether this attribute holds the function or (after ``import skytorch.sweep``) the
-    # module itself.
-    "sweep": ("skytorch.sweep", "sweep"),
+    # skytorch/sweep.py makes its module object callable: the attribute is the module
+    # itself (attribute None), so ``st.sweep(fn, ...)`` and ``import skytorch.sweep`` agree.
+    "sweep": ("skytorch.sweep", None),
     "open_dataset": ("skytorch.dataset", "open_dataset"),
     "to_netcdf": ("skytorch.dataset", "to_netcdf"),
 }
@@ -54,7 +53,8 @@ __all__ = ["__version__", *sorted(_EXPORTS), *_SUBMODULES]
 def __getattr__(name: str):
     if name in _EXPORTS:
         module_name, attribute = _EXPORTS[name]
-        value = getattr(importlib.import_module(module_name), attribute)
+        module = importlib.import_module(module_name)
+        value = module if attribute is None else getattr(module, attribute)
         globals()[name] = value
         return value
     if name in _SUBMODULES:

@@ -281,3 +281,16 @@ def test_angles_in_datasets_are_degrees(observations):
     """Radian-valued angles would stay within ±2π; the apparent sky spans degrees."""
     ds, _ = observations
     assert float(ds.azimuth.max()) - float(ds.azimuth.min()) > 2.0 * math.pi
+
+
+def test_sweep_attribute_is_the_callable_module():
+    import importlib
+
+    import skytorch as st
+
+    sweep_attribute = st.sweep
+    module = importlib.import_module("skytorch.sweep")
+    assert sweep_attribute is module and callable(sweep_attribute)
+    import skytorch.sweep as imported
+
+    assert imported is module
