@@ -263,3 +263,28 @@ def test_float32_precompute_matches_float64():
         assert bool((a > 0).all())
         relative = ((b - a).abs() / a).max()
         assert float(relative) < FLOAT32_PRECOMPUTE_TOLERANCE
+
+
+def test_observer_altitudes_on_worker_threads_equal_one_after_another():
+    # the threaded precompute runs every operation serially: it must reproduce the
+    # single-thread precompute (same kernels, same PCA) to rounding
+    from skytorch.atmosphere import Atmosphere
+
+    atm = Atmosphere.earth(turbidity=2.0)
+    settings = dict(n_azimuth=16, n_elevation=8, n_distance=8, max_distance_m=10e3,
+                    n_components=6, n_steps=4, n_source_altitude=2, n_observer_altitude=3,
+                    observer_altitude_range_m=(0.0, 500.0), progress=False)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        serial = SkyglowModel.precompute(atm, **settings, n_workers=1)
+    finally:
+        torch.set_num_threads(threads)
+    threaded = SkyglowModel.precompute(atm, **settings, medium=serial.medium, n_workers=3)
+    assert torch.get_num_threads() == threads  # restored
+    expected, actual = serial.state_dict(), threaded.state_dict()
+    assert expected.keys() == actual.keys() and len(expected) > 0
+    for name, value in expected.items():
+        torch.testing.assert_close(actual[name], value, rtol=1e-12, atol=1e-300, msg=name)
+    with pytest.raises(ValueError, match="n_workers"):
+        SkyglowModel.precompute(atm, **settings, n_workers=0)

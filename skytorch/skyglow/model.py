@@ -326,7 +326,8 @@ class SkyglowModel(nn.Module):
                    normalize: bool = True, phase_functions=None, progress: bool = True,
                    keep_kernel: bool = False, chunk_size: int = 4096,
                    medium: Medium | None = None, quadrature: str = "single",
-                   compute_dtype: torch.dtype = torch.float64) -> SkyglowModel:
+                   compute_dtype: torch.dtype = torch.float64,
+                   n_workers: int | None = None) -> SkyglowModel:
         """Tabulate kernels, fit the PCA basis and transform it over azimuth.
 
         Parameters
@@ -379,6 +380,11 @@ class SkyglowModel(nn.Module):
             geometry, within 0.01 % of float64 even on grazing rays (0.0073 % at most,
             ``docs/skyglow.md``): the recommended choice for large grids such as the
             paper's (``benchmarks/bench_skyglow.py --paper``).
+        n_workers : int, optional
+            Threads that compute observer altitudes concurrently, each with serial
+            operations (torch's and the BLAS thread counts are set to 1 while they run and
+            restored after). Default ``torch.get_num_threads()``; 1 computes them one after
+            another with the current thread settings. The result does not depend on it.
 
         Returns
         -------
@@ -389,6 +395,8 @@ class SkyglowModel(nn.Module):
         n_distance = check_int("n_distance", n_distance, low=1)
         n_source_altitude = check_int("n_source_altitude", n_source_altitude, low=1)
         n_observer_altitude = check_int("n_observer_altitude", n_observer_altitude, low=1)
+        if n_workers is not None:
+            n_workers = check_int("n_workers", n_workers, low=1)
         check_positive("max_distance_m", max_distance_m, unit=" m")
         check_choice("emission", emission, EMISSION_FUNCTIONS)
         if wavelength_nm is None:
@@ -424,19 +432,19 @@ class SkyglowModel(nn.Module):
 
         bar = tqdm(total=n_observer_altitude * n_distance, desc="skyglow kernels",
                    unit="distance", disable=not progress or not sys.stderr.isatty())
-        fits, kernels = [], []
-        kernel_seconds = pca_seconds = kernel_cpu_seconds = pca_cpu_seconds = 0.0
         # multiplicity of the integrated azimuths in the full circle (the PCA of the half
         # images with these weights is that of the full images)
         multiplicity = torch.tensor([1.0 if i in (0, n_azimuth - i) else 2.0
                                      for i in range(half)], dtype=torch.float64)
         feature_weights = multiplicity[:, None].expand(
             half, n_elevation * wavelength.numel()).reshape(-1)
-        for h_o in observer_altitude:
+        block = max(1, 4 * chunk_size // (half * n_elevation * n_source_altitude))
+
+        def fit_altitude(h_o):
+            """Kernels and PCA of one observer altitude -> (fit, kernel or None, seconds)."""
             table = torch.empty(n_distance, n_source_altitude, half, n_elevation,
                                 wavelength.numel(), dtype=torch.float64)
-            block = max(1, 4 * chunk_size // (half * n_elevation * n_source_altitude))
-            clock, cpu_clock = time.perf_counter(), time.process_time()
+            clock, cpu_clock = time.perf_counter(), time.thread_time()
             for start in range(0, n_distance, block):
                 stop = min(start + block, n_distance)
                 values = kernel_radiance(
@@ -447,18 +455,37 @@ class SkyglowModel(nn.Module):
                     n_steps=n_steps, chunk_size=chunk_size, **kernel_arguments)
                 table[start:stop] = values.to(torch.float64)
                 bar.update(stop - start)
-            kernel_seconds += time.perf_counter() - clock
-            kernel_cpu_seconds += time.process_time() - cpu_clock
-            clock, cpu_clock = time.perf_counter(), time.process_time()
+            seconds = [time.perf_counter() - clock, time.thread_time() - cpu_clock]
+            clock, cpu_clock = time.perf_counter(), time.thread_time()
             fit = fit_basis(table.reshape(n_distance * n_source_altitude, -1), n_components,
                             normalize=normalize, feature_weights=feature_weights)
             fit.basis = fit.basis.reshape(-1, half, n_elevation * wavelength.numel())[
                 :, mirror].reshape(fit.basis.shape[0], -1)
-            fits.append(fit)
-            pca_seconds += time.perf_counter() - clock
-            pca_cpu_seconds += time.process_time() - cpu_clock
-            if keep_kernel:
-                kernels.append(table[:, :, mirror])
+            seconds += [time.perf_counter() - clock, time.thread_time() - cpu_clock]
+            return fit, (table[:, :, mirror] if keep_kernel else None), seconds
+
+        workers = min(n_workers or torch.get_num_threads(), n_observer_altitude)
+        if workers > 1:
+            # observer altitudes are independent: one per thread, each running its
+            # operations serially (no intra-op or BLAS threads), which keeps every core
+            # busy; the kernel's cache-sized chunks leave intra-op parallelism idle
+            from concurrent.futures import ThreadPoolExecutor
+
+            from threadpoolctl import threadpool_limits
+
+            previous_threads = torch.get_num_threads()
+            torch.set_num_threads(1)
+            try:
+                with threadpool_limits(1), ThreadPoolExecutor(workers) as pool:
+                    results = list(pool.map(fit_altitude, observer_altitude))
+            finally:
+                torch.set_num_threads(previous_threads)
+        else:
+            results = [fit_altitude(h_o) for h_o in observer_altitude]
+        fits = [fit for fit, _, _ in results]
+        kernels = [kernel for _, kernel, _ in results if kernel is not None]
+        kernel_seconds, kernel_cpu_seconds, pca_seconds, pca_cpu_seconds = (
+            sum(seconds[i] for _, _, seconds in results) for i in range(4))
         bar.close()
         basis, coefficients, ratio = _stack_fits(
             fits, (n_azimuth, n_elevation, wavelength.numel()), (n_distance, n_source_altitude))
