@@ -862,10 +862,10 @@ class Shadow(nn.Module):
             "terrain_height_m": self.terrain_height_m if self.terrain_height_m else "none",
             "limb_darkening": self.limb_darkening.tolist(), "limb_darkening_law": self.law,
             "n_altitude": self.n_altitude, "n_arc": self.n_arc,
-            "n_ring": self.ring_quadrature()[0], "n_split": self.ring_quadrature()[1],
             "scattering": self.scattering,
             "scattering_resolution": self.scattering_resolution,
         }
+        result["n_ring"], result["n_split"] = self.ring_quadrature()
         if self.atmosphere is not None and hasattr(self.atmosphere, "parameters_dict"):
             result["atmosphere"] = self.atmosphere.parameters_dict()
         return result

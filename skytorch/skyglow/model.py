@@ -508,6 +508,9 @@ class SkyglowModel(nn.Module):
             "compute_dtype": str(compute_dtype).replace("torch.", ""),
             "atmosphere": atmosphere_parameters,
             "precompute_seconds": time.perf_counter() - started,
+            # kernel and PCA times are summed over the observer altitudes (and so over the
+            # worker threads: with several workers they exceed the wall time)
+            "precompute_workers": workers,
             "precompute_kernel_seconds": kernel_seconds,
             "precompute_pca_seconds": pca_seconds,
             "precompute_kernel_cpu_seconds": kernel_cpu_seconds,
