@@ -46,7 +46,7 @@ from benchmarks._harness import (  # noqa: E402
 SUN_RADIUS = 4.65e-3
 N_OCCLUSION = 10_000_000
 #: last commit with the previous sun_visible_fraction kernel (compared side by side)
-PREVIOUS_COMMIT = "a2f365b"
+PREVIOUS_COMMIT = "a5bc3be"
 TARGET_OCCLUSION_S = 1.0
 TARGET_ECLIPSES_S = 5.0
 
@@ -134,7 +134,20 @@ def main(argv: list[str] | None = None) -> int:
                      "previous / new": float("nan"), "target s": TARGET_OCCLUSION_S,
                      "ratio to target": seconds / TARGET_OCCLUSION_S})
 
+    # a Sun radius per configuration (as in the shadow and the lunar eclipse), 1e6 of them
     rho_o, d = _inputs(args.n // 10, torch.float64)
+    rho_s = SUN_RADIUS * (0.97 + 0.06 * torch.rand(rho_o.shape, dtype=torch.float64,
+                                                   generator=torch.Generator().manual_seed(2)))
+    functions = {"new": lambda: sun_visible_fraction(rho_s, rho_o, d, 0.6)}
+    if previous is not None:
+        functions["previous"] = lambda: previous(rho_s, rho_o, d, 0.6)
+    with torch.no_grad():
+        medians = _alternating_medians(functions, repeat=args.repeat)
+    new, old = (medians.get(k, float("nan")) * scale for k in ("new", "previous"))
+    rows.append({"workload": "sun_visible_fraction 1e6 with a Sun radius per configuration "
+                             "(float64, 8 nodes)",
+                 "previous s": old, "median s": new, "previous / new": old / new,
+                 "target s": float("nan"), "ratio to target": float("nan")})
 
     def with_gradient():
         separation = d.clone().requires_grad_(True)
