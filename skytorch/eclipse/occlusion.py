@@ -24,9 +24,9 @@ the solar limb inside the occluder (half-angle ``alpha`` seen from the Sun's cen
 contributes ``2 alpha C(rho_s)`` in closed form) and the arc of the occluder's rim inside
 the solar disc (half-angle ``phi_max`` seen from the occluder's centre). On that arc the
 integrand is smooth except for a square-root behaviour where it meets the limb. The rim
-is parametrised by ``t = tan(phi / 8)``, in which ``hav phi = 16 [t r (2 r - 1)]^2`` and
-``d phi = 8 r dt`` with ``r = 1 / (1 + t^2)`` are rational (no sine per node; the poles at
-``t = +-i`` stay far from ``[0, tan(pi / 8)]``); the substitution
+is parametrised by ``t = tan(phi / 16)``, in which ``hav phi`` and ``d phi = 16 r dt``
+with ``r = 1 / (1 + t^2)`` are rational (no sine per node; the poles at ``t = +-i`` stay
+far from ``[0, tan(pi / 16)]``); the substitution
 ``t = t_max (1 - v^2)`` removes the square root and a fixed Gauss–Legendre rule in ``v``
 converges exponentially. ``C`` has a closed form for the linear and quadratic laws
 in the projected radius ``r = sin(theta) / sin(rho_s)`` (the exact projection of a sphere
@@ -333,10 +333,12 @@ def _haversine_quotient_(numerator: torch.Tensor, denominator: torch.Tensor,
     return quotient.clamp_(0.0, 1.0)
 
 
-def _eighth_tangent(hav_phi: torch.Tensor) -> torch.Tensor:
-    """``tan(phi / 8)`` from ``hav(phi)`` in [0, 1], with finite gradients at 0 and 1."""
-    quarter = _safe_sqrt(hav_phi) / (1.0 + _safe_sqrt(1.0 - hav_phi))  # tan(phi / 4)
-    return quarter / (1.0 + torch.sqrt(1.0 + quarter * quarter))
+def _sixteenth_tangent(hav_phi: torch.Tensor) -> torch.Tensor:
+    """``tan(phi / 16)`` from ``hav(phi)`` in [0, 1], with finite gradients at 0 and 1."""
+    tangent = _safe_sqrt(hav_phi) / (1.0 + _safe_sqrt(1.0 - hav_phi))  # tan(phi / 4)
+    for _ in range(2):  # half-angle tangent: tan(x / 2) = tan x / (1 + sqrt(1 + tan^2 x))
+        tangent = tangent / (1.0 + torch.sqrt(1.0 + tangent * tangent))
+    return tangent
 
 
 def _visible_fraction_flat(rho_s, rho_o, d, coefficients, s, weight):
@@ -363,7 +365,7 @@ def _visible_fraction_flat(rho_s, rho_o, d, coefficients, s, weight):
     sin_d_o = sin_d * sin_o
     alpha = _angle_from_haversine(_haversine_quotient(
         outer * torch.sin(half_difference + half_d), sin_d * sin_s, hidden))
-    eighth_tangent_max = _eighth_tangent(_haversine_quotient(
+    sixteenth_tangent_max = _sixteenth_tangent(_haversine_quotient(
         outer * torch.sin(half_d - half_difference), sin_d_o, inside))
     # hav(d - rho_o) and sin(rho_o - d) from the half angle
     half_o_d = 0.5 * rho_o - half_d
@@ -373,8 +375,8 @@ def _visible_fraction_flat(rho_s, rho_o, d, coefficients, s, weight):
     total = coefficients[:, 0]  # (1 + w) K at w = 0, i.e. C(rho_s) / sin^2(rho_s)
 
     # rim of the occluder on sub-chunks that keep the (chunk, n_nodes) arrays in cache
-    rim = (eighth_tangent_max, hav_o_d, sin_d_o, sin_o_d, 2.0 * sin_d * torch.cos(rho_o), -4.0 / b,
-           coefficients)
+    rim = (sixteenth_tangent_max, hav_o_d, sin_d_o, sin_o_d, 2.0 * sin_d * torch.cos(rho_o),
+           -4.0 / b, coefficients)
     n = d.shape[0]
     if n <= _NODE_CHUNK:
         integral = _rim_integral(*rim, s, weight)
@@ -383,25 +385,26 @@ def _visible_fraction_flat(rho_s, rho_o, d, coefficients, s, weight):
             _rim_integral(*(x if x.shape[0] == 1 else x[start : start + _NODE_CHUNK]
                             for x in rim), s, weight)
             for start in range(0, n, _NODE_CHUNK)])
-    arc = integral * (8.0 * eighth_tangent_max) * sin_o / (b * total)
+    arc = integral * (16.0 * sixteenth_tangent_max) * sin_o / (b * total)
     fraction = torch.clamp(1.0 - (alpha + arc) / math.pi, 0.0, 1.0)
     return torch.where(hidden, 0.0, fraction)
 
 
-def _rim_integral(eighth_tangent_max, hav_o_d, sin_d_o, sin_o_d, two_sin_d_cos_o,
+def _rim_integral(sixteenth_tangent_max, hav_o_d, sin_d_o, sin_o_d, two_sin_d_cos_o,
                   minus_4_over_b, coefficients, s, weight) -> torch.Tensor:
     """Gauss–Legendre sum over the occluder's rim, with gradients.
 
-    On the rim ``t = tan(phi / 8) = t_max s_k``, ``r = 1 / (1 + t^2)``,
-    ``hav(phi) = 16 [t r (2 r - 1)]^2`` and ``d phi = 8 r dt``; returns
+    On the rim ``t = tan(phi / 16) = t_max s_k``, ``r = 1 / (1 + t^2)``,
+    ``hav(phi) = 64 [t r (2 r - 1) (1 - 8 t^2 r^2)]^2`` and ``d phi = 16 r dt``; returns
     ``sum_k weight_k r_k f_k`` with
     ``f = (1 + w) K / (1 + w) * J``, ``hav(theta) = hav(d - rho_o) + sin d sin rho_o
     hav(phi)``, ``w^2 = 1 - sin^2(theta) / b`` and the Jacobian
     ``J = sin(rho_o - d) + 2 sin d cos(rho_o) hav(phi)``.
     """
-    t = torch.outer(eighth_tangent_max, s)
+    t = torch.outer(sixteenth_tangent_max, s)
     r = 1.0 / (1.0 + t * t)
-    hav_phi = 16.0 * (t * r * (2.0 * r - 1.0)) ** 2
+    half_sine = t * r  # sin(phi / 8) / 2
+    hav_phi = 64.0 * (half_sine * (2.0 * r - 1.0) * (1.0 - 8.0 * half_sine * half_sine)) ** 2
     hav_theta = torch.addcmul(hav_o_d.unsqueeze(-1), sin_d_o.unsqueeze(-1), hav_phi)
     hav_theta = torch.addcmul(hav_theta, hav_theta, hav_theta, value=-1.0)  # sin^2/4
     one = torch.ones((), dtype=hav_phi.dtype)
@@ -491,37 +494,41 @@ def _fraction_without_gradient(rho_s, rho_o, d, radial, s, weight, out: torch.Te
     alpha = _haversine_quotient_(
         torch.add(half_difference, half_d, out=new()).sin_().mul_(outer),
         torch.mul(sin_d, sin_s, out=new()), None, scratch).sqrt_().asin_().mul_(2.0)
-    # t_max = tan(phi_max / 8) from q = hav(phi_max) = sin^2(phi_max / 2): with
-    # c = 1 + cos(phi_max / 2), tan(phi_max / 4) = sqrt(q) / c and
-    # tan(phi_max / 8) = tan(phi_max / 4) / (1 + 1 / cos(phi_max / 4)), cos^2(phi_max / 4) = c / 2
+    # t_max = tan(phi_max / 16) from q = hav(phi_max) = sin^2(phi_max / 2): with
+    # c = 1 + cos(phi_max / 2), tan(phi_max / 4) = sqrt(q) / c; then twice the half-angle
+    # tangent tan(x / 2) = tan x cos x / (1 + cos x), cos(x / 2) = sqrt((1 + cos x) / 2)
     hav_phi_max = _haversine_quotient_(
         outer.mul_(torch.sub(half_d, half_difference, out=new()).sin_()),
         torch.mul(sin_d, sin_o, out=new()), inside, scratch)
-    c = _sqrt_(torch.neg(hav_phi_max, out=new()).add_(1.0), scratch).add_(1.0)
-    quarter = hav_phi_max.sqrt_().div_(c)
-    eighth_tangent_max = quarter.div_(torch.rsqrt(c.mul_(0.5), out=c).add_(1.0))
+    one_plus_cos = _sqrt_(torch.neg(hav_phi_max, out=new()).add_(1.0), scratch).add_(1.0)
+    sixteenth_tangent_max = hav_phi_max.sqrt_().div_(one_plus_cos)  # tan(phi_max / 4) so far
+    cosine = new()
+    for _ in range(2):
+        _sqrt_(torch.mul(one_plus_cos, 0.5, out=cosine), scratch)
+        torch.add(cosine, 1.0, out=one_plus_cos)
+        sixteenth_tangent_max.mul_(cosine).div_(one_plus_cos)
     # sin and cos of (rho_o - d) / 2 in [-pi/2, pi/4] (the difference of the half angles is
     # formed before the sine: the angle-addition formula would cancel where rho_o ~ d)
     sin_half = half_o.sub_(half_d).sin_()
     cos_half = _sqrt_(torch.addcmul(one, sin_half, sin_half, value=-1.0, out=new()), scratch)
     # w^2 = 1 - 4 hav(theta) (1 - hav(theta)) / b with hav(theta) = A + B hav(phi) (A =
-    # hav(rho_o - d), B = sin d sin rho_o), a quadratic in hav(phi) = 16 g with
-    # g = [t r (2 r - 1)]^2, t = tan(phi / 8), r = 1 / (1 + t^2):
-    # w^2 = 1 - 4/b [A (1 - A) + 16 B (1 - 2 A) g - 256 B^2 g^2]
+    # hav(rho_o - d), B = sin d sin rho_o), a quadratic in hav(phi) = 64 g with
+    # g = [t r (2 r - 1) (1 - 8 t^2 r^2)]^2, t = tan(phi / 16), r = 1 / (1 + t^2):
+    # w^2 = 1 - 4/b [A (1 - A) + 64 B (1 - 2 A) g - 4096 B^2 g^2]
     hav_o_d = torch.mul(sin_half, sin_half, out=new())
     minus_4_over_b = torch.reciprocal(b, out=new()[:m]).mul_(-4.0)
     w2_0 = torch.addcmul(hav_o_d, hav_o_d, hav_o_d, value=-1.0, out=new())
     w2_0.mul_(minus_4_over_b).add_(1.0)
     w2_1 = torch.addcmul(sin_d_o, sin_d_o, hav_o_d, value=-2.0, out=new())
-    w2_1.mul_(minus_4_over_b).mul_(16.0)
-    w2_2 = torch.mul(sin_d_o, sin_d_o, out=new()).mul_(minus_4_over_b).mul_(-256.0)
-    # Jacobian J = sin(rho_o - d) + 32 sin d cos(rho_o) g, with d phi = 8 t_max r dt' and
-    # the normalisation 8 t_max sin(rho_o) / (pi b C(rho_s) / sin^2 rho_s) folded in
+    w2_1.mul_(minus_4_over_b).mul_(64.0)
+    w2_2 = torch.mul(sin_d_o, sin_d_o, out=new()).mul_(minus_4_over_b).mul_(-4096.0)
+    # Jacobian J = sin(rho_o - d) + 128 sin d cos(rho_o) g, with d phi = 16 t_max r dt' and
+    # the normalisation 16 t_max sin(rho_o) / (pi b C(rho_s) / sin^2 rho_s) folded in
     scale = torch.mul(b, coefficients[0], out=new()[: max(m, coefficients.shape[-1])])
-    scale.mul_(math.pi / 8.0)
-    scale = torch.div(sin_o, scale, out=sin_o).mul_(eighth_tangent_max)
+    scale.mul_(math.pi / 16.0)
+    scale = torch.div(sin_o, scale, out=sin_o).mul_(sixteenth_tangent_max)
     jacobian_0 = torch.mul(sin_half, cos_half, out=new()).mul_(scale).mul_(2.0)
-    jacobian_1 = torch.mul(sin_d, cos_o, out=new()).mul_(scale).mul_(32.0)
+    jacobian_1 = torch.mul(sin_d, cos_o, out=new()).mul_(scale).mul_(128.0)
 
     # node-major (n_nodes, rows) arrays: the per-configuration rows broadcast along the
     # contiguous dimension (addcmul 3.7 times faster than with (rows, n_nodes) arrays and
@@ -540,10 +547,12 @@ def _fraction_without_gradient(rho_s, rho_o, d, radial, s, weight, out: torch.Te
         g, r, cosine, w, poly = workspace.rim[:, :, : stop - start]
         w2_0c, w2_1c, w2_2c, jacobian_0c, jacobian_1c = (x[:, start:stop] for x in per_row)
         c = powers if shared else [x[:, start:stop] for x in powers]
-        t = torch.mul(node_column, eighth_tangent_max[start:stop], out=g)
+        t = torch.mul(node_column, sixteenth_tangent_max[start:stop], out=g)
         torch.addcmul(one, t, t, out=r).reciprocal_()
-        torch.add(minus_one, r, alpha=2.0, out=cosine)  # cos(phi / 4)
-        g = t.mul_(r).mul_(cosine).square_()  # hav(phi) / 16
+        torch.add(minus_one, r, alpha=2.0, out=cosine)  # cos(phi / 8)
+        half_sine = t.mul_(r)  # sin(phi / 8) / 2
+        torch.addcmul(one, half_sine, half_sine, value=-8.0, out=w)  # cos(phi / 4)
+        g = half_sine.mul_(cosine).mul_(w).square_()  # hav(phi) / 64
         torch.addcmul(w2_1c, w2_2c, g, out=w)
         _sqrt_(torch.addcmul(w2_0c, w, g, out=w), poly)
         torch.addcmul(c[degree - 1], c[degree], w, out=poly)
