@@ -23,10 +23,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 
+import numpy as np
 import torch
 
 __all__ = [
     "as_tensor",
+    "broadcast_shape",
     "check_choice",
     "check_finite",
     "check_positive",
@@ -216,12 +218,25 @@ def check_shape_last(name: str, value: torch.Tensor, size: int) -> torch.Tensor:
     return value
 
 
+def broadcast_shape(*shapes) -> torch.Size:
+    """Broadcast shape of ``shapes`` (``ValueError`` listing them if they do not broadcast).
+
+    Same result as ``torch.broadcast_shapes``, whose first call imports torch's symbolic
+    shape machinery and sympy (0.4 s per process).
+    """
+    try:
+        return torch.Size(np.broadcast_shapes(*(tuple(shape) for shape in shapes)))
+    except ValueError as error:
+        listing = ", ".join(str(tuple(shape)) for shape in shapes)
+        raise ValueError(f"shapes do not broadcast: {listing}") from error
+
+
 def check_broadcastable(**tensors: torch.Tensor) -> torch.Size:
     """Return the broadcast shape of the named tensors or raise naming all their shapes."""
     shapes = {key: tuple(torch.as_tensor(t).shape) for key, t in tensors.items()}
     try:
-        return torch.broadcast_shapes(*shapes.values())
-    except RuntimeError as error:
+        return broadcast_shape(*shapes.values())
+    except ValueError as error:
         listing = ", ".join(f"{key} {shape}" for key, shape in shapes.items())
         raise ValueError(f"shapes do not broadcast: {listing}") from error
 

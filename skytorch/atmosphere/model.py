@@ -59,6 +59,7 @@ from torch import nn
 
 from skytorch._validate import (
     as_tensor,
+    broadcast_shape,
     check_choice,
     check_finite,
     check_positive,
@@ -255,7 +256,7 @@ class Atmosphere(nn.Module):
             # not detached: parameters given as tensors with requires_grad stay
             # differentiable (e.g. fitting turbidity to observed extinction)
             self.register_buffer(key, value.to(torch.float64).clone())
-        self.batch_shape = torch.broadcast_shapes(*(v.shape for v in values.values()))
+        self.batch_shape = broadcast_shape(*(v.shape for v in values.values()))
 
     # ------------------------------------------------------------------ presets
     @classmethod
@@ -612,7 +613,7 @@ class Atmosphere(nn.Module):
         altitude = self._altitude(altitude_m, dtype)
         r = self.planet_radius_m + altitude
         mu = torch.cos(zenith)
-        shape = torch.broadcast_shapes(r.shape, mu.shape)
+        shape = broadcast_shape(r.shape, mu.shape)
         count = math.prod(shape)
         if self.batch_shape == () and count > _CHUNK:
             # unbatched parameters: integrate cache-sized chunks of rays

@@ -61,7 +61,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from skytorch._validate import check_choice, check_int
+from skytorch._validate import broadcast_shape, check_choice, check_int
 from skytorch.atmosphere.geometry import _safe_divide, ray_segment, safe_sqrt
 
 __all__ = [
@@ -162,7 +162,7 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support
     tau_levels = safe_sqrt(c_levels - leg["excess"][..., None])
     u_levels = _safe_divide(c_levels - c_lo[..., None], tau_levels + lo[..., None])
     u_levels = torch.minimum(torch.clamp(u_levels, min=0.0), length[..., None])
-    shape = torch.broadcast_shapes(u_levels.shape[:-1], lo.shape)
+    shape = broadcast_shape(u_levels.shape[:-1], lo.shape)
     u_levels = u_levels.expand(*shape, -1)
     if support:
         edges = u_levels

@@ -75,7 +75,14 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from skytorch._validate import as_tensor, check_choice, check_int, check_range, common_dtype
+from skytorch._validate import (
+    as_tensor,
+    broadcast_shape,
+    check_choice,
+    check_int,
+    check_range,
+    common_dtype,
+)
 
 __all__ = [
     "LIMB_DARKENING_LAWS",
@@ -664,7 +671,7 @@ def sun_visible_fraction(
     d = _checked_range("separation_rad", separation_rad, 0.0, math.pi, unit=" rad",
                        dtype=dtype)
     a0, a1, a2 = _law_coefficients(law, limb_darkening, dtype)
-    shape = torch.broadcast_shapes(rho_s.shape, rho_o.shape, d.shape, a0.shape)
+    shape = broadcast_shape(rho_s.shape, rho_o.shape, d.shape, a0.shape)
     n = math.prod(shape)
 
     def flat(x: torch.Tensor) -> torch.Tensor:

@@ -98,6 +98,7 @@ from torch import nn
 
 from skytorch._validate import (
     as_tensor,
+    broadcast_shape,
     check_choice,
     check_int,
     check_positive,
@@ -685,7 +686,7 @@ def _broadcast_batch(values: torch.Tensor, batch_shape: tuple[int, ...]) -> torc
     broadcasting pairs there.
     """
     points = values.shape[:-2]
-    shape = torch.broadcast_shapes(points, batch_shape)
+    shape = broadcast_shape(points, batch_shape)
     flat = values.reshape(-1, *values.shape[-2:])
     point = torch.arange(flat.shape[0]).reshape(points).expand(shape)
     member = torch.arange(flat.shape[1]).reshape(batch_shape).expand(shape)

@@ -46,6 +46,7 @@ import torch
 
 from skytorch._validate import (
     as_tensor,
+    broadcast_shape,
     check_choice,
     check_int,
     check_positive,
@@ -427,7 +428,7 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     check_range("distance_m", values[2], 0.0, unit=" m")
     check_range("source_altitude_m", values[3], 0.0, medium.top_altitude_m, unit=" m")
     check_range("observer_altitude_m", values[4], 0.0, medium.top_altitude_m, unit=" m")
-    shape = torch.broadcast_shapes(*(v.shape for v in values))
+    shape = broadcast_shape(*(v.shape for v in values))
     flat = [v.expand(shape).reshape(-1) for v in values]
     n = flat[0].numel()
     xg, wg = _gauss_legendre(n_steps if quadrature == "split" else 2 * n_steps, dtype)
