@@ -444,10 +444,18 @@ class _Workspace:
     def slots(self, n: int):
         """Fresh views of length ``n``, one per call of the returned function."""
         views = iter(self.buffers[:, :n])
-        return lambda: next(views)
+
+        def new() -> torch.Tensor:
+            view = next(views, None)
+            if view is None:
+                raise RuntimeError("occlusion workspace exhausted: raise _WORKSPACE_BUFFERS")
+            return view
+
+        return new
 
 
-#: buffers of length chunk used by one evaluation of :func:`_fraction_without_gradient`
+#: buffers of length chunk for one evaluation of :func:`_fraction_without_gradient` (31
+#: are used)
 _WORKSPACE_BUFFERS = 32
 
 
