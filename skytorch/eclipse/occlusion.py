@@ -99,8 +99,8 @@ LIMB_DARKENING_LAWS = ("linear", "quadratic")
 MAX_SUN_RADIUS_RAD = 0.2
 #: smallest angular radius of the light source [rad] (the Sun seen from 3 kpc)
 MIN_SUN_RADIUS_RAD = 1e-8
-#: default number of Gauss-Legendre nodes on the occluder's rim (worst error 3.5e-8, median
-#: 1e-12 over random configurations; see
+#: default number of Gauss-Legendre nodes on the occluder's rim (worst error 5.2e-8, median
+#: 2e-12 over random configurations; see
 #: experiments/eclipse_geometry_accuracy_cost.py)
 DEFAULT_NODES = 8
 #: configurations per chunk of the per-configuration work with gradients
@@ -111,9 +111,9 @@ _NODE_CHUNK = 16_384
 #: configurations per chunk without gradients on one thread: the few dozen temporaries of
 #: the per-configuration work stay in the CPU cache
 _SERIAL_CHUNK = 32_768
-#: rim rows per sub-chunk without gradients on one thread: the three (rows, n_nodes) node
-#: buffers stay in a 512 KB L2 cache (CPU time 155 ns per configuration at 4096 rows
-#: against 283 ns at 16384, 8 nodes, measured side by side)
+#: rim rows per sub-chunk without gradients on one thread: the (n_nodes, rows) node
+#: buffers stay in the L2 cache (CPU time 155 ns per configuration at 4096 rows against
+#: 283 ns at 16384, 8 nodes, measured side by side with an earlier kernel)
 _SERIAL_RIM_ROWS = 4_096
 #: without gradients on several threads: configurations per task, and the largest array
 #: (elements) of a task, below ATen's grain size (32768) so that every operation runs on
@@ -463,10 +463,11 @@ def _fraction_without_gradient(rho_s, rho_o, d, radial, s, weight, out: torch.Te
                                workspace: _Workspace) -> torch.Tensor:
     """Same result as :func:`_visible_fraction_flat`, for inputs that need no gradient.
 
-    Written for speed: six sines and three square roots per configuration instead of eight
-    sines and cosines (``sin d``, ``sin rho_o`` and ``cos rho_o`` from the sines of the half
-    angles; the cosines of half angles in [-pi/2, pi/2], where they are well conditioned,
-    from square roots), the final normalisation folded into the rim Jacobian, and every
+    Written for speed: six sines and no cosine per configuration (``sin d``, ``sin rho_o``
+    and ``cos rho_o`` from the sines of the half angles; the cosines of half angles in
+    [-pi/2, pi/2], where they are well conditioned, from square roots, most of them
+    through :func:`_sqrt_`), no sine per rim node, the final normalisation folded into the
+    rim Jacobian, and every
     temporary written into the buffers of ``workspace`` (the rim quadrature in sub-chunks
     of its rim rows, node-major). ``radial`` is either the coefficients of ``(1 + w) K``
     shared by the chunk, node-major ``(power, 1)``, or ``(matrix, a0, a1[, a2])`` to
