@@ -280,6 +280,11 @@ def test_invalid_value_in_a_large_input_names_parameter(bad):
         sun_visible_fraction(SUN_RADIUS, SUN_RADIUS, d)
 
 
+def test_shapes_that_do_not_broadcast_name_the_parameters():
+    with pytest.raises(ValueError, match="occluder_radius_rad .3,.*separation_rad .4,"):
+        sun_visible_fraction(SUN_RADIUS, torch.full((3,), SUN_RADIUS), torch.zeros(4))
+
+
 def test_invalid_law_and_quadratic_coefficients():
     with pytest.raises(ValueError, match="law"):
         sun_visible_fraction(SUN_RADIUS, SUN_RADIUS, 0.0, law="cubic")

@@ -77,7 +77,7 @@ import torch
 
 from skytorch._validate import (
     as_tensor,
-    broadcast_shape,
+    check_broadcastable,
     check_choice,
     check_int,
     check_range,
@@ -680,7 +680,8 @@ def sun_visible_fraction(
     d = _checked_range("separation_rad", separation_rad, 0.0, math.pi, unit=" rad",
                        dtype=dtype)
     a0, a1, a2 = _law_coefficients(law, limb_darkening, dtype)
-    shape = broadcast_shape(rho_s.shape, rho_o.shape, d.shape, a0.shape)
+    shape = check_broadcastable(sun_radius_rad=rho_s, occluder_radius_rad=rho_o,
+                                separation_rad=d, limb_darkening=a0)
     n = math.prod(shape)
 
     def flat(x: torch.Tensor) -> torch.Tensor:
