@@ -1,0 +1,103 @@
+"""The input contract of every public entry point, as one assertion for property tests.
+
+Every call of a public function or method ends in exactly one of two ways:
+
+* it returns a result whose numbers are all finite (tensors, arrays, Datasets, tuples and
+  dicts of them are walked), or
+* it raises ``ValueError`` or ``TypeError`` whose message names one of the parameters the
+  caller passed (or one the entry point documents).
+
+Anything else -- another exception type (``RuntimeError`` from torch, ``IndexError``,
+``AttributeError``, ``KeyError``, ``NotImplementedError``), a NaN or inf in the result --
+breaks the contract. Property tests (hypothesis) draw valid, hard and bad inputs and call
+:func:`check_contract` on each; :func:`expect_rejected` is for inputs that must be refused.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+
+import numpy as np
+import torch
+import xarray as xr
+
+__all__ = ["ContractViolation", "all_finite", "check_contract", "expect_rejected"]
+
+
+class ContractViolation(AssertionError):
+    """An entry point broke the input contract."""
+
+
+def _numbers(value) -> Iterable[np.ndarray]:
+    if isinstance(value, torch.Tensor):
+        if value.is_floating_point() or value.is_complex():
+            yield value.detach().cpu().numpy()
+    elif isinstance(value, np.ndarray):
+        if np.issubdtype(value.dtype, np.floating) or np.issubdtype(value.dtype, np.complexfloating):
+            yield value
+    elif isinstance(value, float):
+        yield np.asarray(value)
+    elif isinstance(value, xr.Dataset):
+        for variable in value.variables.values():
+            yield from _numbers(np.asarray(variable.values))
+    elif isinstance(value, xr.DataArray):
+        yield from _numbers(np.asarray(value.values))
+    elif isinstance(value, Mapping):
+        for item in value.values():
+            yield from _numbers(item)
+    elif isinstance(value, (tuple, list)):
+        for item in value:
+            yield from _numbers(item)
+
+
+def all_finite(value) -> bool:
+    """Whether every floating number in ``value`` (walked recursively) is finite."""
+    return all(bool(np.isfinite(array).all()) for array in _numbers(value))
+
+
+def _names_a_parameter(message: str, names: Iterable[str]) -> bool:
+    return any(name in message for name in names)
+
+
+def check_contract(call: Callable[[], object], parameters: Iterable[str], *,
+                   finite: bool = True):
+    """Run ``call()`` and assert the contract; return the result, or the exception raised.
+
+    Parameters
+    ----------
+    call : callable
+        A zero-argument call of the entry point with the drawn inputs.
+    parameters : iterable of str
+        The parameter names a ``ValueError``/``TypeError`` may name.
+    finite : bool
+        Whether a returned result must be all finite (default True).
+    """
+    names = tuple(parameters)
+    try:
+        result = call()
+    except (ValueError, TypeError) as error:
+        if not _names_a_parameter(str(error), names):
+            raise ContractViolation(
+                f"{type(error).__name__} names none of {names}: {error}") from error
+        return error
+    except Exception as error:  # noqa: BLE001 - any other type is the violation itself
+        raise ContractViolation(
+            f"raised {type(error).__name__} instead of ValueError/TypeError: {error}"
+        ) from error
+    if finite and not all_finite(result):
+        raise ContractViolation("returned a non-finite result")
+    return result
+
+
+def expect_rejected(call: Callable[[], object], parameters: Iterable[str]):
+    """Assert that ``call()`` raises ValueError/TypeError naming one of ``parameters``."""
+    outcome = check_contract(call, parameters, finite=False)
+    if not isinstance(outcome, (ValueError, TypeError)):
+        raise ContractViolation(f"accepted an invalid input (returned {type(outcome).__name__})")
+    return outcome
+
+
+def bad_values() -> list:
+    """Values that no numeric parameter accepts: wrong types and non-finite numbers."""
+    return ["3", None, object(), [1.0, "x"], math.nan, math.inf, -math.inf]
