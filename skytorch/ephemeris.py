@@ -66,7 +66,13 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import as_tensor, check_finite, check_range
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_finite,
+    check_range,
+    check_shape_last,
+)
 from skytorch.constants import SPEED_OF_LIGHT_M_S
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 
@@ -77,6 +83,7 @@ __all__ = [
     "aberrate",
     "aberration_matrix",
     "altaz_from_horizontal",
+    "check_observer",
     "earth_barycentric_velocity",
     "icrs_to_horizontal_matrices",
     "load_ephemeris",
@@ -104,6 +111,12 @@ EARTH_ANGULAR_VELOCITY_RAD_S = 7.292115e-5
 WGS84_SEMI_MAJOR_AXIS_M = 6_378_137.0
 WGS84_FLATTENING = 1.0 / 298.257223563
 
+#: geodetic latitude [degree] (both ends valid)
+LATITUDE_RANGE_DEG = (-90.0, 90.0)
+#: east longitude [degree] (the upper end excluded: 360 is 0)
+LONGITUDE_RANGE_DEG = (-180.0, 360.0)
+#: observer height above the WGS84 ellipsoid [m] (the Dead Sea shore, -430 m, to the top
+#: of the model atmospheres, 100 km)
 ELEVATION_MIN_M = -500.0
 ELEVATION_MAX_M = 1.0e5
 
@@ -301,14 +314,52 @@ def skyfield_time(times):
 # --- observers -------------------------------------------------------------------------------
 
 
-def _observer(lat_deg, lon_deg, elevation_m, dtype=torch.float64):
-    """Validated observer tensors, broadcast to a common shape."""
-    lat = check_range("lat_deg", lat_deg, -90.0, 90.0, unit=" deg", dtype=dtype)
-    lon = check_range("lon_deg", lon_deg, -180.0, 360.0, high_inclusive=False, unit=" deg",
-                      dtype=dtype)
+def check_observer(lat_deg, lon_deg, elevation_m=0.0, dtype=torch.float64):
+    """Validated observer coordinates, broadcast to one shape: the one definition of the
+    valid observer ranges, shared by every entry point that takes an observer.
+
+    Parameters
+    ----------
+    lat_deg : float or array_like (*obs)
+        Geodetic (WGS84) latitude [degree], in :data:`LATITUDE_RANGE_DEG` ([-90, 90]).
+    lon_deg : float or array_like (*obs)
+        East longitude [degree], in :data:`LONGITUDE_RANGE_DEG` ([-180, 360)).
+    elevation_m : float or array_like (*obs)
+        Height above the ellipsoid [m], in [:data:`ELEVATION_MIN_M`,
+        :data:`ELEVATION_MAX_M`] ([-500, 1e5]).
+    dtype : torch.dtype
+        Floating type of non-tensor inputs (integer tensors are promoted to it).
+
+    Returns
+    -------
+    lat, lon, elevation : Tensor (*obs)
+        Broadcast to one shape; tensors keep their autograd graph.
+
+    Raises
+    ------
+    TypeError
+        Non-numeric coordinates (naming the parameter).
+    ValueError
+        NaN, inf or out-of-range values (naming the parameter, the value and the range),
+        or shapes that do not broadcast (naming the three parameters and their shapes).
+
+    Examples
+    --------
+    >>> lat, lon, height = check_observer([10, 20], 5, 0)
+    >>> tuple(lat.shape), lon.dtype
+    ((2,), torch.float64)
+    >>> check_observer(91.0, 0.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: lat_deg must be in [-90.0 deg, 90.0 deg]; got 91.0 deg
+    """
+    lat = check_range("lat_deg", lat_deg, *LATITUDE_RANGE_DEG, unit=" deg", dtype=dtype)
+    lon = check_range("lon_deg", lon_deg, *LONGITUDE_RANGE_DEG, high_inclusive=False,
+                      unit=" deg", dtype=dtype)
     elevation = check_range("elevation_m", elevation_m, ELEVATION_MIN_M, ELEVATION_MAX_M,
                             unit=" m", dtype=dtype)
-    return torch.broadcast_tensors(lat, lon, elevation)
+    shape = check_broadcastable(lat_deg=lat, lon_deg=lon, elevation_m=elevation)
+    return lat.expand(shape), lon.expand(shape), elevation.expand(shape)
 
 
 def _horizontal_rows(lat_rad: torch.Tensor, lon_rad: torch.Tensor) -> torch.Tensor:
@@ -402,7 +453,7 @@ def icrs_to_horizontal_matrices(times, lat_deg, lon_deg, elevation_m=0.0) -> tor
     (1, 3, 3)
     """
     t = skyfield_time(times)
-    lat, lon, _ = _observer(lat_deg, lon_deg, elevation_m)
+    lat, lon, _ = check_observer(lat_deg, lon_deg, elevation_m)
     earth = _earth_rotation(t)  # (n, 3, 3)
     local = _horizontal_rows(torch.deg2rad(lat), torch.deg2rad(lon))  # (*obs, 3, 3)
     earth = earth.reshape(earth.shape[0], *([1] * lat.ndim), 3, 3)
@@ -412,8 +463,17 @@ def icrs_to_horizontal_matrices(times, lat_deg, lon_deg, elevation_m=0.0) -> tor
 def altaz_from_horizontal(vectors: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Altitude and azimuth [rad] of (north, east, up) vectors of shape (..., 3).
 
-    Azimuth is measured from north through east in [0, 2 pi).
+    Azimuth is measured from north through east in [0, 2 pi). Integer tensors are
+    promoted to float; the zero vector gives altitude and azimuth 0.
+
+    Raises
+    ------
+    TypeError
+        ``vectors`` is not numeric.
+    ValueError
+        ``vectors`` does not have shape (..., 3).
     """
+    vectors = check_shape_last("vectors", as_tensor("vectors", vectors), 3)
     north, east, up = vectors.unbind(-1)
     altitude = torch.atan2(up, torch.hypot(north, east))
     azimuth = torch.remainder(torch.atan2(east, north), 2.0 * torch.pi)
@@ -457,7 +517,7 @@ def observer_gcrs_velocity(times, lat_deg, lon_deg, elevation_m=0.0) -> torch.Te
     velocity and ``r_ITRS`` the WGS84 position of the observer (ref. 5).
     """
     t = skyfield_time(times)
-    lat, lon, elevation = _observer(lat_deg, lon_deg, elevation_m)
+    lat, lon, elevation = check_observer(lat_deg, lon_deg, elevation_m)
     position = _geodetic_to_itrs(torch.deg2rad(lat), torch.deg2rad(lon), elevation)
     x, y, _ = position.unbind(-1)
     velocity = EARTH_ANGULAR_VELOCITY_RAD_S * torch.stack([-y, x, torch.zeros_like(x)], dim=-1)
@@ -475,7 +535,8 @@ def _aberrated(direction: torch.Tensor, beta: torch.Tensor) -> torch.Tensor:
 
 def _beta(velocity_m_s, dtype: torch.dtype | None = None) -> torch.Tensor:
     """``β = v/c``, checked: a speed of light or more would give NaN (γ⁻¹ = √(1 − β²))."""
-    velocity = check_finite("velocity_m_s", velocity_m_s, dtype=dtype)
+    velocity = check_shape_last("velocity_m_s",
+                                check_finite("velocity_m_s", velocity_m_s, dtype=dtype), 3)
     with torch.no_grad():
         speed = torch.linalg.vector_norm(velocity, dim=-1)
         if speed.numel() and float(speed.max()) >= SPEED_OF_LIGHT_M_S:
@@ -515,8 +576,10 @@ def aberrate(direction: torch.Tensor, velocity_m_s: torch.Tensor) -> torch.Tenso
     >>> round(float(torch.rad2deg(torch.atan2(moved[1], moved[0]))) * 3600.0, 2)  # [arcsec]
     20.5
     """
-    direction = as_tensor("direction", direction)
-    moved = _aberrated(direction, _beta(velocity_m_s, dtype=direction.dtype))
+    direction = check_shape_last("direction", as_tensor("direction", direction), 3)
+    beta = _beta(velocity_m_s, dtype=direction.dtype)
+    check_broadcastable(direction=direction, velocity_m_s=beta)
+    moved = _aberrated(direction, beta)
     return moved / torch.linalg.vector_norm(moved, dim=-1, keepdim=True)
 
 
@@ -669,7 +732,17 @@ def sun_moon(times, lat_deg=None, lon_deg=None, elevation_m=0.0) -> xr.Dataset:
     True
     """
     if (lat_deg is None) != (lon_deg is None):
-        raise ValueError("give both lat_deg and lon_deg for an observer, or neither")
+        raise ValueError("give both lat_deg and lon_deg for an observer, or neither; got "
+                         f"lat_deg={lat_deg!r}, lon_deg={lon_deg!r}")
+    if lat_deg is None:  # validated although unused: a bad value is never accepted silently
+        check_range("elevation_m", elevation_m, ELEVATION_MIN_M, ELEVATION_MAX_M, unit=" m")
+    else:
+        lat, lon, elevation = check_observer(lat_deg, lon_deg, elevation_m)
+        if lat.ndim > 1:
+            raise ValueError(
+                "observer coordinates lat_deg, lon_deg, elevation_m must be scalars or 1-D; "
+                f"they broadcast to shape {tuple(lat.shape)}"
+            )
     values = parse_times(times)
     t = skyfield_time(values)
     sun, moon = _apparent_geocentric(t)
@@ -685,11 +758,6 @@ def sun_moon(times, lat_deg=None, lon_deg=None, elevation_m=0.0) -> xr.Dataset:
     coords = {"time": time_coordinate(values)}
     parameters: dict[str, object] = {"ephemeris": EPHEMERIS_FILE, "refraction": False}
     if lat_deg is not None:
-        lat, lon, elevation = _observer(lat_deg, lon_deg, elevation_m)
-        if lat.ndim > 1:
-            raise ValueError(
-                f"observer coordinates must be scalars or 1-D; got shape {tuple(lat.shape)}"
-            )
         parameters.update(lat_deg=lat, lon_deg=lon, elevation_m=elevation)
         observers = [(float(a), float(b), float(c)) for a, b, c in
                      zip(lat.reshape(-1), lon.reshape(-1), elevation.reshape(-1), strict=True)]
