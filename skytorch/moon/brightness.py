@@ -47,9 +47,16 @@ from __future__ import annotations
 import math
 from types import MappingProxyType
 
+import numpy as np
 import torch
 
-from skytorch._validate import as_tensor, check_int, check_range, common_dtype
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_int,
+    check_range,
+    common_dtype,
+)
 from skytorch.constants import (
     ASTRONOMICAL_UNIT_M,
     DEGREE,
@@ -81,6 +88,22 @@ ROLO2005_553NM = MappingProxyType({
     "p_deg": (4.06054, 12.8802, -30.5858, 16.7498),
     "phase_range_deg": (1.55, 97.0),
 })
+
+
+#: largest number of Gauss–Legendre nodes per photometric coordinate (n² nodes per phase
+#: angle; 48 already reach 1e-6 mag)
+MAX_QUADRATURE = 512
+
+
+def _quadrature(n_quadrature) -> int:
+    return check_int("n_quadrature", n_quadrature, low=1, high=MAX_QUADRATURE)
+
+
+def _flag(name: str, value) -> bool:
+    """A boolean option; anything else (strings such as "no", numbers) is a TypeError."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False; got {value!r}")
+    return bool(value)
 
 
 def _phase(phase_angle_rad):
@@ -141,7 +164,8 @@ def disc_integrated_reflectance(phase_angle_rad, *, model: str = "hapke2012",
     model, parameters
         Reflectance law and Hapke parameters (:func:`skytorch.moon.reflectance.reflectance`).
     n_quadrature : int
-        Gauss–Legendre nodes per photometric coordinate.
+        Gauss–Legendre nodes per photometric coordinate, 1 … :data:`MAX_QUADRATURE`
+        (n² nodes per phase angle).
     earthshine : bool
         If True return the earthshine integral Q_earth(α) over the unlit part instead.
     distance_m : float or Tensor
@@ -152,13 +176,14 @@ def disc_integrated_reflectance(phase_angle_rad, *, model: str = "hapke2012",
     Tensor (...)
         Q(α); Q(0) is the geometric albedo. The flux is F = J (R_M/d)² Q.
     """
-    n = check_int("n_quadrature", n_quadrature, low=1)
+    n = _quadrature(n_quadrature)
     alpha = _phase(phase_angle_rad)
-    if earthshine:
+    if _flag("earthshine", earthshine):
         from skytorch.moon.earthshine import earth_angular_radius
 
-        mu0, mu, weight = dark_disc_quadrature(alpha, n)
         g = earth_angular_radius(distance_m).to(alpha.dtype)
+        check_broadcastable(phase_angle_rad=alpha, distance_m=g)
+        mu0, mu, weight = dark_disc_quadrature(alpha, n)
         if g.ndim:
             g = g.unsqueeze(-1)
         r = reflectance(mu0, mu, g, model=model, parameters=parameters)
@@ -199,7 +224,16 @@ def lunar_irradiance(phase_angle_rad, wavelength_nm, *, distance_m=MEAN_EARTH_MO
     Returns
     -------
     Tensor (..., n_wavelength)
-        Spectral irradiance [W m^-2 nm^-1].
+        Spectral irradiance [W m^-2 nm^-1]; ``...`` is the broadcast shape of the phase
+        angle and the distances.
+
+    Raises
+    ------
+    ValueError
+        For out-of-range values, a bad ``n_quadrature``, or shapes that do not broadcast
+        (checked before any arithmetic).
+    TypeError
+        For non-numeric inputs or a non-boolean ``earthshine``.
     """
     from skytorch.spectrum import solar_irradiance
 
@@ -209,7 +243,14 @@ def lunar_irradiance(phase_angle_rad, wavelength_nm, *, distance_m=MEAN_EARTH_MO
     d = check_range("distance_m", as_tensor("distance_m", distance_m, dtype=dtype),
                     MOON_RADIUS_M, low_inclusive=False, unit=" m")
     d_sun = check_range("sun_distance_m", as_tensor("sun_distance_m", sun_distance_m,
-                                                    dtype=dtype), 0.0, low_inclusive=False)
+                                                    dtype=dtype), 0.0, low_inclusive=False,
+                        unit=" m")
+    check_broadcastable(phase_angle_rad=alpha, distance_m=d, sun_distance_m=d_sun)
+    if wl.ndim > 1:
+        raise ValueError(f"wavelength_nm must have shape (n_wavelength,); got shape "
+                         f"{tuple(wl.shape)}")
+    earthshine = _flag("earthshine", earthshine)
+    _quadrature(n_quadrature)
     q = disc_integrated_reflectance(alpha, model=model, parameters=parameters,
                                     n_quadrature=n_quadrature)
     if earthshine:

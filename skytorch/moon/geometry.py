@@ -57,7 +57,14 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_finite, check_shape_last, common_dtype
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_finite,
+    check_positive,
+    check_shape_last,
+    common_dtype,
+)
 from skytorch.constants import DEGREE, MOON_RADIUS_M
 
 __all__ = [
@@ -87,13 +94,24 @@ def _tensor(name, value, dtype):
     return check_finite(name, as_tensor(name, value, dtype=dtype))
 
 
+def _broadcast_inputs(**tensors: torch.Tensor) -> None:
+    """Raise ``ValueError`` naming the inputs and their shapes unless they broadcast."""
+    check_broadcastable(**tensors)
+
+
 def angle_between(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Angle between vectors ``a`` and ``b`` (…, 3) as ``atan2(|a × b|, a · b)`` [rad].
 
     Accurate over the whole range [0, π], including nearly parallel and nearly
-    anti-parallel vectors. Its gradient is finite except for exactly parallel or
+    anti-parallel vectors. ``a`` and ``b`` broadcast against each other (``ValueError``
+    naming both shapes if they do not). Its gradient is finite except for exactly parallel or
     anti-parallel vectors, where a tiny floor keeps it finite (and zero).
     """
+    a = check_shape_last("a", as_tensor("a", a), 3)
+    b = check_shape_last("b", as_tensor("b", b, dtype=a.dtype), 3)
+    # torch.linalg.cross needs equal shapes: broadcast first (ValueError if impossible)
+    shape = check_broadcastable(a=a, b=b)
+    a, b = a.expand(shape), b.expand(shape)
     # unit vectors first: products of metre-scale lengths overflow float32 (1e11² · 1e8²)
     a = a / torch.linalg.vector_norm(a, dim=-1, keepdim=True)
     b = b / torch.linalg.vector_norm(b, dim=-1, keepdim=True)
@@ -116,7 +134,8 @@ def phase_angle(sun_vec, moon_vec, observer_vec=None) -> torch.Tensor:
         Geocentric position of the Moon [m].
     observer_vec : Tensor (..., 3), optional
         Geocentric position of the observer [m] for the topocentric phase angle;
-        the Earth's centre when omitted.
+        the Earth's centre when omitted. The leading dimensions of the three vectors
+        broadcast (``ValueError`` naming the shapes if they do not).
 
     Returns
     -------
@@ -140,13 +159,16 @@ def phase_angle(sun_vec, moon_vec, observer_vec=None) -> torch.Tensor:
     dtype = common_dtype(sun_vec, moon_vec, observer_vec)
     sun = check_shape_last("sun_vec", _tensor("sun_vec", sun_vec, dtype), 3)
     moon = check_shape_last("moon_vec", _tensor("moon_vec", moon_vec, dtype), 3)
-    to_sun = sun - moon
     if observer_vec is None:
-        to_observer = -moon
+        shape = check_broadcastable(sun_vec=sun, moon_vec=moon)
+        to_observer = -moon.expand(shape)
     else:
         observer = check_shape_last("observer_vec", _tensor("observer_vec", observer_vec,
                                                             dtype), 3)
+        shape = check_broadcastable(sun_vec=sun, moon_vec=moon, observer_vec=observer)
         to_observer = observer - moon
+    to_sun = (sun - moon).expand(shape)
+    to_observer = to_observer.expand(shape)
     with torch.no_grad():
         for what, vector in (("the Sun", to_sun), ("the observer", to_observer)):
             if bool((torch.linalg.vector_norm(vector, dim=-1) == 0.0).any()):
@@ -161,6 +183,7 @@ def radec_to_vector(ra_rad, dec_rad, distance=1.0) -> torch.Tensor:
     ra = _tensor("ra_rad", ra_rad, dtype)
     dec = _tensor("dec_rad", dec_rad, dtype)
     dist = _tensor("distance", distance, dtype)
+    _broadcast_inputs(ra_rad=ra, dec_rad=dec, distance=dist)
     cos_dec = torch.cos(dec)
     return torch.stack(torch.broadcast_tensors(dist * cos_dec * torch.cos(ra),
                                                dist * cos_dec * torch.sin(ra),
@@ -217,6 +240,7 @@ def bright_limb_position_angle(sun_ra_rad, sun_dec_rad, moon_ra_rad,
     d0 = _tensor("sun_dec_rad", sun_dec_rad, dtype)
     a = _tensor("moon_ra_rad", moon_ra_rad, dtype)
     d = _tensor("moon_dec_rad", moon_dec_rad, dtype)
+    _broadcast_inputs(sun_ra_rad=a0, sun_dec_rad=d0, moon_ra_rad=a, moon_dec_rad=d)
     numerator = torch.cos(d0) * torch.sin(a0 - a)
     denominator = torch.sin(d0) * torch.cos(d) - torch.cos(d0) * torch.sin(d) * torch.cos(a0 - a)
     return torch.remainder(torch.atan2(numerator, denominator), 2.0 * math.pi)
@@ -378,7 +402,10 @@ def _optical_libration(moon_lon_rad, moon_lat_rad, julian_centuries_tt, nutation
     lam = _tensor("moon_lon_rad", moon_lon_rad, dtype)
     beta = _tensor("moon_lat_rad", moon_lat_rad, dtype)
     dpsi = _tensor("nutation_lon_rad", nutation_lon_rad, dtype)
-    f, node = mean_lunar_elements(_tensor("julian_centuries_tt", julian_centuries_tt, dtype))
+    centuries = _tensor("julian_centuries_tt", julian_centuries_tt, dtype)
+    _broadcast_inputs(moon_lon_rad=lam, moon_lat_rad=beta, julian_centuries_tt=centuries,
+                      nutation_lon_rad=dpsi)
+    f, node = mean_lunar_elements(centuries)
     inclination = MEAN_LUNAR_EQUATOR_INCLINATION_RAD
     w = lam - dpsi - node
     sin_i, cos_i = math.sin(inclination), math.cos(inclination)
@@ -499,6 +526,8 @@ def axis_position_angle(moon_ra_rad, libration_lat_rad, julian_centuries_tt, obl
     eps = _tensor("obliquity_rad", obliquity_rad, dtype)
     dpsi = _tensor("nutation_lon_rad", nutation_lon_rad, dtype)
     centuries = _tensor("julian_centuries_tt", julian_centuries_tt, dtype)
+    _broadcast_inputs(moon_ra_rad=ra, libration_lat_rad=b, julian_centuries_tt=centuries,
+                      obliquity_rad=eps, nutation_lon_rad=dpsi)
     _, node = mean_lunar_elements(centuries)
     inclination = torch.full_like(node, MEAN_LUNAR_EQUATOR_INCLINATION_RAD)
     v = node + dpsi
@@ -537,8 +566,11 @@ def orientation_matrix(libration_lon_rad, libration_lat_rad, parallactic_angle_r
                          axis_position_angle_rad)
     b = _tensor("libration_lat_rad", libration_lat_rad, dtype)
     lon = _tensor("libration_lon_rad", libration_lon_rad, dtype)
-    z_angle = (_tensor("parallactic_angle_rad", parallactic_angle_rad, dtype)
-               - _tensor("axis_position_angle_rad", axis_position_angle_rad, dtype))
+    p = _tensor("parallactic_angle_rad", parallactic_angle_rad, dtype)
+    a = _tensor("axis_position_angle_rad", axis_position_angle_rad, dtype)
+    _broadcast_inputs(libration_lon_rad=lon, libration_lat_rad=b, parallactic_angle_rad=p,
+                      axis_position_angle_rad=a)
+    z_angle = p - a
     b, lon, z_angle = torch.broadcast_tensors(b, lon, z_angle)
     one, zero = torch.ones_like(b), torch.zeros_like(b)
 
@@ -577,6 +609,7 @@ def parallactic_angle(hour_angle_rad, dec_rad, lat_rad) -> torch.Tensor:
     h = _tensor("hour_angle_rad", hour_angle_rad, dtype)
     dec = _tensor("dec_rad", dec_rad, dtype)
     lat = _tensor("lat_rad", lat_rad, dtype)
+    _broadcast_inputs(hour_angle_rad=h, dec_rad=dec, lat_rad=lat)
     y = torch.sin(h) * torch.cos(lat)
     x = torch.sin(lat) * torch.cos(dec) - torch.cos(lat) * torch.sin(dec) * torch.cos(h)
     return torch.atan2(y, x)
@@ -597,6 +630,7 @@ def apparent_diameter(distance_m, radius_m: float = MOON_RADIUS_M) -> torch.Tens
     Tensor (...)
         Angular diameter [rad]: about 0.49°–0.56° for the Moon (Müller et al. 2012, §2.1.1).
     """
+    radius_m = float(check_positive("radius_m", radius_m, unit=" m"))
     d = _tensor("distance_m", distance_m, None)
     with torch.no_grad():
         if bool((d <= radius_m).any()):

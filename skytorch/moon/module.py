@@ -24,9 +24,20 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from skytorch._validate import as_tensor, check_choice, check_int, common_dtype
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_choice,
+    check_range,
+    common_dtype,
+)
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MEAN_EARTH_MOON_DISTANCE_M, MOON_RADIUS_M
-from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM, disc_integrated_reflectance
+from skytorch.moon.brightness import (
+    V_BAND_WAVELENGTHS_NM,
+    _flag,
+    _quadrature,
+    disc_integrated_reflectance,
+)
 from skytorch.moon.earthshine import earthshine_irradiance_ratio
 from skytorch.moon.reflectance import REFLECTANCE_MODELS, _parameters, albedo
 
@@ -55,8 +66,8 @@ class MoonPhotometry(nn.Module):
 
         self.model = check_choice("model", model, REFLECTANCE_MODELS)
         self.parameters_set = _parameters(parameters)
-        self.n_quadrature = check_int("n_quadrature", n_quadrature, low=1)
-        self.earthshine = bool(earthshine)
+        self.n_quadrature = _quadrature(n_quadrature)
+        self.earthshine = _flag("earthshine", earthshine)
         wl = torch.tensor(V_BAND_WAVELENGTHS_NM, dtype=torch.float64)
         reference = spectrum_to_magnitude(solar_irradiance(wl) * albedo(wl), wl, band="V")
         self.register_buffer("reference_magnitude", reference)
@@ -67,11 +78,18 @@ class MoonPhotometry(nn.Module):
 
     def forward(self, phase_angle_rad, distance_m=MEAN_EARTH_MOON_DISTANCE_M,
                 sun_distance_m=ASTRONOMICAL_UNIT_M) -> torch.Tensor:
-        """V magnitude [mag] at phase angle α [rad] (…), distances [m] broadcasting."""
+        """V magnitude [mag] at phase angle α [rad] (…), distances [m] broadcasting.
+
+        Shapes that do not broadcast raise ``ValueError`` naming them, before any
+        arithmetic; out-of-range values raise ``ValueError`` naming the parameter.
+        """
         dtype = common_dtype(phase_angle_rad, distance_m, sun_distance_m)
         alpha = as_tensor("phase_angle_rad", phase_angle_rad, dtype=dtype)
-        d = as_tensor("distance_m", distance_m, dtype=dtype)
-        d_sun = as_tensor("sun_distance_m", sun_distance_m, dtype=dtype)
+        d = check_range("distance_m", distance_m, MOON_RADIUS_M, low_inclusive=False,
+                        unit=" m", dtype=dtype)
+        d_sun = check_range("sun_distance_m", sun_distance_m, 0.0, low_inclusive=False,
+                            unit=" m", dtype=dtype)
+        check_broadcastable(phase_angle_rad=alpha, distance_m=d, sun_distance_m=d_sun)
         kwargs = {"model": self.model, "parameters": self.parameters_set,
                   "n_quadrature": self.n_quadrature}
         q = disc_integrated_reflectance(alpha, **kwargs)

@@ -85,6 +85,7 @@ True
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from types import MappingProxyType
 
 import torch
@@ -281,6 +282,9 @@ def _parameters(parameters):
     if isinstance(parameters, str):
         check_choice("parameters", parameters, tuple(HAPKE_PARAMETERS))
         return dict(HAPKE_PARAMETERS[parameters])
+    if not isinstance(parameters, Mapping):
+        raise TypeError(f"parameters must be a name, one of {tuple(HAPKE_PARAMETERS)}, or a "
+                        f"mapping of Hapke parameters; got {parameters!r:.80}")
     values = dict(HAPKE_PARAMETERS["helfenstein1987"])
     unknown = set(parameters) - set(values)
     if unknown:
