@@ -24,13 +24,21 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_int, check_range
+from skytorch._validate import (
+    check_broadcastable,
+    check_choice,
+    check_finite,
+    check_int,
+    check_range,
+)
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.ephemeris import parse_times
 from skytorch.stars.photometry import (
     apparent_color,
     apparent_color_table,
     bv_to_srgb,
+    check_atmosphere,
+    check_flag,
     extinction_table,
     grid_altitudes,
     lerp,
@@ -87,6 +95,9 @@ def refraction_table(atmosphere, altitude_m: float = 0.0, n_nodes: int = 256
     [0, π/2] (dense near the horizon), giving true = apparent − R; R is then resampled
     on the true-altitude grid by linear interpolation.
     """
+    check_atmosphere("atmosphere", atmosphere, ("refraction",))
+    altitude_m = float(check_range("altitude_m", altitude_m, 0.0, 1e5, unit=" m"))
+    n_nodes = check_int("n_nodes", n_nodes, 8, 100_000)
     key = json.dumps([id(atmosphere), atmosphere.parameters_dict()
                       if hasattr(atmosphere, "parameters_dict") else {},
                       float(altitude_m), n_nodes], sort_keys=True, default=str)
@@ -175,11 +186,42 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
             "count": count}
 
 
+#: columns a catalogue Dataset must have (dimension ``star``)
+CATALOG_VARIABLES = ("ra", "dec", "pm_ra", "pm_dec", "parallax", "vmag", "bv")
+#: computation dtypes of :func:`observe`
+OBSERVE_DTYPES = (torch.float64, torch.float32)
+
+
+def _check_catalog(catalog) -> xr.Dataset:
+    if not isinstance(catalog, xr.Dataset):
+        raise TypeError("catalog must be an xarray.Dataset of stars (bright_stars(), "
+                        f"read_bsc5()); got {type(catalog).__name__}: {catalog!r:.60}")
+    missing = [name for name in CATALOG_VARIABLES if name not in catalog]
+    if missing:
+        raise ValueError(f"catalog must have the variables {CATALOG_VARIABLES}; missing "
+                         f"{missing}")
+    return catalog
+
+
+def _observer_arrays(lat_deg, lon_deg, elevation_m):
+    """Observer coordinates as 1-d float arrays of one common length (ValueError naming
+    the parameters and their shapes otherwise)."""
+    arrays = {}
+    for name, value in (("lat_deg", lat_deg), ("lon_deg", lon_deg),
+                        ("elevation_m", elevation_m)):
+        tensor = check_finite(name, value, dtype=torch.float64)
+        if tensor.ndim > 1:
+            raise ValueError(f"{name} must be a number or a 1-d array (observer,); got shape "
+                             f"{tuple(tensor.shape)}")
+        arrays[name] = tensor.reshape(-1).numpy()
+    shape = check_broadcastable(**{k: torch.from_numpy(v) for k, v in arrays.items()})
+    return tuple(np.broadcast_to(v, shape).copy() for v in arrays.values())
+
+
 def _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere, refraction,
                      **options) -> xr.Dataset:
     """:func:`observe` for several observers, stacked along a leading ``observer`` dim."""
-    lat, lon, elevation = np.broadcast_arrays(*(np.asarray(v, dtype=float).reshape(-1)
-                                                for v in (lat_deg, lon_deg, elevation_m)))
+    lat, lon, elevation = _observer_arrays(lat_deg, lon_deg, elevation_m)
     parts = [observe(catalog, times, float(a), float(b), float(c), atmosphere, refraction,
                      **options) for a, b, c in zip(lat, lon, elevation, strict=True)]
     per_observer = [name for name, var in parts[0].data_vars.items() if "time" in var.dims]
@@ -357,7 +399,10 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         ``parallax`` [mas], ``vmag``, ``bv`` [mag] (:func:`skytorch.stars.bright_stars`,
         :func:`skytorch.stars.read_bsc5`); attribute ``epoch_jyear`` (default 2000.0).
     times : str, datetime, datetime64 or a list/array of them
-        UTC instants (dimension ``time``), within DE421 (1899-07-29 … 2053-10-09).
+        UTC instants (dimension ``time``) within
+        :data:`skytorch.ephemeris.TIME_MIN` … :data:`skytorch.ephemeris.TIME_MAX`
+        (1899-07-29T00:30 … 2053-10-08T23:30, both included), the range of every
+        ephemeris function.
     lat_deg, lon_deg : float or array_like (observer,)
         Geodetic latitude and east longitude [deg]; arrays (broadcast with
         ``elevation_m``) give several observers along a leading ``observer`` dimension.
@@ -419,8 +464,23 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     >>> sorted(ds.sizes.items())
     [('channel', 3), ('star', 50), ('time', 1)]
     """
-    if visibility not in VISIBILITY_MODELS:
-        raise ValueError(f"visibility must be one of {VISIBILITY_MODELS}; got {visibility!r}")
+    _check_catalog(catalog)
+    check_choice("visibility", visibility, VISIBILITY_MODELS)
+    refraction = check_flag("refraction", refraction)
+    reddening = check_flag("reddening", reddening)
+    if dtype not in OBSERVE_DTYPES:
+        raise TypeError(f"dtype must be one of {OBSERVE_DTYPES}; got {dtype!r:.60}")
+    if atmosphere is not None and atmosphere is not False:
+        check_atmosphere("atmosphere", atmosphere,
+                         ("optical_depth", "refraction") if refraction else ("optical_depth",))
+    check_range("control_magnitude", control_magnitude, -30.0, 40.0, unit=" mag")
+    check_range("aperture_m", aperture_m, 1e-4, 100.0, unit=" m")
+    check_range("exposure_s", exposure_s, 1e-6, 1e5, unit=" s")
+    check_range("twinkle_interval_s", twinkle_interval_s, 1e-9, 1e6, unit=" s")
+    twinkle_samples = check_int("twinkle_samples", twinkle_samples, 0, 100_000)
+    check_int("seed", seed, 0, 2**63 - 1)
+    sky_values = check_range("sky_brightness_mag_arcsec2", sky_brightness_mag_arcsec2,
+                             -20.0, 40.0, unit=" mag/arcsec^2", dtype=torch.float64)
     if any(np.ndim(v) > 0 for v in (lat_deg, lon_deg, elevation_m)):
         return _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere,
                                 refraction, sky_brightness_mag_arcsec2=sky_brightness_mag_arcsec2,
@@ -433,6 +493,9 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     lon = float(check_range("lon_deg", lon_deg, -180.0, 360.0, unit=" deg"))
     elevation = float(check_range("elevation_m", elevation_m, 0.0, 1e4, unit=" m"))
     values = parse_times(times)
+    if sky_values.ndim > 1 or sky_values.numel() not in (1, values.size):
+        raise ValueError(f"sky_brightness_mag_arcsec2 must be a number or have one value per "
+                         f"time ({values.size},); got shape {tuple(sky_values.shape)}")
     if atmosphere is None:
         from skytorch.atmosphere import Atmosphere
 
@@ -452,8 +515,7 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
                       if has_atmosphere else None)
     result = observe_tensors(stars, vmag, bv, operators, velocity, refraction_tab,
                              extinction_tab)
-    sky = torch.as_tensor(np.broadcast_to(np.asarray(sky_brightness_mag_arcsec2, float),
-                                          (values.size,)).copy(), dtype=dtype)
+    sky = sky_values.reshape(-1).expand(values.size).to(dtype)
     limit = limiting_magnitude(sky)
     factor = None
     if visibility == "muller2012":
@@ -499,7 +561,7 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     if factor is not None:
         data_vars["day_night_factor"] = variable("time", factor, _SPECS["day_night_factor"])
     coords_extra = {}
-    if check_int("twinkle_samples", twinkle_samples, 0, 100_000) > 0:
+    if twinkle_samples > 0:
         sequence = twinkle(scint, twinkle_samples, sample_interval_s=twinkle_interval_s,
                            seed=seed)
         data_vars["twinkle"] = variable(("time", "star", "sample"), sequence, _SPECS["twinkle"])

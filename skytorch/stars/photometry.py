@@ -37,10 +37,20 @@ import json
 import logging
 import math
 from collections import OrderedDict
+from collections.abc import Mapping
 
+import numpy as np
 import torch
 
-from skytorch._validate import check_choice, check_finite, check_int, check_range
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_choice,
+    check_finite,
+    check_int,
+    check_positive,
+    check_range,
+)
 from skytorch.spectrum import (
     BV_RANGE_MAG,
     _srgb_transfer,
@@ -173,6 +183,42 @@ def lerp(table: torch.Tensor, index: torch.Tensor, weight: torch.Tensor) -> torc
 # --- extinction --------------------------------------------------------------------------------
 
 
+def check_atmosphere(name: str, atmosphere, methods=("optical_depth",)):
+    """Return ``atmosphere`` if it has the methods used here, else raise ``TypeError``.
+
+    Any object with the :class:`skytorch.atmosphere.Atmosphere` methods is accepted (the
+    tests use small stand-ins); strings, numbers and ``None`` are not.
+    """
+    missing = [m for m in methods if not callable(getattr(atmosphere, m, None))]
+    if missing or isinstance(atmosphere, (str, bytes, bool, int, float)):
+        raise TypeError(f"{name} must be a skytorch.atmosphere.Atmosphere (with "
+                        f"{', '.join(methods)}); got {type(atmosphere).__name__}: "
+                        f"{atmosphere!r:.60}")
+    return atmosphere
+
+
+def check_flag(name: str, value) -> bool:
+    """A boolean option; strings such as "no" and numbers are a ``TypeError``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False; got {value!r:.60}")
+    return bool(value)
+
+
+def _check_table(name: str, table, keys) -> None:
+    if not isinstance(table, Mapping) or any(k not in table for k in keys):
+        raise TypeError(f"{name} must be the dict returned by {name}() with keys "
+                        f"{tuple(keys)}; got {type(table).__name__}")
+
+
+def _star_inputs(bv, apparent_altitude_rad):
+    """B−V (star,) and apparent altitude (..., star) as tensors, checked to broadcast."""
+    altitude = check_finite("apparent_altitude_rad", as_tensor("apparent_altitude_rad",
+                                                               apparent_altitude_rad))
+    bv = check_finite("bv", as_tensor("bv", bv, dtype=altitude.dtype))
+    check_broadcastable(bv=bv, apparent_altitude_rad=altitude)
+    return bv, altitude
+
+
 def _cache_key(atmosphere, altitude_m, n_nodes, refraction, method) -> str:
     params = atmosphere.parameters_dict() if hasattr(atmosphere, "parameters_dict") else {}
     return json.dumps([type(atmosphere).__name__, id(atmosphere), params, float(altitude_m),
@@ -230,7 +276,10 @@ def extinction_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 256,
     For each B−V of the fit grid, F_λ = B_λ(T(B−V)) and Δm = −2.5 log10(Σ F R_V e^{−τ} /
     Σ F R_V) over 470–700 nm (47 samples); then a least-squares line in B−V per altitude.
     """
+    check_atmosphere("atmosphere", atmosphere)
     check_choice("method", method, EXTINCTION_METHODS)
+    refraction = check_flag("refraction", refraction)
+    cache = check_flag("cache", cache)
     n_nodes = check_int("n_nodes", n_nodes, 8, 100_000)
     altitude = float(check_range("altitude_m", altitude_m, 0.0, 1e5, unit=" m"))
     key = _cache_key(atmosphere, altitude, n_nodes, refraction, method)
@@ -286,6 +335,8 @@ def extinction(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     -------
     delta_m, airmass : torch.Tensor, each (time, star), dtype of the altitude
     """
+    _check_table("extinction_table", table, ("offset", "colour", "airmass"))
+    bv, apparent_altitude_rad = _star_inputs(bv, apparent_altitude_rad)
     dtype = apparent_altitude_rad.dtype
     n_nodes = table["offset"].numel()
     index, weight = table_lookup(apparent_altitude_rad, n_nodes)
@@ -317,10 +368,17 @@ def extinction_coefficient(atmosphere, altitude_m: float = 0.0, bv: float = 0.65
         ``(*batch)`` k [mag/airmass]: the magnitude loss at the zenith, which equals the
         slope of Δm against air mass where τ ∝ air mass.
     """
+    check_atmosphere("atmosphere", atmosphere)
+    altitude_m = float(check_range("altitude_m", altitude_m, 0.0, 1e5, unit=" m"))
+    bv = float(check_range("bv", bv, -5.0, 10.0, unit=" mag"))
     dtype = torch.float64
     zenith = torch.zeros((), dtype=dtype)
     if wavelength_nm is not None:
-        wl = torch.tensor([float(wavelength_nm)], dtype=dtype)
+        wl = check_positive("wavelength_nm", wavelength_nm, unit=" nm", dtype=dtype)
+        if wl.numel() != 1:
+            raise ValueError(f"wavelength_nm must be one wavelength; got shape "
+                             f"{tuple(wl.shape)}")
+        wl = wl.reshape(1)
         return MAG_PER_OPTICAL_DEPTH * atmosphere.optical_depth(wl, zenith, altitude_m)[..., 0]
     wavelength = torch.linspace(*V_BAND_WAVELENGTHS_NM[:2], V_BAND_WAVELENGTHS_NM[2],
                                 dtype=dtype)
@@ -369,6 +427,9 @@ def apparent_color_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 
     altitude before the integral, so the colour stays defined where the light itself
     underflows (τ ≫ 100 at the horizon).
     """
+    check_atmosphere("atmosphere", atmosphere)
+    refraction = check_flag("refraction", refraction)
+    cache = check_flag("cache", cache)
     n_nodes = check_int("n_nodes", n_nodes, 8, 100_000)
     altitude = float(check_range("altitude_m", altitude_m, 0.0, 1e5, unit=" m"))
     key = _cache_key(atmosphere, altitude, n_nodes, refraction, "colour")
@@ -419,6 +480,12 @@ def apparent_color(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     On the 256-node grid this differs from the direct spectral integral by < 2e-3
     (``tests/test_stars_photometry.py``).
     """
+    _check_table("apparent_color_table", table, ("bv", "linear_srgb"))
+    bv, apparent_altitude_rad = _star_inputs(bv, apparent_altitude_rad)
+    if bv.ndim != 1 or apparent_altitude_rad.shape[-1:] != bv.shape:
+        raise ValueError(f"bv must have shape (star,) and apparent_altitude_rad (time, star); "
+                         f"got {tuple(bv.shape)} and {tuple(apparent_altitude_rad.shape)}")
+    gamma = check_flag("gamma", gamma)
     dtype = apparent_altitude_rad.dtype
     grid = table["bv"]
     linear = table["linear_srgb"].to(dtype)

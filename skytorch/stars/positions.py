@@ -39,6 +39,8 @@ import torch
 from skytorch._validate import check_finite, check_range
 from skytorch.constants import ASTRONOMICAL_UNIT_M, DEGREE
 from skytorch.ephemeris import (
+    TIME_MAX,
+    TIME_MIN,
     aberrate,
     aberration_matrix,
     altaz_from_horizontal,
@@ -138,7 +140,9 @@ def _rotation_matrices(times, lat_deg, lon_deg, elevation_m, anchor_minutes):
     epoch = np.datetime64("2000-01-01T00:00", "ns")
     bins = (values - epoch) // step
     unique, inverse = np.unique(bins, return_inverse=True)
-    centres = epoch + unique * step + step // 2
+    # bin centres clipped to the ephemeris range: a time at TIME_MAX would otherwise be
+    # anchored a quarter of an hour beyond it (the clipped anchor is never further away)
+    centres = np.clip(epoch + unique * step + step // 2, TIME_MIN, TIME_MAX)
     anchors = icrs_to_horizontal_matrices(centres, lat_deg, lon_deg, elevation_m)[inverse]
     ut1 = np.asarray(skyfield_time(values).ut1, np.float64).reshape(-1)
     ut1_centres = np.asarray(skyfield_time(centres).ut1, np.float64).reshape(-1)[inverse]
