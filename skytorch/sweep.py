@@ -53,6 +53,29 @@ uses), its default arguments, the values it closes over and the arguments bound 
 outside ``fn``'s own code (a helper it calls, a module it imports, the state of a
 callable object) are not seen: pass a new ``key`` (e.g. a version) after those.
 
+Every stored chunk goes through :mod:`skytorch._cache`: beside it a record holds the
+SHA-256 of its bytes (for a Zarr chunk, of a manifest listing the digests of the store's
+files) and a parameter hash of the sweep key and the chunk's bounds
+(:func:`chunk_parameter_hash`). A chunk that is corrupted, truncated, another chunk's
+file, another sweep's, or without its record is deleted and recomputed, never served.
+
+Threads
+-------
+torch parallelises each operation over its intra-op threads; a sweep that runs several
+workers at once multiplies them, and more busy threads than cores make OpenMP's
+spin-waiting threads fight for the cores (three 2-thread processes on 2 cores turned 1e6
+optical depths from 1.8 s into 37 s). ``sweep`` therefore sets the torch thread count of
+every worker while it computes a chunk: ``torch_threads`` if given, else
+``max(1, cores // worker threads on the host)``, never more than the worker's current
+``torch.get_num_threads()``. ``"serial"`` and ``"broadcast"`` run in the calling thread
+(one worker: all its threads); on dask each task sets the count of the thread it runs in
+(LocalCluster threads in this process, worker processes, remote workers alike; the
+workers' cores and thread counts are asked from the client) and restores it after the
+chunk. ``torch.set_num_threads`` is process-wide in name, but with torch's OpenMP backend
+(the CPU wheels) it acts on the calling thread and sets the starting value for threads
+that first use torch later, so worker threads of one process each hold their own count;
+the caller's count is re-asserted when the sweep ends.
+
 Examples
 --------
 >>> import torch
@@ -74,6 +97,8 @@ import inspect
 import json
 import logging
 import math
+import os
+import shutil
 import types
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
@@ -83,6 +108,7 @@ import torch
 import xarray as xr
 
 from skytorch import __version__
+from skytorch._cache import discard, file_sha256, read_verified, write_verified
 from skytorch._modules import FunctionModule, make_callable
 from skytorch._validate import check_choice, check_int
 from skytorch.dataset import (
@@ -93,11 +119,13 @@ from skytorch.dataset import (
     build_dataset,
     coordinate,
     open_dataset,
+    to_netcdf,
     to_numpy,
     write_dataset,
 )
 
-__all__ = ["BACKENDS", "function_fingerprint", "sweep"]
+__all__ = ["BACKENDS", "chunk_parameter_hash", "default_torch_threads", "function_fingerprint",
+           "sweep", "usable_cores"]
 
 logger = logging.getLogger(__name__)
 
@@ -290,6 +318,110 @@ def _broadcast_chunk(result, grid_shape: tuple[int, ...]) -> xr.Dataset:
     return xr.Dataset(variables)
 
 
+# --- torch threads per worker --------------------------------------------------------------------
+
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def default_torch_threads(threads_on_host: int, cores: int | None = None,
+                          current: int | None = None) -> int:
+    """torch intra-op threads for each of ``threads_on_host`` concurrent workers.
+
+    ``max(1, cores // threads_on_host)``, but never more than the ``current`` setting
+    (``torch.get_num_threads()``: a caller who limited torch to one thread keeps one), so
+    that workers x threads never exceed the cores.
+
+    Examples
+    --------
+    >>> default_torch_threads(2, cores=2, current=2)
+    1
+    >>> default_torch_threads(1, cores=16, current=4)
+    4
+    >>> default_torch_threads(3, cores=2, current=2)
+    1
+    """
+    cores = usable_cores() if cores is None else cores
+    current = torch.get_num_threads() if current is None else current
+    return max(1, min(current, cores // max(1, threads_on_host)))
+
+
+@contextlib.contextmanager
+def _torch_threads(n: int) -> Iterator[None]:
+    """Run the body with ``torch.set_num_threads(n)`` and restore the previous count.
+
+    With torch's OpenMP backend (the CPU wheels) the count is per thread: it applies to
+    the thread that sets it and is the starting value of threads that start using torch
+    afterwards; so each dask worker thread sets its own count (restoring it after its
+    chunk), and the caller re-asserts its own count when a sweep ends.
+    """
+    previous = torch.get_num_threads()
+    if previous != n:
+        torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        if torch.get_num_threads() != previous:
+            torch.set_num_threads(previous)
+
+
+def _compute_on_worker(compute: Callable, threads: int | None,
+                       threads_by_worker: Mapping[str, int], start: int,
+                       stop: int) -> xr.Dataset:
+    """One chunk on a dask worker, with its torch thread count set for the chunk.
+
+    ``threads`` if given, else the count the caller computed for this worker, else (a worker
+    that joined later) the default for the worker's own thread count.
+    """
+    n = threads
+    if n is None:
+        from distributed import get_worker
+
+        try:
+            worker = get_worker()
+        except ValueError:  # not on a worker (a client running tasks inline)
+            n = default_torch_threads(1)
+        else:
+            n = threads_by_worker.get(worker.address)
+            if n is None:
+                n = default_torch_threads(worker.state.nthreads)
+    with _torch_threads(n):
+        return compute(start, stop)
+
+
+def _host_of(address: str) -> str:
+    try:
+        from distributed.comm import get_address_host
+
+        return get_address_host(address)
+    except (ValueError, KeyError):
+        return address.rsplit("/", 2)[0]
+
+
+def _threads_by_worker(client, threads: int | None) -> dict[str, int]:
+    """torch threads per worker address: ``threads`` or ``max(1, cores // threads on the
+    host)`` with each worker's own core count and current torch setting."""
+    nthreads = client.nthreads()
+    on_host: dict[str, int] = {}
+    for address, count in nthreads.items():
+        on_host[_host_of(address)] = on_host.get(_host_of(address), 0) + int(count)
+    if threads is not None:
+        return dict.fromkeys(nthreads, threads)
+    try:
+        cores = client.run(usable_cores)
+        current = client.run(torch.get_num_threads)
+    except Exception as error:  # noqa: BLE001 - a worker that cannot run: its own default
+        logger.info("could not query the workers' cores (%s); each uses its own", error)
+        return {}
+    return {address: default_torch_threads(on_host[_host_of(address)], cores.get(address),
+                                           current.get(address))
+            for address in nthreads if address in cores}
+
+
 # --- chunk computation (runs on workers for the dask backend) -------------------------------------
 
 def _compute_chunk(fn: Callable, names: tuple[str, ...], grids: tuple[np.ndarray, ...],
@@ -456,7 +588,8 @@ def _store_format(store) -> str:
     return ZARR_SUFFIX if Path(store).suffix.lower() == ZARR_SUFFIX else ".nc"
 
 
-def _store_directory(store, fn, names, grids, chunk_size, backend, key) -> Path:
+def _store_directory(store, fn, names, grids, chunk_size, backend, key) -> tuple[Path, str]:
+    """The store's directory for this sweep and the sweep key (SHA-256 of its description)."""
     description = {
         "function": _function_name(fn),
         "function_fingerprint": function_fingerprint(fn),
@@ -467,27 +600,86 @@ def _store_directory(store, fn, names, grids, chunk_size, backend, key) -> Path:
         "key": key,
     }
     text = json.dumps(description, sort_keys=True)
-    digest = hashlib.sha256(text.encode()).hexdigest()[:20]
-    directory = Path(store) / f"{description['function'].rsplit('.', 1)[-1]}-{digest}"
+    digest = hashlib.sha256(text.encode()).hexdigest()
+    directory = Path(store) / f"{description['function'].rsplit('.', 1)[-1]}-{digest[:20]}"
     directory.mkdir(parents=True, exist_ok=True)
     manifest = directory / "sweep.json"
     if not manifest.exists():
         manifest.write_text(text + "\n")
-    return directory
+    return directory, digest
 
 
 def _chunk_path(directory: Path, start: int, stop: int, suffix: str = ".nc") -> Path:
     return directory / f"chunk_{start:09d}_{stop:09d}{suffix}"
 
 
-def _load_chunk(path: Path) -> xr.Dataset | None:
-    if not path.exists():
+def chunk_parameter_hash(sweep_key: str, start: int, stop: int, suffix: str) -> str:
+    """The parameter hash recorded beside a stored chunk: the sweep key and the chunk's
+    bounds and format, so that another chunk's file (or another sweep's) is never served."""
+    text = json.dumps({"sweep": sweep_key, "start": int(start), "stop": int(stop),
+                       "format": suffix}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _zarr_manifest(store: Path) -> Path:
+    """The verified file standing for a Zarr chunk store (a directory): its file digests."""
+    return store.with_name(store.name + ".files.json")
+
+
+def _tree_digests(store: Path) -> dict[str, str]:
+    return {item.relative_to(store).as_posix(): file_sha256(item)
+            for item in sorted(store.rglob("*")) if item.is_file()}
+
+
+def _store_chunk(chunk: xr.Dataset, path: Path, parameter_hash: str) -> None:
+    """Write one chunk through :func:`skytorch._cache.write_verified`.
+
+    A netCDF chunk is the verified file itself. A Zarr chunk is a directory, so the
+    verified file is a manifest beside it listing the SHA-256 of every file in the store.
+    """
+    if path.suffix != ZARR_SUFFIX:
+        write_verified(path, parameter_hash, lambda target: to_netcdf(chunk, target))
+        return
+
+    def write(manifest: Path) -> None:
+        write_dataset(chunk, path)
+        text = json.dumps({"store": path.name, "files": _tree_digests(path)}, sort_keys=True)
+        manifest.write_text(text + "\n")
+
+    write_verified(_zarr_manifest(path), parameter_hash, write)
+
+
+def _read_zarr_chunk(path: Path, manifest: Path) -> xr.Dataset:
+    recorded = json.loads(manifest.read_text())
+    if recorded.get("store") != path.name or recorded.get("files") != _tree_digests(path):
+        raise ValueError(f"the files of {path.name} differ from its manifest")
+    return open_dataset(path)
+
+
+def _load_chunk(path: Path, parameter_hash: str) -> xr.Dataset | None:
+    """A stored chunk if it is intact and is this chunk of this sweep, else ``None``.
+
+    :func:`skytorch._cache.read_verified` checks the content checksum and the parameter
+    hash (sweep key and bounds); a corrupted, truncated, swapped or unreadable chunk is
+    deleted (with its record) and recomputed.
+    """
+    zarr = path.suffix == ZARR_SUFFIX
+    verified = _zarr_manifest(path) if zarr else path
+    if not verified.exists() and not path.exists():
         return None
-    try:
-        return open_dataset(path)
-    except (OSError, ValueError, RuntimeError, KeyError) as error:  # unreadable: recompute
-        logger.warning("recomputing unreadable sweep chunk %s (%s)", path, error)
-        return None
+    if zarr:
+        loaded = read_verified(verified, parameter_hash,
+                               lambda manifest: _read_zarr_chunk(path, manifest))
+    else:
+        loaded = read_verified(verified, parameter_hash, open_dataset)
+    if loaded is None:
+        logger.warning("recomputing sweep chunk %s: missing checksum record, unreadable, "
+                       "corrupted or not this chunk of this sweep", path)
+        if zarr and path.exists():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            discard(path)
+    return loaded
 
 
 # --- dask -----------------------------------------------------------------------------------------
@@ -515,11 +707,14 @@ def _dask_client(client, scheduler_address, n_workers, cluster_options) -> Itera
 
 
 def _run_dask(todo, compute, client, scheduler_address, n_workers, cluster_options,
-              on_done) -> None:
+              on_done, threads: int | None = None) -> None:
     from distributed import as_completed
 
     with _dask_client(client, scheduler_address, n_workers, cluster_options) as active:
-        futures = {active.submit(compute, start, stop, pure=False): (start, stop)
+        per_worker = _threads_by_worker(active, threads)
+        logger.info("sweep on dask: torch threads per worker %s", per_worker or threads)
+        task = functools.partial(_compute_on_worker, compute, threads, per_worker)
+        futures = {active.submit(task, start, stop, pure=False): (start, stop)
                    for start, stop in todo}
         failure = None
         try:
@@ -612,6 +807,7 @@ def sweep(
     n_workers: int | None = None,
     cluster_options: Mapping[str, object] | None = None,
     units: Mapping[str, str] | None = None,
+    torch_threads: int | None = None,
     **parameter_grids,
 ) -> xr.Dataset:
     """Evaluate ``fn`` over the Cartesian grid of the keyword parameter grids.
@@ -653,13 +849,22 @@ def sweep(
         a second with threads, 5-15 s with processes; pass ``client=`` to reuse one across
         sweeps.
     units : mapping of str to str, optional
-        Units of the swept parameters for the coordinates' metadata; by default inferred
-        from suffixes (``_nm`` nm, ``_m`` m, ``_k`` K, ``_deg`` degree, ``_du`` DU, ...),
-        otherwise ``"1"``.
+        Units (UDUNITS strings) of swept parameters for the coordinates' metadata, keyed
+        by swept parameter name; by default inferred from suffixes (``_nm`` nm, ``_m`` m,
+        ``_k`` K, ``_deg`` degree, ``_du`` DU, ...), otherwise ``"1"``. A key that names
+        no swept parameter, or a value that is not a non-empty string, is rejected.
+    torch_threads : int, optional
+        torch intra-op threads of each worker thread while it computes a chunk (see
+        *Threads* in the module docstring). Default: ``max(1, cores // worker threads on
+        the host)``, capped by the worker's current ``torch.get_num_threads()`` -- all of
+        the caller's threads for ``"serial"``/``"broadcast"``, one each for two dask workers
+        on two cores. The caller's count is restored afterwards.
     **parameter_grids : sequence
         One 1-D sequence of distinct values per swept keyword parameter (numbers,
         strings or datetime64). Names of this function's own arguments (``backend``,
         ``key``, ``units``, ...) cannot be swept directly: wrap ``fn`` to rename them.
+        Each name must be a keyword ``fn`` accepts (checked against its signature when
+        Python can read one), so a misspelled option or parameter raises ``TypeError``.
 
     Returns
     -------
@@ -671,7 +876,9 @@ def sweep(
     Raises
     ------
     ValueError, TypeError
-        No parameters, bad grids or options, or results whose layout changes.
+        No parameters, bad grids or options (each error names the argument), swept names
+        ``fn`` does not accept, dask-only options with another backend, or results whose
+        layout changes.
 
     Examples
     --------
@@ -679,13 +886,22 @@ def sweep(
     >>> ds["result"].values.tolist()
     [[2.0, 4.0], [3.0, 9.0]]
     """
+    if not isinstance(backend, str):
+        raise TypeError(f"backend must be one of {BACKENDS}; got {backend!r:.80}")
     check_choice("backend", backend, BACKENDS)
     if not callable(fn):
         raise TypeError(f"fn must be callable; got {fn!r:.80}")
     if not parameter_grids:
         raise ValueError("sweep needs at least one parameter grid, e.g. turbidity=[1, 2, 3]")
     names = tuple(parameter_grids)
+    _check_accepted(fn, names)
     grids = tuple(_grid_values(n, v) for n, v in parameter_grids.items())
+    units = _check_units(units, names)
+    _check_options(backend=backend, progress=progress, store=store, key=key, client=client,
+                   scheduler_address=scheduler_address, n_workers=n_workers,
+                   cluster_options=cluster_options)
+    if torch_threads is not None:
+        torch_threads = check_int("torch_threads", torch_threads, 1)
     broadcast = backend == "broadcast"
     if broadcast:
         for name, grid in zip(names, grids, strict=True):
@@ -717,9 +933,11 @@ def sweep(
         suffix = _store_format(store)
         if suffix == ZARR_SUFFIX:
             _import_zarr()  # fail before computing anything
-        directory = _store_directory(store, fn, names, grids, chunk_size, backend, key)
+        directory, sweep_key = _store_directory(store, fn, names, grids, chunk_size, backend,
+                                                key)
         for start, stop in spans:
-            loaded = _load_chunk(_chunk_path(directory, start, stop, suffix))
+            loaded = _load_chunk(_chunk_path(directory, start, stop, suffix),
+                                 chunk_parameter_hash(sweep_key, start, stop, suffix))
             if loaded is not None:
                 results[(start, stop)] = loaded
         logger.info("sweep store %s: %d of %d chunks already done", directory, len(results),
@@ -734,22 +952,119 @@ def sweep(
 
     def done(start: int, stop: int, chunk: xr.Dataset) -> None:
         if directory is not None:
-            write_dataset(chunk, _chunk_path(directory, start, stop, suffix))
+            _store_chunk(chunk, _chunk_path(directory, start, stop, suffix),
+                         chunk_parameter_hash(sweep_key, start, stop, suffix))
         results[(start, stop)] = chunk
         bar.update(stop - start)
 
     compute = functools.partial(_compute_chunk, fn, names, grids, broadcast=broadcast)
+    caller_threads = torch.get_num_threads()
     try:
         if backend == "dask" and todo:
             _run_dask(todo, compute, client, scheduler_address, n_workers, cluster_options,
-                      done)
-        else:
-            for start, stop in todo:
-                done(start, stop, compute(start, stop))
+                      done, torch_threads)
+        elif todo:
+            threads = torch_threads or default_torch_threads(1)
+            with _torch_threads(threads):
+                for start, stop in todo:
+                    done(start, stop, compute(start, stop))
     finally:
         bar.close()
+        # worker threads in this process may have changed the default count that threads
+        # starting later inherit (OpenMP backend): re-assert the caller's
+        torch.set_num_threads(caller_threads)
     ordered = [results[span] for span in spans]
-    return _assemble(ordered, names, grids, units or {}, fn)
+    return _assemble(ordered, names, grids, units, fn)
+
+
+# --- argument checks ------------------------------------------------------------------------
+
+#: keyword options of :func:`sweep` (for the hint on a misspelled one)
+_OPTIONS = ("backend", "chunk_size", "memory_budget_bytes", "store", "key", "progress",
+            "client", "scheduler_address", "n_workers", "cluster_options", "units",
+            "torch_threads")
+
+
+def _check_accepted(fn: Callable, names: Sequence[str]) -> None:
+    """Every swept name must be a keyword ``fn`` accepts (when its signature is readable)."""
+    try:
+        signature = inspect.signature(fn)
+    except (TypeError, ValueError):  # builtins and some C callables: nothing to check
+        return
+    parameters = signature.parameters.values()
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
+        return
+    accepted = {p.name for p in parameters
+                if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                              inspect.Parameter.KEYWORD_ONLY)}
+    unknown = [name for name in names if name not in accepted]
+    if unknown:
+        import difflib
+
+        hints = []
+        for name in unknown:
+            close = difflib.get_close_matches(name, [*_OPTIONS, *sorted(accepted)], n=1)
+            if close:
+                hints.append(f"{name} (did you mean {close[0]}?)")
+        hint = f"; {', '.join(hints)}" if hints else ""
+        raise TypeError(
+            f"sweep parameter {', '.join(unknown)} is not a keyword argument of "
+            f"{_function_name(fn)}, which accepts {sorted(accepted)}{hint}")
+
+
+def _check_units(units, names: Sequence[str]) -> dict[str, str]:
+    if units is None:
+        return {}
+    if not isinstance(units, Mapping):
+        raise TypeError(
+            f"units must be a mapping of swept parameter names to unit strings; got "
+            f"{type(units).__name__}")
+    checked = {}
+    for name, unit in units.items():
+        if not isinstance(name, str):
+            raise TypeError(f"units keys must be parameter names (str); got {name!r:.80}")
+        if name not in names:
+            raise ValueError(
+                f"units names {name!r}, which is not a swept parameter; swept: {list(names)}")
+        if not isinstance(unit, str) or not unit.strip():
+            raise TypeError(
+                f"units[{name!r}] must be a non-empty UDUNITS string (\"1\" for "
+                f"dimensionless); got {unit!r:.80}")
+        checked[name] = unit
+    return checked
+
+
+def _check_options(*, backend, progress, store, key, client, scheduler_address, n_workers,
+                   cluster_options) -> None:
+    if not isinstance(progress, (bool, np.bool_)):
+        raise TypeError(f"progress must be True or False; got {progress!r:.80}")
+    if store is not None and not isinstance(store, (str, os.PathLike)):
+        raise TypeError(f"store must be a directory path (str or os.PathLike); got "
+                        f"{type(store).__name__}")
+    if key is not None and not isinstance(key, str):
+        raise TypeError(f"key must be a str (e.g. a version); got {key!r:.80}")
+    if scheduler_address is not None and not isinstance(scheduler_address, str):
+        raise TypeError(f"scheduler_address must be a str such as 'tcp://host:8786'; got "
+                        f"{scheduler_address!r:.80}")
+    if client is not None and scheduler_address is not None:
+        raise ValueError("pass either client or scheduler_address, not both")
+    if cluster_options is not None:
+        if not isinstance(cluster_options, Mapping) or not all(
+                isinstance(k, str) for k in cluster_options):
+            raise TypeError(f"cluster_options must be a mapping of LocalCluster argument "
+                            f"names to values; got {cluster_options!r:.80}")
+        if client is not None or scheduler_address is not None:
+            raise ValueError("cluster_options configure the LocalCluster the sweep starts; "
+                             "they cannot apply to a given client or scheduler_address")
+    if backend != "dask":
+        given = [name for name, value in (("client", client),
+                                          ("scheduler_address", scheduler_address),
+                                          ("n_workers", n_workers),
+                                          ("cluster_options", cluster_options))
+                 if value is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)} apply only to backend='dask'; got "
+                             f"backend={backend!r}")
 
 
 # this module is callable as :func:`sweep`, so ``st.sweep(...)`` always works
