@@ -256,9 +256,26 @@ def _sanitized(dataset: xr.Dataset) -> xr.Dataset:
     return out
 
 
+#: time units for stored datetimes, coarsest first, with their length [ns]; UDUNITS (and
+#: so CF checkers) knows all but nanoseconds, which are used only when a value needs them
+_TIME_UNITS = (("seconds", 10**9), ("milliseconds", 10**6), ("microseconds", 10**3),
+               ("nanoseconds", 1))
+
+
+def _exact_time_units(values: np.ndarray) -> str:
+    """The coarsest ``"<unit> since 1970-01-01"`` in which every datetime is an integer."""
+    ticks = np.asarray(values, dtype="datetime64[ns]").view("int64").reshape(-1)
+    ticks = ticks[ticks != np.iinfo(np.int64).min]  # NaT
+    for unit, length in _TIME_UNITS:
+        if not (ticks % length).any():
+            return f"{unit} since 1970-01-01"
+    return "nanoseconds since 1970-01-01"  # pragma: no cover - length 1 always divides
+
+
 def _time_encoding(dataset: xr.Dataset) -> dict[str, dict[str, str]]:
-    """Datetimes as int64 nanoseconds since 1970, so that the round trip is exact."""
-    return {name: {"units": "nanoseconds since 1970-01-01", "dtype": "int64"}
+    """Datetimes as int64 counts since 1970 in the coarsest exact unit (seconds for whole
+    seconds, ..., nanoseconds only where needed), so that the round trip is exact."""
+    return {name: {"units": _exact_time_units(var.values), "dtype": "int64"}
             for name, var in dataset.variables.items()
             if np.issubdtype(var.dtype, np.datetime64)}
 
@@ -331,7 +348,10 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike, *, compress: bool = 
 
     The file is first written next to its destination and then renamed, so an interrupted
     write never leaves a truncated file or destroys an existing one. Datetimes are stored
-    as int64 nanoseconds so that the round trip is exact. Variables are compressed with
+    as int64 counts since 1970-01-01 in the coarsest unit that holds them exactly
+    (``seconds`` for whole seconds, down to ``nanoseconds``), so that the round trip is
+    exact and, where nanoseconds are not needed, the units are valid UDUNITS as CF
+    requires. Variables are compressed with
     zlib and the shuffle filter by default (lossless: values come back bit for bit; a
     256 x 256 all-sky render shrinks several-fold).
 
@@ -464,7 +484,7 @@ def to_zarr(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
     only after the new store is in place, so an interrupted write never leaves a partial
     store or destroys the existing one. The store is Zarr format 2 with consolidated
     metadata (readable by zarr-python 2 and 3, xarray and netCDF-C's NCZarr); datetimes are
-    int64 nanoseconds as in :func:`to_netcdf`, so the round trip through
+    int64 counts as in :func:`to_netcdf`, so the round trip through
     :func:`open_dataset` is exact.
 
     Parameters
