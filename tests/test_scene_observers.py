@@ -50,7 +50,7 @@ def test_plans_differ_between_observers(stacked):
 
 
 def test_observer_arguments_are_checked():
-    with pytest.raises(ValueError, match="one length"):
+    with pytest.raises(ValueError, match=r"do not broadcast: lat_deg \(2,\), lon_deg \(3,\)"):
         _scene(lat_deg=[10.0, 20.0], lon_deg=[0.0, 1.0, 2.0])
     with pytest.raises(ValueError, match="lat_deg"):
         _scene(lat_deg=[10.0, 95.0], lon_deg=0.0)
@@ -65,3 +65,26 @@ def test_netcdf_round_trip(stacked, tmp_path):
     back = open_dataset(path)
     np.testing.assert_array_equal(back["radiance"].values, stacked["radiance"].values)
     assert list(back["effects_computed"].values) == list(stacked["effects_computed"].values)
+
+
+def test_netcdf_round_trip_is_exact(stacked, tmp_path):
+    """Every variable comes back with its dtype and values, the planner's strings included
+    (they were object arrays in memory and fixed-width strings from the file)."""
+    from skytorch.dataset import open_dataset, to_netcdf
+
+    back = open_dataset(to_netcdf(stacked, tmp_path / "observers.nc"))
+    assert set(back.variables) == set(stacked.variables)
+    for name, variable in stacked.variables.items():
+        assert back[name].dtype == variable.dtype, name
+        assert back[name].dims == variable.dims, name
+        np.testing.assert_array_equal(back[name].values, variable.values, err_msg=name)
+    for name in ("effects_computed", "effects_skipped"):
+        assert stacked[name].dtype.kind == "U"
+        assert stacked[name].attrs == back[name].attrs
+
+
+def test_one_observer_in_a_sequence_keeps_the_observer_dimension():
+    ds = _scene(lat_deg=[52.52], lon_deg=[13.40], view="directions",
+                directions={"altitude_deg": [90.0], "azimuth_deg": [0.0]}).render()
+    assert ds.sizes["observer"] == 1
+    assert ds["latitude"].values.tolist() == [52.52]

@@ -28,7 +28,8 @@ occulted):
   (:func:`skytorch.spectrum.bv_to_temperature`) scaled to their V magnitudes.
 * ``skyglow`` — :meth:`skytorch.skyglow.SkyglowModel.render` panorama interpolated to
   the view (model cached on disk, keyed by the atmosphere, wavelengths, settings and a
-  hash of the skyglow and atmosphere sources).
+  hash of the skyglow and atmosphere sources; each file verified by its checksum and
+  parameter hash on load, :mod:`skytorch._cache`).
 """
 
 from __future__ import annotations
@@ -418,7 +419,7 @@ def natural_gradient(zenith_rad, airglow_fraction: float = 0.6,
     Returns
     -------
     Tensor (...)
-        1 at the zenith, growing towards the horizon (4.0 there for the defaults).
+        1 at the zenith, growing towards the horizon (4.01 there for the defaults).
 
     Notes
     -----
@@ -445,8 +446,14 @@ def natural_gradient(zenith_rad, airglow_fraction: float = 0.6,
     --------
     >>> import math, torch
     >>> round(float(natural_gradient(torch.tensor(math.pi / 2))), 2)
-    4.0
+    4.01
     """
+    from skytorch._validate import as_tensor
+
+    zenith_rad = as_tensor("zenith_rad", zenith_rad)
+    if not 0.0 <= observer_height_m < airglow_height_m:
+        raise ValueError(f"observer_height_m must be in [0, airglow_height_m = "
+                         f"{airglow_height_m} m); got {observer_height_m} m")
     ratio = (planet_radius_m + observer_height_m) / (planet_radius_m + airglow_height_m)
     sine = torch.sin(zenith_rad)
     van_rhijn = torch.rsqrt(1.0 - ratio * ratio * sine * sine)
@@ -687,11 +694,13 @@ def _skyglow_code_hash() -> str:
 
 
 def _skyglow_key(scene, wavelength, settings) -> str:
+    """SHA-256 (hex) of everything a scene's skyglow model depends on: the atmosphere,
+    the wavelengths, the fidelity's settings and the skyglow and atmosphere sources."""
     text = json.dumps({"turbidity": float(scene.turbidity), "ozone_du": float(scene.ozone_du),
                        "wavelength": [float(v) for v in wavelength.tolist()],
                        "settings": settings, "code": _skyglow_code_hash(), "format": 1},
                       sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 #: skyglow models kept in memory (besides the disk cache)
@@ -699,32 +708,40 @@ _SKYGLOW_MODELS_IN_MEMORY = 4
 _skyglow_models: dict = {}
 
 
+def skyglow_cache_path(scene, wavelength, settings):
+    """Cache file of the scene's skyglow model, and the parameter hash it must carry."""
+    from skytorch.atmosphere.tables import cache_directory
+
+    key = _skyglow_key(scene, wavelength, settings)
+    return cache_directory() / f"skyglow_{key[:16]}.nc", key
+
+
 def skyglow_model(scene, wavelength, settings):
     """The skyglow model for the scene's atmosphere and fidelity (cached on disk, and the
-    last few in memory)."""
-    from skytorch.atmosphere.tables import cache_directory
+    last few in memory).
+
+    The file is written with :func:`skytorch._cache.write_verified` (a record of its SHA-256
+    and of the parameter hash beside it) and read with
+    :func:`skytorch._cache.read_verified`: a corrupted, truncated or swapped file, or one
+    built for other parameters, is deleted and rebuilt, never served.
+    """
+    from skytorch._cache import read_verified, write_verified
     from skytorch.skyglow import SkyglowModel
 
-    path = cache_directory() / f"skyglow_{_skyglow_key(scene, wavelength, settings)}.nc"
-    if str(path) in _skyglow_models:
-        return _skyglow_models[str(path)]
-    model = None
-    if path.exists():
-        try:
-            model = SkyglowModel.load(path)
-        except (OSError, ValueError, KeyError) as error:  # rebuilt below
-            logger.warning("skyglow cache %s unreadable (%s); rebuilding", path, error)
+    path, key = skyglow_cache_path(scene, wavelength, settings)
+    if key in _skyglow_models:
+        return _skyglow_models[key]
+    model = read_verified(path, key, SkyglowModel.load)
     if model is None:
         model = SkyglowModel.precompute(scene.atmosphere(), wavelength_nm=wavelength.to(
             torch.float64), progress=False, **settings)
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            model.save(path)
+            write_verified(path, key, model.save)
         except OSError as error:
             logger.warning("could not cache the skyglow model at %s: %s", path, error)
     while len(_skyglow_models) >= _SKYGLOW_MODELS_IN_MEMORY:
         _skyglow_models.pop(next(iter(_skyglow_models)))
-    _skyglow_models[str(path)] = model
+    _skyglow_models[key] = model
     return model
 
 
@@ -792,13 +809,32 @@ def render_components(scene, plan, view) -> tuple[dict, dict]:
     return components, seconds
 
 
+def _check_scene(scene) -> None:
+    from skytorch.scene.scene import Scene
+
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be a skytorch.Scene; got {type(scene).__name__}")
+
+
 def render(scene, plan=None):
     """Render ``scene`` to a Dataset (see :func:`scene_dataset`); a scene with several
-    observers goes to :func:`render_observers`."""
+    observers goes to :func:`render_observers`.
+
+    Parameters
+    ----------
+    scene : Scene
+    plan : Plan, optional
+        The planner's decision (:meth:`Scene.plan`; a list of them for several observers).
+    """
+    from skytorch.scene.planner import Plan
     from skytorch.scene.planner import plan as make_plan
 
-    if scene.n_observers > 1:
+    _check_scene(scene)
+    if scene.several_observers:
         return render_observers(scene, plan)
+    if plan is not None and not isinstance(plan, Plan):
+        raise TypeError(f"plan must be a skytorch.scene.Plan (Scene.plan()) or None; got "
+                        f"{type(plan).__name__}")
     view = scene.make_view()
     plan = make_plan(scene, view) if plan is None else plan
     start = _time.perf_counter()
@@ -830,9 +866,16 @@ def render_observers(scene, plans=None):
     xarray.Dataset
     """
     from skytorch.dataset import VariableSpec, coordinate, variable
+    from skytorch.scene.planner import Plan
 
+    _check_scene(scene)
     singles = scene.observers()
     plans = scene.plan() if plans is None else plans
+    if isinstance(plans, Plan) and len(singles) == 1:
+        plans = [plans]
+    if not isinstance(plans, (list, tuple)) or not all(isinstance(p, Plan) for p in plans):
+        raise TypeError("plans must be a list of skytorch.scene.Plan, one per observer; got "
+                        f"{type(plans).__name__}")
     if len(plans) != len(singles):
         raise ValueError(f"plans: one per observer ({len(singles)}); got {len(plans)}")
     frames = [render(single, plan) for single, plan in zip(singles, plans, strict=True)]
@@ -989,6 +1032,7 @@ def render_times(scene, times):
     from skytorch.dataset import time_coordinate
     from skytorch.ephemeris import parse_times
 
+    _check_scene(scene)
     values = parse_times(times)
     frames = [scene.replace(time=str(t)).render() for t in values]
     return _stack(frames, "time", time_coordinate(values),
@@ -1016,10 +1060,11 @@ def _stack(frames, dim: str, coordinate, title: str):
     stacked = xr.concat([_no_attrs(f) for f in frames], dim=dim, data_vars=changing,
                         coords="minimal", compat="override", join="outer", fill_value=fill)
     stacked = stacked.assign_coords({dim: coordinate})
-    stacked["effects_computed"] = variable((dim,), np.array(computed, dtype=object),
+    # fixed-width unicode (numpy "<U"), the dtype netCDF gives back: an exact round trip
+    stacked["effects_computed"] = variable((dim,), np.array(computed, dtype=np.str_),
                                            VariableSpec("1", "effects computed",
                                                         f"Planner decision per {dim}."))
-    stacked["effects_skipped"] = variable((dim,), np.array(skipped, dtype=object),
+    stacked["effects_skipped"] = variable((dim,), np.array(skipped, dtype=np.str_),
                                           VariableSpec("1", "effects skipped",
                                                        "Skipped effects and reasons."))
     stacked.attrs = {k: v for k, v in frames[0].attrs.items() if k not in varying}

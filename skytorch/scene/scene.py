@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from skytorch._validate import check_choice, check_int, check_positive, check_range
+from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
 
 #: view kinds of a scene
 VIEWS = ("fisheye", "panorama", "directions", "camera")
@@ -58,6 +58,21 @@ OUTPUTS = ("spectral", "xyz", "srgb", "v_mag")
 NATURAL_MODELS = ("garstang1989", "vanrhijn1921", "constant")
 #: fidelity presets (see :data:`skytorch.scene.planner.FIDELITY`)
 FIDELITY_PRESETS = ("fast", "default", "reference")
+#: keys of the ``directions`` mapping of a directions view
+DIRECTION_KEYS = ("altitude_deg", "azimuth_deg")
+#: keys of the ``camera`` mapping of a camera view
+CAMERA_KEYS = ("fov_deg", "target", "altitude_deg", "azimuth_deg")
+#: field of a camera view [degree]: (0, 120]
+CAMERA_FOV_RANGE_DEG = (0.0, 120.0)
+#: largest image side [pixels] (a 8192² fisheye already holds 1.6 GB per component)
+MAX_SIZE = 8192
+#: natural zenith background [V mag arcsec^-2]: from the brightest sky of the world atlas
+#: (14.0, Falchi et al. 2016) to 4 mag darker than the darkest natural sky (~22)
+NATURAL_MAG_RANGE = (14.0, 26.0)
+#: faintest-star limit [V mag]: the range of :func:`skytorch.stars.bright_stars`
+STAR_LIMIT_RANGE_MAG = (-30.0, 15.0)
+#: height of the airglow layer [m]
+AIRGLOW_HEIGHT_RANGE_M = (10_000.0, 1_000_000.0)
 
 
 @dataclass
@@ -259,12 +274,130 @@ def directions_view(altitude_deg, azimuth_deg, dtype=torch.float64) -> View:
                 torch.ones(n, dtype=torch.bool), 0.0)
 
 
-def _tuple(value) -> tuple[str, ...]:
+def _not_differentiable(name: str, value) -> None:
+    """A scene reads its parameters as numbers: refuse a tensor that asks for gradients
+    rather than detach it silently."""
+    if isinstance(value, torch.Tensor) and value.requires_grad:
+        raise TypeError(
+            f"{name}: a Scene is not differentiable (its components come from tables cached "
+            "per parameter value); got a tensor that requires grad. Differentiate the tensor "
+            "functions instead (e.g. Atmosphere.sky_radiance, skytorch.moon.magnitude)")
+
+
+def _shape(value) -> tuple[int, ...]:
+    try:
+        return tuple(np.shape(value))
+    except (TypeError, ValueError):
+        return ()
+
+
+def _scalar(name: str, value, low: float | None = None, high: float | None = None, *,
+            unit: str = "") -> float:
+    """A finite Python float (in ``[low, high]``) from a number, numpy scalar or
+    one-element tensor; ``TypeError``/``ValueError`` naming ``name`` otherwise."""
+    if isinstance(value, bool) or value is None or isinstance(value, (str, bytes)):
+        raise TypeError(f"{name} must be a number; got {value!r}")
+    _not_differentiable(name, value)
+    tensor = as_tensor(name, value)
+    if tensor.numel() != 1:
+        raise ValueError(
+            f"{name} must be one number per scene; got shape {tuple(tensor.shape)} (scenes "
+            "are not batched: render one scene per value, e.g. with skytorch.sweep)")
+    return float(check_range(name, tensor.reshape(()), low, high, unit=unit))
+
+
+def _wavelengths(value):
+    """A preset name of :func:`skytorch.spectrum.wavelength_grid`, or a tuple of increasing
+    wavelengths [nm] inside :data:`skytorch.spectrum.VISIBLE_RANGE_NM`."""
+    from skytorch.spectrum import VISIBLE_RANGE_NM, WAVELENGTH_PRESETS
+
+    if isinstance(value, str):
+        return check_choice("wavelengths", value, WAVELENGTH_PRESETS)
+    if value is None or isinstance(value, bytes):
+        raise TypeError(f"wavelengths must be a preset {WAVELENGTH_PRESETS} or a sequence of "
+                        f"wavelengths [nm]; got {value!r}")
+    _not_differentiable("wavelengths", value)
+    wavelength = check_range("wavelengths", value, *VISIBLE_RANGE_NM, unit=" nm")
+    if wavelength.ndim > 1 or wavelength.numel() == 0:
+        raise ValueError("wavelengths must be a 1-D sequence of at least one wavelength [nm]; "
+                         f"got shape {tuple(wavelength.shape)}")
+    wavelength = wavelength.reshape(-1)
+    if bool((wavelength[1:] <= wavelength[:-1]).any()):
+        raise ValueError(f"wavelengths must increase strictly; got {wavelength.tolist()}")
+    return tuple(float(v) for v in wavelength)
+
+
+def _effects(name: str, value, vocabulary) -> tuple[str, ...]:
+    """A tuple of names from ``vocabulary``, given as a sequence or a comma-separated str."""
     if value is None:
         return ()
     if isinstance(value, str):
-        return tuple(v.strip() for v in value.split(",") if v.strip())
-    return tuple(value)
+        names = tuple(v.strip() for v in value.split(",") if v.strip())
+    elif isinstance(value, (Sequence, set, frozenset)) and not isinstance(value, bytes):
+        names = tuple(value)
+    else:
+        raise TypeError(f"{name} must be a sequence of names from {tuple(vocabulary)} or a "
+                        f"comma-separated string; got {value!r}")
+    for item in names:
+        check_choice(name, item, vocabulary)
+    return names
+
+
+def _numbers(name: str, value, low=None, high=None, unit: str = "") -> tuple[float, ...]:
+    _not_differentiable(name, value)
+    tensor = check_range(name, value, low, high, unit=unit)
+    if tensor.ndim > 1 or tensor.numel() == 0:
+        raise ValueError(f"{name} must be a number or a 1-D sequence of numbers; got shape "
+                         f"{tuple(tensor.shape)}")
+    return tuple(float(v) for v in tensor.reshape(-1))
+
+
+def _directions(value) -> dict:
+    """``{"altitude_deg": (...), "azimuth_deg": (...)}`` of one length, altitudes in
+    [0, 90] and finite azimuths [degree]."""
+    if not isinstance(value, Mapping):
+        raise TypeError("directions must be a mapping {'altitude_deg': [...], 'azimuth_deg': "
+                        f"[...]}} [degree]; got {type(value).__name__}")
+    keys = set(value)
+    if keys != set(DIRECTION_KEYS):
+        raise ValueError(f"directions must have exactly the keys {DIRECTION_KEYS}; got "
+                         f"{sorted(map(str, keys))}")
+    altitude = _numbers("directions altitude_deg", value["altitude_deg"], 0.0, 90.0,
+                        " degree")
+    azimuth = _numbers("directions azimuth_deg", value["azimuth_deg"])
+    if len(altitude) != len(azimuth):
+        raise ValueError("directions: altitude_deg and azimuth_deg must have the same length; "
+                         f"got {len(altitude)} and {len(azimuth)}")
+    return {"altitude_deg": altitude, "azimuth_deg": azimuth}
+
+
+def _camera(value) -> dict:
+    """A camera mapping: ``fov_deg`` and either ``target`` or ``altitude_deg`` and
+    ``azimuth_deg`` (checked)."""
+    if not isinstance(value, Mapping):
+        raise TypeError("camera must be a mapping {'fov_deg': ..., 'target': 'moon'} or "
+                        "{'fov_deg': ..., 'altitude_deg': ..., 'azimuth_deg': ...}; got "
+                        f"{type(value).__name__}")
+    unknown = sorted(map(str, set(value) - set(CAMERA_KEYS)))
+    if unknown:
+        raise ValueError(f"camera: unknown keys {unknown}; valid: {CAMERA_KEYS}")
+    pointed = {"altitude_deg", "azimuth_deg"} & set(value)
+    if "fov_deg" not in value or ("target" in value) == bool(pointed) or (
+            pointed and len(pointed) != 2):
+        raise ValueError("camera needs fov_deg and either target or both altitude_deg and "
+                         f"azimuth_deg; got keys {sorted(map(str, value))}")
+    low, high = CAMERA_FOV_RANGE_DEG
+    camera = {"fov_deg": _scalar("camera fov_deg", value["fov_deg"], unit=" degree")}
+    check_range("camera fov_deg", camera["fov_deg"], low, high, low_inclusive=False,
+                unit=" degree")
+    if "target" in value:
+        camera["target"] = check_choice("camera target", value["target"], CAMERA_TARGETS)
+    else:
+        camera["altitude_deg"] = _scalar("camera altitude_deg", value["altitude_deg"], -90.0,
+                                         90.0, unit=" degree")
+        camera["azimuth_deg"] = _scalar("camera azimuth_deg", value["azimuth_deg"],
+                                        unit=" degree")
+    return camera
 
 
 @dataclass
@@ -365,76 +498,121 @@ class Scene:
     def __post_init__(self):
         from skytorch.ephemeris import parse_times
         from skytorch.scene.planner import EFFECTS
+        from skytorch.scene.render import cached_atmosphere
 
         self.time = parse_times(self.time)
         if self.time.shape != (1,):
             raise ValueError(f"time: one instant per scene; got {self.time.size}")
         self.time = self.time[0]
-        check_range("lat_deg", self.lat_deg, -90.0, 90.0, unit="degree")
-        check_range("lon_deg", self.lon_deg, -180.0, 360.0, unit="degree")
-        check_range("elevation_m", self.elevation_m, -500.0, 20_000.0, unit="m")
-        self._observers()
         check_choice("view", self.view, VIEWS)
-        self.size = check_int("size", self.size, 2)
-        check_range("tolerance", self.tolerance, 0.0, 1.0)
+        self.size = check_int("size", self.size, 2, MAX_SIZE)
         check_choice("fidelity", self.fidelity, FIDELITY_PRESETS)
-        check_positive("turbidity", self.turbidity)
         check_choice("natural_model", self.natural_model, NATURAL_MODELS)
-        check_range("airglow_fraction", self.airglow_fraction, 0.0, 1.0)
-        check_range("airglow_height_m", self.airglow_height_m, 10_000.0, 1_000_000.0,
-                    unit="m")
-        check_range("ozone_du", self.ozone_du, 0.0, 1000.0, unit="DU")
-        self.force = _tuple(self.force)
-        self.exclude = _tuple(self.exclude)
-        self.outputs = _tuple(self.outputs)
-        for name in (*self.force, *self.exclude):
-            check_choice("force/exclude effect", name, EFFECTS)
-        for name in self.outputs:
-            check_choice("outputs", name, OUTPUTS)
+        if not isinstance(self.dtype, torch.dtype) or self.dtype not in (torch.float32,
+                                                                          torch.float64):
+            raise TypeError(f"dtype must be torch.float32 or torch.float64; got {self.dtype!r}")
+        # the atmosphere's own checks (Atmosphere.earth): one definition of its ranges
+        self.turbidity = _scalar("turbidity", self.turbidity)
+        self.ozone_du = _scalar("ozone_du", self.ozone_du)
+        atmosphere = cached_atmosphere(self.turbidity, self.ozone_du)
+        self.tolerance = _scalar("tolerance", self.tolerance, 0.0, 1.0)
+        self.star_limit_mag = _scalar("star_limit_mag", self.star_limit_mag,
+                                      *STAR_LIMIT_RANGE_MAG, unit=" mag")
+        self.natural_mag_arcsec2 = _scalar("natural_mag_arcsec2", self.natural_mag_arcsec2,
+                                           *NATURAL_MAG_RANGE, unit=" mag arcsec-2")
+        self.airglow_fraction = _scalar("airglow_fraction", self.airglow_fraction, 0.0, 1.0)
+        self.airglow_height_m = _scalar("airglow_height_m", self.airglow_height_m,
+                                        *AIRGLOW_HEIGHT_RANGE_M, unit=" m")
+        self._observers(atmosphere)
+        self.wavelengths = _wavelengths(self.wavelengths)
+        self.force = _effects("force", self.force, EFFECTS)
+        self.exclude = _effects("exclude", self.exclude, EFFECTS)
+        self.outputs = _effects("outputs", self.outputs, OUTPUTS)
         both = set(self.force) & set(self.exclude)
         if both:
             raise ValueError(f"force and exclude both name {sorted(both)}")
-        if self.view == "directions" and self.directions is None:
+        if self.directions is not None:
+            self.directions = _directions(self.directions)
+        elif self.view == "directions":
             raise ValueError("view='directions' needs directions={'altitude_deg': [...], "
                              "'azimuth_deg': [...]}")
-        if self.view == "camera":
-            camera = dict(self.camera or {})
-            if "fov_deg" not in camera or not ("target" in camera or {"altitude_deg",
-                                                                     "azimuth_deg"} <= set(camera)):
-                raise ValueError("view='camera' needs camera={'fov_deg': ..., 'target': 'moon'} "
-                                 "or {'fov_deg': ..., 'altitude_deg': ..., 'azimuth_deg': ...}; "
-                                 f"got {self.camera}")
-            if "target" in camera:
-                check_choice("camera target", camera["target"], CAMERA_TARGETS)
-        if self.dtype not in (torch.float32, torch.float64):
-            raise TypeError(f"dtype must be torch.float32 or torch.float64; got {self.dtype}")
+        if self.camera is not None:
+            self.camera = _camera(self.camera)
+        elif self.view == "camera":
+            raise ValueError("view='camera' needs camera={'fov_deg': ..., 'target': 'moon'} "
+                             "or {'fov_deg': ..., 'altitude_deg': ..., 'azimuth_deg': ...}")
+        self._lights()
+
+    def _lights(self) -> None:
+        """Check the light map and lamp (the observer positions in ``_observers``)."""
+        import xarray as xr
+
+        from skytorch.skyglow.lamps import LAMPS
+
+        check_choice("lamp", self.lamp, LAMPS)
+        if self.light_map is None:
+            return
+        if not isinstance(self.light_map, xr.Dataset):
+            raise TypeError("light_map must be an xarray.Dataset with a variable 'flux' [lm] "
+                            f"on (y, x), or None; got {type(self.light_map).__name__}")
+        if "flux" not in self.light_map.data_vars or not {"y", "x"} <= set(
+                self.light_map["flux"].dims):
+            raise ValueError("light_map must hold a variable 'flux' [lm] on dimensions (y, x); "
+                             f"got variables {sorted(self.light_map.data_vars)}")
 
     # ------------------------------------------------------------------ observers
-    def _observers(self) -> None:
-        """Broadcast sequences of observer coordinates to tuples of one length."""
-        values = [np.asarray(v, dtype=float) for v in (self.lat_deg, self.lon_deg,
-                                                       self.elevation_m)]
-        if all(v.ndim == 0 for v in values):
-            return
-        if any(v.ndim > 1 for v in values):
-            raise ValueError("lat_deg, lon_deg, elevation_m: scalars or 1-D sequences; got "
-                             f"shapes {[v.shape for v in values]}")
-        try:
-            values = np.broadcast_arrays(*(np.atleast_1d(v) for v in values))
-        except ValueError as error:
-            raise ValueError("lat_deg, lon_deg, elevation_m: sequences of one length; got "
-                             f"lengths {[np.atleast_1d(v).size for v in values]}") from error
-        self.lat_deg, self.lon_deg, self.elevation_m = (tuple(float(x) for x in v)
-                                                        for v in values)
-        pairs = np.asarray(self.observer_xy, dtype=float)
-        if pairs.ndim == 2 and pairs.shape != (len(self.lat_deg), 2):
-            raise ValueError(f"observer_xy: one (x, y) pair or one per observer "
-                             f"({len(self.lat_deg)}); got shape {pairs.shape}")
+    def _observers(self, atmosphere) -> None:
+        """Validate the observers; broadcast sequences of coordinates to tuples of one
+        length (scalars stay floats).
+
+        Latitude, longitude and height go through the ephemeris' observer check
+        (:func:`skytorch.ephemeris.check_observer`); the height must also lie inside the
+        scene's atmosphere, [0, ``top_altitude_m``] (the range of
+        :meth:`skytorch.atmosphere.Atmosphere.sky_radiance`), and below the airglow layer.
+        """
+        from skytorch.ephemeris import check_observer
+
+        for name in ("lat_deg", "lon_deg", "elevation_m"):
+            _not_differentiable(name, getattr(self, name))
+        lat, lon, height = check_observer(self.lat_deg, self.lon_deg, self.elevation_m)
+        if lat.ndim > 1 or lat.numel() == 0:
+            raise ValueError("lat_deg, lon_deg, elevation_m: scalars or 1-D sequences of at "
+                             f"least one observer; got shapes {_shape(self.lat_deg)}, "
+                             f"{_shape(self.lon_deg)}, {_shape(self.elevation_m)}")
+        check_range("elevation_m", height, 0.0, atmosphere.top_altitude_m,
+                    unit=" m")
+        highest = float(height.max())
+        if highest >= self.airglow_height_m:
+            raise ValueError(f"elevation_m must be below airglow_height_m "
+                             f"({self.airglow_height_m} m); got {highest} m")
+        several = lat.ndim == 1
+        if several:
+            self.lat_deg, self.lon_deg, self.elevation_m = (
+                tuple(float(x) for x in v) for v in (lat, lon, height))
+        else:
+            self.lat_deg, self.lon_deg, self.elevation_m = (float(v)
+                                                            for v in (lat, lon, height))
+        _not_differentiable("observer_xy", self.observer_xy)
+        pairs = check_finite("observer_xy", self.observer_xy)
+        if pairs.shape == (2,):
+            self.observer_xy = (float(pairs[0]), float(pairs[1]))
+        elif several and pairs.shape == (len(self.lat_deg), 2):
+            self.observer_xy = tuple((float(x), float(y)) for x, y in pairs.tolist())
+        else:
+            count = len(self.lat_deg) if several else 1
+            raise ValueError(f"observer_xy: one (x, y) pair [m], or one per observer "
+                             f"({count}); got shape {tuple(pairs.shape)}")
 
     @property
     def n_observers(self) -> int:
         """Number of observers (1 for scalar coordinates)."""
         return len(self.lat_deg) if isinstance(self.lat_deg, tuple) else 1
+
+    @property
+    def several_observers(self) -> bool:
+        """Whether the observers were given as sequences (the render then has a dimension
+        ``observer``, even of length one)."""
+        return isinstance(self.lat_deg, tuple)
 
     def observers(self) -> list[Scene]:
         """One-observer scenes, one per observer (the scene itself for one observer)."""
@@ -525,7 +703,7 @@ class Scene:
         from skytorch.scene.geometry import geometries
         from skytorch.scene.planner import plan
 
-        if self.n_observers == 1:
+        if not self.several_observers:
             return plan(self)
         geometries(self.time, self.lat_deg, self.lon_deg, self.elevation_m)  # one call
         return [plan(scene) for scene in self.observers()]
@@ -549,42 +727,61 @@ class Scene:
         ``[planner]`` (tolerance, fidelity, force, exclude) and top-level time,
         wavelengths, outputs, star_limit_mag, natural_mag_arcsec2.
         """
+        if not isinstance(config, Mapping):
+            raise TypeError(f"config must be a mapping (a parsed TOML scene); got "
+                            f"{type(config).__name__}")
         config = dict(config)
         kwargs: dict = {}
-        observer = dict(config.pop("observer", {}))
-        kwargs.update(observer)
-        view = dict(config.pop("view", {}))
+
+        def table(name: str) -> dict:
+            value = config.pop(name, {})
+            if not isinstance(value, Mapping):
+                raise TypeError(f"scene: [{name}] must be a table; got {value!r:.60}")
+            return dict(value)
+
+        def no_leftovers(name: str, rest: dict) -> None:
+            if rest:
+                raise ValueError(f"scene: unknown keys {sorted(rest)} in [{name}]")
+
+        kwargs.update(table("observer"))
+        view = table("view")
         if "kind" in view:
             kwargs["view"] = view.pop("kind")
         if "size" in view:
             kwargs["size"] = view.pop("size")
         if kwargs.get("view") == "camera":
-            kwargs["camera"] = {k: view.pop(k) for k in ("fov_deg", "target", "altitude_deg",
-                                                         "azimuth_deg") if k in view}
+            kwargs["camera"] = {k: view.pop(k) for k in CAMERA_KEYS if k in view}
         if "altitude_deg" in view or "azimuth_deg" in view:
-            kwargs["directions"] = {"altitude_deg": view.pop("altitude_deg"),
-                                    "azimuth_deg": view.pop("azimuth_deg")}
-        kwargs.update(dict(config.pop("atmosphere", {})))
-        kwargs.update(dict(config.pop("planner", {})))
-        lights = dict(config.pop("lights", {}))
+            kwargs["directions"] = {k: view.pop(k) for k in DIRECTION_KEYS if k in view}
+        no_leftovers("view", view)
+        kwargs.update(table("atmosphere"))
+        kwargs.update(table("planner"))
+        lights = table("lights")
         if "file" in lights:
             from skytorch.dataset import open_dataset
 
             path = Path(lights.pop("file"))
             if base_dir is not None and not path.is_absolute():
                 path = base_dir / path
+            if not path.exists():
+                raise ValueError(f"scene: [lights] file {str(path)!r} does not exist")
             kwargs["light_map"] = open_dataset(path)
         if "synthetic_city" in lights:
             from skytorch.skyglow.citymap import synthetic_city
 
-            options = dict(lights.pop("synthetic_city"))
+            options = lights.pop("synthetic_city")
+            if not isinstance(options, Mapping):
+                raise TypeError("scene: [lights] synthetic_city must be a table of keywords of "
+                                f"skytorch.skyglow.citymap.synthetic_city; got {options!r:.60}")
+            options = dict(options)
             if "centre_xy" in options:
                 options["centre_xy"] = tuple(options["centre_xy"])
             kwargs["light_map"] = synthetic_city(**options)
         if "observer_xy" in lights:
-            kwargs["observer_xy"] = tuple(lights.pop("observer_xy"))
+            kwargs["observer_xy"] = lights.pop("observer_xy")
         if "lamp" in lights:
             kwargs["lamp"] = lights.pop("lamp")
+        no_leftovers("lights", lights)
         if "dtype" in config:
             kwargs["dtype"] = {"float64": torch.float64, "float32": torch.float32}[
                 check_choice("dtype", config.pop("dtype"), ("float64", "float32"))]
