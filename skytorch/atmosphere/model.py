@@ -49,7 +49,7 @@ torch.Size([2, 2, 1])
 
 from __future__ import annotations
 
-import contextlib
+import copy
 import json
 import math
 from functools import lru_cache
@@ -62,7 +62,7 @@ from skytorch._validate import (
     broadcast_shape,
     check_choice,
     check_finite,
-    check_positive,
+    check_int,
     check_range,
     common_dtype,
 )
@@ -73,6 +73,7 @@ from skytorch.atmosphere import rayleigh as _rayleigh
 from skytorch.atmosphere.ozone import ozone_cross_section
 from skytorch.atmosphere.scattering import PHASE_FUNCTIONS, phase_function
 from skytorch.constants import (
+    AVOGADRO_PER_MOL,
     DOBSON_UNIT_PER_M2,
     EARTH_AEROSOL_SCALE_HEIGHT_M,
     EARTH_MEAN_RADIUS_M,
@@ -118,6 +119,86 @@ _PARAMETERS = (
     "ozone_peak_altitude_m", "ozone_half_width_m", "reference_refractivity",
     "reference_pressure_pa", "reference_temperature_k",
 )
+
+#: accepted range of every constructor parameter: (low, high, low inclusive, unit). The
+#: bounds are wide (Venus' 9.2 MPa surface, scale heights from 1 m, a Preetham turbidity
+#: of 64 is beta = 2.9) but finite, so that every optical depth and coefficient the model
+#: forms from them is a finite float64 number.
+PARAMETER_RANGES = {
+    "planet_radius_m": (0.0, 1e9, False, " m"),
+    "top_altitude_m": (0.0, 1e8, False, " m"),
+    "surface_pressure_pa": (0.0, 1e8, True, " Pa"),
+    "surface_temperature_k": (1.0, 1e4, True, " K"),
+    "gravity_m_s2": (1e-3, 1e3, True, " m s^-2"),
+    "molar_mass_kg_mol": (1e-4, 1.0, True, " kg/mol"),
+    "rayleigh_scale_height_m": (1.0, 1e7, True, " m"),
+    "angstrom_beta": (0.0, 100.0, True, ""),
+    "angstrom_alpha": (-1.0, 4.0, True, ""),
+    "aerosol_scale_height_m": (1.0, 1e7, True, " m"),
+    "aerosol_single_scattering_albedo": (0.0, 1.0, True, ""),
+    "aerosol_asymmetry": (-0.99, 0.99, True, ""),
+    "ozone_du": (0.0, 1e5, True, " DU"),
+    "ozone_peak_altitude_m": (0.0, 1e7, False, " m"),
+    "ozone_half_width_m": (1.0, 1e7, True, " m"),
+    "reference_refractivity": (0.0, 1e-2, True, ""),
+    "reference_pressure_pa": (0.0, 1e8, False, " Pa"),
+    "reference_temperature_k": (1.0, 1e4, True, " K"),
+}
+#: Preetham turbidity accepted by :meth:`Atmosphere.earth`: 1 (aerosol-free) to 64
+#: (beta = 2.9, a vertical aerosol optical depth of 6.3 at 550 nm: thick fog)
+TURBIDITY_RANGE = (1.0, 64.0)
+#: vertical aerosol optical depth at 550 nm accepted by :meth:`Atmosphere.earth`
+AEROSOL_OPTICAL_DEPTH_RANGE = (0.0, 100.0)
+#: wavelengths the molecular model covers [nm]: the range of the Peck & Reeder (1972)
+#: dispersion formula behind the Rayleigh cross-section and the refractivity (its poles
+#: lie at 87 and 159 nm)
+WAVELENGTH_RANGE_NM = _rayleigh.WAVELENGTH_RANGE_NM
+
+
+def _check_parameter(name: str, value, *, low=None, high=None, low_inclusive=None,
+                     unit=None) -> torch.Tensor:
+    """A constructor parameter as a float64 tensor, within :data:`PARAMETER_RANGES`.
+
+    Booleans are refused (``True`` is not a pressure); integer tensors are promoted.
+    """
+    if isinstance(value, bool) or (isinstance(value, torch.Tensor)
+                                   and value.dtype == torch.bool):
+        raise TypeError(f"{name} must be a number or a tensor of numbers; got {value!r}")
+    default = PARAMETER_RANGES.get(name, (None, None, True, ""))
+    low = default[0] if low is None else low
+    high = default[1] if high is None else high
+    low_inclusive = default[2] if low_inclusive is None else low_inclusive
+    unit = default[3] if unit is None else unit
+    tensor = as_tensor(name, value)
+    if tensor.is_floating_point() and tensor.dtype != torch.float64:
+        tensor = tensor.to(torch.float64)  # float16/float32 values are exact in float64
+    return check_range(name, tensor, low, high, low_inclusive=low_inclusive, unit=unit)
+
+
+#: keywords of the constructor (checked by the presets before forwarding)
+_CONSTRUCTOR_KEYWORDS = (
+    "planet_radius_m", "top_altitude_m", "gas", "molecule_profile", "refractivity_profile",
+    "aerosol_phase_model", "name", *_PARAMETERS,
+)
+
+
+def _check_options(where: str, options: dict, exclude: tuple[str, ...] = ()) -> None:
+    """TypeError for keywords that are not constructor arguments (typos are not ignored)."""
+    valid = [key for key in _CONSTRUCTOR_KEYWORDS if key not in exclude]
+    unknown = sorted(key for key in options if key not in valid)
+    if unknown:
+        raise TypeError(f"{where}() got unexpected keyword argument(s) {unknown}; valid "
+                        f"keywords: {', '.join(valid)}")
+
+
+def _parameter_batch_shape(values: dict) -> torch.Size:
+    """Broadcast shape of the parameters, or ValueError naming each one's shape."""
+    try:
+        return broadcast_shape(*(v.shape for v in values.values()))
+    except ValueError:
+        listing = ", ".join(f"{key} {tuple(v.shape)}" for key, v in values.items()
+                            if v.ndim > 0)
+        raise ValueError(f"Atmosphere parameters do not broadcast: {listing}") from None
 
 
 @lru_cache(maxsize=1)
@@ -214,54 +295,44 @@ class Atmosphere(nn.Module):
             _profiles.PROFILES)
         self.aerosol_phase_model = check_choice("aerosol_phase_model", aerosol_phase_model,
                                                 PHASE_FUNCTIONS)
-        self.name = str(name)
-        self.planet_radius_m = float(check_positive("planet_radius_m", planet_radius_m,
-                                                    unit=" m"))
-        self.top_altitude_m = float(check_positive("top_altitude_m", top_altitude_m,
-                                                   unit=" m"))
+        if not isinstance(name, str):
+            raise TypeError(f"name must be a string; got {name!r}")
+        self.name = name
+        self.planet_radius_m = float(_check_parameter("planet_radius_m", planet_radius_m))
+        self.top_altitude_m = float(_check_parameter("top_altitude_m", top_altitude_m))
+        if self.planet_radius_m == 0.0 or self.top_altitude_m == 0.0:
+            # (checked above; kept explicit: both radii must be > 0)
+            raise ValueError("planet_radius_m and top_altitude_m must be > 0")
         self.top_radius_m = self.planet_radius_m + self.top_altitude_m
         if molar_mass_kg_mol is None:
             molar_mass_kg_mol = (_rayleigh.air_molar_mass() if gas == "air"
                                  else _rayleigh.MARS_MOLAR_MASS_KG_MOL)
-        values = {
-            "surface_pressure_pa": check_positive("surface_pressure_pa", surface_pressure_pa,
-                                                  allow_zero=True, unit=" Pa"),
-            "surface_temperature_k": check_positive("surface_temperature_k",
-                                                    surface_temperature_k, unit=" K"),
-            "gravity_m_s2": check_positive("gravity_m_s2", gravity_m_s2),
-            "molar_mass_kg_mol": check_positive("molar_mass_kg_mol", molar_mass_kg_mol),
-            "rayleigh_scale_height_m": check_positive("rayleigh_scale_height_m",
-                                                      rayleigh_scale_height_m, unit=" m"),
-            "angstrom_beta": check_positive("angstrom_beta", angstrom_beta, allow_zero=True),
-            "angstrom_alpha": check_range("angstrom_alpha", angstrom_alpha, -1.0, 4.0),
-            "aerosol_scale_height_m": check_positive("aerosol_scale_height_m",
-                                                     aerosol_scale_height_m, unit=" m"),
-            "aerosol_single_scattering_albedo": check_range(
-                "aerosol_single_scattering_albedo", aerosol_single_scattering_albedo, 0.0, 1.0),
-            "aerosol_asymmetry": check_range("aerosol_asymmetry", aerosol_asymmetry, -0.99,
-                                             0.99),
-            "ozone_du": check_positive("ozone_du", ozone_du, allow_zero=True, unit=" DU"),
-            "ozone_peak_altitude_m": check_positive("ozone_peak_altitude_m",
-                                                    ozone_peak_altitude_m, unit=" m"),
-            "ozone_half_width_m": check_positive("ozone_half_width_m", ozone_half_width_m,
-                                                 unit=" m"),
-            "reference_refractivity": check_positive("reference_refractivity",
-                                                     reference_refractivity, allow_zero=True),
-            "reference_pressure_pa": check_positive("reference_pressure_pa",
-                                                    reference_pressure_pa),
-            "reference_temperature_k": check_positive("reference_temperature_k",
-                                                      reference_temperature_k),
+        given = {
+            "surface_pressure_pa": surface_pressure_pa,
+            "surface_temperature_k": surface_temperature_k,
+            "gravity_m_s2": gravity_m_s2, "molar_mass_kg_mol": molar_mass_kg_mol,
+            "rayleigh_scale_height_m": rayleigh_scale_height_m,
+            "angstrom_beta": angstrom_beta, "angstrom_alpha": angstrom_alpha,
+            "aerosol_scale_height_m": aerosol_scale_height_m,
+            "aerosol_single_scattering_albedo": aerosol_single_scattering_albedo,
+            "aerosol_asymmetry": aerosol_asymmetry, "ozone_du": ozone_du,
+            "ozone_peak_altitude_m": ozone_peak_altitude_m,
+            "ozone_half_width_m": ozone_half_width_m,
+            "reference_refractivity": reference_refractivity,
+            "reference_pressure_pa": reference_pressure_pa,
+            "reference_temperature_k": reference_temperature_k,
         }
+        values = {key: _check_parameter(key, value) for key, value in given.items()}
         for key, value in values.items():
             # not detached: parameters given as tensors with requires_grad stay
             # differentiable (e.g. fitting turbidity to observed extinction)
             self.register_buffer(key, value.to(torch.float64).clone())
-        self.batch_shape = broadcast_shape(*(v.shape for v in values.values()))
+        self.batch_shape = _parameter_batch_shape(values)
 
     # ------------------------------------------------------------------ presets
     @classmethod
-    def earth(cls, turbidity=2.0, ozone_du=300.0, *, aerosol_optical_depth=None,
-              angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA, **kwargs) -> Atmosphere:
+    def earth(cls, turbidity=None, ozone_du=300.0, *, aerosol_optical_depth=None,
+              angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA, **options) -> Atmosphere:
         """Earth: air, 8 km exponential molecules, US 1976 refractivity, Preetham aerosols,
         ozone tent.
 
@@ -272,50 +343,74 @@ class Atmosphere(nn.Module):
 
         Parameters
         ----------
-        turbidity : float or Tensor
-            Preetham turbidity :math:`T \\ge 1` (1: practically no aerosols, 10: hazy);
-            :math:`\\beta = 0.04608 T - 0.04586`, :math:`\\alpha = 1.3` (ref. 3).
+        turbidity : float or Tensor, optional
+            Preetham turbidity :math:`T` in :data:`TURBIDITY_RANGE` = [1, 64] (1:
+            practically no aerosols, 10: hazy); :math:`\\beta = 0.04608 T - 0.04586`,
+            :math:`\\alpha = 1.3` (ref. 3). Default 2 unless ``aerosol_optical_depth`` is
+            given.
         ozone_du : float or Tensor
             Ozone column [DU].
         aerosol_optical_depth : float or Tensor, optional
-            Vertical aerosol optical depth at 550 nm; replaces ``turbidity``.
+            Vertical aerosol optical depth at 550 nm, in [0, 100]; replaces
+            ``turbidity`` (giving both raises ValueError).
         angstrom_alpha : float or Tensor
-            Ångström exponent (with ``aerosol_optical_depth``).
-        **kwargs
-            Any other constructor argument.
+            Ångström exponent [1].
+        **options
+            Other constructor arguments (keywords of :class:`Atmosphere` except
+            ``angstrom_beta``, which ``turbidity`` sets); an unknown keyword raises
+            TypeError.
+
+        Raises
+        ------
+        ValueError
+            A turbidity outside [1, 64], NaN or inf (naming ``turbidity``).
+        TypeError
+            A turbidity that is not a number (a string, None inside a list, a bool).
         """
+        _check_options("Atmosphere.earth", options, exclude=("angstrom_beta", "ozone_du"))
         if aerosol_optical_depth is not None:
-            aod = check_positive("aerosol_optical_depth", aerosol_optical_depth,
-                                 allow_zero=True)
-            alpha = as_tensor("angstrom_alpha", angstrom_alpha)
+            if turbidity is not None:
+                raise ValueError("give turbidity or aerosol_optical_depth, not both; got "
+                                 f"turbidity={turbidity!r} and aerosol_optical_depth="
+                                 f"{aerosol_optical_depth!r}")
+            low, high = AEROSOL_OPTICAL_DEPTH_RANGE
+            aod = _check_parameter("aerosol_optical_depth", aerosol_optical_depth, low=low,
+                                   high=high, low_inclusive=True, unit="")
+            alpha = _check_parameter("angstrom_alpha", angstrom_alpha)
             beta = aod * (550.0 / _aerosol.ANGSTROM_REFERENCE_NM) ** alpha
         else:
-            turbidity = check_range("turbidity", turbidity, 1.0)
+            low, high = TURBIDITY_RANGE
+            turbidity = _check_parameter("turbidity", 2.0 if turbidity is None else turbidity,
+                                         low=low, high=high, low_inclusive=True, unit="")
             beta = _aerosol.preetham_angstrom_beta(turbidity)
             alpha = angstrom_alpha
-        options = {"planet_radius_m": EARTH_MEAN_RADIUS_M,
-                   "top_altitude_m": EARTH_TOP_OF_ATMOSPHERE_M, "name": "earth",
-                   "refractivity_profile": "us1976"}
-        options.update(kwargs)
-        return cls(angstrom_beta=beta, angstrom_alpha=alpha, ozone_du=ozone_du, **options)
+        settings = {"planet_radius_m": EARTH_MEAN_RADIUS_M,
+                    "top_altitude_m": EARTH_TOP_OF_ATMOSPHERE_M, "name": "earth",
+                    "refractivity_profile": "us1976"}
+        settings.update(options)
+        return cls(angstrom_beta=beta, angstrom_alpha=alpha, ozone_du=ozone_du, **settings)
 
     @classmethod
-    def mars(cls, dust_optical_depth=_aerosol.MARS_DUST["optical_depth"], **kwargs
+    def mars(cls, dust_optical_depth=_aerosol.MARS_DUST["optical_depth"], **options
              ) -> Atmosphere:
         """Mars: CO2 (n - 1 = 3.38e-6 at 610 Pa, 215 K), 11.1 km scale height, dust.
 
         Parameters
         ----------
         dust_optical_depth : float or Tensor
-            Vertical dust optical depth at 880 nm (default 0.5, background).
-        **kwargs
-            Any other constructor argument.
+            Vertical dust optical depth at 880 nm, in [0, 100] (default 0.5, background).
+        **options
+            Constructor arguments that replace the Martian defaults; an unknown keyword
+            raises TypeError.
         """
+        _check_options("Atmosphere.mars", options)
         dust = _aerosol.MARS_DUST
-        tau = check_positive("dust_optical_depth", dust_optical_depth, allow_zero=True)
+        tau = _check_parameter("dust_optical_depth", dust_optical_depth,
+                               low=AEROSOL_OPTICAL_DEPTH_RANGE[0],
+                               high=AEROSOL_OPTICAL_DEPTH_RANGE[1], low_inclusive=True, unit="")
         beta = tau * (dust["reference_wavelength_nm"] / _aerosol.ANGSTROM_REFERENCE_NM) ** (
             dust["angstrom_alpha"])
-        options = {
+        settings = {
             "planet_radius_m": MARS_MEAN_RADIUS_M, "top_altitude_m": MARS_TOP_OF_ATMOSPHERE_M,
             "surface_pressure_pa": MARS_SURFACE_PRESSURE_PA,
             "surface_temperature_k": MARS_SURFACE_TEMPERATURE_K,
@@ -330,8 +425,8 @@ class Atmosphere(nn.Module):
             "reference_pressure_pa": MARS_SURFACE_PRESSURE_PA,
             "reference_temperature_k": MARS_SURFACE_TEMPERATURE_K, "name": "mars",
         }
-        options.update(kwargs)
-        return cls(**options)
+        settings.update(options)
+        return cls(**settings)
 
     # ------------------------------------------------------------------ parameters
     def parameters_dict(self) -> dict:
@@ -352,42 +447,48 @@ class Atmosphere(nn.Module):
     def _p(self, key: str, dtype: torch.dtype, trailing: int = 0) -> torch.Tensor:
         """Buffer ``key`` cast to ``dtype`` with ``trailing`` singleton dimensions.
 
-        Inside :meth:`_extra_geometry_dims` every parameter gets that many more trailing
-        singletons, so that it broadcasts against geometry with extra trailing dims.
+        ``trailing`` counts every dimension the caller's tensors carry after the batch
+        dims (sample dims, geometry dims beyond the parameters', the wavelength): it is
+        passed explicitly, never held as state, so that one Atmosphere can be used from
+        many threads at once.
         """
         value = getattr(self, key).to(dtype)
-        if value.ndim == 0:  # a scalar broadcasts against anything
+        if value.ndim == 0 or trailing == 0:  # a scalar broadcasts against anything
             return value
-        extra = getattr(self, "_extra_dims", 0)
-        return value.reshape(tuple(value.shape) + (1,) * (trailing + extra))
+        return value.reshape(tuple(value.shape) + (1,) * trailing)
 
-    @contextlib.contextmanager
-    def _extra_geometry_dims(self, count: int):
-        """Let geometry tensors carry ``count`` trailing dims beyond the batch dims."""
-        previous = getattr(self, "_extra_dims", 0)
-        self._extra_dims = previous + count
-        try:
-            yield self
-        finally:
-            self._extra_dims = previous
+    def _with_parameters(self, transform) -> Atmosphere:
+        """A shallow copy whose parameter buffers are ``transform(buffer)``.
+
+        Used to lay the parameters out like a flat list of rays (ray tracing that
+        follows each ray separately); the copy shares everything else, the transformed
+        buffers keep their autograd graph.
+        """
+        clone = copy.copy(self)
+        clone._buffers = {key: transform(value) for key, value in self._buffers.items()}
+        clone.batch_shape = _parameter_batch_shape(
+            {key: value for key, value in clone._buffers.items() if key in _PARAMETERS})
+        return clone
 
     # ------------------------------------------------------------------ species
-    def _density(self, species: str, dtype: torch.dtype, profile: str | None = None):
+    def _density(self, species: str, dtype: torch.dtype, profile: str | None = None,
+                 extra: int = 0):
         """Density profile of a species as a function of altitude with a trailing sample dim
-        (``profile`` overrides the molecules' profile)."""
+        (``profile`` overrides the molecules' profile; ``extra`` geometry dims follow the
+        batch dims, before the sample dim)."""
         if species == "rayleigh":
             if (profile or self.molecule_profile) == "us1976":
                 return _profiles.us1976
-            height = self._p("rayleigh_scale_height_m", dtype, 1)
+            height = self._p("rayleigh_scale_height_m", dtype, 1 + extra)
             return lambda h: _profiles.exponential(h, height)
         if species == "aerosol":
-            height = self._p("aerosol_scale_height_m", dtype, 1)
+            height = self._p("aerosol_scale_height_m", dtype, 1 + extra)
             return lambda h: _profiles.exponential(h, height)
-        center = self._p("ozone_peak_altitude_m", dtype, 1)
-        width = self._p("ozone_half_width_m", dtype, 1)
+        center = self._p("ozone_peak_altitude_m", dtype, 1 + extra)
+        width = self._p("ozone_half_width_m", dtype, 1 + extra)
         return lambda h: _profiles.tent(h, center, width)
 
-    def _levels(self, species: str, dtype: torch.dtype):
+    def _levels(self, species: str, dtype: torch.dtype, extra: int = 0):
         """Breakpoint altitudes (..., n_level) for the path quadrature [m].
 
         Exponential profiles: the leg's lowest altitude plus multiples of the scale height
@@ -399,10 +500,10 @@ class Atmosphere(nn.Module):
             return torch.tensor(_US1976_BREAKS_M, dtype=dtype)
         if species in ("rayleigh", "aerosol"):
             key = "rayleigh_scale_height_m" if species == "rayleigh" else "aerosol_scale_height_m"
-            height = self._p(key, dtype, 1) * factors
+            height = self._p(key, dtype, 1 + extra) * factors
             return lambda base: base[..., None] + height
-        center = self._p("ozone_peak_altitude_m", dtype)
-        width = self._p("ozone_half_width_m", dtype)
+        center = self._p("ozone_peak_altitude_m", dtype, extra)
+        width = self._p("ozone_half_width_m", dtype, extra)
         return torch.stack(torch.broadcast_tensors(torch.clamp(center - width, min=0.0), center,
                                                    center + width), dim=-1)
 
@@ -413,32 +514,51 @@ class Atmosphere(nn.Module):
 
     def molecular_column_m2(self, dtype: torch.dtype = torch.float64) -> torch.Tensor:
         """Vertical column of molecules :math:`p N_A/(m g)` [m^-2], shape ``batch_shape``."""
-        return _rayleigh.column_number_density(self._p("surface_pressure_pa", dtype),
-                                               self._p("gravity_m_s2", dtype),
-                                               self._p("molar_mass_kg_mol", dtype))
+        return self._molecular_column(dtype)
 
-    def _profile_height(self, species: str, dtype: torch.dtype) -> torch.Tensor:
+    def _molecular_column(self, dtype: torch.dtype, extra: int = 0) -> torch.Tensor:
+        return (self._p("surface_pressure_pa", dtype, extra) * AVOGADRO_PER_MOL
+                / (self._p("molar_mass_kg_mol", dtype, extra)
+                   * self._p("gravity_m_s2", dtype, extra)))
+
+    def _profile_height(self, species: str, dtype: torch.dtype, extra: int = 0
+                        ) -> torch.Tensor:
         """:math:`\\int_0^\\infty \\rho_s(h)\\,dh` [m]."""
         if species == "rayleigh":
             if self.molecule_profile == "us1976":
                 return torch.tensor(_us1976_column_height_m(), dtype=dtype)
-            return self._p("rayleigh_scale_height_m", dtype)
+            return self._p("rayleigh_scale_height_m", dtype, extra)
         if species == "aerosol":
-            return self._p("aerosol_scale_height_m", dtype)
-        return self._p("ozone_half_width_m", dtype)
+            return self._p("aerosol_scale_height_m", dtype, extra)
+        return self._p("ozone_half_width_m", dtype, extra)
 
-    def _coefficients(self, wavelength_nm: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Reference-level extinction coefficients k_s (..., n_wavelength) [1/m]."""
+    def _ozone_absent(self) -> bool:
+        """Whether the ozone column is exactly zero everywhere and needs no gradient."""
+        ozone = self.ozone_du
+        return not ozone.requires_grad and not bool(ozone.detach().any())
+
+    def _coefficients(self, wavelength_nm: torch.Tensor, extra: int = 0
+                      ) -> dict[str, torch.Tensor]:
+        """Reference-level extinction coefficients k_s (..., n_wavelength) [1/m].
+
+        ``extra`` geometry dims are placed between the batch dims and the wavelength.
+        Without ozone (a zero column that needs no gradient) its coefficient is exactly
+        zero at every wavelength, so the cross-section table (360-830 nm) is not needed.
+        """
         dtype = wavelength_nm.dtype
         sigma_r = _rayleigh.rayleigh_cross_section(wavelength_nm, self.gas)
-        rayleigh = (self.molecular_column_m2(dtype) / self._profile_height("rayleigh", dtype)
-                    )[..., None] * sigma_r
-        aerosol = _aerosol.angstrom_optical_depth(
-            wavelength_nm, self._p("angstrom_beta", dtype), self._p("angstrom_alpha", dtype)
-        ) / self._p("aerosol_scale_height_m", dtype, 1)
-        ozone = (self._p("ozone_du", dtype) * DOBSON_UNIT_PER_M2
-                 / self._p("ozone_half_width_m", dtype))[..., None] * ozone_cross_section(
-                     wavelength_nm)
+        rayleigh = (self._molecular_column(dtype, extra + 1)
+                    / self._profile_height("rayleigh", dtype, extra + 1)) * sigma_r
+        aerosol = (self._p("angstrom_beta", dtype, extra + 1)
+                   * (wavelength_nm / _aerosol.ANGSTROM_REFERENCE_NM)
+                   ** (-self._p("angstrom_alpha", dtype, extra + 1))
+                   / self._p("aerosol_scale_height_m", dtype, extra + 1))
+        column = (self._p("ozone_du", dtype, extra + 1) * DOBSON_UNIT_PER_M2
+                  / self._p("ozone_half_width_m", dtype, extra + 1))
+        if self._ozone_absent():
+            ozone = column * torch.zeros_like(wavelength_nm)
+        else:
+            ozone = column * ozone_cross_section(wavelength_nm)
         return {"rayleigh": rayleigh, "aerosol": aerosol, "ozone": ozone}
 
     def reference_extinction(self, wavelength_nm) -> dict[str, torch.Tensor]:
@@ -481,7 +601,9 @@ class Atmosphere(nn.Module):
 
     @staticmethod
     def _wavelength(wavelength_nm, dtype=None) -> torch.Tensor:
-        wavelength = check_positive("wavelength_nm", wavelength_nm, unit=" nm", dtype=dtype)
+        low, high = WAVELENGTH_RANGE_NM
+        wavelength = check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm",
+                                 dtype=dtype)
         if wavelength.ndim > 1:
             raise ValueError("wavelength_nm must be a scalar or a 1-D tensor (n_wavelength,); "
                              f"got shape {tuple(wavelength.shape)}")
@@ -492,13 +614,32 @@ class Atmosphere(nn.Module):
         return check_range("altitude_m", altitude_m, 0.0, unit=" m (observer inside the "
                            "planet?)", dtype=dtype)
 
+    def _check_shapes(self, extra: int = 0, **named) -> torch.Size:
+        """Broadcast shape of the named geometry tensors and the parameters' batch shape.
+
+        Raises ValueError naming every input and its shape when they do not broadcast
+        (before any arithmetic). With ``extra`` the last ``extra`` dims of the geometry
+        follow the batch dims (the parameters are aligned before them).
+        """
+        shapes = {name: tuple(value.shape) for name, value in named.items()}
+        batch = tuple(self.batch_shape) + (1,) * extra if self.batch_shape else ()
+        try:
+            return broadcast_shape(*shapes.values(), batch)
+        except ValueError:
+            listing = ", ".join(f"{name} {shape}" for name, shape in shapes.items())
+            raise ValueError(f"shapes do not broadcast: {listing} and the atmosphere's "
+                             f"parameters {tuple(self.batch_shape)}") from None
+
     # ------------------------------------------------------------------ local coefficients
-    def _local(self, altitude_m, wavelength_nm):
+    def _local(self, altitude_m, wavelength_nm, extra: int = 0):
         dtype = common_dtype(altitude_m, wavelength_nm)
         wavelength = self._wavelength(wavelength_nm, dtype)
-        altitude = self._altitude(altitude_m, dtype)[..., None]
-        coefficients = self._coefficients(wavelength)
-        return {s: self._density(s, dtype)(altitude) * coefficients[s] for s in SPECIES}
+        altitude = self._altitude(altitude_m, dtype)
+        self._check_shapes(extra, altitude_m=altitude)
+        altitude = altitude[..., None]
+        coefficients = self._coefficients(wavelength, extra)
+        return {s: self._density(s, dtype, extra=extra)(altitude) * coefficients[s]
+                for s in SPECIES}
 
     def extinction_coefficient(self, altitude_m, wavelength_nm) -> torch.Tensor:
         """Total extinction coefficient (scattering + absorption).
@@ -532,6 +673,7 @@ class Atmosphere(nn.Module):
     def aerosol_phase(self, cos_theta) -> torch.Tensor:
         """Aerosol phase function [1/sr], normalised over 4π; shape broadcast(cos, batch)."""
         cos_theta = check_range("cos_theta", cos_theta, -1.0, 1.0)
+        self._check_shapes(cos_theta=cos_theta)
         return phase_function(cos_theta, self._p("aerosol_asymmetry", cos_theta.dtype),
                               self.aerosol_phase_model)
 
@@ -539,6 +681,7 @@ class Atmosphere(nn.Module):
         """Dimensionless density profile of ``species`` (1 at the surface for molecules)."""
         check_choice("species", species, SPECIES)
         altitude = self._altitude(altitude_m, common_dtype(altitude_m))
+        self._check_shapes(altitude_m=altitude)
         return self._density(species, altitude.dtype)(altitude[..., None])[..., 0]
 
     @property
@@ -584,6 +727,7 @@ class Atmosphere(nn.Module):
         """
         dtype = common_dtype(altitude_m, wavelength_nm)
         altitude = self._altitude(altitude_m, dtype)
+        self._check_shapes(altitude_m=altitude)
         surface = (self._p("reference_refractivity", dtype)
                    * self._p("surface_pressure_pa", dtype) / self._p("reference_pressure_pa",
                                                                      dtype)
@@ -603,14 +747,33 @@ class Atmosphere(nn.Module):
                          dtype: torch.dtype | None = None) -> dict[str, torch.Tensor]:
         """Path integrals :math:`\\int \\rho_s\\,ds` [m] of each species' profile.
 
+        Parameters
+        ----------
+        zenith_rad, altitude_m : Tensor (...)
+            Ray zenith angle [rad] and observer altitude [m] (>= 0), broadcast with each
+            other and with the parameters' batch shape.
+        method, n_steps, rtol
+            Quadrature, see :meth:`optical_depth`.
+        dtype : torch.dtype, optional
+            Computation dtype (default: that of the inputs).
+
         Returns
         -------
         dict of Tensor (...)
             Keys of :data:`SPECIES`; shapes broadcast geometry and parameters.
         """
+        if dtype is not None and dtype not in (torch.float16, torch.bfloat16, torch.float32,
+                                               torch.float64):
+            raise TypeError(f"dtype must be a floating torch.dtype; got {dtype!r}")
         dtype = dtype or common_dtype(zenith_rad, altitude_m)
         zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
         altitude = self._altitude(altitude_m, dtype)
+        _check_quadrature(method, n_steps, rtol)
+        self._check_shapes(zenith_rad=zenith, altitude_m=altitude)
+        return self._columns(zenith, altitude, method, n_steps, rtol, dtype)
+
+    def _columns(self, zenith, altitude, method, n_steps, rtol, dtype, extra: int = 0):
+        """Column integrals of checked inputs (``extra``: geometry dims after the batch)."""
         r = self.planet_radius_m + altitude
         mu = torch.cos(zenith)
         shape = broadcast_shape(r.shape, mu.shape)
@@ -624,11 +787,12 @@ class Atmosphere(nn.Module):
                       for i in range(0, count, _CHUNK)]
             return {s: torch.cat([piece[s] for piece in pieces]).reshape(shape)
                     for s in SPECIES}
-        return self._column_integrals(r, mu, method, n_steps, rtol, dtype)
+        return self._column_integrals(r, mu, method, n_steps, rtol, dtype, extra)
 
-    def _column_integrals(self, r, mu, method, n_steps, rtol, dtype):
-        return {s: _od.column_integral(self._density(s, dtype), r, mu, self.planet_radius_m,
-                                       self.top_radius_m, self._levels(s, dtype),
+    def _column_integrals(self, r, mu, method, n_steps, rtol, dtype, extra: int = 0):
+        return {s: _od.column_integral(self._density(s, dtype, extra=extra), r, mu,
+                                       self.planet_radius_m, self.top_radius_m,
+                                       self._levels(s, dtype, extra),
                                        method=method, n_steps=n_steps, rtol=rtol,
                                        truncate=self._truncates(s), support=s == "ozone")
                 for s in SPECIES}
@@ -636,13 +800,15 @@ class Atmosphere(nn.Module):
     def optical_depth(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, *,
                       method: str = "gauss", n_steps: int | None = None,
                       per_species: bool = False, refraction: bool = False,
-                      rtol: float = 1e-9, **kwargs):
+                      rtol: float = 1e-9, n_nodes: int | None = None,
+                      step_m: float | None = None, max_dh_m: float | None = None):
         """Slant optical depth along a straight (or refracted) ray to space or the ground.
 
         Parameters
         ----------
         wavelength_nm : Tensor (wavelength,)
-            Wavelength [nm].
+            Wavelength [nm], in :data:`WAVELENGTH_RANGE_NM` (360–830 nm where the ozone
+            column is not zero: the range of the ozone cross-sections).
         zenith_rad : Tensor (...)
             Zenith angle of the viewing direction at the observer [rad]; > π/2 looks
             down (the ray may hit the ground).
@@ -650,18 +816,25 @@ class Atmosphere(nn.Module):
             Observer altitude [m], >= 0 (above the top: the ray's path through the
             atmosphere); ValueError below the surface.
         method : {"gauss", "trapezoid", "adaptive"}
-            Quadrature (:mod:`skytorch.atmosphere.optical_depth`).
+            Quadrature (:mod:`skytorch.atmosphere.optical_depth`); with
+            ``refraction=True``: ``"gauss"`` (= ``"bouguer"``) or ``"rk4"``.
         n_steps : int, optional
             Resolution of the quadrature (default per method).
         per_species : bool
             Return ``{"rayleigh", "aerosol", "ozone"}`` instead of the total.
         refraction : bool
             Integrate along the refracted ray (:mod:`skytorch.atmosphere.refraction`).
+        rtol : float
+            Relative tolerance of ``method="adaptive"``, > 0.
+        n_nodes, step_m, max_dh_m : optional
+            Resolution of the refracted ray (``refraction=True`` only; see
+            :func:`skytorch.atmosphere.refraction.bent_optical_depth`).
 
         Returns
         -------
         Tensor (..., wavelength) or dict of them
-            Optical depth [1].
+            Optical depth [1]; ``...`` broadcasts ``zenith_rad``, ``altitude_m`` and the
+            parameters' batch shape (ValueError naming the shapes otherwise).
 
         Notes
         -----
@@ -669,63 +842,114 @@ class Atmosphere(nn.Module):
         integrals are computed per species (3) and multiplied by the spectral
         coefficients, so the cost does not grow with the number of wavelengths.
         """
+        _check_flag("per_species", per_species)
+        _check_flag("refraction", refraction)
         if refraction:
             from skytorch.atmosphere import refraction as _refraction
 
+            options = {key: value for key, value in (("n_nodes", n_nodes), ("step_m", step_m),
+                                                     ("max_dh_m", max_dh_m))
+                       if value is not None}
             return _refraction.bent_optical_depth(self, wavelength_nm, zenith_rad, altitude_m,
                                                   method=method, n_steps=n_steps,
-                                                  per_species=per_species, **kwargs)
+                                                  per_species=per_species, rtol=rtol,
+                                                  **options)
+        given = [key for key, value in (("n_nodes", n_nodes), ("step_m", step_m),
+                                        ("max_dh_m", max_dh_m)) if value is not None]
+        if given:
+            raise TypeError(f"{', '.join(given)} apply to refracted rays only (refraction="
+                            "True); straight rays take method, n_steps and rtol")
         dtype = common_dtype(wavelength_nm, zenith_rad, altitude_m)
         wavelength = self._wavelength(wavelength_nm, dtype)
-        columns = self.column_integrals(zenith_rad, altitude_m, method=method,
-                                        n_steps=n_steps, rtol=rtol, dtype=dtype)
-        coefficients = self._coefficients(wavelength)
+        zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
+        altitude = self._altitude(altitude_m, dtype)
+        _check_quadrature(method, n_steps, rtol)
+        self._check_shapes(zenith_rad=zenith, altitude_m=altitude)
+        return self._optical_depth(wavelength, zenith, altitude, method=method,
+                                   n_steps=n_steps, rtol=rtol, per_species=per_species)
+
+    def _optical_depth(self, wavelength, zenith, altitude, *, method="gauss", n_steps=None,
+                       rtol=1e-9, per_species=False, extra: int = 0):
+        """Straight-ray optical depth of checked inputs; ``extra`` geometry dims follow the
+        parameters' batch dims (e.g. samples along a view ray), before the wavelength."""
+        dtype = wavelength.dtype
+        columns = self._columns(zenith, altitude, method, n_steps, rtol, dtype, extra)
+        coefficients = self._coefficients(wavelength, extra)
         result = {s: columns[s][..., None] * coefficients[s] for s in SPECIES}
         if per_species:
             return result
         return result["rayleigh"] + result["aerosol"] + result["ozone"]
 
-    def transmittance(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, **kwargs
+    def transmittance(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, **options
                       ) -> torch.Tensor:
         """Direct transmittance :math:`e^{-\\tau}` (..., wavelength) [1]; exactly 0 when
-        :math:`\\tau` is huge (use :meth:`optical_depth` for log-transmittance)."""
-        return torch.exp(-self.optical_depth(wavelength_nm, zenith_rad, altitude_m, **kwargs))
+        :math:`\\tau` is huge (use :meth:`optical_depth` for log-transmittance).
 
-    def air_mass(self, zenith_rad, altitude_m=0.0, *, species: str = "rayleigh", **kwargs
+        ``options`` are the keywords of :meth:`optical_depth` (an unknown one raises
+        TypeError); ``per_species`` is not one of them.
+        """
+        if "per_species" in options:
+            raise TypeError("transmittance() got an unexpected keyword argument "
+                            "'per_species' (use optical_depth)")
+        return torch.exp(-self.optical_depth(wavelength_nm, zenith_rad, altitude_m, **options))
+
+    def air_mass(self, zenith_rad, altitude_m=0.0, *, species: str = "rayleigh",
+                 method: str = "gauss", n_steps: int | None = None, rtol: float = 1e-9,
+                 refraction: bool = False, n_nodes: int | None = None,
+                 step_m: float | None = None, max_dh_m: float | None = None
                  ) -> torch.Tensor:
         """Relative air mass: slant column over vertical column of ``species`` [1].
 
-        Straight rays; pass ``refraction=True`` for refracted rays.
+        Straight rays; pass ``refraction=True`` for refracted rays (the other keywords as
+        for :meth:`optical_depth`).
         """
         check_choice("species", species, SPECIES)
-        if kwargs.pop("refraction", False):
-            wavelength = torch.tensor([550.0], dtype=common_dtype(zenith_rad, altitude_m))
-            slant = self.optical_depth(wavelength, zenith_rad, altitude_m, refraction=True,
-                                       per_species=True, **kwargs)[species][..., 0]
-            vertical = self.optical_depth(wavelength, 0.0 * torch.as_tensor(zenith_rad),
-                                          altitude_m, per_species=True, **kwargs
-                                          )[species][..., 0]
+        _check_flag("refraction", refraction)
+        dtype = common_dtype(zenith_rad, altitude_m)
+        zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
+        if refraction:
+            wavelength = torch.tensor([550.0], dtype=dtype)
+            options = {"method": method, "n_steps": n_steps, "rtol": rtol}
+            slant = self.optical_depth(wavelength, zenith, altitude_m, refraction=True,
+                                       per_species=True, n_nodes=n_nodes, step_m=step_m,
+                                       max_dh_m=max_dh_m, **options)[species][..., 0]
+            straight = {"method": "gauss" if method in ("bouguer", "rk4") else method,
+                        "n_steps": n_steps, "rtol": rtol}
+            vertical = self.optical_depth(wavelength, 0.0 * zenith, altitude_m,
+                                          per_species=True, **straight)[species][..., 0]
             return slant / vertical
-        slant = self.column_integrals(zenith_rad, altitude_m, **kwargs)[species]
-        zenith = torch.zeros_like(torch.as_tensor(zenith_rad, dtype=slant.dtype))
-        vertical = self.column_integrals(zenith, altitude_m, **kwargs)[species]
+        given = [key for key, value in (("n_nodes", n_nodes), ("step_m", step_m),
+                                        ("max_dh_m", max_dh_m)) if value is not None]
+        if given:
+            raise TypeError(f"{', '.join(given)} apply to refracted rays only (refraction="
+                            "True)")
+        slant = self.column_integrals(zenith, altitude_m, method=method, n_steps=n_steps,
+                                      rtol=rtol)[species]
+        vertical = self.column_integrals(torch.zeros_like(zenith), altitude_m, method=method,
+                                         n_steps=n_steps, rtol=rtol)[species]
         return slant / vertical
 
     def sky_radiance(self, wavelength_nm, view_zenith_rad, view_azimuth_rad=0.0,
                      sun_zenith_rad=0.0, sun_azimuth_rad=0.0, altitude_m=0.0, *,
-                     solar_irradiance: bool = False, **kwargs) -> torch.Tensor:
+                     solar_irradiance: bool = False, n_samples: int = 128, table=None,
+                     sun_steps: int | None = None) -> torch.Tensor:
         """Single-scattering sky radiance (..., wavelength).
 
         Per unit solar irradiance [sr^-1], or with ``solar_irradiance=True`` times the
         extraterrestrial solar spectrum (:func:`skytorch.spectrum.solar_irradiance`)
         [W m^-2 sr^-1 nm^-1]. See
-        :func:`skytorch.atmosphere.scattering.single_scattering_radiance`.
+        :func:`skytorch.atmosphere.scattering.single_scattering_radiance` for the other
+        parameters (``table`` must have been built for this atmosphere and these
+        wavelengths).
         """
         from skytorch.atmosphere.scattering import single_scattering_radiance
 
+        _check_flag("solar_irradiance", solar_irradiance)
         radiance = single_scattering_radiance(self, wavelength_nm, view_zenith_rad,
                                               view_azimuth_rad, sun_zenith_rad,
-                                              sun_azimuth_rad, altitude_m, **kwargs)
+                                              sun_azimuth_rad, altitude_m,
+                                              n_samples=n_samples, table=table,
+                                              sun_steps=sun_steps)
         if solar_irradiance:
             from skytorch.spectrum import solar_irradiance as irradiance
 
@@ -734,23 +958,39 @@ class Atmosphere(nn.Module):
         return radiance
 
     # ------------------------------------------------------------------ refraction
-    def refraction(self, apparent_altitude_rad, altitude_m=0.0, **kwargs) -> torch.Tensor:
+    def refraction(self, apparent_altitude_rad, altitude_m=0.0, **options) -> torch.Tensor:
         """Astronomical refraction, apparent minus true altitude [rad] (ray traced).
 
-        Delegates to :func:`skytorch.atmosphere.refraction.refraction_angle`.
+        Delegates to :func:`skytorch.atmosphere.refraction.refraction_angle` (``options``
+        are its keywords; an unknown one raises TypeError).
         """
         from skytorch.atmosphere import refraction as _refraction
 
-        return _refraction.refraction_angle(self, apparent_altitude_rad, altitude_m, **kwargs)
+        return _refraction.refraction_angle(self, apparent_altitude_rad, altitude_m, **options)
 
-    def apparent_altitude(self, true_altitude_rad, altitude_m=0.0, **kwargs) -> torch.Tensor:
+    def apparent_altitude(self, true_altitude_rad, altitude_m=0.0, **options) -> torch.Tensor:
         """Apparent altitude of a source at ``true_altitude_rad`` [rad] (inverse of
         :meth:`refraction`); delegates to :mod:`skytorch.atmosphere.refraction`."""
         from skytorch.atmosphere import refraction as _refraction
 
-        return _refraction.apparent_altitude(self, true_altitude_rad, altitude_m, **kwargs)
+        return _refraction.apparent_altitude(self, true_altitude_rad, altitude_m, **options)
 
-    def forward(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, **kwargs) -> torch.Tensor:
+    def forward(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, **options
+                ) -> torch.Tensor:
         """Same as :meth:`transmittance`."""
-        return self.transmittance(wavelength_nm, zenith_rad, altitude_m, **kwargs)
+        return self.transmittance(wavelength_nm, zenith_rad, altitude_m, **options)
 
+
+def _check_flag(name: str, value) -> bool:
+    """A boolean option (TypeError for anything else, e.g. a string "False")."""
+    if not isinstance(value, bool):
+        raise TypeError(f"{name} must be True or False; got {value!r}")
+    return value
+
+
+def _check_quadrature(method, n_steps, rtol) -> None:
+    """Checked straight-ray quadrature options (before any arithmetic)."""
+    check_choice("method", method, _od.METHODS)
+    if n_steps is not None:
+        check_int("n_steps", n_steps, 1)
+    _od.check_rtol(rtol)

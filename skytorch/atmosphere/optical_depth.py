@@ -61,14 +61,21 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from skytorch._validate import broadcast_shape, check_choice, check_int
-from skytorch.atmosphere.geometry import _safe_divide, ray_segment, safe_sqrt
+from skytorch._validate import (
+    as_tensor,
+    broadcast_shape,
+    check_choice,
+    check_int,
+    check_range,
+)
+from skytorch.atmosphere.geometry import _ray_segment, _safe_divide, safe_sqrt
 
 __all__ = [
     "DEFAULT_STEPS",
     "METHODS",
     "chapman",
     "chapman_horizontal",
+    "check_rtol",
     "column_integral",
     "kasten_young_air_mass",
 ]
@@ -80,6 +87,14 @@ DEFAULT_STEPS = {"gauss": 6, "trapezoid": 500, "adaptive": 4}
 _MAX_ADAPTIVE_NODES = 128
 
 Density = Callable[[torch.Tensor], torch.Tensor]
+
+
+def check_rtol(rtol) -> float:
+    """The relative tolerance of ``"adaptive"`` as a float in (0, 1] (ValueError naming
+    ``rtol`` for NaN, inf, zero, negative or larger values; TypeError for non-numbers)."""
+    if isinstance(rtol, bool) or (isinstance(rtol, torch.Tensor) and rtol.numel() != 1):
+        raise TypeError(f"rtol must be a number; got {rtol!r}")
+    return float(check_range("rtol", as_tensor("rtol", rtol), 0.0, 1.0, low_inclusive=False))
 
 
 @lru_cache(maxsize=32)
@@ -108,7 +123,7 @@ def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, t
     :math:`(c_{hi} - c_{lo})/(hi + lo)`, so nothing cancels near the zenith, the horizon
     or on boundaries.
     """
-    segment = ray_segment(r, mu, planet_radius, top_radius)
+    segment = _ray_segment(r, mu, planet_radius, top_radius)
     hits, excess = segment["hits_ground"], segment["excess_sq"]
     inside = r <= top_radius
     t_top = safe_sqrt((top_radius - r) * (top_radius + r) + (r * mu) ** 2)
@@ -235,6 +250,16 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     """
     check_choice("method", method, METHODS)
     n_steps = check_int("n_steps", DEFAULT_STEPS[method] if n_steps is None else n_steps, 1)
+    check_rtol(rtol)
+    if not (isinstance(r, torch.Tensor) and isinstance(mu, torch.Tensor)
+            and r.is_floating_point() and mu.is_floating_point()):
+        r = as_tensor("r", r)
+        mu = as_tensor("mu", mu, dtype=r.dtype)
+    try:
+        broadcast_shape(r.shape, mu.shape)
+    except ValueError:
+        raise ValueError(f"shapes do not broadcast: r {tuple(r.shape)}, mu "
+                         f"{tuple(mu.shape)}") from None
     legs = [leg for leg in ray_legs(r, mu, planet_radius, top_radius)
             if bool((leg["length"] > 0).any())]
     zero = 0.0 * (r * mu)  # keeps the graph: empty paths have a zero (not missing) gradient
@@ -282,8 +307,15 @@ def chapman_horizontal(x) -> torch.Tensor:
     Tensor (...)
         :math:`\\mathrm{Ch}(x, \\pi/2)` [1].
     """
-    x = torch.as_tensor(x, dtype=torch.float64) if not isinstance(x, torch.Tensor) else x
-    return x * torch.special.scaled_modified_bessel_k1(x)
+    x = check_range("x", x, 0.0, low_inclusive=False)
+    return _chapman_horizontal(x)
+
+
+def _chapman_horizontal(x: torch.Tensor) -> torch.Tensor:
+    """:func:`chapman_horizontal` of a checked tensor (its limit 1 at x = 0)."""
+    safe = torch.where(x > 0, x, torch.ones_like(x))
+    return torch.where(x > 0, safe * torch.special.scaled_modified_bessel_k1(safe),
+                       torch.ones_like(x))
 
 
 #: panel ends of the exact Chapman quadrature in u = h/H (e^-45 ~ 3e-20 truncation)
@@ -354,10 +386,18 @@ def chapman(x, zenith_rad, *, exact: bool = False) -> torch.Tensor:
     of horizontal rays, and the smooth integrand is integrated by 12-node Gauss–Legendre
     on 14 panels between :math:`u` = 0, 0.25, 0.5, 1, 2, ..., 45.
     """
-    zenith = torch.as_tensor(zenith_rad, dtype=torch.float64) \
-        if not isinstance(zenith_rad, torch.Tensor) else zenith_rad
-    x = torch.as_tensor(x, dtype=zenith.dtype)
-    x, zenith = torch.broadcast_tensors(x, zenith) if exact else (x, zenith)
+    if not isinstance(exact, bool):
+        raise TypeError(f"exact must be True or False; got {exact!r}")
+    # (a few ulps of slack: float32 pi rounds above math.pi)
+    zenith = check_range("zenith_rad", zenith_rad, 0.0, math.pi + 1e-6, unit=" rad")
+    zenith = torch.clamp(zenith, max=math.pi)
+    x = check_range("x", x, 0.0, low_inclusive=False, dtype=zenith.dtype)
+    try:
+        shape = broadcast_shape(x.shape, zenith.shape)
+    except ValueError:
+        raise ValueError(f"shapes do not broadcast: x {tuple(x.shape)}, zenith_rad "
+                         f"{tuple(zenith.shape)}") from None
+    x, zenith = (x.expand(shape), zenith.expand(shape)) if exact else (x, zenith)
     below = zenith > 0.5 * math.pi
     z_up = torch.where(below, math.pi - zenith, zenith)
     y = torch.sqrt(0.5 * x) * torch.cos(z_up)
@@ -365,12 +405,12 @@ def chapman(x, zenith_rad, *, exact: bool = False) -> torch.Tensor:
         upper = _chapman_exact_upward(x, y)
     else:
         asymptotic_90 = torch.sqrt(0.5 * math.pi * x)
-        correction = chapman_horizontal(x) / asymptotic_90
+        correction = _chapman_horizontal(x) / asymptotic_90
         # weight the horizontal correction by sin^2 z: exact at 0 and 90 deg
         weight = torch.sin(z_up) ** 2
         upper = asymptotic_90 * torch.special.erfcx(y) * (1.0 + (correction - 1.0) * weight)
     x_sin = x * torch.sin(zenith)
-    lower = 2.0 * torch.exp(x - x_sin) * chapman_horizontal(x_sin) - upper
+    lower = 2.0 * torch.exp(x - x_sin) * _chapman_horizontal(x_sin) - upper
     return torch.where(below, lower, upper)
 
 
@@ -378,9 +418,10 @@ def kasten_young_air_mass(zenith_rad) -> torch.Tensor:
     """Relative optical air mass of Kasten & Young (ref. 3).
 
     :math:`m = 1/(\\cos z + 0.50572 (96.07995° - z)^{-1.6364})`, :math:`z` in degrees in
-    the second term; includes refraction (apparent zenith angle).
+    the second term; includes refraction (apparent zenith angle, in [0, π/2] [rad]: the
+    fit ends at the horizon).
     """
-    zenith = torch.as_tensor(zenith_rad, dtype=torch.float64) \
-        if not isinstance(zenith_rad, torch.Tensor) else zenith_rad
+    zenith = check_range("zenith_rad", zenith_rad, 0.0, 0.5 * math.pi + 1e-6, unit=" rad")
+    zenith = torch.clamp(zenith, max=0.5 * math.pi)
     z_deg = torch.rad2deg(zenith)
     return 1.0 / (torch.cos(zenith) + 0.50572 * (96.07995 - z_deg) ** -1.6364)

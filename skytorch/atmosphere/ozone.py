@@ -3,7 +3,10 @@
 The cross-sections (360–830 nm, 10 nm bins) are those measured at 233 K by Serdyuchenko
 et al. (ref. 1, IUP Bremen), averaged over ``[λ, λ + 10 nm)`` bins as in Bruneton's
 reference implementation (ref. 2); each bin value is assigned to its lower edge, as
-there, and interpolated linearly in between. Outside 360–830 nm the edge value is used.
+there, and interpolated linearly in between. Outside 360–830 nm (:data:`OZONE_RANGE_NM`)
+there is no data: :func:`ozone_cross_section` raises ``ValueError`` naming the
+wavelength and the range rather than extrapolating (the Hartley–Huggins bands below
+360 nm absorb orders of magnitude more than the edge value).
 
 References
 ----------
@@ -30,12 +33,14 @@ import numpy as np
 import torch
 
 from skytorch._data import data_path
-from skytorch._validate import as_tensor
+from skytorch._validate import check_finite
 
-__all__ = ["OZONE_TABLE", "ozone_cross_section"]
+__all__ = ["OZONE_RANGE_NM", "OZONE_TABLE", "ozone_cross_section"]
 
 #: shipped table (``data/``)
 OZONE_TABLE = "ozone_cross_section_serdyuchenko2014_233k.csv"
+#: wavelengths covered by the shipped table [nm]
+OZONE_RANGE_NM = (360.0, 830.0)
 
 
 @lru_cache(maxsize=1)
@@ -51,18 +56,32 @@ def ozone_cross_section(wavelength_nm) -> torch.Tensor:
     Parameters
     ----------
     wavelength_nm : Tensor (...)
-        Wavelength [nm].
+        Wavelength [nm], in :data:`OZONE_RANGE_NM` (360–830 nm).
 
     Returns
     -------
     Tensor (...)
         Cross-section [m^2], linear interpolation in the shipped table.
+
+    Raises
+    ------
+    ValueError
+        For a wavelength outside 360–830 nm (no extrapolation), NaN or inf.
     """
-    wavelength_nm = as_tensor("wavelength_nm", wavelength_nm)
+    low, high = OZONE_RANGE_NM
+    wavelength_nm = check_finite("wavelength_nm", wavelength_nm)
+    with torch.no_grad():
+        outside = (wavelength_nm < low) | (wavelength_nm > high)
+        if bool(outside.any()):
+            bad = float(wavelength_nm[outside].reshape(-1)[0])
+            raise ValueError(
+                f"wavelength_nm must be in [{low}, {high}] nm (the range "
+                f"of the shipped ozone cross-sections); got {bad} nm ({int(outside.sum())} "
+                "offending element(s)); use an atmosphere with ozone_du=0 outside it")
     grid, sigma = _table()
     grid = grid.to(wavelength_nm.dtype)
     sigma = sigma.to(wavelength_nm.dtype)
-    x = torch.clamp(wavelength_nm, float(grid[0]), float(grid[-1]))
+    x = wavelength_nm
     index = torch.clamp(torch.searchsorted(grid, x.detach().contiguous(), right=True) - 1,
                         0, grid.numel() - 2)
     x0 = grid[index]

@@ -37,11 +37,12 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_choice
+from skytorch._validate import check_choice, check_positive, check_range
 from skytorch.constants import AVOGADRO_PER_MOL, BOLTZMANN_J_K
 
 __all__ = [
     "RAYLEIGH_GASES",
+    "WAVELENGTH_RANGE_NM",
     "STANDARD_AIR_NUMBER_DENSITY_M3",
     "air_king_factor",
     "air_molar_mass",
@@ -50,6 +51,17 @@ __all__ = [
     "rayleigh_cross_section",
     "refractivity_dispersion",
 ]
+
+#: wavelengths covered by the Peck & Reeder (1972) dispersion formula [nm] (their
+#: measurements span 230.2-1690.3 nm; the formula has poles at 87 and 159 nm)
+WAVELENGTH_RANGE_NM = (230.0, 1690.0)
+
+
+def _check_wavelength(wavelength_nm):
+    """Wavelength [nm] as a floating tensor inside :data:`WAVELENGTH_RANGE_NM`."""
+    low, high = WAVELENGTH_RANGE_NM
+    return check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm")
+
 
 #: gases with a Rayleigh model
 RAYLEIGH_GASES = ("air", "co2")
@@ -88,7 +100,7 @@ def air_refractivity(wavelength_nm, co2_ppv: float = DEFAULT_CO2_PPV) -> torch.T
     + 17455.7/(39.32957 - \\lambda^{-2})`, and ref. 1 eq. 19:
     :math:`(n - 1) = (n_{300} - 1)[1 + 0.54 (C - 0.0003)]`.
     """
-    lam = as_tensor("wavelength_nm", wavelength_nm) * 1e-3
+    lam = _check_wavelength(wavelength_nm) * 1e-3
     inv2 = lam ** -2
     n300 = 1e-8 * (8060.51 + 2480990.0 / (132.274 - inv2) + 17455.7 / (39.32957 - inv2))
     return n300 * (1.0 + 0.54 * (co2_ppv - 0.0003))
@@ -116,7 +128,7 @@ def air_king_factor(wavelength_nm, co2_ppv: float = DEFAULT_CO2_PPV) -> torch.Te
     :math:`F(Ar) = 1`, :math:`F(CO_2) = 1.15`, weighted by volume percentages
     78.084, 20.946, 0.934 and :math:`100\\,C`.
     """
-    lam = as_tensor("wavelength_nm", wavelength_nm) * 1e-3
+    lam = _check_wavelength(wavelength_nm) * 1e-3
     inv2 = lam ** -2
     f_n2 = 1.034 + 3.17e-4 * inv2
     f_o2 = 1.096 + 1.385e-3 * inv2 + 1.448e-4 * inv2 * inv2
@@ -170,7 +182,8 @@ def rayleigh_cross_section(wavelength_nm, gas: str = "air", *, co2_ppv: float = 
     taken as long as :math:`n - 1 \\propto N`.
     """
     check_choice("gas", gas, RAYLEIGH_GASES)
-    wavelength_nm = as_tensor("wavelength_nm", wavelength_nm)
+    check_range("co2_ppv", co2_ppv, 0.0, 1.0)
+    wavelength_nm = _check_wavelength(wavelength_nm)
     dtype = wavelength_nm.dtype
     # lambda^4 N^2 overflows float32: evaluate in float64 and cast back
     wavelength_nm = wavelength_nm.to(torch.float64)
@@ -197,5 +210,7 @@ def column_number_density(pressure_pa, gravity_m_s2, molar_mass_kg_mol) -> torch
 
     :math:`N_{col} = p N_A / (m_a g)` (ref. 1, eq. 29 with :math:`A = N_A`).
     """
-    return as_tensor("pressure_pa", pressure_pa) * AVOGADRO_PER_MOL / (
-        molar_mass_kg_mol * gravity_m_s2)
+    pressure = check_positive("pressure_pa", pressure_pa, allow_zero=True, unit=" Pa")
+    gravity = check_positive("gravity_m_s2", gravity_m_s2, unit=" m s^-2")
+    molar_mass = check_positive("molar_mass_kg_mol", molar_mass_kg_mol, unit=" kg/mol")
+    return pressure * AVOGADRO_PER_MOL / (molar_mass * gravity)

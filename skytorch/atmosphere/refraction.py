@@ -90,6 +90,7 @@ Examples
 
 from __future__ import annotations
 
+import copy
 import functools
 import logging
 import math
@@ -97,7 +98,13 @@ import math
 import numpy as np
 import torch
 
-from skytorch._validate import as_tensor, check_choice, check_int, check_range, common_dtype
+from skytorch._validate import (
+    broadcast_shape,
+    check_choice,
+    check_int,
+    check_range,
+    common_dtype,
+)
 from skytorch.atmosphere.geometry import texture_coordinates, texture_rays
 
 __all__ = [
@@ -182,6 +189,63 @@ def _inside(levels, top: float, dtype: torch.dtype) -> torch.Tensor | None:
     return torch.tensor(levels, dtype=dtype) if levels else None
 
 
+def _check_atmosphere(atm, *attributes: str) -> None:
+    """TypeError unless ``atm`` has the attributes the ray tracer needs."""
+    needed = ("planet_radius_m", "top_altitude_m", "refractivity", *attributes)
+    missing = [name for name in needed if not hasattr(atm, name)]
+    if missing:
+        raise TypeError(
+            "atm must be an Atmosphere (or an object with planet_radius_m, top_altitude_m "
+            f"and refractivity(altitude_m)); got {type(atm).__name__} without "
+            f"{', '.join(missing)}")
+
+
+def _batch_shape(atm) -> tuple[int, ...]:
+    """Batch shape of the atmosphere's parameters (a dispersive wrapper's wavelengths
+    count as batch dims); () for plain objects."""
+    if isinstance(atm, _Dispersive):
+        return tuple(broadcast_shape(_batch_shape(atm.wrapped), atm.factor.shape))
+    return tuple(getattr(atm, "batch_shape", ()))
+
+
+def _ray_shape(atm, **named) -> tuple[int, ...]:
+    """Broadcast shape of the named ray inputs and the atmosphere's batch shape
+    (ValueError naming every input and its shape, before any arithmetic)."""
+    shapes = {name: tuple(value.shape) for name, value in named.items()}
+    batch = _batch_shape(atm)
+    try:
+        return tuple(broadcast_shape(*shapes.values(), batch))
+    except ValueError:
+        listing = ", ".join(f"{name} {shape}" for name, shape in shapes.items())
+        raise ValueError(f"shapes do not broadcast: {listing} and the atmosphere's "
+                         f"parameters {batch}") from None
+
+
+def _map_parameters(atm, transform):
+    """The atmosphere with every parameter buffer replaced by ``transform(buffer)``
+    (dispersive wrappers: the wrapped atmosphere's; plain objects are returned as they
+    are)."""
+    if isinstance(atm, _Dispersive):
+        clone = copy.copy(atm)
+        clone.wrapped = _map_parameters(atm.wrapped, transform)
+        factor = atm.factor
+        clone.factor = factor if factor.ndim == 0 else transform(factor)
+        return clone
+    if not hasattr(atm, "_with_parameters") or _batch_shape(atm) == ():
+        return atm
+    return atm._with_parameters(transform)
+
+
+def _per_ray(atm, shape: tuple[int, ...]):
+    """The atmosphere with its parameters laid out like the flattened rays of ``shape``
+    (N,), or None when it has no batch dims (then every ray shares the parameters)."""
+    if _batch_shape(atm) == ():
+        return None
+    count = math.prod(shape)
+    return _map_parameters(
+        atm, lambda value: value if value.ndim == 0 else value.expand(shape).reshape(count))
+
+
 class _Geometry:
     """Planet radius, top altitude and the refractive-index profile of an atmosphere.
 
@@ -190,6 +254,7 @@ class _Geometry:
     """
 
     def __init__(self, atm, dtype: torch.dtype):
+        _check_atmosphere(atm)
         self.atm = atm
         self.dtype = dtype
         self.radius = float(atm.planet_radius_m)
@@ -214,6 +279,13 @@ class _Geometry:
                 "the refractive-index profile traps horizontal rays (d(n r)/dr = "
                 f"{ground_slope:.3g} <= 0 at the ground); Bouguer integrals need n r to grow "
                 "with r")
+
+    def restricted(self, atm) -> _Geometry:
+        """The same geometry with the profile of ``atm`` (a per-ray view of the
+        atmosphere for a subset of the rays; nothing is recomputed)."""
+        clone = copy.copy(self)
+        clone.atm = atm
+        return clone
 
     def refractivity(self, altitude_m: torch.Tensor) -> torch.Tensor:
         """:math:`\\nu(h)` with the constant continuation outside [0, top]."""
@@ -423,6 +495,16 @@ def _species_densities(atm, species):
                                         dim=-1)
 
 
+def _extinction_of(wavelength):
+    """:func:`_extinction` as a function of the atmosphere (RK4: per-ray views)."""
+    return lambda atm: _extinction(atm, wavelength)
+
+
+def _species_densities_of(species):
+    """:func:`_species_densities` as a function of the atmosphere."""
+    return lambda atm: _species_densities(atm, species)
+
+
 # --- observer rays --------------------------------------------------------------------------
 
 
@@ -437,7 +519,10 @@ def _observer_rays(atm, apparent_altitude_rad, altitude_m, dtype):
     """Geometry, rays and the signed start parameter t_0 for observer rays."""
     elevation = _check_elevation("apparent_altitude_rad", apparent_altitude_rad, dtype)
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
-    elevation, height = torch.broadcast_tensors(elevation, height)
+    # the rays carry the atmosphere's batch dims: quadrature nodes lead, so every ray
+    # tensor must hold them (a scalar ray against batched parameters is expanded)
+    shape = _ray_shape(atm, apparent_altitude_rad=elevation, altitude_m=height)
+    elevation, height = elevation.expand(shape), height.expand(shape)
     geometry = _Geometry(atm, dtype)
     radius = geometry.radius
     nu0 = geometry.refractivity(height)
@@ -520,13 +605,18 @@ def refraction_angle(
     57
     """
     method, n_nodes = _check_method(method, n_nodes, n_steps)
+    _check_atmosphere(atm)
     dtype = common_dtype(apparent_altitude_rad, altitude_m)
+    apparent_altitude_rad = _check_elevation("apparent_altitude_rad", apparent_altitude_rad,
+                                             dtype)
+    altitude_m = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
     if wavelength_nm is not None:
         wavelength = _wavelengths(wavelength_nm, dtype, flat=False)
         if method == "rk4" and wavelength.numel() != 1:
             raise ValueError("method='rk4' takes one wavelength at a time; got wavelength_nm "
                              f"of shape {tuple(wavelength.shape)}")
         atm = _Dispersive(atm, wavelength.reshape(()) if method == "rk4" else wavelength)
+    _ray_shape(atm, apparent_altitude_rad=apparent_altitude_rad, altitude_m=altitude_m)
     if method == "rk4":
         return _trace_observer_rk4(atm, apparent_altitude_rad, altitude_m, dtype, step_m,
                                    max_dh_m)["deviation_rad"]
@@ -551,8 +641,12 @@ def _observer_bending(atm, apparent_altitude_rad, altitude_m, dtype, n_nodes):
     return torch.where(rays.misses, torch.zeros_like(bending), bending), rays, t0
 
 
-def _integrate_where(rays, mask, t_low, t_high, n_nodes, **options):
-    """:meth:`_Rays.integrate` on the rays selected by ``mask`` only, zero elsewhere."""
+def _integrate_where(rays, mask, t_low, t_high, n_nodes, *, bending=True, coefficient_of=None):
+    """:meth:`_Rays.integrate` on the rays selected by ``mask`` only, zero elsewhere.
+
+    ``coefficient_of(atm)`` gives the extinction as a function of altitude for an
+    atmosphere (here a view of the selected rays' parameters when it is batched).
+    """
     if not bool(mask.any()):
         return None
     shape = mask.shape
@@ -562,8 +656,17 @@ def _integrate_where(rays, mask, t_low, t_high, n_nodes, **options):
     def pick(x):
         return torch.broadcast_to(x, shape).reshape(-1)[index]
 
-    subset = _Rays(rays.geometry, pick(rays.h_p))
-    result = subset.integrate(pick(t_low), pick(t_high), n_nodes, **options)
+    geometry = rays.geometry
+    per_ray = _per_ray(geometry.atm, tuple(shape))
+    if per_ray is None:
+        view = geometry.atm
+    else:
+        view = _map_parameters(per_ray, lambda value: value if value.ndim == 0 else value[index])
+        geometry = geometry.restricted(view)
+    subset = _Rays(geometry, pick(rays.h_p))
+    coefficient = None if coefficient_of is None else coefficient_of(view)
+    result = subset.integrate(pick(t_low), pick(t_high), n_nodes, bending=bending,
+                              coefficient=coefficient)
     output = {}
     for key, value in result.items():
         trailing = value.shape[1:]
@@ -580,7 +683,12 @@ def apparent_altitude(
     *,
     tolerance_rad: float = 1e-3 * math.pi / 648000.0,
     max_iterations: int = 30,
-    **options,
+    method: str = "bouguer",
+    n_nodes: int = DEFAULT_NODES,
+    step_m: float = DEFAULT_STEP_M,
+    max_dh_m: float = DEFAULT_MAX_DH_M,
+    n_steps: int | None = None,
+    wavelength_nm=None,
 ) -> torch.Tensor:
     r"""Apparent altitude of an object at a true (unrefracted) altitude [rad].
 
@@ -600,8 +708,8 @@ def apparent_altitude(
         its rounding level, ~0.02″ near 1 rad).
     max_iterations : int
         Newton iterations at most.
-    **options
-        Passed to :func:`refraction_angle` (``method``, ``n_nodes``, ...).
+    method, n_nodes, step_m, max_dh_m, n_steps, wavelength_nm
+        As for :func:`refraction_angle`.
 
     Returns
     -------
@@ -620,9 +728,17 @@ def apparent_altitude(
     >>> round(float(e) * 180 / torch.pi * 60)  # the Sun's centre at true altitude 0
     30
     """
+    _check_atmosphere(atm)
     dtype = common_dtype(true_altitude_rad, altitude_m)
     target = _check_elevation("true_altitude_rad", true_altitude_rad, dtype)
-    height = as_tensor("altitude_m", altitude_m, dtype=dtype)
+    height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
+    tolerance = float(check_range("tolerance_rad", tolerance_rad, 0.0, low_inclusive=False,
+                                  unit=" rad"))
+    iterations = check_int("max_iterations", max_iterations, low=1)
+    options = {"method": method, "n_nodes": n_nodes, "step_m": step_m, "max_dh_m": max_dh_m,
+               "n_steps": n_steps, "wavelength_nm": wavelength_nm}
+    _check_method(method, n_nodes, n_steps)
+    _ray_shape(atm, true_altitude_rad=target, altitude_m=height)
     target, height = torch.broadcast_tensors(target, height)
     limit = math.pi / 2
     delta = 1e-6 if dtype == torch.float64 else 1e-3
@@ -633,15 +749,18 @@ def apparent_altitude(
 
     with torch.no_grad():
         e = torch.clamp(target + 0.01 * (target < 0.5), -limit, limit)
-        for _ in range(check_int("max_iterations", max_iterations, low=1)):
+        for _ in range(iterations):
             lo = torch.clamp(e - delta, -limit, limit)
             hi = torch.clamp(e + delta, -limit, limit)
             derivative = (residual(hi) - residual(lo)) / (hi - lo)
             f = residual(e)
             e = torch.clamp(e - f / derivative, -limit, limit)
-            if bool((f.abs() <= max(tolerance_rad, float(floor))).all()):
+            if bool((f.abs() <= max(tolerance, float(floor))).all()):
                 break
-    if torch.is_grad_enabled() and (target.requires_grad or height.requires_grad):
+    needs_grad = (target.requires_grad or height.requires_grad
+                  or (wavelength_nm is not None and isinstance(wavelength_nm, torch.Tensor)
+                      and wavelength_nm.requires_grad) or _needs_grad(atm))
+    if torch.is_grad_enabled() and needs_grad:
         e = e - residual(e) / derivative
     return e
 
@@ -658,7 +777,7 @@ def bent_optical_depth(
     max_dh_m: float = DEFAULT_MAX_DH_M,
     n_steps: int | None = None,
     per_species: bool = False,
-    **unused,
+    rtol: float = 1e-9,
 ) -> torch.Tensor | dict[str, torch.Tensor]:
     r"""Optical depth from an observer to space along the refracted ray.
 
@@ -681,9 +800,9 @@ def bent_optical_depth(
         Return ``{"rayleigh", "aerosol", "ozone"}`` optical depths separately; needs an
         :class:`~skytorch.atmosphere.Atmosphere` (``relative_density`` and
         ``reference_extinction``).
-    **unused
-        Options of the straight-ray integrators (``rtol``) have no meaning here and are
-        ignored.
+    rtol : float
+        Tolerance of the straight-ray ``"adaptive"`` integrator: checked (in (0, 1]) and
+        otherwise unused here (the Gauss–Legendre rule has a fixed number of nodes).
 
     Returns
     -------
@@ -712,25 +831,34 @@ def bent_optical_depth(
     >>> tuple(tau.shape)
     (2, 1)
     """
+    from skytorch.atmosphere.optical_depth import check_rtol
+
     method, n_nodes = _check_method(method, n_nodes, n_steps)
-    unused.pop("rtol", None)
-    if unused:
-        raise TypeError(f"bent_optical_depth got unexpected arguments {sorted(unused)}")
+    check_rtol(rtol)
+    if not isinstance(per_species, bool):
+        raise TypeError(f"per_species must be True or False; got {per_species!r}")
+    _check_atmosphere(atm, "extinction_coefficient",
+                      *(("relative_density", "reference_extinction") if per_species else ()))
     dtype = common_dtype(zenith_rad, altitude_m)
     limit = math.pi * (1.0 + 4.0 * torch.finfo(dtype).eps)
     zenith = check_range("zenith_rad", zenith_rad, 0.0, limit, unit=" rad", dtype=dtype)
+    height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
+    _ray_shape(atm, zenith_rad=zenith, altitude_m=height)
     wavelength = _wavelengths(wavelength_nm, dtype)
+    if hasattr(atm, "_wavelength"):  # an Atmosphere: its spectral range
+        wavelength = atm._wavelength(wavelength, dtype)
     elevation = torch.clamp(0.5 * math.pi - zenith, -0.5 * math.pi, 0.5 * math.pi)
     if per_species:
         species = ("rayleigh", "aerosol", "ozone")
-        coefficient = _species_densities(atm, species)
+        coefficient_of = _species_densities_of(species)
     else:
-        coefficient = _extinction(atm, wavelength)
+        coefficient_of = _extinction_of(wavelength)
+    coefficient = coefficient_of(atm)
     if method == "rk4":
-        tau = _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m,
-                                  coefficient=coefficient)["optical_depth"]
+        tau = _trace_observer_rk4(atm, elevation, height, dtype, step_m, max_dh_m,
+                                  coefficient=coefficient_of)["optical_depth"]
     else:
-        geometry, rays, elevation, _, t0 = _observer_rays(atm, elevation, altitude_m, dtype)
+        geometry, rays, elevation, _, t0 = _observer_rays(atm, elevation, height, dtype)
         down = t0 < 0.0
         down_hit = down & rays.hits
         # up to the top: [t0, 1] (even integrand, through the periapsis t = 0), split into
@@ -743,7 +871,7 @@ def bent_optical_depth(
                              coefficient=coefficient)["optical_depth"]
         extra = _integrate_where(rays, split, torch.zeros_like(t0),
                                  torch.clamp(-t0, min=0.0), n_nodes, bending=False,
-                                 coefficient=coefficient)
+                                 coefficient_of=coefficient_of)
         if extra is not None:
             tau = tau + extra["optical_depth"]
         tau = torch.where(rays.misses.unsqueeze(-1), torch.zeros_like(tau), tau)
@@ -840,6 +968,7 @@ def trace_grazing_rays(
     if len(given) != 1:
         raise ValueError("give exactly one of impact_parameter_m, impact_altitude_m and "
                          f"periapsis_altitude_m; got {given or 'none'}")
+    _check_atmosphere(atm, *(() if wavelength_nm is None else ("extinction_coefficient",)))
     dtype = common_dtype(impact_parameter_m, impact_altitude_m, periapsis_altitude_m)
     radius = float(atm.planet_radius_m)
     if impact_parameter_m is not None:
@@ -847,6 +976,8 @@ def trace_grazing_rays(
                             dtype=dtype)
         impact_altitude_m = b_geo - radius
     wavelength = None if wavelength_nm is None else _wavelengths(wavelength_nm, dtype)
+    if wavelength is not None and hasattr(atm, "_wavelength"):
+        wavelength = atm._wavelength(wavelength, dtype)
     if method == "rk4":
         if periapsis_altitude_m is not None:
             raise ValueError("method='rk4' needs impact_parameter_m or impact_altitude_m")
@@ -857,9 +988,11 @@ def trace_grazing_rays(
     if periapsis_altitude_m is not None:
         h_p = check_range("periapsis_altitude_m", periapsis_altitude_m, low=-radius,
                           unit=" m", dtype=dtype)
+        h_p = h_p.expand(_ray_shape(atm, periapsis_altitude_m=h_p))
     else:
         beta_geo = check_range("impact_altitude_m", impact_altitude_m, low=-radius,
                                unit=" m", dtype=dtype)
+        beta_geo = beta_geo.expand(_ray_shape(atm, impact_altitude_m=beta_geo))
         # Bouguer invariant b = n_top * b_geo (the index is continued above the top)
         h_p = geometry.periapsis_altitude(beta_geo + geometry.nu_top * (radius + beta_geo))
     rays = _Rays(geometry, h_p)
@@ -889,43 +1022,59 @@ def trace_grazing_rays(
 
 
 def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max_length,
-               stop_at_ground=False):
+               stop_at_ground=False, per_ray=None):
     """Trace rays in the plane with RK4 until they leave the atmosphere upwards.
 
     With ``stop_at_ground`` a ray also stops once it is below the ground (optical depth
     from an observer to the ground).
 
-    ``position`` (N, 2) [m] and ``direction`` (N, 2) unit vectors. Returns the final
-    direction, the minimum radius along the path and the optical depth (N, n_wl) or None.
+    ``position`` (N, 2) [m] and ``direction`` (N, 2) unit vectors; ``coefficient`` a
+    function of the atmosphere returning the extinction as a function of altitude (or
+    None); ``per_ray`` the atmosphere with its parameters laid out like the N rays (a
+    batched atmosphere), None when the rays share them. Returns the final direction, the
+    minimum radius along the path and the optical depth (N, n_wl) or None.
+
+    Every update is out of place (``index_put``, not item assignment), so that the
+    traced rays carry gradients (backward through the whole march).
     """
     radius, top = geometry.radius, geometry.top
     dtype = position.dtype
     r_top = radius + top
+    shared_coefficient = None if coefficient is None else coefficient(geometry.atm)
 
-    def index_and_gradient(p):
+    def local(index):
+        """Geometry and extinction for the rays ``index`` (None: all of them)."""
+        if per_ray is None:
+            return geometry, shared_coefficient
+        view = per_ray if index is None else _map_parameters(
+            per_ray, lambda value: value if value.ndim == 0 else value[index])
+        return geometry.restricted(view), None if coefficient is None else coefficient(view)
+
+    def index_and_gradient(p, geo):
         r = torch.linalg.vector_norm(p, dim=-1)
-        nu, slope = geometry.refractivity_and_slope(r - radius)
+        nu, slope = geo.refractivity_and_slope(r - radius)
         return 1.0 + nu, slope.unsqueeze(-1) * p / r.unsqueeze(-1), r
 
-    def extinction_at(r):
+    def extinction_at(r, k_of):
         h = r - radius
         inside = ((h >= 0.0) & (h <= top)).unsqueeze(-1)
-        k = coefficient(torch.clamp(h, 0.0, top)).to(dtype)
+        k = k_of(torch.clamp(h, 0.0, top)).to(dtype)
         return torch.where(inside, k, torch.zeros_like(k))
 
-    def derivative(p, v):
-        n, grad, r = index_and_gradient(p)
+    def derivative(p, v, geo, k_of):
+        n, grad, r = index_and_gradient(p, geo)
         dp = v / n.unsqueeze(-1)
-        dk = extinction_at(r) if coefficient is not None else None
+        dk = extinction_at(r, k_of) if k_of is not None else None
         return dp, grad, dk
 
-    n0, _, r0 = index_and_gradient(position)
+    geo_all, k_all = local(None)
+    n0, _, r0 = index_and_gradient(position, geo_all)
     v = direction * n0.unsqueeze(-1)  # optical direction n d
-    p = position.clone()
+    p = position
     tau = None
     if coefficient is not None:
-        tau = torch.zeros_like(extinction_at(r0))
-    r_min = r0.clone()
+        tau = torch.zeros_like(extinction_at(r0, k_all))
+    r_min = r0
     travelled = torch.zeros_like(r0)
     radial = (p * v).sum(-1) / (r0 * n0)  # d r / d s = cos(local zenith angle)
     active = torch.arange(r0.numel())  # rays still in flight (the others are left alone)
@@ -935,14 +1084,15 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
         return stop | (r < radius) if stop_at_ground else stop
 
     active = active[~finished(r0, radial, travelled)]
-    limit = torch.full_like(r0, math.inf)  # step limit after a rejected step
+    limit = torch.full_like(r0.detach(), math.inf)  # step limit after a rejected step
     kink_radii = None if geometry.kinks is None else radius + geometry.kinks.to(dtype)
     while active.numel():
+        geo, k_of = local(active)
         pa, va, rad = p[active], v[active], radial[active]
         ra = torch.linalg.vector_norm(pa, dim=-1)
         ds = torch.minimum(torch.full_like(ra, step_m),
                            max_dh_m / torch.clamp(rad.abs(), min=1e-12))
-        k1p, k1v, k1k = derivative(pa, va)
+        k1p, k1v, k1k = derivative(pa, va, geo, k_of)
         if kink_radii is not None:
             # end the step just past a kink of the profile (dn/dr jumps there: a step
             # across it would make the scheme first order)
@@ -958,9 +1108,9 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
         lands = meets & (to_ground <= 1.0)
         ds = torch.where(lands, to_ground, torch.where(meets, 0.999 * to_ground, ds))
         h2 = ds.unsqueeze(-1)
-        k2p, k2v, k2k = derivative(pa + 0.5 * h2 * k1p, va + 0.5 * h2 * k1v)
-        k3p, k3v, k3k = derivative(pa + 0.5 * h2 * k2p, va + 0.5 * h2 * k2v)
-        k4p, k4v, k4k = derivative(pa + h2 * k3p, va + h2 * k3v)
+        k2p, k2v, k2k = derivative(pa + 0.5 * h2 * k1p, va + 0.5 * h2 * k1v, geo, k_of)
+        k3p, k3v, k3k = derivative(pa + 0.5 * h2 * k2p, va + 0.5 * h2 * k2v, geo, k_of)
+        k4p, k4v, k4k = derivative(pa + h2 * k3p, va + h2 * k3v, geo, k_of)
         p_new = pa + h2 / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
         v_new = va + h2 / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
         # a curved ray can cross the ground where the straight line misses it: reject the
@@ -968,32 +1118,38 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
         r_trial = torch.linalg.vector_norm(p_new, dim=-1)
         crossed = (r_trial < radius) & (ra >= radius) & ~lands
         accept = ~crossed
-        limit[active] = torch.where(
-            crossed, 0.999 * ds * (ra - radius) / torch.clamp(ra - r_trial, min=1e-30),
-            torch.full_like(ds, math.inf))
+        with torch.no_grad():  # the retry length only chooses the next step
+            retry = torch.where(
+                crossed, 0.999 * ds * (ra - radius) / torch.clamp(ra - r_trial, min=1e-30),
+                torch.full_like(ds, math.inf))
+        limit = limit.index_put((active,), retry)
         p_new = torch.where(accept.unsqueeze(-1), p_new, pa)
         v_new = torch.where(accept.unsqueeze(-1), v_new, va)
         ds = torch.where(accept, ds, torch.zeros_like(ds))
         if tau is not None:
             increment = h2 / 6.0 * (k1k + 2.0 * k2k + 2.0 * k3k + k4k)
-            tau[active] = tau[active] + increment * accept.unsqueeze(-1)
+            tau = tau.index_put((active,), tau[active] + increment * accept.unsqueeze(-1))
         # minimum radius: a parabola through the radial speeds at both ends of the step
+        r_min_active = r_min[active]
         if bool(lands.any()) and not stop_at_ground:
             # through the planet, where the index is constant: a straight chord
             p_new, chord, closest = _chord_through_ground(p_new, v_new, radius, lands)
-            r_min[active] = torch.minimum(r_min[active], closest)
+            r_min_active = torch.minimum(r_min_active, closest)
             ds = ds + chord
-        n_new, _, r_new = index_and_gradient(p_new)
+        n_new, _, r_new = index_and_gradient(p_new, geo)
         rad_new = (p_new * v_new).sum(-1) / (r_new * n_new)
         curvature = (rad_new - rad) / torch.clamp(ds, min=1e-30)
         turning = (rad < 0.0) & (rad_new >= 0.0) & (curvature > 0.0) & accept
         safe = torch.where(turning, curvature, torch.ones_like(curvature))
         vertex = ra - rad * rad / (2.0 * safe)
         candidate = torch.where(turning, vertex, torch.minimum(ra, r_new))
-        r_min[active] = torch.minimum(r_min[active], candidate)
-        p[active], v[active], radial[active] = p_new, v_new, rad_new
-        travelled[active] = travelled[active] + ds
-        stop = finished(r_new, rad_new, travelled[active])
+        r_min = r_min.index_put((active,), torch.minimum(r_min_active, candidate))
+        p = p.index_put((active,), p_new)
+        v = v.index_put((active,), v_new)
+        radial = radial.index_put((active,), rad_new)
+        travelled_active = travelled[active] + ds
+        travelled = travelled.index_put((active,), travelled_active)
+        stop = finished(r_new, rad_new, travelled_active)
         if stop_at_ground:
             stop = stop | lands
         active = active[~stop]
@@ -1092,8 +1248,8 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coe
     elevation = _check_elevation("apparent_altitude_rad", elevation, dtype)
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
     step_m, max_dh_m = _rk4_resolution(step_m, max_dh_m)
-    elevation, height = torch.broadcast_tensors(elevation, height)
-    shape = elevation.shape
+    shape = _ray_shape(atm, apparent_altitude_rad=elevation, altitude_m=height)
+    elevation, height = elevation.expand(shape), height.expand(shape)
     geometry = _Geometry(atm, dtype)
     e = elevation.reshape(-1)
     r0 = geometry.radius + height.reshape(-1)
@@ -1101,7 +1257,8 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coe
     direction = torch.stack([torch.cos(e), torch.sin(e)], dim=-1)
     max_length = _rk4_max_length(geometry)
     final, r_min, tau = _rk4_trace(geometry, position, direction, coefficient, step_m,
-                                   max_dh_m, max_length, stop_at_ground=coefficient is not None)
+                                   max_dh_m, max_length, stop_at_ground=coefficient is not None,
+                                   per_ray=_per_ray(atm, shape))
     if coefficient is not None:
         return {"optical_depth": tau.reshape(shape + (tau.shape[-1],))}
     return {"deviation_rad": _clockwise_angle(direction, final).reshape(shape),
@@ -1110,18 +1267,19 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coe
 
 def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
     step_m, max_dh_m = _rk4_resolution(step_m, max_dh_m)
+    shape = _ray_shape(atm, impact_altitude_m=beta_geo)
+    beta_geo = beta_geo.expand(shape)
     geometry = _Geometry(atm, dtype)
-    shape = beta_geo.shape
     radius = geometry.radius
     r_top = radius + geometry.top
     b = radius + beta_geo.reshape(-1)
     chord = torch.sqrt(torch.clamp((r_top - b) * (r_top + b), min=0.0))
     position = torch.stack([-chord, b], dim=-1)
     direction = torch.stack([torch.ones_like(b), torch.zeros_like(b)], dim=-1)
-    extinction = None if wavelength is None else _extinction(atm, wavelength)
+    extinction = None if wavelength is None else _extinction_of(wavelength)
     max_length = _rk4_max_length(geometry)
     final, r_min, tau = _rk4_trace(geometry, position, direction, extinction, step_m,
-                                   max_dh_m, max_length)
+                                   max_dh_m, max_length, per_ray=_per_ray(atm, shape))
     output = {
         "deviation_rad": _clockwise_angle(direction, final).reshape(shape),
         "contact_radius_m": r_min.reshape(shape),
@@ -1236,6 +1394,10 @@ def deviation_table(
     from skytorch.dataset import build_dataset, coordinate, variable
 
     check_choice("parametrisation", parametrisation, TABLE_PARAMETRISATIONS)
+    _check_atmosphere(atm)
+    if _batch_shape(atm) != ():
+        raise ValueError("deviation tables need an atmosphere with scalar parameters; got "
+                         f"batch shape {_batch_shape(atm)} (build one table per member)")
     if n_nodes is None:
         n_nodes = (TABLE_NODES if _Geometry(atm, dtype).breakpoints is None
                    else TABLE_PANEL_NODES)

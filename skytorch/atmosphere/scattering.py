@@ -27,7 +27,7 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_choice
+from skytorch._validate import broadcast_shape, check_choice, check_range
 
 __all__ = [
     "PHASE_FUNCTIONS",
@@ -42,6 +42,28 @@ __all__ = [
 PHASE_FUNCTIONS = ("cornetteshanks1992", "henyeygreenstein1941")
 
 
+#: slack on |cos theta| <= 1 for cosines formed from rounded unit vectors
+_COS_SLACK = 1e-5
+
+
+def _cosine(cos_theta) -> torch.Tensor:
+    """cos(theta) checked to lie in [-1, 1] (a rounding slack, then clamped)."""
+    cos_theta = check_range("cos_theta", cos_theta, -1.0 - _COS_SLACK, 1.0 + _COS_SLACK)
+    return torch.clamp(cos_theta, -1.0, 1.0)
+
+
+def _asymmetry(g, cos_theta) -> torch.Tensor:
+    """Asymmetry parameter in (-1, 1), broadcastable with ``cos_theta``."""
+    g = check_range("g", g, -1.0, 1.0, low_inclusive=False, high_inclusive=False,
+                    dtype=cos_theta.dtype)
+    try:
+        broadcast_shape(g.shape, cos_theta.shape)
+    except ValueError:
+        raise ValueError(f"shapes do not broadcast: cos_theta {tuple(cos_theta.shape)}, "
+                         f"g {tuple(g.shape)}") from None
+    return g
+
+
 def rayleigh_phase(cos_theta) -> torch.Tensor:
     """Rayleigh phase function :math:`\\frac{3}{16\\pi}(1 + \\cos^2\\theta)` [1/sr] (ref. 1).
 
@@ -50,7 +72,7 @@ def rayleigh_phase(cos_theta) -> torch.Tensor:
     cos_theta : Tensor (...)
         Cosine of the scattering angle [1].
     """
-    cos_theta = as_tensor("cos_theta", cos_theta)
+    cos_theta = _cosine(cos_theta)
     return 3.0 / (16.0 * math.pi) * (1.0 + cos_theta * cos_theta)
 
 
@@ -66,8 +88,8 @@ def henyey_greenstein(cos_theta, g) -> torch.Tensor:
     g : float or Tensor (...)
         Asymmetry parameter, -1 < g < 1 [1].
     """
-    cos_theta = as_tensor("cos_theta", cos_theta)
-    g = torch.as_tensor(g, dtype=cos_theta.dtype)
+    cos_theta = _cosine(cos_theta)
+    g = _asymmetry(g, cos_theta)
     return (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos_theta) ** 1.5)
 
 
@@ -77,8 +99,8 @@ def cornette_shanks(cos_theta, g) -> torch.Tensor:
     :math:`P = \\frac{3}{8\\pi}\\frac{(1 - g^2)(1 + \\cos^2\\theta)}
     {(2 + g^2)(1 + g^2 - 2 g\\cos\\theta)^{3/2}}`.
     """
-    cos_theta = as_tensor("cos_theta", cos_theta)
-    g = torch.as_tensor(g, dtype=cos_theta.dtype)
+    cos_theta = _cosine(cos_theta)
+    g = _asymmetry(g, cos_theta)
     return (3.0 / (8.0 * math.pi) * (1.0 - g * g) * (1.0 + cos_theta * cos_theta)
             / ((2.0 + g * g) * (1.0 + g * g - 2.0 * g * cos_theta) ** 1.5))
 
@@ -108,7 +130,8 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     Parameters
     ----------
     atmosphere : Atmosphere
-        The atmosphere (its parameters broadcast with the angles).
+        The atmosphere (its parameters broadcast with the angles); TypeError for any
+        other object.
     wavelength_nm : Tensor (wavelength,)
         Wavelengths [nm].
     view_zenith_rad, view_azimuth_rad : Tensor (...)
@@ -116,18 +139,21 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     sun_zenith_rad, sun_azimuth_rad : Tensor (...)
         Direction of the Sun [rad]; zenith angles beyond 90° (twilight) are allowed.
     altitude_m : Tensor (...)
-        Observer altitude [m].
+        Observer altitude [m], between the ground and the top of the atmosphere.
     n_samples : int
-        Samples along the view ray (quadratically spaced from the observer).
+        Samples along the view ray (quadratically spaced from the observer), >= 2.
     table : TransmittanceTable, optional
-        Look up the Sun's transmittance instead of integrating it (faster).
+        Look up the Sun's transmittance instead of integrating it (faster). It must have
+        been built for ``atmosphere`` and ``wavelength_nm`` (ValueError naming ``table``
+        otherwise, see :meth:`TransmittanceTable.check_compatible`).
     sun_steps : int, optional
         Gauss–Legendre nodes per piece for the Sun's transmittance.
 
     Returns
     -------
     Tensor (..., wavelength)
-        :math:`L/E_\\odot` [sr^-1].
+        :math:`L/E_\\odot` [sr^-1]; ``...`` broadcasts the angles, the altitude and the
+        parameters' batch shape (ValueError naming the shapes otherwise).
 
     Notes
     -----
@@ -142,9 +168,19 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     :math:`T_\\odot(s) = 0` where the ray to the Sun meets the planet (its shadow).
     """
     from skytorch._validate import check_finite, check_int, common_dtype
-    from skytorch.atmosphere.geometry import distance_to_ground, distance_to_top, ray_hits_ground
+    from skytorch.atmosphere.geometry import (
+        _distance_to_ground,
+        _distance_to_top,
+        _ray_hits_ground,
+    )
+    from skytorch.atmosphere.model import Atmosphere
 
+    if not isinstance(atmosphere, Atmosphere):
+        raise TypeError("atmosphere must be a skytorch.atmosphere.Atmosphere; got "
+                        f"{type(atmosphere).__name__}")
     n_samples = check_int("n_samples", n_samples, 2)
+    if sun_steps is not None:
+        sun_steps = check_int("sun_steps", sun_steps, 1)
     dtype = common_dtype(wavelength_nm, view_zenith_rad, view_azimuth_rad, sun_zenith_rad,
                          sun_azimuth_rad, altitude_m)
     wavelength = atmosphere._wavelength(wavelength_nm, dtype)
@@ -153,48 +189,60 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     sun_zenith = check_finite("sun_zenith_rad", sun_zenith_rad, dtype=dtype)
     sun_azimuth = check_finite("sun_azimuth_rad", sun_azimuth_rad, dtype=dtype)
     altitude = atmosphere._altitude(altitude_m, dtype)
-    planet = atmosphere.planet_radius_m
-    top = atmosphere.top_radius_m
     if bool((altitude > atmosphere.top_altitude_m).any()):
         raise ValueError("altitude_m must be inside the atmosphere (<= "
-                         f"{atmosphere.top_altitude_m} m) for sky radiance")
+                         f"{atmosphere.top_altitude_m} m) for sky radiance; got "
+                         f"{float(altitude.max())} m")
+    atmosphere._check_shapes(view_zenith_rad=view_zenith, view_azimuth_rad=view_azimuth,
+                             sun_zenith_rad=sun_zenith, sun_azimuth_rad=sun_azimuth,
+                             altitude_m=altitude)
+    if table is not None:
+        from skytorch.atmosphere.tables import TransmittanceTable
+
+        if not isinstance(table, TransmittanceTable):
+            raise TypeError("table must be a skytorch.atmosphere.tables.TransmittanceTable; "
+                            f"got {type(table).__name__}")
+        table.check_compatible(atmosphere, wavelength)
+    planet = atmosphere.planet_radius_m
+    top = atmosphere.top_radius_m
     view = _direction(view_zenith, view_azimuth)
     sun = _direction(sun_zenith, sun_azimuth)
-    cos_theta = (view * sun).sum(-1)
+    cos_theta = torch.clamp((view * sun).sum(-1), -1.0, 1.0)
     r0 = planet + altitude
     mu_v = view[..., 2]
-    hits = ray_hits_ground(r0, mu_v, planet)
-    length = torch.where(hits, distance_to_ground(r0, mu_v, planet),
-                         distance_to_top(r0, mu_v, top))
+    hits = _ray_hits_ground(r0, mu_v, planet)
+    length = torch.where(hits, _distance_to_ground(r0, mu_v, planet),
+                         _distance_to_top(r0, mu_v, top))
     fraction = torch.linspace(0.0, 1.0, n_samples, dtype=dtype) ** 2
     s = length[..., None] * fraction  # (..., n)
     # sample positions relative to the planet centre: observer at (0, 0, r0)
     r0_ = r0[..., None]
     r_sq = r0_ * r0_ + s * s + 2.0 * r0_ * s * mu_v[..., None]
     r = torch.sqrt(r_sq)
-    height = torch.clamp(((r_sq - planet ** 2) / (r + planet)), min=0.0)
+    # (rounding can put the last sample a hair outside the shell)
+    height = torch.clamp(((r_sq - planet ** 2) / (r + planet)), 0.0,
+                         atmosphere.top_altitude_m)
     # cosine of the Sun's zenith angle at each sample: (p . sun) / r
     p_dot_sun = r0_ * sun[..., 2:3] + s * cos_theta[..., None]
     mu_sun = torch.clamp(p_dot_sun / r, -1.0, 1.0)
     sun_zenith_local = torch.acos(mu_sun)
-    # parameters broadcast against the geometry (...) with one extra sample dim (n)
-    with atmosphere._extra_geometry_dims(1):
-        # local coefficients of each species along the ray (..., n, wavelength)
-        coefficients = atmosphere.reference_extinction(wavelength)
-        local = {name: atmosphere._density(name, dtype)(height)[..., None]
-                 * coefficients[name] for name in coefficients}
-        # transmittance towards the Sun from each sample (zero in the planet's shadow)
-        if table is not None:
-            tau_sun = table.optical_depth(sun_zenith_local, height)
-        else:
-            tau_sun = atmosphere.optical_depth(wavelength, sun_zenith_local, height,
-                                               n_steps=sun_steps)
+    # the geometry carries one dim (the samples, n) after the parameters' batch dims:
+    # passed as ``extra=1`` (explicit, so that the atmosphere can be shared by threads)
+    coefficients = atmosphere._coefficients(wavelength, extra=1)  # (batch, 1, wavelength)
+    local = {name: atmosphere._density(name, dtype, extra=1)(height)[..., None]
+             * coefficients[name] for name in coefficients}
+    # transmittance towards the Sun from each sample (zero in the planet's shadow)
+    if table is not None:
+        tau_sun = table._optical_depth(sun_zenith_local, height)
+    else:
+        tau_sun = atmosphere._optical_depth(wavelength, sun_zenith_local, height,
+                                            n_steps=sun_steps, extra=1)
     extinction = local["rayleigh"] + local["aerosol"] + local["ozone"]
     step = (s[..., 1:] - s[..., :-1])[..., None]
     increments = 0.5 * step * (extinction[..., 1:, :] + extinction[..., :-1, :])
     tau_view = torch.cat([torch.zeros_like(increments[..., :1, :]),
                           torch.cumsum(increments, dim=-2)], dim=-2)
-    shadow = ray_hits_ground(r, mu_sun, planet)[..., None]
+    shadow = _ray_hits_ground(r, mu_sun, planet)[..., None]
     sun_transmittance = torch.where(shadow, torch.zeros_like(tau_sun), torch.exp(-tau_sun))
     albedo = atmosphere._p("aerosol_single_scattering_albedo", dtype, 2)
     phase_r = rayleigh_phase(cos_theta)[..., None, None]

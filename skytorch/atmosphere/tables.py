@@ -24,9 +24,15 @@ wavelength, the table's cost is that of ``n_r * n_mu`` rays times three species.
 
 Tables are cached on disk as netCDF files named by a SHA-256 hash of every parameter
 that affects them (the atmosphere's parameters, the wavelengths, the resolution, the
-quadrature and a format version). The cache directory is ``$SKYTORCH_CACHE_DIR`` or
-``~/.cache/skytorch``. A file that cannot be read, or whose stored key, shapes or values
-do not match, is rebuilt.
+quadrature and a format version), each with a record of its content checksum and that
+hash beside it (:mod:`skytorch._cache`). The cache directory is ``$SKYTORCH_CACHE_DIR``
+or ``~/.cache/skytorch``. A file whose bytes changed, that cannot be read, or whose
+stored key, shapes or values do not match, is deleted and rebuilt, never served.
+
+A :class:`TransmittanceTable` records the wavelengths, the grid and the hash of the
+atmosphere it was built for; :meth:`TransmittanceTable.check_compatible` (called by
+:func:`skytorch.atmosphere.scattering.single_scattering_radiance`) refuses it for
+another atmosphere or other wavelengths.
 
 References
 ----------
@@ -60,13 +66,22 @@ import numpy as np
 import torch
 from torch import nn
 
-from skytorch._validate import check_finite, check_int, common_dtype
-from skytorch.atmosphere.geometry import (
-    distance_to_ground,
-    ray_hits_ground,
-    texture_coordinates,
-    texture_rays,
+from skytorch._validate import (
+    broadcast_shape,
+    check_choice,
+    check_finite,
+    check_int,
+    check_positive,
+    check_range,
+    common_dtype,
 )
+from skytorch.atmosphere.geometry import (
+    _distance_to_ground,
+    _ray_hits_ground,
+    _texture_coordinates,
+    _texture_rays,
+)
+from skytorch.atmosphere.optical_depth import METHODS
 from skytorch.dataset import (
     VariableSpec,
     build_dataset,
@@ -78,6 +93,7 @@ from skytorch.dataset import (
 
 __all__ = [
     "TransmittanceTable",
+    "atmosphere_hash",
     "cache_directory",
     "cached_transmittance_table",
     "radius_nodes",
@@ -88,7 +104,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: bump when the layout or the numerics of the table change (invalidates caches)
-TABLE_FORMAT_VERSION = 2
+TABLE_FORMAT_VERSION = 3
 
 _REFERENCES = [
     "Bruneton, E. 2017, Precomputed Atmospheric Scattering: a New Implementation, "
@@ -146,6 +162,16 @@ def radius_nodes(atmosphere, n_r: int) -> torch.Tensor:
     return torch.cat([*pieces, torch.ones(1, dtype=torch.float64)])
 
 
+def atmosphere_hash(atmosphere) -> str:
+    """SHA-256 hex digest of an atmosphere's parameters (:meth:`Atmosphere.parameters_dict`).
+
+    Two atmospheres with the same hash give the same optical depths; a table records the
+    hash of the atmosphere it was built for.
+    """
+    text = json.dumps(atmosphere.parameters_dict(), sort_keys=True, default=float)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
 def table_key(atmosphere, wavelength_nm, n_mu: int, n_r: int, method: str,
               n_steps: int | None) -> str:
     """SHA-256 hex digest of every parameter that affects the table."""
@@ -159,6 +185,28 @@ def table_key(atmosphere, wavelength_nm, n_mu: int, n_r: int, method: str,
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def _check_build(atmosphere, wavelength_nm, n_mu, n_r, method, n_steps):
+    """Checked arguments of a table build (TypeError/ValueError naming the parameter)."""
+    from skytorch.atmosphere.model import Atmosphere
+
+    if not isinstance(atmosphere, Atmosphere):
+        raise TypeError("atmosphere must be a skytorch.atmosphere.Atmosphere; got "
+                        f"{type(atmosphere).__name__}")
+    n_mu = check_int("n_mu", n_mu, 2)
+    n_r = check_int("n_r", n_r, 2)
+    check_choice("method", method, METHODS)
+    if n_steps is not None:
+        n_steps = check_int("n_steps", n_steps, 1)
+    if atmosphere.batch_shape != ():
+        raise ValueError("transmittance tables need an Atmosphere with scalar parameters; "
+                         f"got batch shape {tuple(atmosphere.batch_shape)} (loop over the "
+                         "sweep)")
+    wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
+    if wavelength.numel() == 0:
+        raise ValueError("wavelength_nm must hold at least one wavelength; got none")
+    return wavelength, n_mu, n_r, n_steps
+
+
 def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int = 64,
                         method: str = "gauss", n_steps: int | None = None):
     """Compute the transmittance table as a Dataset.
@@ -170,7 +218,7 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
     wavelength_nm : Tensor (wavelength,)
         Wavelengths [nm].
     n_mu, n_r : int
-        Samples along :math:`x_\\mu` and :math:`x_r` (Bruneton: 256 x 64).
+        Samples along :math:`x_\\mu` and :math:`x_r` (Bruneton: 256 x 64), >= 2.
     method, n_steps
         Quadrature of the column integrals (:meth:`Atmosphere.optical_depth`).
 
@@ -179,19 +227,15 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
     xarray.Dataset
         Dims ``x_r``, ``x_mu``, ``wavelength``; variables ``optical_depth``,
         ``transmittance`` (x_r, x_mu, wavelength), ``altitude`` (x_r) [m],
-        ``zenith_angle`` (x_r, x_mu) [degree]; attribute ``cache_key``.
+        ``zenith_angle`` (x_r, x_mu) [degree]; attributes ``cache_key`` (every input) and
+        ``atmosphere_sha256`` (:func:`atmosphere_hash`).
     """
-    n_mu = check_int("n_mu", n_mu, 2)
-    n_r = check_int("n_r", n_r, 2)
-    if atmosphere.batch_shape != ():
-        raise ValueError("transmittance tables need an Atmosphere with scalar parameters; "
-                         f"got batch shape {tuple(atmosphere.batch_shape)} (loop over the "
-                         "sweep)")
-    wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
+    wavelength, n_mu, n_r, n_steps = _check_build(atmosphere, wavelength_nm, n_mu, n_r,
+                                                  method, n_steps)
     x_r = radius_nodes(atmosphere, n_r)
     x_mu = torch.linspace(0.0, 1.0, n_mu, dtype=torch.float64)
-    altitude, mu = texture_rays(x_r[:, None], x_mu[None, :], atmosphere.planet_radius_m,
-                                atmosphere.top_radius_m)
+    altitude, mu = _texture_rays(x_r[:, None], x_mu[None, :], atmosphere.planet_radius_m,
+                                 atmosphere.top_radius_m)
     # the last column is the ray tangent to the ground: nudge it above the horizon so that
     # it counts as reaching the top (continuity with its neighbours)
     mu = torch.where(x_mu[None, :] == 1.0, mu * (1.0 - 1e-12), mu)
@@ -228,7 +272,8 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
                        "n_steps": -1 if n_steps is None else n_steps,
                        "table_format": TABLE_FORMAT_VERSION})
     return build_dataset(data_vars, coords, title="Transmittance look-up table",
-                         references=_REFERENCES, parameters=parameters, cache_key=key)
+                         references=_REFERENCES, parameters=parameters, cache_key=key,
+                         atmosphere_sha256=atmosphere_hash(atmosphere))
 
 
 def _valid(dataset, key: str, n_wavelength: int, n_mu: int, n_r: int) -> bool:
@@ -247,6 +292,12 @@ def cached_transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_
                                progress: bool | None = None):
     """The transmittance table from the disk cache, computed and stored if absent or bad.
 
+    The file is written with :func:`skytorch._cache.write_verified` (a record of its
+    SHA-256 and of the parameter hash beside it) and read with
+    :func:`skytorch._cache.read_verified`: a file whose bytes changed (corruption, a
+    table with other values written over it) or that was built for other parameters is
+    deleted and rebuilt, never served.
+
     Parameters
     ----------
     atmosphere, wavelength_nm, n_mu, n_r, method, n_steps
@@ -262,26 +313,32 @@ def cached_transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_
     """
     from tqdm.auto import tqdm
 
-    wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
+    from skytorch._cache import read_verified, write_verified
+
+    wavelength, n_mu, n_r, n_steps = _check_build(atmosphere, wavelength_nm, n_mu, n_r,
+                                                  method, n_steps)
+    if progress is not None and not isinstance(progress, bool):
+        raise TypeError(f"progress must be True, False or None; got {progress!r}")
     key = table_key(atmosphere, wavelength, n_mu, n_r, method, n_steps)
     directory = Path(cache_dir) if cache_dir is not None else cache_directory()
     path = directory / f"transmittance_{key[:24]}.nc"
-    if path.is_file():
-        try:
-            dataset = open_dataset(path)
-        except Exception as error:  # noqa: BLE001 - any unreadable file is rebuilt
-            logger.warning("unreadable table cache %s (%s); rebuilding", path, error)
-        else:
-            if _valid(dataset, key, wavelength.numel(), n_mu, n_r):
-                logger.debug("transmittance table from cache %s", path)
-                return dataset
-            logger.warning("stale or inconsistent table cache %s; rebuilding", path)
+
+    def read(file):
+        dataset = open_dataset(file)
+        if not _valid(dataset, key, wavelength.numel(), n_mu, n_r):
+            raise ValueError("stale or inconsistent table (key, shape or values)")
+        return dataset
+
+    dataset = read_verified(path, key, read)
+    if dataset is not None:
+        logger.debug("transmittance table from cache %s", path)
+        return dataset
     disable = (not os.isatty(2)) if progress is None else not progress
     with tqdm(total=1, desc="transmittance table", disable=disable) as bar:
         dataset = transmittance_table(atmosphere, wavelength, n_mu=n_mu, n_r=n_r,
                                       method=method, n_steps=n_steps)
         bar.update(1)
-    to_netcdf(dataset, path)
+    write_verified(path, key, lambda file: to_netcdf(dataset, file))
     logger.info("transmittance table written to %s", path)
     return dataset
 
@@ -289,32 +346,71 @@ def cached_transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_
 class TransmittanceTable(nn.Module):
     """Batched bilinear look-ups in a transmittance table.
 
+    The table records what it was built for -- its wavelengths, its grid (``x_r``
+    samples and ``n_mu``), the radii and, when built from an atmosphere, the hash of its
+    parameters (:func:`atmosphere_hash`) -- and :meth:`check_compatible` refuses a use
+    with another atmosphere or other wavelengths.
+
     Parameters
     ----------
     optical_depth : Tensor (x_r, x_mu, wavelength)
-        Table of optical depths to the top.
+        Table of optical depths to the top (finite, >= 0).
     wavelength_nm : Tensor (wavelength,)
         Its wavelengths [nm].
     planet_radius_m, top_radius_m : float
         Radii the table was computed for [m].
     x_r : Tensor (x_r,), optional
         The increasing :math:`x_r` samples from 0 to 1 (default uniform).
+    atmosphere_sha256 : str, optional
+        :func:`atmosphere_hash` of the atmosphere the table was computed for (set by
+        :meth:`build` and :meth:`from_dataset`); without it only the wavelengths and
+        the radii can be checked.
     """
 
     def __init__(self, optical_depth, wavelength_nm, planet_radius_m: float,
-                 top_radius_m: float, x_r=None):
+                 top_radius_m: float, x_r=None, *, atmosphere_sha256: str | None = None):
         super().__init__()
-        self.register_buffer("table", torch.tensor(np.array(optical_depth, dtype=np.float64)))
-        self.register_buffer("wavelength_nm",
-                             torch.tensor(np.array(wavelength_nm, dtype=np.float64)))
+        table = check_finite("optical_depth", torch.as_tensor(
+            np.array(optical_depth, dtype=np.float64)))
+        if table.ndim != 3 or min(table.shape[:2]) < 2 or table.shape[2] < 1:
+            raise ValueError("optical_depth must have shape (x_r >= 2, x_mu >= 2, "
+                             f"wavelength >= 1); got {tuple(table.shape)}")
+        if bool((table < 0).any()):
+            raise ValueError("optical_depth must be >= 0 everywhere")
+        self.register_buffer("table", table.clone())
+        wavelength = check_positive("wavelength_nm", torch.as_tensor(
+            np.array(wavelength_nm, dtype=np.float64)).reshape(-1), unit=" nm")
+        if wavelength.numel() != table.shape[2]:
+            raise ValueError(f"wavelength_nm has {wavelength.numel()} values for a table of "
+                             f"{table.shape[2]} wavelengths")
+        self.register_buffer("wavelength_nm", wavelength.clone())
         n_r = self.table.shape[0]
         nodes = (torch.linspace(0.0, 1.0, n_r, dtype=torch.float64) if x_r is None
                  else torch.tensor(np.array(x_r, dtype=np.float64)))
-        if nodes.shape != (n_r,) or not bool((nodes[1:] > nodes[:-1]).all()):
-            raise ValueError(f"x_r must be {n_r} increasing samples; got {nodes.tolist()}")
+        if (nodes.shape != (n_r,) or not bool((nodes[1:] > nodes[:-1]).all())
+                or float(nodes[0]) != 0.0 or float(nodes[-1]) != 1.0):
+            raise ValueError(f"x_r must be {n_r} increasing samples from 0 to 1; got "
+                             f"{nodes.tolist()}")
         self.register_buffer("x_r", nodes)
-        self.planet_radius_m = float(planet_radius_m)
-        self.top_radius_m = float(top_radius_m)
+        planet = float(check_positive("planet_radius_m", planet_radius_m, unit=" m"))
+        top = float(check_positive("top_radius_m", top_radius_m, unit=" m"))
+        if not top > planet:
+            raise ValueError(f"top_radius_m must be > planet_radius_m; got {top} <= {planet}")
+        self.planet_radius_m = planet
+        self.top_radius_m = top
+        if atmosphere_sha256 is not None and not isinstance(atmosphere_sha256, str):
+            raise TypeError(f"atmosphere_sha256 must be a string; got {atmosphere_sha256!r}")
+        self.atmosphere_sha256 = atmosphere_sha256
+
+    @property
+    def n_mu(self) -> int:
+        """Samples along :math:`x_\\mu`."""
+        return int(self.table.shape[1])
+
+    @property
+    def top_altitude_m(self) -> float:
+        """Altitude of the top of the atmosphere [m]."""
+        return self.top_radius_m - self.planet_radius_m
 
     @classmethod
     def from_dataset(cls, dataset) -> TransmittanceTable:
@@ -322,22 +418,72 @@ class TransmittanceTable(nn.Module):
         parameters = json.loads(dataset.attrs["parameters"])
         planet = parameters["planet_radius_m"]
         return cls(dataset["optical_depth"].values, dataset["wavelength"].values, planet,
-                   planet + parameters["top_altitude_m"], dataset["x_r"].values)
+                   planet + parameters["top_altitude_m"], dataset["x_r"].values,
+                   atmosphere_sha256=dataset.attrs.get("atmosphere_sha256"))
 
     @classmethod
-    def build(cls, atmosphere, wavelength_nm, *, cache: bool = False, **kwargs
+    def build(cls, atmosphere, wavelength_nm, *, cache: bool = False, n_mu: int = 256,
+              n_r: int = 64, method: str = "gauss", n_steps: int | None = None,
+              cache_dir: str | os.PathLike | None = None, progress: bool | None = None
               ) -> TransmittanceTable:
-        """Compute (or, with ``cache=True``, load from the disk cache) a table."""
+        """Compute (or, with ``cache=True``, load from the disk cache) a table.
+
+        The keywords are those of :func:`transmittance_table` (and, with the cache,
+        ``cache_dir`` and ``progress`` of :func:`cached_transmittance_table`).
+        """
+        if not isinstance(cache, bool):
+            raise TypeError(f"cache must be True or False; got {cache!r}")
+        options = {"n_mu": n_mu, "n_r": n_r, "method": method, "n_steps": n_steps}
         if cache:
-            dataset = cached_transmittance_table(atmosphere, wavelength_nm, **kwargs)
+            dataset = cached_transmittance_table(atmosphere, wavelength_nm, cache_dir=cache_dir,
+                                                 progress=progress, **options)
         else:
-            dataset = transmittance_table(atmosphere, wavelength_nm, **kwargs)
+            if cache_dir is not None:
+                raise TypeError("cache_dir applies with cache=True only")
+            dataset = transmittance_table(atmosphere, wavelength_nm, **options)
         return cls.from_dataset(dataset)
+
+    def check_compatible(self, atmosphere=None, wavelength_nm=None) -> None:
+        """Refuse (ValueError naming ``table``) a use the table was not built for.
+
+        Parameters
+        ----------
+        atmosphere : Atmosphere, optional
+            Must have the table's radii and, when the table records one, its parameter
+            hash.
+        wavelength_nm : Tensor (wavelength,), optional
+            Must equal the table's wavelengths (same count, equal to 1e-9 nm).
+        """
+        if wavelength_nm is not None:
+            wavelength = torch.as_tensor(wavelength_nm).detach().to(torch.float64).reshape(-1)
+            ours = self.wavelength_nm
+            if wavelength.shape != ours.shape or not bool(
+                    ((wavelength - ours).abs() <= 1e-9).all()):
+                raise ValueError(
+                    f"table was built for wavelength_nm {ours.tolist()}; got "
+                    f"{wavelength.tolist()} (build a table for these wavelengths)")
+        if atmosphere is not None:
+            if (abs(float(atmosphere.planet_radius_m) - self.planet_radius_m) > 1e-6
+                    or abs(float(atmosphere.top_radius_m) - self.top_radius_m) > 1e-6):
+                raise ValueError(
+                    f"table was built for radii {self.planet_radius_m} m and "
+                    f"{self.top_radius_m} m; the atmosphere has {atmosphere.planet_radius_m} m "
+                    f"and {atmosphere.top_radius_m} m")
+            if self.atmosphere_sha256 is not None:
+                if getattr(atmosphere, "batch_shape", ()) != ():
+                    raise ValueError("table was built for one atmosphere; got an atmosphere "
+                                     f"with batch shape {tuple(atmosphere.batch_shape)}")
+                if atmosphere_hash(atmosphere) != self.atmosphere_sha256:
+                    raise ValueError(
+                        "table was built for another atmosphere (parameter hash "
+                        f"{self.atmosphere_sha256[:12]}..., this one "
+                        f"{atmosphere_hash(atmosphere)[:12]}...): build a table for it")
 
     def _lookup(self, altitude, mu):
         """Bilinear interpolation at (altitude, mu) (rays missing the ground) -> (...,
         wavelength)."""
-        x_r, x_mu = texture_coordinates(altitude, mu, self.planet_radius_m, self.top_radius_m)
+        x_r, x_mu = _texture_coordinates(altitude, mu, self.planet_radius_m,
+                                         self.top_radius_m)
         x_r, x_mu = torch.clamp(x_r, 0.0, 1.0), torch.clamp(x_mu, 0.0, 1.0)
         table = self.table.to(x_r.dtype)
         n_r, n_mu, n_wl = table.shape
@@ -356,15 +502,20 @@ class TransmittanceTable(nn.Module):
         return ((1 - wr) * ((1 - wm) * at(i, j) + wm * at(i, j + 1))
                 + wr * ((1 - wm) * at(i + 1, j) + wm * at(i + 1, j + 1)))
 
-    def optical_depth(self, zenith_rad, altitude_m=0.0) -> torch.Tensor:
+    def optical_depth(self, zenith_rad, altitude_m=0.0, *, wavelength_nm=None
+                      ) -> torch.Tensor:
         """Optical depth from the observer to the top or to the ground (..., wavelength).
 
         Parameters
         ----------
         zenith_rad : Tensor (...)
-            Zenith angle of the view direction [rad].
+            Zenith angle of the view direction [rad] (finite).
         altitude_m : Tensor (...)
-            Observer altitude [m], between 0 and the top.
+            Observer altitude [m], between 0 and the top of the atmosphere (the range of
+            the table; ValueError outside it). Broadcasts with ``zenith_rad``.
+        wavelength_nm : Tensor (wavelength,), optional
+            The wavelengths the caller expects; ValueError if the table was built for
+            others.
 
         Notes
         -----
@@ -373,13 +524,25 @@ class TransmittanceTable(nn.Module):
         """
         dtype = common_dtype(zenith_rad, altitude_m)
         zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
-        altitude = check_finite("altitude_m", altitude_m, dtype=dtype)
+        altitude = check_range("altitude_m", altitude_m, 0.0, self.top_altitude_m,
+                               unit=" m (the table's range)", dtype=dtype)
+        try:
+            broadcast_shape(zenith.shape, altitude.shape)
+        except ValueError:
+            raise ValueError(f"shapes do not broadcast: zenith_rad {tuple(zenith.shape)}, "
+                             f"altitude_m {tuple(altitude.shape)}") from None
+        if wavelength_nm is not None:
+            self.check_compatible(wavelength_nm=wavelength_nm)
+        return self._optical_depth(zenith, altitude)
+
+    def _optical_depth(self, zenith, altitude) -> torch.Tensor:
+        """Look-up of checked inputs (``altitude`` in [0, top])."""
         r = self.planet_radius_m + altitude
         mu = torch.cos(zenith)
         r, mu = torch.broadcast_tensors(r, mu)
-        hits = ray_hits_ground(r, mu, self.planet_radius_m)
+        hits = _ray_hits_ground(r, mu, self.planet_radius_m)
         up = self._lookup(r - self.planet_radius_m, torch.where(hits, -mu, mu))
-        d = distance_to_ground(r, mu, self.planet_radius_m)
+        d = _distance_to_ground(r, mu, self.planet_radius_m)
         planet = self.planet_radius_m
         # mu at the ground point (looking down) from r mu + d = R mu_g
         mu_ground = torch.clamp((r * mu + d) / planet, -1.0, 0.0)
@@ -387,6 +550,8 @@ class TransmittanceTable(nn.Module):
         down = torch.clamp(from_ground - up, min=0.0)
         return torch.where(hits[..., None], down, up)
 
-    def transmittance(self, zenith_rad, altitude_m=0.0) -> torch.Tensor:
+    def transmittance(self, zenith_rad, altitude_m=0.0, *, wavelength_nm=None
+                      ) -> torch.Tensor:
         """:math:`e^{-\\tau}` of :meth:`optical_depth` (..., wavelength) [1]."""
-        return torch.exp(-self.optical_depth(zenith_rad, altitude_m))
+        return torch.exp(-self.optical_depth(zenith_rad, altitude_m,
+                                             wavelength_nm=wavelength_nm))
