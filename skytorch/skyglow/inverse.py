@@ -43,8 +43,16 @@ import logging
 import numpy as np
 import torch
 
-from skytorch._validate import as_tensor, check_int, check_range
-from skytorch.skyglow.model import SkyglowModel, _linear_weights, light_map_arrays
+from skytorch._validate import as_tensor, check_finite, check_int, check_range
+from skytorch.skyglow.model import (
+    SkyglowModel,
+    _linear_weights,
+    check_flag,
+    check_model,
+    light_map_arrays,
+    observer_altitudes,
+    observer_positions,
+)
 
 __all__ = [
     "apply_reduction",
@@ -65,12 +73,17 @@ def sky_region(model: SkyglowModel, elevation_deg=(0.0, 90.0), azimuth_deg=(0.0,
 
     Azimuth ranges may wrap through north, e.g. ``(330, 30)``.
     """
+    check_model("model", model)
+    lo, hi = _pair("elevation_deg", elevation_deg, -90.0, 90.0)
+    if lo > hi:
+        raise ValueError(f"elevation_deg must be (low, high) with low <= high; got "
+                         f"{elevation_deg}")
+    first, last = _pair("azimuth_deg", azimuth_deg, -720.0, 720.0)
     el = torch.rad2deg(model.elevation_rad)
     az = torch.rad2deg(model.azimuth_rad)
-    lo, hi = (float(v) for v in elevation_deg)
-    a0, a1 = (float(v) % 360.0 for v in azimuth_deg)
+    a0, a1 = first % 360.0, last % 360.0
     in_el = (el >= lo) & (el <= hi)
-    if float(azimuth_deg[1]) - float(azimuth_deg[0]) >= 360.0:
+    if last - first >= 360.0:
         in_az = torch.ones_like(az, dtype=torch.bool)
     elif a0 <= a1:
         in_az = (az >= a0) & (az <= a1)
@@ -81,6 +94,45 @@ def sky_region(model: SkyglowModel, elevation_deg=(0.0, 90.0), azimuth_deg=(0.0,
         raise ValueError(f"the sky region elevation {elevation_deg}, azimuth {azimuth_deg} "
                          "contains no pixel of the model's panorama")
     return mask
+
+
+def _pair(name: str, value, low: float, high: float) -> tuple[float, float]:
+    """Two finite numbers within [low, high] [deg]."""
+    pair = check_range(name, value, low, high, unit=" deg", dtype=torch.float64)
+    if pair.shape != (2,):
+        raise ValueError(f"{name} must be a pair (low, high) [deg]; got shape "
+                         f"{tuple(pair.shape)}")
+    return float(pair[0]), float(pair[1])
+
+
+def check_region(model: SkyglowModel, region) -> torch.Tensor:
+    """A boolean (elevation, azimuth) mask of the model's panorama with at least one pixel."""
+    if region is None or isinstance(region, (str, bytes)):
+        raise TypeError(f"region must be a boolean mask (elevation, azimuth), e.g. from "
+                        f"sky_region(); got {region!r:.60}")
+    try:
+        mask = torch.as_tensor(region)
+    except (TypeError, ValueError, RuntimeError) as error:
+        raise TypeError(f"region must be a boolean mask (elevation, azimuth); got "
+                        f"{type(region).__name__}") from error
+    if mask.dtype != torch.bool:
+        raise TypeError(f"region must be a boolean mask (elevation, azimuth); got dtype "
+                        f"{mask.dtype}")
+    expected = (model.elevation_rad.numel(), model.azimuth_rad.numel())
+    if tuple(mask.shape) != expected:
+        raise ValueError(f"region must have the panorama's shape (elevation, azimuth) = "
+                         f"{expected}; got {tuple(mask.shape)}")
+    if not bool(mask.any()):
+        raise ValueError("region selects no pixel of the panorama")
+    return mask
+
+
+def _one_observer(observer_xy, observer_altitude_m, dtype):
+    xy, single = observer_positions(observer_xy, dtype)
+    if xy.shape[0] != 1:
+        raise ValueError(f"observer_xy must be one position (2,) [m] here; got shape "
+                         f"{tuple(torch.as_tensor(observer_xy).shape)}")
+    return xy, observer_altitudes(observer_altitude_m, 1, dtype)
 
 
 def _dataset(name, values, cells, spec, title, parameters):
@@ -99,7 +151,8 @@ def _dataset(name, values, cells, spec, title, parameters):
 
 
 def pollution_influence(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
-                        observer_altitude_m=0.0, *, as_dataset: bool = True, **map_arguments):
+                        observer_altitude_m=0.0, *, as_dataset: bool = True, x_m=None,
+                        y_m=None, altitude_m=None):
     """Light-pollution level ``Q_i`` of every lighting cell (eq. 10–11).
 
     Parameters
@@ -111,20 +164,26 @@ def pollution_influence(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
         Observer position [m].
     observer_altitude_m : float
         Observer altitude [m].
+    as_dataset : bool
+        Return a Dataset (default) or the tensor.
+    x_m, y_m, altitude_m : Tensor, optional
+        Coordinates for a tensor light map (see :func:`light_map_arrays`).
 
     Returns
     -------
     xarray.Dataset with ``pollution_level`` (y, x) [lm m^-2 sr^-1] (or the tensor)
         ``L_i Q(r_i, h_i, h_o)``; zero beyond ``max_distance_m``.
     """
-    cells = light_map_arrays(light_map, **map_arguments)
+    check_model("model", model)
+    as_dataset = check_flag("as_dataset", as_dataset)
+    cells = light_map_arrays(light_map, x_m, y_m, altitude_m)
     flux = cells["flux"]
     dtype = flux.dtype
-    xy = as_tensor("observer_xy", observer_xy, dtype=dtype).reshape(2)
+    xy, h_o = _one_observer(observer_xy, observer_altitude_m, dtype)
+    xy = xy[0]
     r = torch.sqrt((cells["x"] - xy[0]) ** 2 + (cells["y"] - xy[1]) ** 2)
     q_table = model.pollution_level.to(dtype)  # (ho, r, hc)
-    j_o, w_o = model.observer_altitude_weights(as_tensor("observer_altitude_m",
-                                                         observer_altitude_m).reshape(1))
+    j_o, w_o = model.observer_altitude_weights(h_o)
     n_o = q_table.shape[0]
     q_ho = (1 - w_o.to(dtype)) * q_table[int(j_o)] + (
         w_o.to(dtype) * q_table[min(int(j_o) + 1, n_o - 1)])  # (r, hc)
@@ -145,7 +204,7 @@ def pollution_influence(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
         "lm m-2 sr-1", "light-pollution level Q_i",
         "Cell flux times the root-sum-square of its unit kernel image over the panorama "
         "(Dobashi et al. 2023, eq. 10-11)."), "Light-pollution influence of each cell",
-        {"observer_xy": xy.tolist(), "observer_altitude_m": float(observer_altitude_m)})
+        {"observer_xy": xy.tolist(), "observer_altitude_m": float(h_o[0])})
 
 
 def region_luminance(model: SkyglowModel, flux: torch.Tensor, cells, region: torch.Tensor,
@@ -153,18 +212,26 @@ def region_luminance(model: SkyglowModel, flux: torch.Tensor, cells, region: tor
     """Mean luminance [cd m^-2] over the region's pixels for the given fluxes (y, x)."""
     from skytorch.skyglow.lamps import luminance_weights
 
+    check_model("model", model)
+    region = check_region(model, region)
+    flux = as_tensor("flux", flux)
+    if not isinstance(cells, dict) or "flux" not in cells:
+        raise TypeError(f"cells must be the mapping of light_map_arrays(); got "
+                        f"{type(cells).__name__}")
+    if tuple(flux.shape) != tuple(cells["flux"].shape):
+        raise ValueError(f"flux must have the light map's shape {tuple(cells['flux'].shape)}; "
+                         f"got {tuple(flux.shape)}")
+    xy, h_o = _one_observer(observer_xy, observer_altitude_m, flux.dtype)
     weights, _ = luminance_weights(lamp, model.wavelength_nm)
     cells = dict(cells, flux=flux)
-    per_lumen = model.radiance_per_lumen(cells, as_tensor("observer_xy", observer_xy,
-                                                          dtype=flux.dtype).reshape(1, 2),
-                                         observer_altitude_m)[0]
+    per_lumen = model.radiance_per_lumen(cells, xy, h_o)[0]
     luminance = per_lumen @ weights.to(flux.dtype)
     return luminance[region].mean()
 
 
 def skyglow_influence(model: SkyglowModel, light_map, region, observer_xy=(0.0, 0.0),
                       observer_altitude_m=0.0, *, lamp="white", as_dataset: bool = True,
-                      **map_arguments):
+                      x_m=None, y_m=None, altitude_m=None):
     """Influence ``S_i`` of every lighting cell on a sky region (eq. 13–14).
 
     Parameters
@@ -174,7 +241,11 @@ def skyglow_influence(model: SkyglowModel, light_map, region, observer_xy=(0.0, 
     region : Tensor (elevation, azimuth) of bool
         Pixels of the region (e.g. from :func:`sky_region`).
     observer_xy, observer_altitude_m, lamp
-        As in :meth:`SkyglowModel.render`.
+        As in :meth:`SkyglowModel.render` (one observer).
+    as_dataset : bool
+        Return a Dataset (default) or the tensor.
+    x_m, y_m, altitude_m : Tensor, optional
+        Coordinates for a tensor light map (see :func:`light_map_arrays`).
 
     Returns
     -------
@@ -182,8 +253,11 @@ def skyglow_influence(model: SkyglowModel, light_map, region, observer_xy=(0.0, 
         Luminance that each cell adds, summed over the region's pixels; the cells'
         values add up to the region's total luminance.
     """
-    cells = light_map_arrays(light_map, **map_arguments)
-    region = torch.as_tensor(region, dtype=torch.bool)
+    check_model("model", model)
+    as_dataset = check_flag("as_dataset", as_dataset)
+    region = check_region(model, region)
+    cells = light_map_arrays(light_map, x_m, y_m, altitude_m)
+    xy, h_o = _one_observer(observer_xy, observer_altitude_m, cells["flux"].dtype)
     flux = cells["flux"].detach().clone().requires_grad_(True)
     mean = region_luminance(model, flux, cells, region, observer_xy, observer_altitude_m, lamp)
     (gradient,) = torch.autograd.grad(mean * region.sum(), flux)
@@ -197,7 +271,7 @@ def skyglow_influence(model: SkyglowModel, light_map, region, observer_xy=(0.0, 
         "Luminance added by the cell, summed over the sky region's pixels (Dobashi et al. "
         "2023, eq. 13-14), by automatic differentiation through the renderer."),
         "Skyglow influence of each cell on a sky region",
-        {"observer_xy": list(observer_xy), "observer_altitude_m": float(observer_altitude_m),
+        {"observer_xy": xy[0].tolist(), "observer_altitude_m": float(h_o[0]),
          "region_pixels": int(region.sum())})
 
 
@@ -215,8 +289,10 @@ def reduction_factors(influence, q_a: float, q_b: float, gamma_user: float = 1.0
     gamma_user : float
         Overall strength in [0, 1].
     """
-    influence = as_tensor("influence", influence)
-    check_range("gamma_user", gamma_user, 0.0, 1.0)
+    influence = check_finite("influence", influence)
+    gamma_user = float(check_range("gamma_user", gamma_user, 0.0, 1.0))
+    q_a = float(check_finite("q_a", q_a))
+    q_b = float(check_finite("q_b", q_b))
     if not q_b > q_a:
         raise ValueError(f"q_b must be larger than q_a; got q_a={q_a}, q_b={q_b}")
     return ((influence - q_a) / (q_b - q_a)).clamp(0.0, 1.0) * gamma_user
@@ -224,9 +300,19 @@ def reduction_factors(influence, q_a: float, q_b: float, gamma_user: float = 1.0
 
 def apply_reduction(light_map, gamma):
     """A copy of the light map with fluxes ``(1 − γ_i) L_i``."""
-    gamma = np.asarray(torch.as_tensor(gamma).detach().numpy())
-    if np.any(gamma < 0) or np.any(gamma > 1) or not np.all(np.isfinite(gamma)):
-        raise ValueError("gamma must lie in [0, 1]")
+    if not hasattr(light_map, "data_vars") or "flux" not in light_map:
+        raise TypeError(f"light_map must be a Dataset with a variable 'flux' (y, x); got "
+                        f"{type(light_map).__name__}")
+    gamma = check_range("gamma", gamma, 0.0, 1.0, dtype=torch.float64).detach().numpy()
+    flux_shape = light_map["flux"].shape
+    try:
+        np.broadcast_shapes(gamma.shape, flux_shape)
+    except ValueError as error:
+        raise ValueError(f"gamma of shape {gamma.shape} does not broadcast to the light "
+                         f"map's flux (y, x) = {flux_shape}") from error
+    if np.broadcast_shapes(gamma.shape, flux_shape) != flux_shape:
+        raise ValueError(f"gamma of shape {gamma.shape} does not broadcast to the light "
+                         f"map's flux (y, x) = {flux_shape}")
     out = light_map.copy()
     out["flux"] = light_map["flux"] * (1.0 - gamma)
     return out
@@ -235,7 +321,8 @@ def apply_reduction(light_map, gamma):
 def minimal_reduction(model: SkyglowModel, light_map, region, target_luminance_cd_m2=None, *,
                       target_fraction: float | None = None, observer_xy=(0.0, 0.0),
                       observer_altitude_m=0.0, lamp="white", max_iterations: int = 10,
-                      tolerance: float = 1e-6, as_dataset: bool = True, **map_arguments):
+                      tolerance: float = 1e-6, as_dataset: bool = True, x_m=None, y_m=None,
+                      altitude_m=None):
     """Smallest total flux reduction bringing a sky region to a target brightness.
 
     Minimises ``Σ_i γ_i L_i`` (lumens switched off) over ``γ ∈ [0, 1]^n`` subject to
@@ -257,7 +344,11 @@ def minimal_reduction(model: SkyglowModel, light_map, region, target_luminance_c
         Alternatively the target as a fraction of the current value, in (0, 1].
     max_iterations : int
     tolerance : float
-        Relative tolerance on the constraint.
+        Relative tolerance on the constraint, in [0, 1).
+    as_dataset : bool
+        Return a Dataset (default) or a dict of tensors and numbers.
+    x_m, y_m, altitude_m : Tensor, optional
+        Coordinates for a tensor light map (see :func:`light_map_arrays`).
 
     Returns
     -------
@@ -266,17 +357,24 @@ def minimal_reduction(model: SkyglowModel, light_map, region, target_luminance_c
         ``initial_luminance``, ``final_luminance``, ``target_luminance`` [cd m^-2] and
         ``removed_flux_lm``.
     """
-    cells = light_map_arrays(light_map, **map_arguments)
-    region = torch.as_tensor(region, dtype=torch.bool)
-    max_iterations = check_int("max_iterations", max_iterations, low=1)
-    flux0 = cells["flux"].detach()
-    with torch.no_grad():
-        initial = float(region_luminance(model, flux0, cells, region, observer_xy,
-                                         observer_altitude_m, lamp))
+    check_model("model", model)
+    as_dataset = check_flag("as_dataset", as_dataset)
+    region = check_region(model, region)
+    max_iterations = check_int("max_iterations", max_iterations, low=1, high=10_000)
+    tolerance = float(check_range("tolerance", tolerance, 0.0, 1.0, high_inclusive=False))
     if (target_luminance_cd_m2 is None) == (target_fraction is None):
         raise ValueError("give exactly one of target_luminance_cd_m2 and target_fraction")
     if target_fraction is not None:
         check_range("target_fraction", target_fraction, 0.0, 1.0)
+    else:
+        check_range("target_luminance_cd_m2", target_luminance_cd_m2, 0.0)
+    cells = light_map_arrays(light_map, x_m, y_m, altitude_m)
+    _one_observer(observer_xy, observer_altitude_m, cells["flux"].dtype)
+    flux0 = cells["flux"].detach()
+    with torch.no_grad():
+        initial = float(region_luminance(model, flux0, cells, region, observer_xy,
+                                         observer_altitude_m, lamp))
+    if target_fraction is not None:
         target = float(target_fraction) * initial
     else:
         target = float(check_range("target_luminance_cd_m2", target_luminance_cd_m2, 0.0))

@@ -46,7 +46,7 @@ import torch
 
 from skytorch._validate import (
     as_tensor,
-    broadcast_shape,
+    check_broadcastable,
     check_choice,
     check_int,
     check_positive,
@@ -115,7 +115,8 @@ def emission_intensity(cos_psi: torch.Tensor, emission: str = "garstang1986",
     1.0
     """
     check_choice("emission", emission, EMISSION_FUNCTIONS)
-    parameters = dict(parameters or {})
+    parameters = _emission_parameters(emission, parameters)
+    cos_psi = as_tensor("cos_psi", cos_psi)
     up = cos_psi > 0.0
     c = torch.where(up, cos_psi, torch.zeros_like(cos_psi))
     if emission == "lambertian":
@@ -130,6 +131,28 @@ def emission_intensity(cos_psi: torch.Tensor, emission: str = "garstang1986",
         psi2 = psi * psi
         value = (2.0 * g * (1.0 - f) * c + _GARSTANG_PSI4_NORM * f * psi2 * psi2) / (2.0 * math.pi)
     return torch.where(up, value, torch.zeros_like(value))
+
+
+#: parameters each emission function takes, with their valid ranges
+EMISSION_PARAMETERS = {"garstang1986": {"F": (0.0, 1.0), "G": (0.0, 1.0)},
+                       "lambertian": {},
+                       "dobashi2023": {"beam_exponent": (0.0, 1000.0)}}
+
+
+def _emission_parameters(emission: str, parameters) -> dict:
+    """Validated emission parameters: unknown names and out-of-range values raise."""
+    if parameters is None:
+        return {}
+    if not isinstance(parameters, Mapping):
+        raise TypeError(f"emission_parameters must be a mapping such as {{'F': 0.1}}; got "
+                        f"{parameters!r:.60}")
+    valid = EMISSION_PARAMETERS[emission]
+    unknown = sorted(set(parameters) - set(valid))
+    if unknown:
+        raise ValueError(f"emission_parameters {unknown} are unknown for emission "
+                         f"{emission!r}; valid: {sorted(valid)}")
+    return {name: float(check_range(f"emission_parameters[{name!r}]", value, *valid[name]))
+            for name, value in parameters.items()}
 
 
 #: floor of the tabulated optical depth (the table stores its logarithm)
@@ -176,11 +199,34 @@ class Medium:
                  phase_functions: Mapping[str, Callable] | None = None,
                  n_altitude: int = 4001, n_table_radius: int = 96, n_table_mu: int = 256,
                  n_table_steps: int = 256):
+        missing = [name for name in ("planet_radius_m", "top_altitude_m")
+                   if not hasattr(atmosphere, name)]
+        missing += [name for name in ("extinction_coefficient", "scattering_coefficients")
+                    + (("aerosol_phase",) if phase_functions is None else ())
+                    if not callable(getattr(atmosphere, name, None))]
+        if missing or isinstance(atmosphere, (str, bytes, int, float, type)):
+            raise TypeError(f"atmosphere must be a skytorch.atmosphere.Atmosphere (or an "
+                            f"object with its planet_radius_m, top_altitude_m, "
+                            f"extinction_coefficient, scattering_coefficients); got "
+                            f"{type(atmosphere).__name__}: {atmosphere!r:.60}")
+        if phase_functions is not None and not (
+                isinstance(phase_functions, Mapping)
+                and all(callable(f) for f in phase_functions.values())):
+            raise TypeError(f"phase_functions must map species names to callables; got "
+                            f"{phase_functions!r:.80}")
+        n_altitude = check_int("n_altitude", n_altitude, low=2)
+        n_table_radius = check_int("n_table_radius", n_table_radius, low=2)
+        n_table_mu = check_int("n_table_mu", n_table_mu, low=2)
+        n_table_steps = check_int("n_table_steps", n_table_steps, low=1)
         wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
-        check_positive("wavelength_nm", wavelength)
+        check_positive("wavelength_nm", wavelength, unit=" nm")
+        if wavelength.numel() == 0:
+            raise ValueError("wavelength_nm must hold at least one wavelength")
         self.wavelength_nm = wavelength
-        self.planet_radius_m = float(atmosphere.planet_radius_m)
-        self.top_altitude_m = float(atmosphere.top_altitude_m)
+        self.planet_radius_m = float(check_positive("planet_radius_m",
+                                                    atmosphere.planet_radius_m, unit=" m"))
+        self.top_altitude_m = float(check_positive("top_altitude_m",
+                                                   atmosphere.top_altitude_m, unit=" m"))
         self.top_radius_m = self.planet_radius_m + self.top_altitude_m
         if phase_functions is None:
             from skytorch.atmosphere.scattering import rayleigh_phase
@@ -414,6 +460,9 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     >>> tuple(b.shape), bool(b > 0)
     ((1,), True)
     """
+    if not isinstance(medium, Medium):
+        raise TypeError(f"medium must be a skytorch.skyglow.kernel.Medium; got "
+                        f"{type(medium).__name__}: {medium!r:.60}")
     check_choice("emission", emission, EMISSION_FUNCTIONS)
     check_choice("quadrature", quadrature, QUADRATURES)
     n_steps = check_int("n_steps", n_steps, low=1, high=4096)
@@ -428,7 +477,8 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     check_range("distance_m", values[2], 0.0, unit=" m")
     check_range("source_altitude_m", values[3], 0.0, medium.top_altitude_m, unit=" m")
     check_range("observer_altitude_m", values[4], 0.0, medium.top_altitude_m, unit=" m")
-    shape = broadcast_shape(*(v.shape for v in values))
+    shape = check_broadcastable(**{name: v for (name, _), v in zip(inputs, values,
+                                                                   strict=True)})
     flat = [v.expand(shape).reshape(-1) for v in values]
     n = flat[0].numel()
     xg, wg = _gauss_legendre(n_steps if quadrature == "split" else 2 * n_steps, dtype)

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import torch
 
-from skytorch._validate import as_tensor, check_choice
+from skytorch._validate import as_tensor, check_choice, check_positive, check_range
 from skytorch.constants import LUMINOUS_EFFICACY_LM_PER_W
 
 __all__ = ["LAMPS", "cct_mccamy", "lamp_spectrum", "luminance_weights", "per_lumen"]
@@ -108,9 +108,15 @@ def _fine_grid():
 def _spectrum_values(lamp, fine):
     if isinstance(lamp, str):
         return lamp_spectrum(lamp, fine)
+    if not isinstance(lamp, (tuple, list)) or len(lamp) != 2:
+        raise TypeError(f"lamp must be a name, one of {LAMPS}, or a pair (wavelength_nm, "
+                        f"spectrum); got {lamp!r:.80}")
     wavelength, values = lamp
-    wavelength = as_tensor("lamp wavelength_nm", wavelength).reshape(-1)
-    values = as_tensor("lamp spectrum", values).reshape(-1)
+    wavelength = check_positive("lamp wavelength_nm", wavelength, unit=" nm").reshape(-1)
+    values = check_range("lamp spectrum", values, 0.0, dtype=wavelength.dtype).reshape(-1)
+    if wavelength.numel() != values.numel() or wavelength.numel() < 2:
+        raise ValueError(f"lamp (wavelength_nm, spectrum) must have the same length >= 2; "
+                         f"got {wavelength.numel()} and {values.numel()}")
     order = torch.argsort(wavelength)
     return torch.as_tensor(_interp(fine, wavelength[order], values[order]))
 

@@ -45,7 +45,14 @@ import numpy as np
 import torch
 from torch import nn
 
-from skytorch._validate import as_tensor, check_choice, check_int, check_positive, check_range
+from skytorch._validate import (
+    as_tensor,
+    check_choice,
+    check_finite,
+    check_int,
+    check_positive,
+    check_range,
+)
 from skytorch.skyglow.basis import fit_basis, resolve_components
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
 
@@ -101,6 +108,17 @@ _MANY_OBSERVERS = 16
 #: largest splat plan (corner × observer × cell entries) that a model keeps for reuse
 SPLAT_PLAN_ENTRIES = 2**21
 
+#: accepted natural zenith sky brightness [mag arcsec^-2] (the darkest sky is ~22)
+NATURAL_MAG_RANGE = (10.0, 30.0)
+
+
+def _plain(value, single: bool):
+    """Observer positions/altitudes for the Dataset attributes, as given by the user."""
+    value = torch.as_tensor(value).detach()
+    return value[0].tolist() if single and value.ndim >= 1 and value.shape[0] == 1 else (
+        value.tolist())
+
+
 #: tolerance beyond the tabulated altitude range before a warning [m]
 _ALTITUDE_SLACK_M = 1.0
 
@@ -119,6 +137,66 @@ def _warn_outside(name: str, values: torch.Tensor, grid: torch.Tensor) -> None:
                 "to it; precompute with a wider altitude range", UserWarning, stacklevel=4)
 
 
+#: bound on |x| and |y| of observer positions in the map frame [m]: the flat map of
+#: :mod:`skytorch.skyglow` means nothing beyond the Earth's radius
+OBSERVER_XY_LIMIT_M = 1.0e7
+#: highest observer altitude [m]: the top of the atmosphere of the kernels
+#: (:class:`skytorch.skyglow.kernel.Medium` of an Earth atmosphere)
+OBSERVER_ALTITUDE_MAX_M = 100_000.0
+
+
+def check_model(name: str, model) -> SkyglowModel:
+    """Return ``model`` if it is a :class:`SkyglowModel`, else raise ``TypeError``."""
+    if not isinstance(model, SkyglowModel):
+        raise TypeError(f"{name} must be a SkyglowModel (SkyglowModel.precompute or "
+                        f"SkyglowModel.load); got {type(model).__name__}: {model!r:.60}")
+    return model
+
+
+def check_flag(name: str, value) -> bool:
+    """A boolean option; strings such as "no" and numbers are a ``TypeError``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False; got {value!r:.60}")
+    return bool(value)
+
+
+def observer_positions(observer_xy, dtype: torch.dtype | None = None
+                       ) -> tuple[torch.Tensor, bool]:
+    """Observer positions as an (observer, 2) tensor, and whether one (2,) was given.
+
+    Raises
+    ------
+    TypeError
+        For non-numeric input.
+    ValueError
+        For NaN/inf, |x| or |y| above :data:`OBSERVER_XY_LIMIT_M`, or a shape other than
+        (2,) or (observer, 2) with at least one observer.
+    """
+    xy = check_range("observer_xy", observer_xy, -OBSERVER_XY_LIMIT_M, OBSERVER_XY_LIMIT_M,
+                     unit=" m", dtype=dtype)
+    if xy.ndim == 1 and xy.shape[0] == 2:
+        return xy.reshape(1, 2), True
+    if xy.ndim == 2 and xy.shape[1] == 2 and xy.shape[0] >= 1:
+        return xy, False
+    raise ValueError(f"observer_xy must have shape (2,) or (observer, 2) [m]; got shape "
+                     f"{tuple(xy.shape)}")
+
+
+def observer_altitudes(observer_altitude_m, n_observers: int,
+                       dtype: torch.dtype | None = None) -> torch.Tensor:
+    """Observer altitudes (observer,) [m]: one value for all observers or one for each.
+
+    Raises ``ValueError`` for NaN/inf, values outside [0, :data:`OBSERVER_ALTITUDE_MAX_M`]
+    or a count other than 1 or ``n_observers``.
+    """
+    h_o = check_range("observer_altitude_m", observer_altitude_m, 0.0, OBSERVER_ALTITUDE_MAX_M,
+                      unit=" m", dtype=dtype)
+    if h_o.ndim > 1 or h_o.numel() not in (1, n_observers):
+        raise ValueError(f"observer_altitude_m must be one value or one per observer "
+                         f"({n_observers},); got shape {tuple(h_o.shape)}")
+    return h_o.reshape(-1).expand(n_observers) if h_o.numel() == 1 else h_o.reshape(-1)
+
+
 def _stack_fits(fits, image_shape, sample_shape):
     """Stack per-observer-altitude PCA fits, padding with zero components to a common M.
 
@@ -135,6 +213,48 @@ def _stack_fits(fits, image_shape, sample_shape):
         coefficients[j, ..., :k] = fit.coefficients.reshape(*sample_shape, k)
         ratio[j, :k - 1] = fit.explained_variance_ratio
     return basis, coefficients, ratio
+
+
+def _check_tables(model) -> None:
+    """Raise ``ValueError`` unless the model's buffers have consistent shapes and finite
+    values (a truncated or corrupted file must not become a model)."""
+    sizes = {name: getattr(model, name).numel() for name in (
+        "azimuth_rad", "elevation_rad", "distance_m", "distance_edges_m",
+        "source_altitude_m", "observer_altitude_m", "wavelength_nm")}
+    n_t, n_p, n_r = sizes["azimuth_rad"], sizes["elevation_rad"], sizes["distance_m"]
+    n_hc, n_ho, n_wl = (sizes["source_altitude_m"], sizes["observer_altitude_m"],
+                        sizes["wavelength_nm"])
+    basis, coefficients = model.basis, model.coefficients
+    problems = []
+    if basis.ndim != 5 or tuple(basis.shape[:1]) + tuple(basis.shape[2:]) != (
+            n_ho, n_t, n_p, n_wl):
+        problems.append(f"basis has shape {tuple(basis.shape)}, expected "
+                        f"({n_ho}, component, {n_t}, {n_p}, {n_wl})")
+    elif coefficients.shape != (n_ho, n_r, n_hc, basis.shape[1]):
+        problems.append(f"coefficients have shape {tuple(coefficients.shape)}, expected "
+                        f"({n_ho}, {n_r}, {n_hc}, {basis.shape[1]})")
+    if sizes["distance_edges_m"] != n_r + 1:
+        problems.append(f"{sizes['distance_edges_m']} distance edges for {n_r} distances")
+    if min(n_t, n_p, n_r, n_hc, n_ho, n_wl) < 1 or n_t < 2:
+        problems.append(f"empty grid (sizes {sizes})")
+    for name in ("azimuth_rad", "elevation_rad", "distance_m", "distance_edges_m",
+                 "source_altitude_m", "observer_altitude_m", "wavelength_nm", "basis",
+                 "coefficients", "explained_variance_ratio"):
+        if not bool(torch.isfinite(getattr(model, name)).all()):
+            problems.append(f"{name} holds NaN or infinite values")
+    if not problems:
+        steps = torch.diff(model.azimuth_rad)
+        uniform = bool(torch.allclose(steps, torch.full_like(steps, 2 * math.pi / n_t),
+                                      rtol=1e-9, atol=1e-12))
+        if not uniform or abs(float(model.azimuth_rad[0])) > 1e-12:
+            problems.append("azimuth_rad is not the uniform grid i 2π/N from 0")
+        for name in ("distance_edges_m", "source_altitude_m", "observer_altitude_m"):
+            values = getattr(model, name)
+            if values.numel() > 1 and not bool((torch.diff(values) > 0).all()):
+                problems.append(f"{name} is not increasing")
+    if problems:
+        raise ValueError("the skyglow model's tables are inconsistent (a corrupted or "
+                         "truncated file?): " + "; ".join(problems))
 
 
 def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
@@ -159,11 +279,19 @@ def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
     Raises
     ------
     ValueError
-        For NaN/infinite or negative flux (naming the cell), or mismatched shapes.
+        For NaN/infinite or negative flux (naming the cell), NaN/infinite coordinates, a
+        Dataset without ``flux``/``x``/``y``, or mismatched shapes.
+    TypeError
+        For a light map that is neither a Dataset nor numeric.
     """
     if not isinstance(light_map, torch.Tensor) and hasattr(light_map, "data_vars"):
-        if "flux" not in light_map:
-            raise ValueError("light_map must have a variable 'flux' on (y, x)")
+        missing = [k for k in ("flux", "x", "y") if k not in light_map]
+        if missing:
+            raise ValueError(f"light_map must have a variable 'flux' on (y, x) with "
+                             f"coordinates 'x' and 'y' [m]; missing {missing}")
+        if set(light_map["flux"].dims) != {"y", "x"}:
+            raise ValueError(f"light_map flux must have the dimensions (y, x); got "
+                             f"{light_map['flux'].dims}")
         da = light_map["flux"].transpose("y", "x")
         flux = torch.tensor(np.array(da.values, dtype=np.float64))
         x_m = torch.tensor(np.array(light_map["x"].values, dtype=np.float64))
@@ -177,6 +305,8 @@ def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
             raise ValueError("a tensor light_map needs x_m and y_m coordinates [m]")
         x_m = as_tensor("x_m", x_m, dtype=flux.dtype).reshape(-1)
         y_m = as_tensor("y_m", y_m, dtype=flux.dtype).reshape(-1)
+    check_finite("x_m", x_m)
+    check_finite("y_m", y_m)
     if flux.ndim != 2 or flux.shape != (y_m.numel(), x_m.numel()):
         raise ValueError(f"flux must have shape (y, x) = ({y_m.numel()}, {x_m.numel()}); "
                          f"got {tuple(flux.shape)}")
@@ -193,7 +323,7 @@ def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
         altitude_m = torch.zeros_like(flux)
     else:
         altitude_m = check_range("altitude_m", altitude_m, unit=" m").to(flux.dtype)
-        if altitude_m.shape != flux.shape:
+        if tuple(altitude_m.shape) != tuple(flux.shape):
             raise ValueError(f"altitude must have the flux's shape {tuple(flux.shape)}; got "
                              f"{tuple(altitude_m.shape)}")
     x_m, y_m = x_m.to(flux.dtype), y_m.to(flux.dtype)
@@ -290,15 +420,18 @@ class SkyglowModel(nn.Module):
                             ("explained_variance_ratio", explained_variance_ratio)):
             self.register_buffer(name, torch.as_tensor(value, dtype=torch.float64))
         self.parameters_used = dict(parameters)
+        _check_tables(self)
         self.medium: Medium | None = None
         self.kernel: torch.Tensor | None = None
         n_ho, n_k, n_t, n_p, n_wl = self.basis.shape
         spectrum = torch.fft.rfft(self.basis, dim=2)  # (ho, K, f, φ, λ)
         imaginary = float(spectrum.imag.abs().amax()) if spectrum.numel() else 0.0
         scale = float(spectrum.real.abs().amax()) if spectrum.numel() else 1.0
-        if imaginary > 1e-6 * max(scale, 1e-300):
-            logger.warning("basis images are not mirror-symmetric (|Im FFT| / max = %.3g)",
-                           imaginary / scale)
+        if not (imaginary <= 1e-6 * max(scale, 1e-300)):  # NaN tables fail too
+            raise ValueError(
+                f"basis images are not mirror-symmetric (|Im FFT| / max = "
+                f"{imaginary / max(scale, 1e-300):.3g}, at most 1e-6 expected): the tables "
+                "are corrupted; rebuild the model with SkyglowModel.precompute")
         self.register_buffer("basis_fft", spectrum.real.permute(0, 2, 1, 3, 4).reshape(
             n_ho, n_t // 2 + 1, n_k, n_p * n_wl).contiguous())
         gram = torch.einsum("hkx,hlx->hkl", self.basis.reshape(n_ho, n_k, -1),
@@ -535,9 +668,22 @@ class SkyglowModel(nn.Module):
         if self.kernel is None:
             raise ValueError("refit needs the kernel: precompute with keep_kernel=True")
         normalize = self.parameters_used["normalize"] if normalize is None else normalize
+        normalize = check_flag("normalize", normalize)
         n_ho, n_r, n_hc, n_t, n_p, n_wl = self.kernel.shape
-        fits = [fit_basis(k.reshape(n_r * n_hc, -1), n_components, normalize=normalize)
-                for k in self.kernel]
+        # as in precompute: the PCA of the half images (azimuths 0..N/2 weighted by their
+        # multiplicity in the circle) mirrored, so that the bases are exactly symmetric
+        half = n_t // 2 + 1
+        mirror = torch.tensor([min(i, n_t - i) for i in range(n_t)])
+        multiplicity = torch.tensor([1.0 if i in (0, n_t - i) else 2.0 for i in range(half)],
+                                    dtype=torch.float64)
+        feature_weights = multiplicity[:, None].expand(half, n_p * n_wl).reshape(-1)
+        fits = []
+        for k in self.kernel:
+            fit = fit_basis(k[:, :, :half].reshape(n_r * n_hc, -1), n_components,
+                            normalize=normalize, feature_weights=feature_weights)
+            fit.basis = fit.basis.reshape(-1, half, n_p * n_wl)[:, mirror].reshape(
+                fit.basis.shape[0], -1)
+            fits.append(fit)
         basis, coefficients, ratio = _stack_fits(fits, (n_t, n_p, n_wl), (n_r, n_hc))
         n_k = basis.shape[1]
         parameters = dict(self.parameters_used, n_components_requested=n_components,
@@ -578,7 +724,13 @@ class SkyglowModel(nn.Module):
             Flux per polar node [lm]; the total over nodes equals the flux of the cells
             within ``max_distance_m``.
         """
+        flux = as_tensor("flux", flux)
         dtype = flux.dtype
+        altitude_m = as_tensor("altitude_m", altitude_m, dtype=dtype)
+        if flux.numel() != altitude_m.numel():
+            raise ValueError(f"flux and altitude_m must have one value per cell; got "
+                             f"{flux.numel()} and {altitude_m.numel()}")
+        flux, altitude_m = flux.reshape(-1), altitude_m.reshape(-1)
         _warn_outside("source altitude", altitude_m[flux.detach() != 0], self.source_altitude_m)
         base, corners, shape = self._splat_corners(x_m, y_m, altitude_m, observer_xy, dtype)
         out = torch.zeros(math.prod(shape), dtype=dtype)
@@ -591,9 +743,13 @@ class SkyglowModel(nn.Module):
         """Flat polar index of each (observer, cell) pair's first corner, the corners'
         (offset, weight) and the storage shape (azimuth, distance, source_altitude,
         observer); weights are zero beyond ``max_distance_m``."""
-        x_m, y_m = x_m.to(dtype).reshape(-1), y_m.to(dtype).reshape(-1)
-        altitude_m = altitude_m.to(dtype).reshape(-1)
-        observer_xy = observer_xy.to(dtype)
+        x_m = as_tensor("x_m", x_m, dtype=dtype).reshape(-1)
+        y_m = as_tensor("y_m", y_m, dtype=dtype).reshape(-1)
+        altitude_m = as_tensor("altitude_m", altitude_m, dtype=dtype).reshape(-1)
+        if not x_m.numel() == y_m.numel() == altitude_m.numel():
+            raise ValueError(f"x_m, y_m and altitude_m must have one value per cell; got "
+                             f"{x_m.numel()}, {y_m.numel()} and {altitude_m.numel()}")
+        observer_xy, _ = observer_positions(observer_xy, dtype)
         n_t = self.azimuth_rad.numel()
         n_r = self.distance_m.numel()
         n_h = self.source_altitude_m.numel()
@@ -805,13 +961,14 @@ class SkyglowModel(nn.Module):
     def observer_altitude_weights(self, observer_altitude_m: torch.Tensor):
         """Lower node index and weight of the upper node for each observer altitude."""
         grid = self.observer_altitude_m
-        check_range("observer_altitude_m", observer_altitude_m, 0.0, unit=" m")
+        observer_altitude_m = check_range("observer_altitude_m", observer_altitude_m, 0.0,
+                                          OBSERVER_ALTITUDE_MAX_M, unit=" m")
         _warn_outside("observer_altitude_m", observer_altitude_m, grid)
         return _linear_weights(grid, observer_altitude_m.to(torch.float64))
 
     def _reusable_plan(self, cells, observer_xy, dtype) -> SplatPlan | None:
         """The cached splat plan of this geometry (built if needed), or None if too big."""
-        observer_xy = as_tensor("observer_xy", observer_xy, dtype=dtype).reshape(-1, 2)
+        observer_xy, _ = observer_positions(observer_xy, dtype)
         n_cells = cells["flux"].numel()
         corners = 4 * (2 if self.source_altitude_m.numel() > 1 else 1)
         if observer_xy.shape[0] * n_cells * corners > SPLAT_PLAN_ENTRIES or any(
@@ -871,8 +1028,23 @@ class SkyglowModel(nn.Module):
         Tensor (observer, elevation, azimuth, wavelength)
         """
         check_choice("resampling", resampling, RESAMPLINGS)
+        oversampling = check_int("oversampling", oversampling, low=1, high=64)
+        max_pairs = check_int("max_pairs", max_pairs, low=1)
+        reuse_splat = check_flag("reuse_splat", reuse_splat)
+        if not isinstance(cells, Mapping) or any(
+                k not in cells for k in ("flux", "x", "y", "altitude")):
+            raise TypeError("cells must be the mapping of light_map_arrays() with flux, x, y "
+                            f"and altitude; got {type(cells).__name__}")
         flux = cells["flux"]
         dtype = flux.dtype
+        if any(tuple(cells[k].shape) != tuple(flux.shape) and cells[k].numel() != flux.numel()
+               for k in ("x", "y", "altitude")):
+            raise ValueError("cells flux, x, y and altitude must have one value per cell; got "
+                             "shapes " + ", ".join(f"{k} {tuple(cells[k].shape)}"
+                                                   for k in ("flux", "x", "y", "altitude")))
+        observer_xy, _ = observer_positions(observer_xy, dtype)
+        n_obs = observer_xy.shape[0]
+        h_o = observer_altitudes(observer_altitude_m, n_obs, dtype)
         plan = None
         if resampling == "splat" and reuse_splat:
             plan = self._reusable_plan(cells, observer_xy, dtype)
@@ -887,13 +1059,6 @@ class SkyglowModel(nn.Module):
             lit = flux != 0
             flux, x, y, altitude = (cells[k].expand_as(lit)[lit].to(dtype)
                                     for k in ("flux", "x", "y", "altitude"))
-        observer_xy = as_tensor("observer_xy", observer_xy, dtype=dtype).reshape(-1, 2)
-        n_obs = observer_xy.shape[0]
-        h_o = as_tensor("observer_altitude_m", observer_altitude_m, dtype=dtype)
-        h_o = h_o.reshape(-1).expand(n_obs) if h_o.numel() == 1 else h_o.reshape(-1)
-        if h_o.numel() != n_obs:
-            raise ValueError(f"observer_altitude_m must have one value per observer "
-                             f"({n_obs}); got {h_o.numel()}")
         j, w = self.observer_altitude_weights(h_o)
         n_p, n_t = self.elevation_rad.numel(), self.azimuth_rad.numel()
         n_wl = self.wavelength_nm.numel()
@@ -940,16 +1105,19 @@ class SkyglowModel(nn.Module):
             Variable ``flux`` [lm] on ``(y, x)`` in metres east/north, optional
             ``altitude`` [m] (see :func:`light_map_arrays`).
         observer_xy : array_like (2,) or (observer, 2)
-            Observer position(s) in the map's coordinates [m].
+            Observer position(s) in the map's coordinates [m], finite, |x|, |y| ≤
+            :data:`OBSERVER_XY_LIMIT_M`.
         observer_altitude_m : float or array_like (observer,)
-            Observer altitude(s) [m].
+            Observer altitude(s) [m] in [0, :data:`OBSERVER_ALTITUDE_MAX_M`]; beyond the
+            tabulated range they are clamped to it with a warning.
         lamp : str or (wavelength_nm, spectrum)
             Lamp spectrum (:data:`skytorch.skyglow.lamps.LAMPS`) giving the spectral
             power of one lumen.
         x_m, y_m, altitude_m : Tensor, optional
             Coordinates for a tensor light map.
         natural_mag_arcsec2 : float, optional
-            Natural zenith brightness added in ``total_brightness`` (default 22.0).
+            Natural zenith brightness added in ``total_brightness``, within
+            :data:`NATURAL_MAG_RANGE` (default 22.0) [mag arcsec^-2].
         as_dataset : bool
             Return a Dataset (default) or a dict of tensors.
         resampling, oversampling
@@ -964,20 +1132,34 @@ class SkyglowModel(nn.Module):
             [mag arcsec^-2] (natural + artificial) and the naked-eye
             ``limiting_magnitude`` [mag]. The ``observer`` dimension is dropped for a single
             observer given as ``(2,)``.
+
+        Raises
+        ------
+        ValueError
+            For a bad light map (see :func:`light_map_arrays`), observer positions or
+            altitudes outside their ranges or of the wrong shape (checked before any
+            arithmetic), and an unknown lamp or resampling.
+        TypeError
+            For non-numeric inputs, a malformed lamp spectrum or a non-boolean option.
         """
         from skytorch.skyglow.lamps import luminance_weights
         from skytorch.skyglow.units import NATURAL_ZENITH_SKY_MAG_ARCSEC2
 
+        as_dataset = check_flag("as_dataset", as_dataset)
+        check_choice("resampling", resampling, RESAMPLINGS)
+        natural = NATURAL_ZENITH_SKY_MAG_ARCSEC2 if natural_mag_arcsec2 is None else float(
+            check_range("natural_mag_arcsec2", natural_mag_arcsec2, *NATURAL_MAG_RANGE,
+                        unit=" mag/arcsec^2"))
         cells = light_map_arrays(light_map, x_m, y_m, altitude_m)
-        single = torch.as_tensor(observer_xy).ndim == 1
+        observer_xy, single = observer_positions(observer_xy, cells["flux"].dtype)
+        observer_altitude_m = observer_altitudes(observer_altitude_m, observer_xy.shape[0],
+                                                 cells["flux"].dtype)
+        weights, band_power = luminance_weights(lamp, self.wavelength_nm)
         per_lumen = self.radiance_per_lumen(cells, observer_xy, observer_altitude_m,
                                             resampling=resampling, oversampling=oversampling)
-        weights, band_power = luminance_weights(lamp, self.wavelength_nm)
         dtype = per_lumen.dtype
         luminance = per_lumen @ weights.to(dtype)
         radiance = per_lumen * band_power.to(dtype)
-        natural = NATURAL_ZENITH_SKY_MAG_ARCSEC2 if natural_mag_arcsec2 is None else float(
-            natural_mag_arcsec2)
         outputs = {"radiance": radiance, "luminance": luminance}
         if single:
             outputs = {k: v[0] for k, v in outputs.items()}
@@ -1025,7 +1207,7 @@ class SkyglowModel(nn.Module):
                 "Faintest star visible against this sky (Schaefer 1990 threshold model)."))
         coords = self._panorama_coords()
         if not single:
-            xy = torch.as_tensor(observer_xy, dtype=torch.float64).reshape(-1, 2)
+            xy = torch.as_tensor(observer_xy).detach().to(torch.float64).reshape(-1, 2)
             n = xy.shape[0]
             coords["observer"] = coordinate("observer", np.arange(n), VariableSpec(
                 "1", "observer index", "Index of the observer position."))
@@ -1035,8 +1217,8 @@ class SkyglowModel(nn.Module):
                 "m", "observer northing", "Observer position north in the map frame."))
         lamp_name = lamp if isinstance(lamp, str) else "custom spectrum"
         parameters = dict(self.parameters_used, lamp=lamp_name,
-                          observer_xy=torch.as_tensor(observer_xy).tolist(),
-                          observer_altitude_m=torch.as_tensor(observer_altitude_m).tolist(),
+                          observer_xy=_plain(observer_xy, single),
+                          observer_altitude_m=_plain(observer_altitude_m, single),
                           natural_mag_arcsec2=natural, **resampling,
                           total_flux_lm=float(cells["flux"].detach().sum()))
         return build_dataset(data, coords, title="Artificial skyglow panorama",
@@ -1097,25 +1279,81 @@ class SkyglowModel(nn.Module):
                              references=list(REFERENCES), parameters=self.parameters_used)
 
     def save(self, path):
-        """Write the model to a netCDF file (atomic); returns the path."""
+        """Write the model to a netCDF file (atomic); returns the path.
+
+        The file's attribute ``tables_sha256`` is the SHA-256 of the stored tables, which
+        :meth:`load` verifies.
+        """
         from skytorch.dataset import to_netcdf
 
-        return to_netcdf(self.to_dataset(), path)
+        ds = self.to_dataset()
+        ds.attrs["tables_sha256"] = _tables_digest(ds)
+        return to_netcdf(ds, path)
 
     @classmethod
     def load(cls, path) -> SkyglowModel:
-        """Read a model written by :meth:`save`."""
+        """Read a model written by :meth:`save`.
+
+        Raises
+        ------
+        FileNotFoundError
+            If there is no file at ``path``.
+        ValueError
+            If the file is not a readable skyglow model, its tables do not match the
+            ``tables_sha256`` recorded by :meth:`save`, or they are inconsistent (shapes,
+            non-finite values, a basis that is not mirror-symmetric): the file is
+            corrupted and the model must be rebuilt.
+        """
         from skytorch.dataset import open_dataset
 
-        ds = open_dataset(path)
+        try:
+            ds = open_dataset(path)
+        except FileNotFoundError:
+            raise
+        except (OSError, RuntimeError, ValueError, KeyError) as error:
+            raise ValueError(f"cannot read a skyglow model from {path}: {error}") from error
+        try:
+            missing = [name for name in _TABLE_VARIABLES if name not in ds.variables]
+            if missing or "parameters" not in ds.attrs:
+                raise ValueError(f"missing {missing or 'the parameters attribute'}")
+            recorded = ds.attrs.get("tables_sha256")
+            if recorded is not None and recorded != _tables_digest(ds):
+                raise ValueError("its tables do not match the SHA-256 recorded when it was "
+                                 "saved")
+            parameters = json.loads(ds.attrs["parameters"])
+            if not isinstance(parameters, dict):
+                raise ValueError("the parameters attribute is not a JSON object")
 
-        def t(name):
-            return torch.tensor(np.array(ds[name].values, dtype=np.float64))
+            def t(name):
+                return torch.tensor(np.array(ds[name].values, dtype=np.float64))
 
-        return cls(azimuth_rad=torch.deg2rad(t("azimuth")),
-                   elevation_rad=torch.deg2rad(t("elevation")), distance_m=t("distance"),
-                   distance_edges_m=t("distance_edge"), source_altitude_m=t("source_altitude"),
-                   observer_altitude_m=t("observer_altitude"), wavelength_nm=t("wavelength"),
-                   basis=t("basis"), coefficients=t("coefficients"),
-                   explained_variance_ratio=t("explained_variance_ratio"),
-                   parameters=json.loads(ds.attrs["parameters"]))
+            return cls(azimuth_rad=torch.deg2rad(t("azimuth")),
+                       elevation_rad=torch.deg2rad(t("elevation")), distance_m=t("distance"),
+                       distance_edges_m=t("distance_edge"),
+                       source_altitude_m=t("source_altitude"),
+                       observer_altitude_m=t("observer_altitude"),
+                       wavelength_nm=t("wavelength"), basis=t("basis"),
+                       coefficients=t("coefficients"),
+                       explained_variance_ratio=t("explained_variance_ratio"),
+                       parameters=parameters)
+        except (ValueError, KeyError, TypeError, RuntimeError) as error:
+            raise ValueError(f"{path} is not a valid skyglow model file (corrupted or "
+                             f"truncated; rebuild it): {error}") from error
+
+
+#: the variables of a saved model, in the order of their digest
+_TABLE_VARIABLES = ("azimuth", "elevation", "wavelength", "distance", "distance_edge",
+                    "source_altitude", "observer_altitude", "basis", "coefficients",
+                    "explained_variance_ratio")
+
+
+def _tables_digest(ds) -> str:
+    """SHA-256 of the float64 bytes (and shapes) of a model Dataset's tables."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for name in _TABLE_VARIABLES:
+        values = np.ascontiguousarray(np.asarray(ds[name].values, dtype=np.float64))
+        digest.update(f"{name}{values.shape}".encode())
+        digest.update(values.tobytes())
+    return digest.hexdigest()

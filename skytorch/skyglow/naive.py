@@ -23,9 +23,16 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_choice
-from skytorch.skyglow.kernel import kernel_radiance
-from skytorch.skyglow.model import SkyglowModel, light_map_arrays
+from skytorch._validate import check_choice, check_int
+from skytorch.skyglow.kernel import Medium, kernel_radiance
+from skytorch.skyglow.model import (
+    SkyglowModel,
+    check_flag,
+    check_model,
+    light_map_arrays,
+    observer_altitudes,
+    observer_positions,
+)
 
 __all__ = ["NAIVE_SOURCES", "kernel_table_sum", "naive_radiance_per_lumen", "render_naive"]
 
@@ -80,16 +87,29 @@ def naive_radiance_per_lumen(model: SkyglowModel, cells, observer_xy, observer_a
     -------
     Tensor (observer, elevation, azimuth, wavelength)
     """
+    check_model("model", model)
     check_choice("sources", sources, NAIVE_SOURCES)
+    chunk_size = check_int("chunk_size", chunk_size, low=1)
     medium = medium if medium is not None else model.medium
     if medium is None:
         raise ValueError("render_naive needs the atmosphere tables: pass medium=Medium(atm, "
                          "model.wavelength_nm) for a model loaded from a file")
+    if not isinstance(medium, Medium):
+        raise TypeError(f"medium must be a skytorch.skyglow.kernel.Medium; got "
+                        f"{type(medium).__name__}: {medium!r:.60}")
+    if medium.wavelength_nm.numel() != model.wavelength_nm.numel() or not bool(
+            torch.allclose(medium.wavelength_nm, model.wavelength_nm.to(torch.float64))):
+        raise ValueError(f"medium must hold the model's wavelengths "
+                         f"{model.wavelength_nm.tolist()} nm; got "
+                         f"{medium.wavelength_nm.tolist()} nm")
+    if not isinstance(cells, dict) or any(k not in cells for k in ("flux", "x", "y",
+                                                                     "altitude")):
+        raise TypeError("cells must be the mapping of light_map_arrays() with flux, x, y "
+                        f"and altitude; got {type(cells).__name__}")
     flux = cells["flux"].reshape(-1)
     dtype = flux.dtype
-    observer_xy = as_tensor("observer_xy", observer_xy, dtype=dtype).reshape(-1, 2)
-    h_o = as_tensor("observer_altitude_m", observer_altitude_m, dtype=dtype).reshape(-1)
-    h_o = h_o.expand(observer_xy.shape[0]) if h_o.numel() == 1 else h_o
+    observer_xy, _ = observer_positions(observer_xy, dtype)
+    h_o = observer_altitudes(observer_altitude_m, observer_xy.shape[0], dtype)
     results = []
     for i in range(observer_xy.shape[0]):
         if sources == "cells":
@@ -126,8 +146,9 @@ def render_naive(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
                  medium=None, x_m=None, y_m=None, altitude_m=None, as_dataset: bool = True):
     """Skyglow panorama by direct accumulation over lighting cells (the reference).
 
-    Same arguments and output as :meth:`SkyglowModel.render`, plus ``sources`` (see the
-    module notes) and ``medium``.
+    Same arguments, checks and output as :meth:`SkyglowModel.render`, plus ``sources``
+    (see the module notes) and ``medium`` (a :class:`~skytorch.skyglow.kernel.Medium` at
+    the model's wavelengths).
 
     Examples
     --------
@@ -144,11 +165,15 @@ def render_naive(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
     from skytorch.skyglow.lamps import luminance_weights
     from skytorch.skyglow.units import NATURAL_ZENITH_SKY_MAG_ARCSEC2
 
+    check_model("model", model)
+    as_dataset = check_flag("as_dataset", as_dataset)
     cells = light_map_arrays(light_map, x_m, y_m, altitude_m)
-    single = torch.as_tensor(observer_xy).ndim == 1
+    observer_xy, single = observer_positions(observer_xy, cells["flux"].dtype)
+    observer_altitude_m = observer_altitudes(observer_altitude_m, observer_xy.shape[0],
+                                             cells["flux"].dtype)
+    weights, band_power = luminance_weights(lamp, model.wavelength_nm)
     per_lumen = naive_radiance_per_lumen(model, cells, observer_xy, observer_altitude_m,
                                          sources=sources, medium=medium)
-    weights, band_power = luminance_weights(lamp, model.wavelength_nm)
     outputs = {"radiance": per_lumen * band_power.to(per_lumen.dtype),
                "luminance": per_lumen @ weights.to(per_lumen.dtype)}
     if single:
@@ -182,8 +207,16 @@ def kernel_table_sum(model: SkyglowModel, polar: torch.Tensor, node: int = 0) ->
     -------
     Tensor (elevation, azimuth, wavelength)
     """
+    check_model("model", model)
     if model.kernel is None:
         raise ValueError("kernel_table_sum needs precompute(..., keep_kernel=True)")
+    node = check_int("node", node, 0, model.kernel.shape[0] - 1)
+    expected = (model.azimuth_rad.numel(), model.distance_m.numel(),
+                model.source_altitude_m.numel())
+    if not isinstance(polar, torch.Tensor) or tuple(polar.shape) != expected:
+        raise ValueError(f"polar must be a tensor of shape (azimuth, distance, "
+                         f"source_altitude) = {expected}; got "
+                         f"{tuple(getattr(polar, 'shape', ())) or type(polar).__name__}")
     kernel = model.kernel[node].to(polar.dtype)  # (r, hc, θ, φ, λ)
     total = torch.zeros(kernel.shape[2:], dtype=polar.dtype)  # (θ, φ, λ)
     for i in torch.nonzero(polar.abs().sum(dim=(1, 2)))[:, 0].tolist():
