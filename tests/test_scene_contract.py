@@ -9,6 +9,7 @@ atmosphere's turbidity, ozone and observer height, the spectrum's 360–830 nm).
 
 from __future__ import annotations
 
+import importlib
 import math
 
 import numpy as np
@@ -259,3 +260,15 @@ def test_render_contract(kwargs):
             assert np.isfinite(values).all(), name
     if "component_radiance" in ds:
         assert (ds["component_radiance"].values >= 0.0).all()
+
+
+def test_natural_gradient_carries_gradients_and_refuses_observers_above_the_layer():
+    """The one tensor function of the scene's composition that the Notes call
+    differentiable: its zenith derivative against finite differences."""
+    natural_gradient = importlib.import_module("skytorch.scene.render").natural_gradient
+    zenith = torch.tensor([0.0, 0.7, 1.5, math.pi / 2], dtype=torch.float64,
+                          requires_grad=True)
+    assert torch.autograd.gradcheck(natural_gradient, (zenith,), eps=1e-6, atol=1e-7)
+    expect_rejected(lambda: natural_gradient(zenith, observer_height_m=95_000.0),
+                    ("observer_height_m",))
+    expect_rejected(lambda: natural_gradient("up"), ("zenith_rad",))

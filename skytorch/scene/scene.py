@@ -409,37 +409,44 @@ class Scene:
     time : str, datetime or datetime64
         UTC instant of the scene.
     lat_deg, lon_deg : float or sequence of float
-        Geodetic latitude and east longitude of the observer [degree]. Sequences (with
+        Geodetic latitude in [-90, 90] and east longitude in [-180, 360) of the observer
+        [degree] (:func:`skytorch.ephemeris.check_observer`). Sequences (with
         ``elevation_m``, broadcast to one length) give several observers: the render then
-        has a dimension ``observer`` (:func:`skytorch.scene.render.render_observers`).
+        has a dimension ``observer`` (:func:`skytorch.scene.render.render_observers`),
+        also for a sequence of one.
     elevation_m : float or sequence of float
-        Observer height above the ellipsoid [m].
+        Observer height above the ellipsoid [m], inside the atmosphere: from 0 to its top
+        (100 km) and below ``airglow_height_m``.
     view : {"fisheye", "panorama", "directions"}
         Image geometry (module docstring).
     size : int
-        Pixels across a fisheye (``size × size``) or elevations of a panorama.
+        Pixels across a fisheye (``size × size``) or elevations of a panorama, 2 to
+        :data:`MAX_SIZE`.
     directions : mapping, optional
-        ``{"altitude_deg": [...], "azimuth_deg": [...]}`` for ``view="directions"``.
+        ``{"altitude_deg": [...], "azimuth_deg": [...]}`` for ``view="directions"``
+        (altitudes in [0, 90] [degree], one azimuth per altitude).
     camera : mapping, optional
         For ``view="camera"``: ``fov_deg`` (field across [degree]) and either
         ``target`` (one of :data:`CAMERA_TARGETS`) or ``altitude_deg`` and ``azimuth_deg``
-        of the centre.
+        of the centre; ``fov_deg`` in (0, 120].
     wavelengths : str or sequence of float
         A preset of :func:`skytorch.spectrum.wavelength_grid` ("rgb", "bands15",
-        "cie5") or wavelengths [nm].
+        "cie5", "cie1") or strictly increasing wavelengths [nm] in 360–830 nm
+        (:data:`skytorch.spectrum.VISIBLE_RANGE_NM`).
     turbidity, ozone_du : float
-        Atmosphere parameters (:meth:`skytorch.atmosphere.Atmosphere.earth`).
+        Atmosphere parameters, checked by :meth:`skytorch.atmosphere.Atmosphere.earth`
+        (turbidity >= 1, ozone >= 0 DU). One number each: scenes are not batched.
     light_map : xarray.Dataset, optional
         City lights (``flux`` [lm] on ``(y, x)`` [m] around the observer), see
         :meth:`skytorch.skyglow.SkyglowModel.render`.
     observer_xy : (float, float) or sequence of them
-        Observer position in the light map's frame [m]; one pair per observer, or one
-        pair for all.
+        Observer position in the light map's frame [m] (finite); one pair per observer,
+        or one pair for all.
     lamp : str
         Lamp spectrum of the lights (:data:`skytorch.skyglow.lamps.LAMPS`).
     tolerance : float
         Largest relative change of the image's V-band flux (L1 over the pixels) an
-        omitted effect may cause; see :mod:`skytorch.scene.planner`.
+        omitted effect may cause, in [0, 1]; see :mod:`skytorch.scene.planner`.
     fidelity : {"fast", "default", "reference"}
         Knob preset of the modules (:data:`skytorch.scene.planner.FIDELITY`).
     force, exclude : sequence of str
@@ -447,10 +454,12 @@ class Scene:
     outputs : sequence of str
         Any of "spectral", "xyz", "srgb", "v_mag".
     star_limit_mag : float
-        Faintest catalogue star drawn [V mag].
+        Faintest catalogue star drawn [V mag], in [-30, 15] (the range of
+        :func:`skytorch.stars.bright_stars`).
     natural_mag_arcsec2 : float
         Natural sky background at the zenith (airglow + zodiacal light + faint stars)
-        [V mag arcsec^-2]; 22.0 after Falchi et al. (2016).
+        [V mag arcsec^-2]; 22.0 after Falchi et al. (2016); in
+        :data:`NATURAL_MAG_RANGE` (14–26).
     natural_model : {"garstang1989", "vanrhijn1921", "constant"}
         Variation of the natural background with zenith distance (:data:`NATURAL_MODELS`,
         :func:`skytorch.scene.render.natural_component`): ``"garstang1989"`` (Garstang
@@ -461,12 +470,32 @@ class Scene:
         extinction; ``"constant"``, the zenith value everywhere.
     airglow_fraction : float
         Share of the zenith background emitted by the airglow layer (0.6, Garstang 1989;
-        Patat 2003); the rest comes from beyond the atmosphere and is uniform.
+        Patat 2003), in [0, 1]; the rest comes from beyond the atmosphere and is uniform.
     airglow_height_m : float
         Height of the emitting airglow layer [m] (90 km: the OI 557.7 nm, Na and OH
-        layers at 85–100 km, Leinert et al. 1998).
+        layers at 85–100 km, Leinert et al. 1998), in [10 km, 1000 km].
     dtype : torch.dtype
-        Floating type of the computation.
+        Floating type of the computation (float32 or float64).
+
+    Raises
+    ------
+    TypeError
+        A parameter of the wrong type (naming it), an unknown keyword, or a tensor that
+        requires grad.
+    ValueError
+        A value outside its range, a tensor of more than one element (scenes are not
+        batched: render one scene per value, e.g. with :func:`skytorch.sweep`), or
+        inconsistent parameters (naming them).
+
+    Notes
+    -----
+    Gradients: a Scene is not differentiable. Its parameters are read as numbers and key
+    cached tables (atmosphere, transmittance, refraction and extinction tables, sky and
+    moonlit-sky look-up tables, the skyglow model), the Sun and Moon come from skyfield,
+    and the result is a Dataset of numpy arrays; a tensor parameter that requires grad is
+    refused rather than silently detached. The tensor functions the components are built
+    from carry gradients (e.g. :meth:`skytorch.atmosphere.Atmosphere.sky_radiance`,
+    :func:`skytorch.moon.magnitude`, :func:`skytorch.scene.render.natural_gradient`).
     """
 
     time: object = "2015-09-28T02:47:00"
