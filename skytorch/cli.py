@@ -74,7 +74,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         return int(args._run(args) or 0)
-    except (ValueError, TypeError, FileNotFoundError) as error:
+    except (ValueError, TypeError, OSError) as error:
+        # bad input (named by the entry point) or an unreadable/unwritable file
         print(f"skytorch {args.command}: error: {error}", file=sys.stderr)
         return 2
 

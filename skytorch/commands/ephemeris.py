@@ -71,7 +71,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                       help="explicit instants instead of --start/--end/--step")
     where = parser.add_argument_group("observer (optional; adds altitude and azimuth)")
     where.add_argument("--lat", type=float, help="geodetic latitude [deg], -90..90")
-    where.add_argument("--lon", type=float, help="east longitude [deg], -180..360")
+    where.add_argument("--lon", type=float, help="east longitude [deg], -180 <= lon < 360")
     where.add_argument("--elevation", type=float, default=0.0,
                        help="height above the WGS84 ellipsoid [m] (default 0)")
     parser.add_argument("-o", "--output", required=True, help="netCDF file to write")
