@@ -356,7 +356,10 @@ def disc_image(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi, n_pixels: i
     rr = xx * xx + yy * yy
     inside = rr < 1.0
     zz = torch.sqrt((1.0 - rr).clamp_min(0.0))
-    normal = torch.stack([xx, yy, zz], dim=-1).reshape(-1, 3)
+    # pixels outside the disc (masked below) get the unit normal of the nearest limb point,
+    # so that every normal handed to the reflectance is a unit vector
+    scale = torch.where(inside, torch.ones_like(rr), torch.rsqrt(rr.clamp_min(1e-300)))
+    normal = torch.stack([xx * scale, yy * scale, zz], dim=-1).reshape(-1, 3)
     radiance = disc_radiance(normal, phase_angle_rad, wavelength_nm, bright_limb_angle_rad,
                              **kwargs)
     radiance = radiance * inside.reshape(-1, 1).to(radiance.dtype)

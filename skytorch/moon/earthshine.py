@@ -48,7 +48,7 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_range, common_dtype
+from skytorch._validate import as_tensor, check_broadcastable, check_range, common_dtype
 from skytorch.constants import EARTH_MEAN_RADIUS_M, MEAN_EARTH_MOON_DISTANCE_M
 
 __all__ = [
@@ -116,7 +116,7 @@ def earthshine_irradiance_ratio(phase_angle_rad, *, distance_m=MEAN_EARTH_MOON_D
     phase_angle_rad : Tensor (...)
         Lunar phase angle φ in [0, π] [rad]; the Earth's phase seen from the Moon is π − φ.
     distance_m : float or Tensor (...)
-        Earth–Moon distance [m].
+        Earth–Moon distance [m], larger than the Earth's radius.
     bond_albedo : float
         Earth's Bond albedo A (Lambert sphere: geometric albedo 2A/3).
 
@@ -127,7 +127,9 @@ def earthshine_irradiance_ratio(phase_angle_rad, *, distance_m=MEAN_EARTH_MOON_D
     """
     dtype = common_dtype(phase_angle_rad, distance_m)
     phi = _phase(phase_angle_rad, dtype)
-    check_range("bond_albedo", bond_albedo, 0.0, 1.0)
-    d = as_tensor("distance_m", distance_m, dtype=dtype)
+    bond_albedo = float(check_range("bond_albedo", bond_albedo, 0.0, 1.0))
+    d = check_range("distance_m", distance_m, EARTH_MEAN_RADIUS_M, low_inclusive=False,
+                    unit=" m", dtype=dtype)
+    check_broadcastable(phase_angle_rad=phi, distance_m=d)
     ratio = (EARTH_MEAN_RADIUS_M / d) ** 2
     return (2.0 / 3.0) * bond_albedo * lambert_phase_function(math.pi - phi) * ratio

@@ -91,7 +91,13 @@ from types import MappingProxyType
 import torch
 
 from skytorch._modules import make_callable
-from skytorch._validate import as_tensor, check_choice, check_finite, check_range, common_dtype
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_choice,
+    check_range,
+    common_dtype,
+)
 from skytorch.constants import DEGREE
 
 __all__ = [
@@ -320,11 +326,13 @@ def _coherent_backscatter(tan_half_g, amplitude, width):
 
 def _prepare(mu0, mu, phase_angle_rad):
     dtype = common_dtype(mu0, mu, phase_angle_rad)
-    mu0 = check_finite("mu0", as_tensor("mu0", mu0, dtype=dtype))
-    mu = check_finite("mu", as_tensor("mu", mu, dtype=dtype))
+    # cosines: a round-off of 1e-6 beyond ±1 is accepted (and clamped below)
+    mu0 = check_range("mu0", as_tensor("mu0", mu0, dtype=dtype), -1.0 - 1e-6, 1.0 + 1e-6)
+    mu = check_range("mu", as_tensor("mu", mu, dtype=dtype), -1.0 - 1e-6, 1.0 + 1e-6)
     g = check_range("phase_angle_rad", as_tensor("phase_angle_rad", phase_angle_rad,
                                                  dtype=dtype), 0.0, math.pi + 1e-6,
                     unit=" rad")
+    check_broadcastable(mu0=mu0, mu=mu, phase_angle_rad=g)
     g = g.clamp(0.0, math.pi)
     mu0, mu, g = torch.broadcast_tensors(mu0, mu, g)
     lit = (mu0 > 0.0) & (mu > 0.0)
