@@ -49,6 +49,7 @@ import numpy as np
 import torch
 import xarray as xr
 
+from skytorch._validate import check_choice
 from skytorch.constants import ARCSECOND, ASTRONOMICAL_UNIT_M, EARTH_EQUATORIAL_RADIUS_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
 from skytorch.eclipse.cone import ENLARGEMENTS, _cone
@@ -80,6 +81,21 @@ _HALF_WINDOW_S = 0.8 * 86400.0  # half-width of the window around a mean full mo
 _N_NODES = 9  # Chebyshev nodes per window
 _N_GRID = 97  # grid for the first search of greatest eclipse (every 24 min)
 _CONTACT_SPAN_S = 0.25 * 86400.0  # contacts lie within 6 h of greatest eclipse
+#: margin between the searched range and the ephemeris' range: a candidate full moon
+#: within one window of the range is searched over its window and its contacts 6 h beyond
+_RANGE_MARGIN = np.timedelta64(2, "D")
+
+
+def _search_range() -> tuple[np.datetime64, np.datetime64]:
+    """Range of ``start`` and ``end`` accepted by :func:`lunar_eclipses` (UTC).
+
+    The ephemeris range (:data:`skytorch.ephemeris.TIME_MIN` .. ``TIME_MAX``) less
+    :data:`_RANGE_MARGIN` at each end: every time the search evaluates lies within
+    ``1.85`` days of the range.
+    """
+    from skytorch.ephemeris import TIME_MAX, TIME_MIN
+
+    return TIME_MIN + _RANGE_MARGIN, TIME_MAX - _RANGE_MARGIN
 
 
 def _sun_radius_m() -> float:
@@ -241,13 +257,29 @@ for _name, _text in _CONTACT_TEXT.items():
                                  f"Time of {_text}, UTC; NaT when it does not occur.")
 
 
+def _parse_one(name: str, value, parse_times) -> np.datetime64:
+    """One UTC time from ``value``, errors naming the parameter ``name``."""
+    try:
+        times = parse_times(value)
+    except TypeError as error:
+        raise TypeError(f"{name} must be one time (str, datetime or datetime64): {error}") \
+            from None
+    except ValueError as error:
+        raise ValueError(f"{name}: {error}") from None
+    if times.shape != (1,):
+        raise TypeError(f"{name} must be one time; got {times.shape[0]} times")
+    return times[0]
+
+
 def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
     """Every lunar eclipse whose greatest eclipse lies in ``[start, end)``.
 
     Parameters
     ----------
     start, end : str, datetime or datetime64
-        UTC time range (within DE421: 1899-07-29 .. 2053-10-09, less one day at each end).
+        UTC time range, within 1899-07-31T00:30 .. 2053-10-06T23:30 (the DE421 range of
+        :mod:`skytorch.ephemeris`, ``TIME_MIN`` .. ``TIME_MAX``, less two days at each end:
+        the search looks up to 1.85 days beyond the range).
     enlargement : {"danjon", "chauvenet", "none"}
         Shadow enlargement convention (:mod:`skytorch.eclipse.cone`); the Five Millennium
         Canon uses ``"danjon"``.
@@ -276,15 +308,25 @@ def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
     """
     from skytorch.ephemeris import parse_times, skyfield_time
 
-    if enlargement not in ENLARGEMENTS:
-        raise ValueError(f"enlargement must be one of {ENLARGEMENTS}; got {enlargement!r}")
-    start_time, end_time = parse_times([start, end])
+    check_choice("enlargement", enlargement, ENLARGEMENTS)
+    start_time, end_time = (_parse_one(name, value, parse_times)
+                            for name, value in (("start", start), ("end", end)))
     if not end_time > start_time:
         raise ValueError(f"end must be after start; got start={start_time}, end={end_time}")
-    parse_times([start_time - np.timedelta64(1, "D"), end_time + np.timedelta64(1, "D")])
+    low, high = _search_range()
+    for name, value in (("start", start_time), ("end", end_time)):
+        if not low <= value <= high:
+            raise ValueError(
+                f"{name} must be within {np.datetime_as_string(low, 'm')} .. "
+                f"{np.datetime_as_string(high, 'm')} UTC (the DE421 ephemeris range less "
+                f"two days at each end); got {np.datetime_as_string(value, 's')}")
 
     centres, node_distance = _mean_full_moons(start_time, end_time)
-    centres = centres[node_distance < _NODE_LIMIT]
+    # greatest eclipse lies within the window of its mean full moon: candidates farther
+    # than one window from the range cannot contribute
+    window = np.timedelta64(int(_HALF_WINDOW_S * 1e9), "ns")
+    near = (centres >= start_time - window) & (centres < end_time + window)
+    centres = centres[(node_distance < _NODE_LIMIT) & near]
     logger.info("%d full moons near a node between %s and %s", len(centres), start_time,
                 end_time)
     geometry = _Geometry(centres, enlargement)

@@ -99,12 +99,14 @@ from torch import nn
 from skytorch._validate import (
     as_tensor,
     broadcast_shape,
+    check_broadcastable,
     check_choice,
     check_int,
     check_positive,
     check_range,
     common_dtype,
 )
+from skytorch.atmosphere.rayleigh import WAVELENGTH_RANGE_NM
 from skytorch.constants import (
     ASTRONOMICAL_UNIT_M,
     EARTH_MEAN_RADIUS_M,
@@ -693,6 +695,21 @@ def _broadcast_batch(values: torch.Tensor, batch_shape: tuple[int, ...]) -> torc
     return flat[point, member]
 
 
+def _check_wavelength(wavelength_nm, dtype) -> torch.Tensor:
+    """Wavelengths as a 1-D tensor, finite and within the atmosphere's range [nm]
+    (:data:`skytorch.atmosphere.rayleigh.WAVELENGTH_RANGE_NM`, also for an airless
+    occluder, so that a shadow accepts one range)."""
+    wavelength = check_range("wavelength_nm", wavelength_nm, *WAVELENGTH_RANGE_NM,
+                             unit=" nm", dtype=dtype)
+    if wavelength.ndim > 1:
+        raise ValueError("wavelength_nm must be a number or a 1-D array; got shape "
+                         f"{tuple(wavelength.shape)}")
+    wavelength = wavelength.reshape(-1)
+    if wavelength.numel() == 0:
+        raise ValueError("wavelength_nm must hold at least one wavelength; got none")
+    return wavelength
+
+
 class _NoRefraction:
     """Wraps an atmosphere with its refractivity switched off (straight rays)."""
 
@@ -707,6 +724,24 @@ class _NoRefraction:
 
     def extinction_coefficient(self, altitude_m, wavelength_nm):
         return self._atmosphere.extinction_coefficient(altitude_m, wavelength_nm)
+
+
+def _refuse_atmosphere_gradients(atmosphere) -> None:
+    """Raise if a parameter of ``atmosphere`` requires a gradient.
+
+    The ring table (bending and optical depth of the grazing rays) is computed once per
+    set of wavelengths and cached as plain tensors, so the shadow carries no gradient with
+    respect to the atmosphere; rather than detach silently, refuse.
+    """
+    names = [name for name, value in (*atmosphere.named_parameters(),
+                                      *atmosphere.named_buffers()) if value.requires_grad]
+    if names:
+        raise ValueError(
+            "the eclipse shadow is not differentiable with respect to the atmosphere yet: "
+            f"atmosphere parameters {names} require a gradient (the ring table of the "
+            "grazing rays is tabulated without gradients); pass detached values, e.g. "
+            "Atmosphere.earth(turbidity=t.detach()), and take derivatives by finite "
+            "differences")
 
 
 class Shadow(nn.Module):
@@ -778,6 +813,13 @@ class Shadow(nn.Module):
         super().__init__()
         if atmosphere is False:
             atmosphere = None
+        if atmosphere is not None:
+            from skytorch.atmosphere import Atmosphere
+
+            if not isinstance(atmosphere, Atmosphere):
+                raise TypeError("atmosphere must be a skytorch Atmosphere, None or False; got "
+                                f"{type(atmosphere).__name__}: {atmosphere!r:.60}")
+            _refuse_atmosphere_gradients(atmosphere)
         self.batch_shape = (tuple(getattr(atmosphere, "batch_shape", ()))
                             if atmosphere is not None else ())
         self.atmosphere = atmosphere
@@ -887,7 +929,8 @@ class Shadow(nn.Module):
         """
         if self.atmosphere is None:
             return None
-        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
+        _refuse_atmosphere_gradients(self.atmosphere)
+        wavelength = _check_wavelength(wavelength_nm, torch.float64)
         key = tuple(round(float(x), 9) for x in wavelength)
         if key in self._profiles:
             return self._profiles[key]
@@ -954,7 +997,8 @@ class Shadow(nn.Module):
             return None
         from skytorch.eclipse.shadow_scattering import ScatteringProfile
 
-        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
+        _refuse_atmosphere_gradients(self.atmosphere)
+        wavelength = _check_wavelength(wavelength_nm, torch.float64)
         key = tuple(round(float(x), 9) for x in wavelength)
         if key not in self._scattering_profiles:
             closed = self.cloud_fraction >= 1.0
@@ -975,6 +1019,20 @@ class Shadow(nn.Module):
         offset = check_range("offset_m", offset_m, 0.0, unit=" m", dtype=dtype)
         sun_distance = self.sun_distance_m if sun_distance_m is None else check_positive(
             "sun_distance_m", sun_distance_m, unit=" m").to(dtype)
+        shapes = {"distance_m": distance, "offset_m": offset}
+        if sun_distance_m is not None:
+            shapes["sun_distance_m"] = sun_distance
+        check_broadcastable(**shapes)
+        if self.batch_shape:
+            shape = broadcast_shape(distance.shape, offset.shape,
+                                    () if sun_distance_m is None else sun_distance.shape)
+            try:
+                broadcast_shape(shape, self.batch_shape)
+            except ValueError:
+                raise ValueError(
+                    f"the geometry (distance_m, offset_m) of shape {tuple(shape)} does not "
+                    f"broadcast with the atmosphere's batch shape {self.batch_shape}: give "
+                    "it trailing singleton dimensions") from None
         angles = shadow_angles(distance, offset, sun_distance, self.sun_radius_m,
                                self.top_radius_m)
         with torch.no_grad():
@@ -1025,8 +1083,8 @@ class Shadow(nn.Module):
             For a point inside the occluder or its atmosphere.
         """
         dtype = common_dtype(distance_m, offset_m)
+        wavelength = _check_wavelength(wavelength_nm, dtype)
         angles = self._geometry(distance_m, offset_m, sun_distance_m, dtype)
-        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=dtype).reshape(-1)
         n_wl = wavelength.shape[0]
         centre = angles["centre_distance_m"]
         rho_s = angles["sun_radius_rad"]
@@ -1092,8 +1150,8 @@ class Shadow(nn.Module):
         n_altitude = check_int("n_altitude", n_altitude, low=1)
         oversample = check_int("oversample", oversample, low=1)
         dtype = common_dtype(distance_m, offset_m)
+        wavelength = _check_wavelength(wavelength_nm, dtype)
         angles = self._geometry(distance_m, offset_m, sun_distance_m, dtype)
-        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=dtype).reshape(-1)
         profile = self.ring_profile(wavelength)
         if profile is None:
             raise ValueError("limb_view needs an occluder with an atmosphere")

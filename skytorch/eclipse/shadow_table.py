@@ -51,6 +51,8 @@ Examples
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
 import math
 
@@ -59,7 +61,16 @@ import torch
 import xarray as xr
 from torch import nn
 
-from skytorch._validate import as_tensor, check_int, check_range, common_dtype
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_choice,
+    check_finite,
+    check_int,
+    check_positive,
+    check_range,
+    common_dtype,
+)
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, to_numpy, variable
 
 __all__ = [
@@ -132,7 +143,15 @@ def shadow_uv_inverse(u, v, sun_distance_m, sun_radius_m, occluder_radius_m, *,
     dtype = common_dtype(u, v)
     u = check_range("u", u, 0.0, 1.0, low_inclusive=False, high_inclusive=False, dtype=dtype)
     v = check_range("v", v, 0.0, dtype=dtype)
-    big_d, r_s, r_o = float(sun_distance_m), float(sun_radius_m), float(occluder_radius_m)
+    big_d, r_s, r_o = (float(check_positive(name, value, unit=" m")) for name, value in (
+        ("sun_distance_m", sun_distance_m), ("sun_radius_m", sun_radius_m),
+        ("occluder_radius_m", occluder_radius_m)))
+    if not big_d > r_s + r_o:
+        raise ValueError(f"sun_distance_m must exceed sun_radius_m + occluder_radius_m = "
+                         f"{r_s + r_o:.6g} m; got {big_d:.6g} m")
+    check_broadcastable(u=u, v=v)
+    max_iterations = check_int("max_iterations", max_iterations, low=1)
+    tolerance = float(check_positive("tolerance", tolerance))
     far = r_s / (r_s + r_o)
     with torch.no_grad():
         if bool((u >= far).any()):
@@ -240,22 +259,44 @@ class ShadowTable(nn.Module):
 
     def __init__(self, u, v, wavelength_nm, values, *, sun_distance_m: float,
                  sun_radius_m: float, occluder_radius_m: float, interpolation: str = "log",
-                 attrs: dict | None = None):
+                 attrs: dict | None = None, provenance: dict | None = None):
         super().__init__()
-        if interpolation not in INTERPOLATIONS:
-            raise ValueError(f"interpolation must be one of {INTERPOLATIONS}; got "
-                             f"{interpolation!r}")
-        self.interpolation = interpolation
-        self.register_buffer("u", as_tensor("u", u, dtype=torch.float64))
-        self.register_buffer("v", as_tensor("v", v, dtype=torch.float64))
-        self.register_buffer("wavelength_nm", as_tensor("wavelength_nm", wavelength_nm,
-                                                        dtype=torch.float64))
-        self.register_buffer("values", as_tensor("values", values, dtype=torch.float64))
+        self.interpolation = check_choice("interpolation", interpolation, INTERPOLATIONS)
+        u = _uniform_grid("u", u, 0.0, 1.0)
+        v = _uniform_grid("v", v, 0.0, 1.0)
+        if float(v[0]) != 0.0 or abs(float(v[-1]) - 1.0) > 1e-12:
+            raise ValueError(f"v must run from 0 to 1; got {float(v[0])} .. {float(v[-1])}")
+        wavelength = check_range("wavelength_nm", wavelength_nm, 0.0, low_inclusive=False,
+                                 unit=" nm", dtype=torch.float64)
+        if wavelength.ndim != 1 or wavelength.numel() == 0:
+            raise ValueError("wavelength_nm must be a non-empty 1-D array; got shape "
+                             f"{tuple(wavelength.shape)}")
+        values = as_tensor("values", values, dtype=torch.float64)
+        if (values.ndim < 3 or values.shape[0] != u.shape[0] or values.shape[1] != v.shape[0]
+                or values.shape[-1] != wavelength.shape[0]):
+            raise ValueError(
+                "values must have shape (u, v, [batch ...,] wavelength) = "
+                f"({u.shape[0]}, {v.shape[0]}, ..., {wavelength.shape[0]}); got "
+                f"{tuple(values.shape)}")
+        check_range("values", values, 0.0)
+        self.register_buffer("u", u)
+        self.register_buffer("v", v)
+        self.register_buffer("wavelength_nm", wavelength)
+        self.register_buffer("values", values)
         self.batch_shape = tuple(self.values.shape[2:-1])
-        self.sun_distance_m = float(sun_distance_m)
-        self.sun_radius_m = float(sun_radius_m)
-        self.occluder_radius_m = float(occluder_radius_m)
+        self.sun_distance_m = float(check_positive("sun_distance_m", sun_distance_m, unit=" m"))
+        self.sun_radius_m = float(check_positive("sun_radius_m", sun_radius_m, unit=" m"))
+        self.occluder_radius_m = float(check_positive("occluder_radius_m", occluder_radius_m,
+                                                      unit=" m"))
+        if attrs is not None and not isinstance(attrs, dict):
+            raise TypeError(f"attrs must be a dict or None; got {type(attrs).__name__}")
         self.attrs = dict(attrs or {})
+        if provenance is not None and not isinstance(provenance, dict):
+            raise TypeError(f"provenance must be a dict or None; got {type(provenance).__name__}")
+        #: what the table was built for: ``shadow_sha256`` (every setting of the shadow
+        #: model, its atmosphere included), ``atmosphere_sha256``, ``n_u``, ``n_v`` (set by
+        #: :meth:`compute`; see :meth:`check_compatible`)
+        self.provenance = dict(provenance or {})
 
     # ------------------------------------------------------------------ build
     @classmethod
@@ -286,8 +327,20 @@ class ShadowTable(nn.Module):
         """
         from tqdm.auto import tqdm
 
+        from skytorch.eclipse.shadow import Shadow
+
+        if not isinstance(shadow, Shadow):
+            raise TypeError(f"shadow must be a skytorch.eclipse.Shadow; got "
+                            f"{type(shadow).__name__}: {shadow!r:.60}")
         n_u = check_int("n_u", n_u, low=2)
         n_v = check_int("n_v", n_v, low=2)
+        check_choice("interpolation", interpolation, INTERPOLATIONS)
+        if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+            raise TypeError(f"dtype must be a floating torch.dtype; got {dtype!r}")
+        for name, value in (("min_distance_m", min_distance_m),
+                            ("max_distance_m", max_distance_m)):
+            if value is not None:
+                check_positive(name, value, unit=" m")
         big_d, r_s, r_o = shadow.sun_distance_m, shadow.sun_radius_m, shadow.top_radius_m
         umbra_length = r_o * big_d / (r_s - r_o) if r_s > r_o else 1e3 * big_d
         low = 1.02 * r_o if min_distance_m is None else float(min_distance_m)
@@ -301,7 +354,9 @@ class ShadowTable(nn.Module):
         # illuminance is evaluated in ``dtype``
         u = torch.linspace(u_low, u_high, n_u, dtype=torch.float64)
         v = torch.linspace(0.0, 1.0, n_v, dtype=torch.float64)
-        wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=dtype).reshape(-1)
+        from skytorch.eclipse.shadow import _check_wavelength
+
+        wavelength = _check_wavelength(wavelength_nm, dtype)
         position = shadow_uv_inverse(u[:, None].expand(n_u, n_v), v[None, :].expand(n_u, n_v),
                                      big_d, r_s, r_o)
         shadow.ring_profile(wavelength)
@@ -323,19 +378,25 @@ class ShadowTable(nn.Module):
         if hasattr(shadow, "parameters_dict"):
             attrs.update(shadow.parameters_dict())
         table = cls(u, v, wavelength, values, sun_distance_m=big_d, sun_radius_m=r_s,
-                    occluder_radius_m=r_o, interpolation=interpolation, attrs=attrs)
+                    occluder_radius_m=r_o, interpolation=interpolation, attrs=attrs,
+                    provenance=_provenance(shadow, n_u, n_v))
         table._positions = position
         return table
 
     # ------------------------------------------------------------------ look-up
-    def lookup_uv(self, u, v) -> torch.Tensor:
+    def lookup_uv(self, u, v, *, wavelength_nm=None) -> torch.Tensor:
         """Bilinear look-up at table coordinates -> (..., *B, wavelength).
 
-        ``v >= 1`` gives exactly 1 (outside the penumbra); ``u`` is clamped to the grid.
+        ``u`` in [0, 1] (clamped to the grid) and ``v >= 0``; ``v >= 1`` gives exactly 1
+        (outside the penumbra). ``wavelength_nm``, if given, must be the table's
+        (:meth:`check_compatible`).
         """
         dtype = common_dtype(u, v)
-        u = as_tensor("u", u, dtype=dtype)
-        v = as_tensor("v", v, dtype=dtype)
+        u = check_range("u", u, 0.0, 1.0, dtype=dtype)
+        v = check_range("v", v, 0.0, dtype=dtype)
+        if wavelength_nm is not None:
+            self.check_compatible(wavelength_nm=wavelength_nm)
+        check_broadcastable(u=u, v=v)
         u, v = torch.broadcast_tensors(u, v)
         grid_u, grid_v = self.u.to(dtype), self.v.to(dtype)
         values = self.values.to(dtype)
@@ -358,15 +419,20 @@ class ShadowTable(nn.Module):
         return torch.where((v >= 1.0).reshape(*v.shape, *trailing), torch.ones_like(result),
                            result)
 
-    def lookup(self, distance_m, offset_m, sun_distance_m=None) -> torch.Tensor:
+    def lookup(self, distance_m, offset_m, sun_distance_m=None, *,
+               wavelength_nm=None) -> torch.Tensor:
         """``I / I_sun`` at points given along and across the anti-Sun axis [m].
+
+        Validates like :meth:`Shadow.relative_illuminance`.
 
         Parameters
         ----------
         distance_m, offset_m : Tensor (...)
             Position behind the occluder [m] (see ``Shadow.relative_illuminance``).
         sun_distance_m : float or Tensor (...), optional
-            Sun–occluder distance [m] (default: the table's).
+            Sun–occluder distance [m] (> 0; default: the table's).
+        wavelength_nm : Tensor (wavelength,), optional
+            If given, must be the table's wavelengths (``ValueError`` otherwise).
 
         Returns
         -------
@@ -375,21 +441,69 @@ class ShadowTable(nn.Module):
         from skytorch.eclipse.shadow import shadow_angles
 
         dtype = common_dtype(distance_m, offset_m)
-        distance = as_tensor("distance_m", distance_m, dtype=dtype)
+        distance = check_range("distance_m", distance_m, unit=" m", dtype=dtype)
         offset = check_range("offset_m", offset_m, 0.0, unit=" m", dtype=dtype)
-        big_d = self.sun_distance_m if sun_distance_m is None else as_tensor(
-            "sun_distance_m", sun_distance_m, dtype=dtype)
+        big_d = self.sun_distance_m if sun_distance_m is None else check_positive(
+            "sun_distance_m", sun_distance_m, unit=" m", dtype=dtype)
+        shapes = {"distance_m": distance, "offset_m": offset}
+        if sun_distance_m is not None:
+            shapes["sun_distance_m"] = big_d
+        check_broadcastable(**shapes)
+        if wavelength_nm is not None:
+            self.check_compatible(wavelength_nm=wavelength_nm)
         angles = shadow_angles(distance, offset, big_d, self.sun_radius_m,
                                self.occluder_radius_m)
         with torch.no_grad():
             if bool((angles["centre_distance_m"] <= self.occluder_radius_m).any()):
                 raise ValueError("point (distance_m, offset_m) inside the occluder or its "
-                                 f"atmosphere (radius {self.occluder_radius_m:.6g} m)")
+                                 f"atmosphere (radius {self.occluder_radius_m:.6g} m); valid: "
+                                 "farther from the centre")
         u, v = shadow_uv(angles["sun_radius_rad"], angles["occluder_radius_rad"],
                          angles["separation_rad"])
         return self.lookup_uv(u, v)
 
     forward = lookup
+
+    def check_compatible(self, shadow=None, wavelength_nm=None) -> None:
+        """Refuse (``ValueError``) a use the table was not built for.
+
+        Parameters
+        ----------
+        shadow : Shadow, optional
+            Must have the table's geometry (Sun distance and radius, top radius) and, when
+            the table records one, the same settings and atmosphere
+            (``provenance["shadow_sha256"]``).
+        wavelength_nm : Tensor (wavelength,), optional
+            Must equal the table's wavelengths (same count, equal to 1e-9 nm).
+        """
+        if wavelength_nm is not None:
+            wavelength = check_finite("wavelength_nm", wavelength_nm,
+                                      dtype=torch.float64).detach().reshape(-1)
+            ours = self.wavelength_nm
+            if wavelength.shape != ours.shape or not bool(
+                    ((wavelength - ours).abs() <= 1e-9).all()):
+                raise ValueError(
+                    f"wavelength_nm: the table was built for {ours.tolist()} nm; got "
+                    f"{wavelength.tolist()} nm (build a table for these wavelengths)")
+        if shadow is not None:
+            from skytorch.eclipse.shadow import Shadow
+
+            if not isinstance(shadow, Shadow):
+                raise TypeError(f"shadow must be a skytorch.eclipse.Shadow; got "
+                                f"{type(shadow).__name__}")
+            geometry = {"sun_distance_m": (shadow.sun_distance_m, self.sun_distance_m),
+                        "sun_radius_m": (shadow.sun_radius_m, self.sun_radius_m),
+                        "top_radius_m": (shadow.top_radius_m, self.occluder_radius_m)}
+            for name, (theirs, ours) in geometry.items():
+                if abs(theirs - ours) > 1e-9 * abs(ours):
+                    raise ValueError(f"shadow: the table was built for {name} {ours} m; "
+                                     f"the shadow has {theirs} m")
+            recorded = self.provenance.get("shadow_sha256")
+            if recorded is not None and recorded != _shadow_hash(shadow):
+                raise ValueError(
+                    "shadow: the table was built for another shadow model or atmosphere "
+                    f"(parameter hash {recorded[:12]}..., this one "
+                    f"{_shadow_hash(shadow)[:12]}...): build a table for it")
 
     # ------------------------------------------------------------------ Dataset
     def to_dataset(self) -> xr.Dataset:
@@ -412,6 +526,7 @@ class ShadowTable(nn.Module):
             coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
                 "1", "atmosphere batch index", f"Index of the atmosphere along {dim}"))
         parameters = dict(self.attrs)
+        parameters.update({f"provenance_{key}": value for key, value in self.provenance.items()})
         parameters.update({"table_sun_distance_m": self.sun_distance_m,
                            "table_sun_radius_m": self.sun_radius_m,
                            "table_occluder_radius_m": self.occluder_radius_m,
@@ -422,6 +537,8 @@ class ShadowTable(nn.Module):
     @classmethod
     def from_dataset(cls, dataset: xr.Dataset) -> ShadowTable:
         """Rebuild a table written by :meth:`to_dataset`."""
+        if not isinstance(dataset, xr.Dataset):
+            raise TypeError(f"dataset must be an xarray.Dataset; got {type(dataset).__name__}")
         attrs = dict(dataset.attrs)
 
         def number(key):
@@ -430,18 +547,59 @@ class ShadowTable(nn.Module):
                     return float(attrs[name])
             raise ValueError(f"dataset lacks the attribute {key!r}")
 
+        for name in ("u", "v", "wavelength", "relative_illuminance"):
+            if name not in dataset.variables:
+                raise ValueError(f"dataset lacks the variable {name!r} (not a shadow table)")
         interpolation = str(attrs.get("interpolation", attrs.get("parameter_interpolation",
                                                                  "log")))
+        provenance = {}
+        for key, value in attrs.items():
+            for prefix in ("provenance_", "parameter_provenance_"):
+                if key.startswith(prefix):
+                    provenance[key[len(prefix):]] = value
+        for key in ("n_u", "n_v"):
+            if key in provenance:
+                provenance[key] = int(provenance[key])
         return cls(np.array(dataset["u"].values), np.array(dataset["v"].values),
                    np.array(dataset["wavelength"].values),
                    np.array(dataset["relative_illuminance"].values),
                    sun_distance_m=number("table_sun_distance_m"),
                    sun_radius_m=number("table_sun_radius_m"),
                    occluder_radius_m=number("table_occluder_radius_m"),
-                   interpolation=interpolation)
+                   interpolation=interpolation, provenance=provenance)
 
 
 def _is_terminal() -> bool:
     import sys
 
     return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
+def _uniform_grid(name: str, value, low: float, high: float) -> torch.Tensor:
+    """A 1-D, uniform, increasing grid of at least two nodes within [low, high]."""
+    grid = check_range(name, value, low, high, dtype=torch.float64)
+    if grid.ndim != 1 or grid.shape[0] < 2:
+        raise ValueError(f"{name} must be a 1-D grid of at least 2 nodes; got shape "
+                         f"{tuple(grid.shape)}")
+    step = grid[1:] - grid[:-1]
+    if not bool((step > 0).all()) or float((step - step.mean()).abs().max()) > 1e-9 * float(
+            grid[-1] - grid[0]):
+        raise ValueError(f"{name} must be uniform and increasing (the look-up assumes equal "
+                         "steps)")
+    return grid
+
+
+def _shadow_hash(shadow) -> str:
+    """SHA-256 of every setting of a shadow model (its atmosphere's parameters included)."""
+    text = json.dumps(shadow.parameters_dict(), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _provenance(shadow, n_u: int, n_v: int) -> dict:
+    """What :meth:`ShadowTable.compute` built a table for."""
+    record = {"shadow_sha256": _shadow_hash(shadow), "n_u": n_u, "n_v": n_v}
+    if shadow.atmosphere is not None:
+        from skytorch.atmosphere.tables import atmosphere_hash
+
+        record["atmosphere_sha256"] = atmosphere_hash(shadow.atmosphere)
+    return record
