@@ -2,6 +2,22 @@
 
 Public names are collected from the submodules below; each submodule adds its names with
 one ``from ... import`` line and one entry in ``__all__``.
+
+Differentiability: :func:`sun_visible_fraction` carries exact gradients with respect to
+its geometry and limb darkening (at tangency and containment too); :class:`Shadow`
+carries gradients with respect to the geometry of the points but not with respect to the
+atmosphere (its ring table is tabulated without gradients), and refuses an atmosphere
+whose parameters require a gradient rather than detach them.
+
+Examples
+--------
+>>> import torch
+>>> from skytorch.eclipse import sun_visible_fraction
+>>> separation = torch.tensor(2.0e-3, dtype=torch.float64, requires_grad=True)
+>>> fraction = sun_visible_fraction(4.65e-3, 2.5e-3, separation)
+>>> fraction.backward()
+>>> round(fraction.item(), 4), round(separation.grad.item(), 1)
+(0.6817, 30.7)
 """
 
 from skytorch.eclipse.circumstances import lunar_eclipses  # noqa: F401

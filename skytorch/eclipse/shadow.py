@@ -942,9 +942,11 @@ class Shadow(nn.Module):
         lowest_altitude = self.cloud_top_altitude_m if closed else 0.0
 
         def impact_of(periapsis):
+            # one value for every member of a batched atmosphere (they share the
+            # refractivity, checked below on the traced table)
             rays = trace_grazing_rays(atm, periapsis_altitude_m=torch.tensor(
                 periapsis, dtype=torch.float64))
-            return float(rays["impact_altitude_m"])
+            return float(rays["impact_altitude_m"].reshape(-1)[0])
 
         with torch.no_grad():
             beta_min = impact_of(lowest_altitude)
