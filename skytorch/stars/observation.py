@@ -32,7 +32,7 @@ from skytorch._validate import (
     check_range,
 )
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
-from skytorch.ephemeris import parse_times
+from skytorch.ephemeris import check_observer, parse_times
 from skytorch.stars.photometry import (
     apparent_color,
     apparent_color_table,
@@ -186,6 +186,9 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
             "count": count}
 
 
+#: observer elevation accepted by :func:`observe` [m]: within the ephemeris' range and the
+#: ranges of the extinction tables (>= 0) and of the scintillation law (<= 10 km)
+ELEVATION_RANGE_M = (0.0, 1.0e4)
 #: columns a catalogue Dataset must have (dimension ``star``)
 CATALOG_VARIABLES = ("ra", "dec", "pm_ra", "pm_dec", "parallax", "vmag", "bv")
 #: computation dtypes of :func:`observe`
@@ -404,10 +407,12 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         (1899-07-29T00:30 … 2053-10-08T23:30, both included), the range of every
         ephemeris function.
     lat_deg, lon_deg : float or array_like (observer,)
-        Geodetic latitude and east longitude [deg]; arrays (broadcast with
+        Geodetic latitude in [−90, 90] and east longitude in [−180, 360) [deg] (the
+        ranges of :func:`skytorch.ephemeris.check_observer`); arrays (broadcast with
         ``elevation_m``) give several observers along a leading ``observer`` dimension.
     elevation_m : float or array_like (observer,)
-        Height of the observer [m]; also the altitude of the observer in the atmosphere.
+        Height of the observer in [0, 10 000] m (:data:`ELEVATION_RANGE_M`); also the
+        altitude of the observer in the atmosphere.
     atmosphere : skytorch.atmosphere.Atmosphere, optional
         Default ``Atmosphere.earth()`` (turbidity 2, 300 DU). Pass ``False`` for no
         atmosphere (geometric altitudes, magnitudes above the atmosphere).
@@ -489,9 +494,11 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
                                 twinkle_samples=twinkle_samples,
                                 twinkle_interval_s=twinkle_interval_s, seed=seed,
                                 reddening=reddening, dtype=dtype)
-    lat = float(check_range("lat_deg", lat_deg, -90.0, 90.0, unit=" deg"))
-    lon = float(check_range("lon_deg", lon_deg, -180.0, 360.0, unit=" deg"))
-    elevation = float(check_range("elevation_m", elevation_m, 0.0, 1e4, unit=" m"))
+    # the ephemeris' ranges (one definition), the elevation also within the atmosphere
+    # tables and Young's scintillation law
+    lat_t, lon_t, _ = check_observer(lat_deg, lon_deg, 0.0)
+    lat, lon = float(lat_t), float(lon_t)
+    elevation = float(check_range("elevation_m", elevation_m, *ELEVATION_RANGE_M, unit=" m"))
     values = parse_times(times)
     if sky_values.ndim > 1 or sky_values.numel() not in (1, values.size):
         raise ValueError(f"sky_brightness_mag_arcsec2 must be a number or have one value per "

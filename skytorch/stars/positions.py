@@ -36,7 +36,7 @@ import math
 import numpy as np
 import torch
 
-from skytorch._validate import check_finite, check_range
+from skytorch._validate import check_broadcastable, check_finite, check_range
 from skytorch.constants import ASTRONOMICAL_UNIT_M, DEGREE
 from skytorch.ephemeris import (
     TIME_MAX,
@@ -103,6 +103,8 @@ def star_vectors(ra_deg, dec_deg, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas,
         Unit vector u (ICRS axes), proper-motion vector mu = mu_alpha* p + mu_delta q
         [rad/yr] with p, q the local east and north unit vectors, parallax [rad] and 1.
     """
+    if dtype not in (torch.float64, torch.float32):
+        raise TypeError(f"dtype must be torch.float64 or torch.float32; got {dtype!r:.60}")
     ra = torch.deg2rad(check_range("ra_deg", ra_deg, -360.0, 720.0, unit=" deg",
                                    dtype=torch.float64).to(torch.float64))
     dec = torch.deg2rad(check_range("dec_deg", dec_deg, -90.0, 90.0, unit=" deg",
@@ -111,6 +113,14 @@ def star_vectors(ra_deg, dec_deg, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas,
     pm_dec = check_finite("pm_dec_mas_yr", pm_dec_mas_yr, dtype=torch.float64).to(torch.float64)
     parallax = check_finite("parallax_mas", parallax_mas,
                             dtype=torch.float64).to(torch.float64).clamp_min(0.0)
+    named = {"ra_deg": ra, "dec_deg": dec, "pm_ra_mas_yr": pm_ra, "pm_dec_mas_yr": pm_dec,
+             "parallax_mas": parallax}
+    if any(v.ndim > 1 for v in named.values()):
+        raise ValueError("star columns must be 1-d (star,); got shapes " + ", ".join(
+            f"{k} {tuple(v.shape)}" for k, v in named.items()))
+    shape = check_broadcastable(**named)
+    ra, dec, pm_ra, pm_dec, parallax = (v.reshape(-1).expand(shape if len(shape) else (1,))
+                                        for v in named.values())
     unit, east, north = direction_and_tangents(ra, dec)
     motion = (pm_ra[:, None] * east + pm_dec[:, None] * north) * MAS_RAD
     return torch.cat([unit, motion, (parallax * MAS_RAD)[:, None], torch.ones_like(ra)[:, None]],
