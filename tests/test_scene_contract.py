@@ -25,7 +25,7 @@ FAST = settings(max_examples=60, derandomize=True, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow,
                                        HealthCheck.function_scoped_fixture])
 #: renders are slower: few examples, cheapest fidelity, tiny images
-RENDERS = settings(max_examples=12, derandomize=True, deadline=None,
+RENDERS = settings(max_examples=8, derandomize=True, deadline=None,
                    suppress_health_check=[HealthCheck.too_slow,
                                        HealthCheck.function_scoped_fixture])
 
