@@ -16,8 +16,7 @@ import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from skytorch.atmosphere import Atmosphere
-from skytorch.atmosphere import geometry, optical_depth, ozone, rayleigh, scattering
+from skytorch.atmosphere import Atmosphere, geometry, optical_depth, ozone, rayleigh, scattering
 from skytorch.atmosphere import refraction as refraction_module
 from skytorch.atmosphere.tables import TransmittanceTable
 from tests._contract import ContractViolation, check_contract, expect_rejected
@@ -85,11 +84,11 @@ def test_earth(turbidity, ozone_du):
                              ("turbidity", "ozone_du", "parameters"))
     if isinstance(outcome, Atmosphere):
         low, high = 1.0, 64.0
-        t = torch.as_tensor(turbidity, dtype=torch.float64)
+        t = torch.as_tensor(2.0 if turbidity is None else turbidity, dtype=torch.float64)
         assert bool(((t >= low) & (t <= high)).all()), "accepted an out-of-range turbidity"
         o = torch.as_tensor(ozone_du, dtype=torch.float64)
         assert bool(((o >= 0) & (o <= 1e5)).all()), "accepted an out-of-range ozone column"
-    if _is_bad(turbidity):
+    if _is_bad(turbidity) and turbidity is not None:  # (None: the default turbidity, 2)
         expect_rejected(lambda: Atmosphere.earth(turbidity=turbidity), ("turbidity",))
 
 

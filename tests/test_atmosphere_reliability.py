@@ -48,8 +48,11 @@ def test_refracted_optical_depth_of_a_batched_atmosphere_matches_each_member(met
     ozone = _f64(250.0, 350.0)[None, :]
     batched = Atmosphere.earth(turbidity=turbidity, ozone_du=ozone)
     zenith = _f64(60.0, 88.0) * DEGREE
+    # (coarse RK4 steps: the comparison is member against member, not against truth)
+    options = {"step_m": 30e3, "max_dh_m": 5e3} if method == "rk4" else {}
     for rays in (zenith[1], zenith[:, None, None]):
-        tau = batched.optical_depth(WAVELENGTH, rays, 500.0, refraction=True, method=method)
+        tau = batched.optical_depth(WAVELENGTH, rays, 500.0, refraction=True, method=method,
+                                    **options)
         shape = torch.broadcast_shapes(rays.shape, (2, 2))
         assert tau.shape == shape + (3,)
         for i in range(2):
@@ -57,9 +60,10 @@ def test_refracted_optical_depth_of_a_batched_atmosphere_matches_each_member(met
                 member = Atmosphere.earth(turbidity=float(turbidity[i, 0]),
                                           ozone_du=float(ozone[0, j]))
                 expected = member.optical_depth(WAVELENGTH, rays, 500.0, refraction=True,
-                                                method=method)
+                                                method=method, **options)
                 got = tau[..., i, j, :]
-                assert torch.allclose(got, expected.expand_as(got), rtol=1e-12, atol=0.0)
+                assert torch.allclose(got.reshape(-1, 3), expected.reshape(-1, 3),
+                                      rtol=1e-12, atol=0.0)
 
 
 def test_batched_refraction_angle_and_grazing_rays():
@@ -157,19 +161,19 @@ def test_gradient_of_refracted_horizon_rays():
 
 
 def test_huge_optical_depth_transmittance_is_zero_with_finite_gradient():
-    # a dense aerosol layer (vertical optical depth 100 at 550 nm) seen at the horizon:
+    # a dense aerosol layer (vertical optical depth 50 at 550 nm) seen at the horizon:
     # tau ~ 1e4, so exp(-tau) underflows to exactly 0; the gradient of the transmittance
     # is 0 (finite) and that of tau itself matches finite differences
-    aod = torch.tensor(100.0, dtype=torch.float64, requires_grad=True)
+    aod = torch.tensor(50.0, dtype=torch.float64, requires_grad=True)
 
     def tau(aod):
         return Atmosphere.earth(aerosol_optical_depth=aod).optical_depth(
             _f64(550.0), 90.0 * DEGREE, 0.0)
 
     value = tau(aod)
-    assert float(value) > 1e3
+    assert float(value.detach()) > 1e3
     transmittance = torch.exp(-value)
-    assert float(transmittance) == 0.0
+    assert float(transmittance.detach()) == 0.0
     (grad,) = torch.autograd.grad(transmittance.sum(), aod)
     assert torch.isfinite(grad) and float(grad) == 0.0
     assert gradcheck(tau, (aod,), eps=1e-6, atol=1e-6, rtol=1e-6)
@@ -197,23 +201,24 @@ def test_gradients_with_respect_to_turbidity_and_ozone():
 
 def test_rk4_backward_matches_finite_differences():
     # every method="rk4" path has a working backward pass, and its gradient is that of
-    # the discrete scheme (central differences of the same scheme)
+    # the discrete scheme (central differences of the same scheme; coarse steps keep the
+    # test short, the scheme stays smooth in its inputs)
     atm = Atmosphere.earth(refractivity_profile="exponential")
+    coarse = {"method": "rk4", "step_m": 20e3, "max_dh_m": 4e3}
     e = torch.tensor([2.0 * DEGREE, 20.0 * DEGREE], dtype=torch.float64, requires_grad=True)
-    assert gradcheck(lambda e: atm.refraction(e, method="rk4"), (e,), eps=1e-6,
+    assert gradcheck(lambda e: atm.refraction(e, **coarse), (e,), eps=1e-6,
                      atol=1e-10, rtol=1e-4)
     turbidity = torch.tensor(3.0, dtype=torch.float64, requires_grad=True)
     zenith = _f64(60.0, 85.0) * DEGREE
 
     def tau(t):
         return Atmosphere.earth(turbidity=t).optical_depth(
-            _f64(550.0), zenith, refraction=True, method="rk4")
+            _f64(550.0), zenith, refraction=True, **coarse)
 
     assert gradcheck(tau, (turbidity,), eps=1e-6, atol=1e-8, rtol=1e-5)
     # gradient w.r.t. the ray direction too (the step lengths depend on it)
     z = torch.tensor(80.0 * DEGREE, dtype=torch.float64, requires_grad=True)
-    assert gradcheck(lambda z: atm.optical_depth(_f64(550.0), z, refraction=True,
-                                                 method="rk4"),
+    assert gradcheck(lambda z: atm.optical_depth(_f64(550.0), z, refraction=True, **coarse),
                      (z,), eps=1e-6, atol=1e-6, rtol=1e-4)
 
 
@@ -448,8 +453,15 @@ def test_extreme_accepted_parameters_give_finite_optical_depths():
         for value in (low if inclusive else low * (1 + 1e-9) + 1e-300, high):
             atm = Atmosphere.earth(**{key: value}) if key != "angstrom_beta" else Atmosphere(
                 planet_radius_m=6.371e6, top_altitude_m=1e5, angstrom_beta=value)
-            tau = atm.optical_depth(WAVELENGTH, zenith, 10.0)
-            assert torch.isfinite(tau).all(), (key, value)
+            for dtype in (torch.float64, torch.float32):
+                tau = atm.optical_depth(WAVELENGTH.to(dtype), zenith.to(dtype), 10.0)
+                assert torch.isfinite(tau).all(), (key, value, dtype)
+    # all three column parameters at their edges: p N_A / (m g) = 6e38 m^-2 exceeds the
+    # float32 range, the optical depths do not
+    dense = Atmosphere.earth(surface_pressure_pa=1e8, gravity_m_s2=1e-3, molar_mass_kg_mol=1e-4)
+    for dtype in (torch.float64, torch.float32):
+        tau = dense.optical_depth(WAVELENGTH.to(dtype), zenith.to(dtype), 10.0)
+        assert torch.isfinite(tau).all(), dtype
 
 
 # --- docstring examples ------------------------------------------------------------------------------

@@ -546,6 +546,11 @@ class Atmosphere(nn.Module):
         zero at every wavelength, so the cross-section table (360-830 nm) is not needed.
         """
         dtype = wavelength_nm.dtype
+        if dtype != torch.float64:
+            # formed in float64 and cast: p N_A / (m g) alone overflows float32 at the edge
+            # of PARAMETER_RANGES (the coefficients themselves are far inside its range)
+            wide = self._coefficients(wavelength_nm.to(torch.float64), extra)
+            return {key: value.to(dtype) for key, value in wide.items()}
         sigma_r = _rayleigh.rayleigh_cross_section(wavelength_nm, self.gas)
         rayleigh = (self._molecular_column(dtype, extra + 1)
                     / self._profile_height("rayleigh", dtype, extra + 1)) * sigma_r
@@ -602,8 +607,10 @@ class Atmosphere(nn.Module):
     @staticmethod
     def _wavelength(wavelength_nm, dtype=None) -> torch.Tensor:
         low, high = WAVELENGTH_RANGE_NM
-        wavelength = check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm",
-                                 dtype=dtype)
+        # checked in the input's own precision, then cast (a value outside the range must
+        # not slip in by rounding to a lower precision)
+        wavelength = check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm")
+        wavelength = wavelength if dtype is None else wavelength.to(dtype)
         if wavelength.ndim > 1:
             raise ValueError("wavelength_nm must be a scalar or a 1-D tensor (n_wavelength,); "
                              f"got shape {tuple(wavelength.shape)}")
@@ -611,8 +618,11 @@ class Atmosphere(nn.Module):
 
     @staticmethod
     def _altitude(altitude_m, dtype) -> torch.Tensor:
-        return check_range("altitude_m", altitude_m, 0.0, unit=" m (observer inside the "
-                           "planet?)", dtype=dtype)
+        # checked in the input's own precision (-1e-300 is below the ground even though it
+        # rounds to -0.0 in float32), then cast
+        altitude = check_range("altitude_m", altitude_m, 0.0, unit=" m (observer inside the "
+                               "planet?)")
+        return altitude if dtype is None else altitude.to(dtype)
 
     def _check_shapes(self, extra: int = 0, **named) -> torch.Size:
         """Broadcast shape of the named geometry tensors and the parameters' batch shape.
@@ -917,6 +927,7 @@ class Atmosphere(nn.Module):
                         "n_steps": n_steps, "rtol": rtol}
             vertical = self.optical_depth(wavelength, 0.0 * zenith, altitude_m,
                                           per_species=True, **straight)[species][..., 0]
+            _check_vertical(species, vertical, altitude_m)
             return slant / vertical
         given = [key for key, value in (("n_nodes", n_nodes), ("step_m", step_m),
                                         ("max_dh_m", max_dh_m)) if value is not None]
@@ -927,6 +938,7 @@ class Atmosphere(nn.Module):
                                       rtol=rtol)[species]
         vertical = self.column_integrals(torch.zeros_like(zenith), altitude_m, method=method,
                                          n_steps=n_steps, rtol=rtol)[species]
+        _check_vertical(species, vertical, altitude_m)
         return slant / vertical
 
     def sky_radiance(self, wavelength_nm, view_zenith_rad, view_azimuth_rad=0.0,
@@ -986,6 +998,19 @@ def _check_flag(name: str, value) -> bool:
     if not isinstance(value, bool):
         raise TypeError(f"{name} must be True or False; got {value!r}")
     return value
+
+
+def _check_vertical(species: str, vertical: torch.Tensor, altitude_m) -> None:
+    """ValueError where the vertical column above the observer is zero (air mass 0/0)."""
+    with torch.no_grad():
+        empty = ~(vertical > 0)
+        if bool(empty.any()):
+            height = torch.as_tensor(altitude_m, dtype=torch.float64).broadcast_to(
+                vertical.shape)[empty].reshape(-1)[0]
+            raise ValueError(
+                f"air mass undefined: no {species} above altitude_m={float(height)} m (its "
+                "vertical column is zero); observe from below the top of the "
+                f"{species} layer")
 
 
 def _check_quadrature(method, n_steps, rtol) -> None:

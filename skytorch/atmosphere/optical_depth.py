@@ -312,10 +312,15 @@ def chapman_horizontal(x) -> torch.Tensor:
 
 
 def _chapman_horizontal(x: torch.Tensor) -> torch.Tensor:
-    """:func:`chapman_horizontal` of a checked tensor (its limit 1 at x = 0)."""
-    safe = torch.where(x > 0, x, torch.ones_like(x))
-    return torch.where(x > 0, safe * torch.special.scaled_modified_bessel_k1(safe),
-                       torch.ones_like(x))
+    """:func:`chapman_horizontal` of a checked tensor.
+
+    Below x = 1e-30 the value is its limit 1 (:math:`x e^x K_1(x) = 1 + O(x^2 \\ln x)`;
+    :math:`K_1` itself overflows for subnormal x).
+    """
+    small = x < 1e-30
+    safe = torch.where(small, torch.ones_like(x), x)
+    return torch.where(small, torch.ones_like(x),
+                       safe * torch.special.scaled_modified_bessel_k1(safe))
 
 
 #: panel ends of the exact Chapman quadrature in u = h/H (e^-45 ~ 3e-20 truncation)
@@ -411,7 +416,19 @@ def chapman(x, zenith_rad, *, exact: bool = False) -> torch.Tensor:
         upper = asymptotic_90 * torch.special.erfcx(y) * (1.0 + (correction - 1.0) * weight)
     x_sin = x * torch.sin(zenith)
     lower = 2.0 * torch.exp(x - x_sin) * _chapman_horizontal(x_sin) - upper
-    return torch.where(below, lower, upper)
+    result = torch.where(below, lower, upper)
+    with torch.no_grad():
+        overflow = ~torch.isfinite(result)
+        if bool(overflow.any()):
+            # below the horizontal Ch grows like exp(x (1 - sin z)): beyond float range
+            raise ValueError(
+                "chapman(x, zenith_rad) overflows the floating-point range for zenith_rad > "
+                "pi/2 where x (1 - sin z) > ~700 (the ray's lowest point lies that many "
+                "scale heights below the origin); got x = "
+                f"{float(torch.broadcast_to(x, result.shape)[overflow].reshape(-1)[0])}, "
+                f"zenith_rad = "
+                f"{float(torch.broadcast_to(zenith, result.shape)[overflow].reshape(-1)[0])}")
+    return result
 
 
 def kasten_young_air_mass(zenith_rad) -> torch.Tensor:

@@ -524,8 +524,9 @@ class TransmittanceTable(nn.Module):
         """
         dtype = common_dtype(zenith_rad, altitude_m)
         zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
+        # (checked in the input's precision, then cast)
         altitude = check_range("altitude_m", altitude_m, 0.0, self.top_altitude_m,
-                               unit=" m (the table's range)", dtype=dtype)
+                               unit=" m (the table's range)").to(dtype)
         try:
             broadcast_shape(zenith.shape, altitude.shape)
         except ValueError:
