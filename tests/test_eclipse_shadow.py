@@ -50,7 +50,7 @@ def shadow(earth):
 def molecules():
     from skytorch.atmosphere import Atmosphere
 
-    return Atmosphere.earth(turbidity=1.0, ozone_du=0.0, aerosol_optical_depth=0.0)
+    return Atmosphere.earth(ozone_du=0.0, aerosol_optical_depth=0.0)
 
 
 def _geometric(shadow, distance, offset, radius):
@@ -162,7 +162,7 @@ def test_molecular_umbra_centre_vollmer_gedzelman(molecules):
     from skytorch.atmosphere import Atmosphere
     from skytorch.spectrum import solar_irradiance
 
-    atmosphere = Atmosphere.earth(turbidity=1.0, ozone_du=0.0, aerosol_optical_depth=0.0,
+    atmosphere = Atmosphere.earth(ozone_du=0.0, aerosol_optical_depth=0.0,
                                   molecule_profile="us1976")
     wavelength = torch.arange(400.0, 701.0, 10.0, dtype=torch.float64)
     # 201 table rows: 1e-4 relative here (experiments/eclipse_accuracy_cost.py)

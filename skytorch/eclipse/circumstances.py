@@ -154,9 +154,13 @@ class _Geometry:
         nodes, to_coefficients = _chebyshev_nodes(_N_NODES)
         offsets = (nodes * _HALF_WINDOW_S * 1e9).astype("timedelta64[ns]")
         times = (centres[:, None] + offsets[None, :]).reshape(-1)
-        vectors = sun_moon_vectors(times)
-        matrix = torch.as_tensor(to_coefficients, dtype=torch.float64)
         shape = (len(centres), _N_NODES, 3)
+        if len(centres):
+            vectors = sun_moon_vectors(times)
+        else:  # no candidate: nothing to look up
+            empty = torch.zeros(shape, dtype=torch.float64)
+            vectors = {"sun_tod_m": empty, "moon_tod_m": empty}
+        matrix = torch.as_tensor(to_coefficients, dtype=torch.float64)
         self.sun = torch.einsum("kj,cjx->ckx", matrix, vectors["sun_tod_m"].reshape(shape))
         self.moon = torch.einsum("kj,cjx->ckx", matrix, vectors["moon_tod_m"].reshape(shape))
         self.centres = centres

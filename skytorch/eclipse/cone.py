@@ -58,7 +58,7 @@ from __future__ import annotations
 
 import torch
 
-from skytorch._validate import check_choice, check_range, common_dtype
+from skytorch._validate import check_broadcastable, check_choice, check_range, common_dtype
 
 __all__ = [
     "CHAUVENET_ENLARGEMENT",
@@ -158,6 +158,9 @@ def shadow_cone(
                              unit=" m", dtype=dtype)
     radius = check_range("occluder_radius_m", occluder_radius_m, 0.0, low_inclusive=False,
                          unit=" m", dtype=dtype)
+    check_choice("enlargement", enlargement, ENLARGEMENTS)
+    check_broadcastable(distance_m=x, sun_distance_m=sun_distance, sun_radius_m=sun_radius,
+                        occluder_radius_m=radius)
     with torch.no_grad():
         effective = radius * _occluder_factors(enlargement)[0]
         bad = (sun_radius + effective >= sun_distance) | (effective >= sun_radius)
@@ -218,7 +221,8 @@ def muller_shadow_radii(moon_distance_m, sun_distance_m) -> tuple[torch.Tensor, 
     (2.648, 4.707)
     """
     dtype = common_dtype(moon_distance_m, sun_distance_m)
-    ratio = (check_range("moon_distance_m", moon_distance_m, 0.0, dtype=dtype)
-             / check_range("sun_distance_m", sun_distance_m, 0.0, low_inclusive=False,
-                           dtype=dtype))
+    moon = check_range("moon_distance_m", moon_distance_m, 0.0, dtype=dtype)
+    sun = check_range("sun_distance_m", sun_distance_m, 0.0, low_inclusive=False, dtype=dtype)
+    check_broadcastable(moon_distance_m=moon, sun_distance_m=sun)
+    ratio = moon / sun
     return 3.6676 - 397.0001 * ratio, 3.6676 + 404.3354 * ratio

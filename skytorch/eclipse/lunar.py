@@ -43,7 +43,7 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import as_tensor, check_int
+from skytorch._validate import as_tensor, check_choice, check_int
 from skytorch.constants import EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
 from skytorch.dataset import (
     VariableSpec,
@@ -53,6 +53,7 @@ from skytorch.dataset import (
     to_numpy,
     variable,
 )
+from skytorch.eclipse.cone import ENLARGEMENTS
 from skytorch.eclipse.shadow import Shadow  # re-exported by the package
 from skytorch.eclipse.shadow_table import ShadowTable
 
@@ -92,7 +93,7 @@ def volcanic_atmosphere(turbidity=2.0, ozone_du=300.0, *, density_factor=2.0,
     Parameters
     ----------
     turbidity : float
-        Preetham turbidity of the background aerosols the factor applies to.
+        Preetham turbidity of the background aerosols the factor applies to, in [1, 64].
     ozone_du : float
         Ozone column [DU].
     density_factor : float
@@ -104,6 +105,7 @@ def volcanic_atmosphere(turbidity=2.0, ozone_du=300.0, *, density_factor=2.0,
     -------
     skytorch.atmosphere.Atmosphere
     """
+    from skytorch._validate import check_positive, check_range
     from skytorch.atmosphere import Atmosphere
     from skytorch.atmosphere.aerosol import (
         ANGSTROM_REFERENCE_NM,
@@ -112,7 +114,12 @@ def volcanic_atmosphere(turbidity=2.0, ozone_du=300.0, *, density_factor=2.0,
     )
     from skytorch.constants import EARTH_AEROSOL_SCALE_HEIGHT_M
 
-    beta = float(preetham_angstrom_beta(torch.tensor(float(turbidity), dtype=torch.float64)))
+    turbidity = check_range("turbidity", turbidity, 1.0, 64.0)
+    if turbidity.numel() != 1:
+        raise ValueError(f"turbidity must be one number; got shape {tuple(turbidity.shape)}")
+    density_factor = float(check_positive("density_factor", density_factor))
+    scale_height_m = float(check_positive("scale_height_m", scale_height_m, unit=" m"))
+    beta = float(preetham_angstrom_beta(turbidity.detach().to(torch.float64).reshape(())))
     aod_550 = beta * (550.0 / ANGSTROM_REFERENCE_NM) ** (-PREETHAM_ANGSTROM_ALPHA)
     column = density_factor * scale_height_m / EARTH_AEROSOL_SCALE_HEIGHT_M
     return Atmosphere.earth(aerosol_optical_depth=aod_550 * column, ozone_du=ozone_du,
@@ -193,13 +200,23 @@ def nearest_eclipse(date, enlargement: str = "danjon"):
     ``eclipse`` of length 1); raises ValueError when no eclipse is that near.
     """
     from skytorch.eclipse import lunar_eclipses
+    from skytorch.eclipse.circumstances import _parse_one, _search_range
     from skytorch.ephemeris import parse_times
 
-    (moment,) = parse_times(date)
+    check_choice("enlargement", enlargement, ENLARGEMENTS)
+    moment = _parse_one("time_or_date", date, parse_times)
     window = np.timedelta64(SEARCH_DAYS, "D")
+    low, high = _search_range()
+    if not low + window <= moment <= high - window:
+        raise ValueError(
+            f"time_or_date must be within {np.datetime_as_string(low + window, 'D')} .. "
+            f"{np.datetime_as_string(high - window, 'D')} (the eclipses are searched "
+            f"{SEARCH_DAYS} days around it in the ephemeris range); got "
+            f"{np.datetime_as_string(moment, 's')}")
     table = lunar_eclipses(moment - window, moment + window, enlargement=enlargement)
     if table.sizes["eclipse"] == 0:
-        raise ValueError(f"no lunar eclipse within {SEARCH_DAYS} days of {date}")
+        raise ValueError(f"no lunar eclipse within {SEARCH_DAYS} days of time_or_date "
+                         f"{np.datetime_as_string(moment, 's')}")
     index = int(np.argmin(np.abs(table.time.values - moment)))
     return table.isel(eclipse=[index])
 
@@ -336,14 +353,23 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     ``flux`` is (n_time, *B, n_wavelength) for a shadow with atmosphere batch shape ``B``;
     ``flux_full`` (the uneclipsed Moon) is (n_time, n_wavelength).
     """
+    from skytorch.eclipse.shadow import _check_wavelength
     from skytorch.ephemeris import sun_moon_vectors
     from skytorch.moon.disc import disc_grid, disc_radiance
     from skytorch.spectrum import wavelength_grid
 
     n_times = check_int("n_times", n_times, low=2)
     n_disc = check_int("n_disc", n_disc, low=2)
+    table_n_u = check_int("table_n_u", table_n_u, low=2)
+    table_n_v = check_int("table_n_v", table_n_v, low=2)
+    for name, flag in (("progress", progress), ("ring_phase", ring_phase)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False; got {flag!r}")
+    if shadow is not None and not isinstance(shadow, Shadow):
+        raise TypeError(f"shadow must be a skytorch.eclipse.Shadow or None; got "
+                        f"{type(shadow).__name__}: {shadow!r:.60}")
     wavelength = (wavelength_grid("bands15") if wavelength_nm is None
-                  else as_tensor("wavelength_nm", wavelength_nm).reshape(-1))
+                  else _check_wavelength(wavelength_nm, torch.float64))
     times, row = _eclipse_times(time_or_date, n_times, enlargement)
     vectors = sun_moon_vectors(times)
     sun, moon = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
