@@ -15,12 +15,12 @@ import math
 
 import numpy as np
 import torch
+from _contract import bad_values, check_contract, expect_rejected
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import skytorch as st_sky
 from skytorch.moon import geometry
-from tests._contract import bad_values, check_contract, expect_rejected
 
 SETTINGS = settings(max_examples=60, derandomize=True, deadline=None)
 PI = math.pi

@@ -16,6 +16,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from _contract import bad_values, check_contract, expect_rejected
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -30,7 +31,6 @@ from skytorch.stars.photometry import (
 from skytorch.stars.positions import star_vectors
 from skytorch.stars.scintillation import scintillation_index, twinkle
 from skytorch.stars.visibility import limiting_magnitude, muller_day_night_factor
-from tests._contract import bad_values, check_contract, expect_rejected
 
 SETTINGS = settings(max_examples=60, derandomize=True, deadline=None)
 BAD = bad_values()

@@ -18,12 +18,34 @@ from __future__ import annotations
 
 import numpy as np
 
-from skytorch._validate import check_int, check_positive
+from skytorch._validate import check_int, check_positive, check_range
 
 __all__ = ["point_sources", "synthetic_city"]
 
 #: assumed light output per inhabitant [lm] (order of magnitude of municipal lighting)
 DEFAULT_LUMENS_PER_CAPITA = 1000.0
+
+
+#: largest number of cells along one side of a map
+MAX_CELLS_PER_SIDE = 4096
+
+
+def _grid_size(extent_m, cell_m) -> tuple[float, float]:
+    """Validated map side and cell size [m]: at least one, at most MAX_CELLS_PER_SIDE cells."""
+    extent = float(check_positive("extent_m", extent_m, unit=" m"))
+    cell = float(check_positive("cell_m", cell_m, unit=" m"))
+    n = round(extent / cell)
+    if not 1 <= n <= MAX_CELLS_PER_SIDE:
+        raise ValueError(f"extent_m / cell_m must give 1 to {MAX_CELLS_PER_SIDE} cells per "
+                         f"side; got extent_m={extent:g} m, cell_m={cell:g} m ({n} cells)")
+    return extent, cell
+
+
+def _pair(name: str, value, low=None, high=None, unit=" m") -> tuple[float, float]:
+    pair = check_range(name, value, low, high, unit=unit)
+    if pair.shape != (2,):
+        raise ValueError(f"{name} must be a pair of numbers; got shape {tuple(pair.shape)}")
+    return float(pair[0]), float(pair[1])
 
 
 def _coords(extent_m: float, cell_m: float) -> np.ndarray:
@@ -92,12 +114,18 @@ def synthetic_city(extent_m: float = 40_000.0, cell_m: float = 500.0, *,
     >>> round(float(city["flux"].sum()) / 1e7, 2)
     1.0
     """
-    check_positive("extent_m", extent_m, unit=" m")
-    check_positive("cell_m", cell_m, unit=" m")
-    check_positive("population", population, allow_zero=True)
-    check_positive("scale_length_m", scale_length_m, unit=" m")
-    check_positive("lumens_per_capita", lumens_per_capita, allow_zero=True)
-    n_towns = check_int("n_towns", n_towns, low=0)
+    extent_m, cell_m = _grid_size(extent_m, cell_m)
+    centre_xy = _pair("centre_xy", centre_xy, -1e7, 1e7)
+    population = float(check_positive("population", population, allow_zero=True))
+    scale_length_m = float(check_positive("scale_length_m", scale_length_m, unit=" m"))
+    lumens_per_capita = float(check_positive("lumens_per_capita", lumens_per_capita,
+                                             allow_zero=True))
+    n_towns = check_int("n_towns", n_towns, low=0, high=10_000)
+    town_population = float(check_positive("town_population", town_population,
+                                           allow_zero=True))
+    terrain_amplitude_m = float(check_range("terrain_amplitude_m", terrain_amplitude_m, 0.0,
+                                            1e4, unit=" m"))
+    seed = check_int("seed", seed, low=0)
     rng = np.random.default_rng(seed)
     x = _coords(extent_m, cell_m)
     y = _coords(extent_m, cell_m)
@@ -147,6 +175,14 @@ def point_sources(n: int, extent_m: float = 20_000.0, cell_m: float = 250.0, *,
         No lit cell within this distance of the origin [m].
     """
     n = check_int("n", n, low=0)
+    extent_m, cell_m = _grid_size(extent_m, cell_m)
+    low, high = _pair("flux_range_lm", flux_range_lm, 0.0, unit=" lm")
+    if low > high:
+        raise ValueError(f"flux_range_lm must be (low, high) with low <= high; got "
+                         f"{flux_range_lm}")
+    seed = check_int("seed", seed, low=0)
+    exclude_radius_m = float(check_range("exclude_radius_m", exclude_radius_m, 0.0,
+                                         unit=" m"))
     rng = np.random.default_rng(seed)
     x = _coords(extent_m, cell_m)
     y = _coords(extent_m, cell_m)
@@ -156,8 +192,8 @@ def point_sources(n: int, extent_m: float = 20_000.0, cell_m: float = 250.0, *,
         raise ValueError(f"n must be at most {allowed.size} cells for this map; got {n}")
     flux = np.zeros(xx.size)
     chosen = rng.choice(allowed, n, replace=False)
-    flux[chosen] = rng.uniform(*flux_range_lm, n)
+    flux[chosen] = rng.uniform(low, high, n)
     return _dataset(x, y, flux.reshape(xx.shape), None,
                     {"n": n, "extent_m": extent_m, "cell_m": cell_m,
-                     "flux_range_lm": list(flux_range_lm), "seed": seed,
+                     "flux_range_lm": [low, high], "seed": seed,
                      "exclude_radius_m": exclude_radius_m})

@@ -308,8 +308,9 @@ def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
     check_finite("x_m", x_m)
     check_finite("y_m", y_m)
     if flux.ndim != 2 or flux.shape != (y_m.numel(), x_m.numel()):
-        raise ValueError(f"flux must have shape (y, x) = ({y_m.numel()}, {x_m.numel()}); "
-                         f"got {tuple(flux.shape)}")
+        raise ValueError(f"light_map flux must have shape (y, x) = ({y_m.numel()}, "
+                         f"{x_m.numel()}) (the lengths of y_m and x_m); got "
+                         f"{tuple(flux.shape)}")
     with torch.no_grad():
         for bad, what in ((~torch.isfinite(flux), "finite"), (flux < 0, "non-negative")):
             if bool(bad.any()):
@@ -324,8 +325,8 @@ def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
     else:
         altitude_m = check_range("altitude_m", altitude_m, unit=" m").to(flux.dtype)
         if tuple(altitude_m.shape) != tuple(flux.shape):
-            raise ValueError(f"altitude must have the flux's shape {tuple(flux.shape)}; got "
-                             f"{tuple(altitude_m.shape)}")
+            raise ValueError(f"altitude_m must have the light_map flux's shape "
+                             f"{tuple(flux.shape)}; got {tuple(altitude_m.shape)}")
     x_m, y_m = x_m.to(flux.dtype), y_m.to(flux.dtype)
     return {"flux": flux, "x": x_m[None, :].expand_as(flux), "y": y_m[:, None].expand_as(flux),
             "altitude": altitude_m, "x_coord": x_m, "y_coord": y_m}
