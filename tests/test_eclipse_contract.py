@@ -218,12 +218,18 @@ def test_shadow_constructor_rejects(keywords, name):
     expect_rejected(lambda: Shadow.earth(**options), (name,))
 
 
-def test_shadow_refuses_gradients_wrt_the_atmosphere():
+def test_tables_refuse_gradients_wrt_the_atmosphere():
+    # the (u, v) table and the scattered light are tabulated without gradients: refused
     from skytorch.atmosphere import Atmosphere
 
     turbidity = torch.tensor(2.0, dtype=torch.float64, requires_grad=True)
+    shadow = Shadow.earth(Atmosphere.earth(turbidity=turbidity), n_altitude=33)
     with pytest.raises(ValueError, match="not differentiable with respect to the atmosphere"):
-        Shadow.earth(Atmosphere.earth(turbidity=turbidity))
+        ShadowTable.compute(shadow, [550.0], n_u=4, n_v=4, progress=False)
+    scattering = Shadow.earth(Atmosphere.earth(turbidity=turbidity), n_altitude=33,
+                              scattering=True)
+    with pytest.raises(ValueError, match="not differentiable with respect to the atmosphere"):
+        scattering.relative_illuminance(MOON_DISTANCE, 3.0e6, 550.0)
 
 
 def test_shadow_gradient_wrt_geometry_flows(airless):

@@ -33,6 +33,7 @@ to ulp(rho_o + rho_s) = 2e-10 rad, and f' grows as the square root of the offset
 from __future__ import annotations
 
 import mpmath as mp
+import numpy as np
 import pytest
 import torch
 
@@ -258,3 +259,43 @@ def test_fast_path_matches_gradient_path_near_tangency(dtype):
     slow = sun_visible_fraction(SUN_RADIUS, rho_o, d.clone().requires_grad_(True)).detach()
     resolution = 1e-15 if dtype == torch.float64 else 2e-7
     assert (fast - slow).abs().max().item() < resolution
+
+
+# --- the shadow: gradients with respect to the atmosphere ---------------------------------------
+
+MOON_DISTANCE = 3.844e8  # [m]
+#: points from the umbra's centre to the penumbra [m] and two wavelengths [nm]
+SHADOW_OFFSETS = (0.0, 3.0e6, 6.0e6)
+SHADOW_WAVELENGTHS = (450.0, 650.0)
+
+
+def _shadow_illuminance(grad=False, **parameters):
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.eclipse import Shadow
+
+    tensors = {key: torch.tensor(value, dtype=torch.float64, requires_grad=grad)
+               for key, value in parameters.items()}
+    shadow = Shadow.earth(Atmosphere.earth(**tensors), n_altitude=65)
+    offsets = torch.tensor(SHADOW_OFFSETS, dtype=torch.float64)
+    return tensors, shadow.relative_illuminance(MOON_DISTANCE, offsets, SHADOW_WAVELENGTHS)
+
+
+@pytest.mark.parametrize(("name", "value", "step"), [("turbidity", 2.0, 1e-4),
+                                                     ("ozone_du", 300.0, 1e-2)])
+def test_shadow_gradient_wrt_the_atmosphere_matches_finite_differences(name, value, step):
+    # d(I / I_sun)/d(parameter) in the umbra and the penumbra against a central difference
+    # (truncation error ~ step^2 times the third derivative: far below the tolerance)
+    tensors, illuminance = _shadow_illuminance(grad=True, **{name: value})
+    with torch.no_grad():
+        _, plus = _shadow_illuminance(**{name: value + step})
+        _, minus = _shadow_illuminance(**{name: value - step})
+    expected = (plus - minus) / (2 * step)
+    for index in np.ndindex(*illuminance.shape):
+        (slope,) = torch.autograd.grad(illuminance[index], tensors[name], retain_graph=True)
+        # relative 1e-6, or 1e-12 per unit of the parameter where the slope is tiny
+        assert abs(slope.item() - expected[index].item()) <= (
+            1e-6 * abs(expected[index].item()) + 1e-12), (index, slope, expected[index])
+    # the differentiable path (no low-rank factorisation) gives the cached path's values
+    with torch.no_grad():
+        _, cached = _shadow_illuminance(**{name: value})
+    assert torch.allclose(illuminance.detach(), cached, rtol=1e-10, atol=1e-16)

@@ -4,10 +4,14 @@ Public names are collected from the submodules below; each submodule adds its na
 one ``from ... import`` line and one entry in ``__all__``.
 
 Differentiability: :func:`sun_visible_fraction` carries exact gradients with respect to
-its geometry and limb darkening (at tangency and containment too); :class:`Shadow`
-carries gradients with respect to the geometry of the points but not with respect to the
-atmosphere (its ring table is tabulated without gradients), and refuses an atmosphere
-whose parameters require a gradient rather than detach them.
+its geometry and limb darkening (at tangency and containment too);
+:meth:`Shadow.relative_illuminance` carries gradients with respect to the points'
+geometry and to the atmosphere's extinction parameters (turbidity, ozone, ...: the
+optical depths of the ring keep their graph; the bending places the quadrature nodes and
+carries none). The scattered light (``scattering=True``), :class:`ShadowTable` and the
+lunar-eclipse light curves built on it are tabulated without gradients: they raise
+``ValueError`` for an atmosphere whose parameters require a gradient rather than detach
+them.
 
 Examples
 --------

@@ -88,6 +88,7 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 from functools import lru_cache
@@ -454,12 +455,21 @@ class RingProfile:
         if optical.dim() == 2:
             optical = optical[:, None, :]
         n_rows, self.n_batch, n_wl = optical.shape
-        u, sv, vh = torch.linalg.svd(optical.reshape(n_rows * self.n_batch, n_wl),
-                                     full_matrices=False)
-        rank = int((sv > _RANK_TOLERANCE * sv[:1].clamp_min(1e-300)).sum()) if sv.numel() else 0
-        self.rank = rank
-        self.optical_factors = (u[:, :rank] * sv[:rank]).reshape(n_rows, self.n_batch * rank)
-        self.optical_basis = vh[:rank]
+        if optical.requires_grad:
+            # carrying gradients (w.r.t. the atmosphere): the optical depths themselves are
+            # the factors (the SVD's derivative is ill-conditioned at its truncated rank)
+            self.rank = n_wl
+            self.optical_factors = optical.reshape(n_rows, self.n_batch * n_wl)
+            self.optical_basis = torch.eye(n_wl, dtype=torch.float64)
+        else:
+            u, sv, vh = torch.linalg.svd(optical.reshape(n_rows * self.n_batch, n_wl),
+                                         full_matrices=False)
+            rank = (int((sv > _RANK_TOLERANCE * sv[:1].clamp_min(1e-300)).sum())
+                    if sv.numel() else 0)
+            self.rank = rank
+            self.optical_factors = (u[:, :rank] * sv[:rank]).reshape(n_rows,
+                                                                     self.n_batch * rank)
+            self.optical_basis = vh[:rank]
         self._cache: dict = {}
 
     @property
@@ -615,7 +625,11 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     weight = weight * _ray_weight(periapsis, profile)
     # exp(-max(tau, 0)) in place on the (n_pair, m, n_batch, n_wl) temporary
     factors = values[..., 2:].reshape(*values.shape[:-1], profile.n_batch, profile.rank)
-    transmittance = (factors @ -tables["basis"]).clamp_(max=0.0).exp_()
+    transmittance = factors @ -tables["basis"]
+    if transmittance.requires_grad:
+        transmittance = torch.exp(torch.clamp(transmittance, max=0.0))
+    else:
+        transmittance = transmittance.clamp_(max=0.0).exp_()
     pairs = torch.einsum("pm,pmbl->pbl", weight, transmittance)
     return pairs.new_zeros((n_point, *pairs.shape[1:])).index_add(0, point, pairs)
 
@@ -726,22 +740,27 @@ class _NoRefraction:
         return self._atmosphere.extinction_coefficient(altitude_m, wavelength_nm)
 
 
-def _refuse_atmosphere_gradients(atmosphere) -> None:
-    """Raise if a parameter of ``atmosphere`` requires a gradient.
+def _atmosphere_gradients(atmosphere) -> list[str]:
+    """Names of the parameters of ``atmosphere`` that require a gradient (none if off)."""
+    if atmosphere is None or not torch.is_grad_enabled():
+        return []
+    return [name for name, value in (*atmosphere.named_parameters(),
+                                     *atmosphere.named_buffers()) if value.requires_grad]
 
-    The ring table (bending and optical depth of the grazing rays) is computed once per
-    set of wavelengths and cached as plain tensors, so the shadow carries no gradient with
-    respect to the atmosphere; rather than detach silently, refuse.
+
+def _refuse_atmosphere_gradients(atmosphere, what: str) -> None:
+    """Raise if a parameter of ``atmosphere`` requires a gradient that ``what`` would drop.
+
+    Used where the computation tabulates without gradients (the single-scattering kernel,
+    the (u, v) shadow table): refuse rather than detach silently.
     """
-    names = [name for name, value in (*atmosphere.named_parameters(),
-                                      *atmosphere.named_buffers()) if value.requires_grad]
+    names = _atmosphere_gradients(atmosphere)
     if names:
         raise ValueError(
-            "the eclipse shadow is not differentiable with respect to the atmosphere yet: "
-            f"atmosphere parameters {names} require a gradient (the ring table of the "
-            "grazing rays is tabulated without gradients); pass detached values, e.g. "
-            "Atmosphere.earth(turbidity=t.detach()), and take derivatives by finite "
-            "differences")
+            f"{what} is not differentiable with respect to the atmosphere: atmosphere "
+            f"parameters {names} require a gradient; Shadow.relative_illuminance (without "
+            "scattering) is. Pass detached values, e.g. Atmosphere.earth(turbidity="
+            "t.detach()), or take derivatives by finite differences")
 
 
 class Shadow(nn.Module):
@@ -758,6 +777,11 @@ class Shadow(nn.Module):
         (e.g. ``Atmosphere.earth(turbidity=t[:, None], ozone_du=o[None, :])``, batch shape
         ``B``) is evaluated for all members at once; its members must share the
         refractivity (parameters of the extinction only, such as turbidity and ozone).
+        Parameters that require a gradient (``Atmosphere.earth(turbidity=t)`` with
+        ``t.requires_grad``) give :meth:`relative_illuminance` a gradient with respect to
+        them through the optical depths of the ring (the ring table is then rebuilt on
+        every call instead of cached; the bending is held fixed); ``scattering=True``
+        refuses them (``ValueError``).
     sun_radius_m : float
         Solar radius [m].
     refraction, extinction : bool
@@ -819,7 +843,6 @@ class Shadow(nn.Module):
             if not isinstance(atmosphere, Atmosphere):
                 raise TypeError("atmosphere must be a skytorch Atmosphere, None or False; got "
                                 f"{type(atmosphere).__name__}: {atmosphere!r:.60}")
-            _refuse_atmosphere_gradients(atmosphere)
         self.batch_shape = (tuple(getattr(atmosphere, "batch_shape", ()))
                             if atmosphere is not None else ())
         self.atmosphere = atmosphere
@@ -929,10 +952,12 @@ class Shadow(nn.Module):
         """
         if self.atmosphere is None:
             return None
-        _refuse_atmosphere_gradients(self.atmosphere)
         wavelength = _check_wavelength(wavelength_nm, torch.float64)
         key = tuple(round(float(x), 9) for x in wavelength)
-        if key in self._profiles:
+        # with atmosphere parameters that require a gradient the optical depths carry it
+        # and the profile is rebuilt on every call (a cached graph would be stale)
+        differentiable = bool(_atmosphere_gradients(self.atmosphere))
+        if key in self._profiles and not differentiable:
             return self._profiles[key]
         from skytorch.atmosphere.refraction import trace_grazing_rays
 
@@ -965,8 +990,10 @@ class Shadow(nn.Module):
             logger.info("tracing %d grazing rays x %d wavelengths", beta.numel(),
                         wavelength.numel())
             batch = self.batch_shape
-            rays = trace_grazing_rays(atm, impact_altitude_m=beta.reshape(-1, *(1,) * len(batch)),
-                                      wavelength_nm=wavelength, n_nodes=self.trace_nodes)
+            with torch.enable_grad() if differentiable else contextlib.nullcontext():
+                rays = trace_grazing_rays(
+                    atm, impact_altitude_m=beta.reshape(-1, *(1,) * len(batch)),
+                    wavelength_nm=wavelength, n_nodes=self.trace_nodes)
             deviation = rays["deviation_rad"].detach().to(torch.float64).reshape(
                 beta.shape[0], -1)
             periapsis = rays["contact_altitude_m"].detach().to(torch.float64).reshape(
@@ -977,17 +1004,21 @@ class Shadow(nn.Module):
                                  "Shadow batches atmospheres that differ in extinction only "
                                  "(turbidity, ozone): build one Shadow per refractivity")
             deviation, periapsis = deviation[:, 0], periapsis[:, 0]
-            optical = rays["optical_depth"].detach().to(torch.float64).expand(
-                beta.shape[0], *batch, wavelength.shape[0]).reshape(
-                beta.shape[0], -1, wavelength.shape[0])
-            if not self.extinction:
-                optical = torch.zeros_like(optical)
+        # the bending and the ray geometry place the nodes (no gradient needed: the
+        # integrand is continuous where they move it); the optical depths keep theirs
+        optical = rays["optical_depth"] if differentiable else rays["optical_depth"].detach()
+        optical = optical.to(torch.float64).expand(
+            beta.shape[0], *batch, wavelength.shape[0]).reshape(
+            beta.shape[0], -1, wavelength.shape[0])
+        if not self.extinction:
+            optical = torch.zeros_like(optical)
         profile = RingProfile(beta_min, top, deviation, optical, periapsis,
                               self.terrain_height_m, splits,
                               cloud_top_m=0.0 if closed else self.cloud_top_altitude_m,
                               cloud_fraction=0.0 if closed else self.cloud_fraction,
                               kink_betas_m=grid.kinks_m)
-        self._profiles[key] = profile
+        if not differentiable:
+            self._profiles[key] = profile
         return profile
 
     def scattering_profile(self, wavelength_nm):
@@ -999,7 +1030,7 @@ class Shadow(nn.Module):
             return None
         from skytorch.eclipse.shadow_scattering import ScatteringProfile
 
-        _refuse_atmosphere_gradients(self.atmosphere)
+        _refuse_atmosphere_gradients(self.atmosphere, "the scattered light (scattering=True)")
         wavelength = _check_wavelength(wavelength_nm, torch.float64)
         key = tuple(round(float(x), 9) for x in wavelength)
         if key not in self._scattering_profiles:

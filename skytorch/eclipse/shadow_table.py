@@ -327,11 +327,13 @@ class ShadowTable(nn.Module):
         """
         from tqdm.auto import tqdm
 
-        from skytorch.eclipse.shadow import Shadow
+        from skytorch.eclipse.shadow import Shadow, _refuse_atmosphere_gradients
 
         if not isinstance(shadow, Shadow):
             raise TypeError(f"shadow must be a skytorch.eclipse.Shadow; got "
                             f"{type(shadow).__name__}: {shadow!r:.60}")
+        _refuse_atmosphere_gradients(shadow.atmosphere, "ShadowTable (and the lunar-eclipse "
+                                     "light curves built on it)")
         n_u = check_int("n_u", n_u, low=2)
         n_v = check_int("n_v", n_v, low=2)
         check_choice("interpolation", interpolation, INTERPOLATIONS)
