@@ -226,6 +226,10 @@ def test_tables_refuse_gradients_wrt_the_atmosphere():
     shadow = Shadow.earth(Atmosphere.earth(turbidity=turbidity), n_altitude=33)
     with pytest.raises(ValueError, match="not differentiable with respect to the atmosphere"):
         ShadowTable.compute(shadow, [550.0], n_u=4, n_v=4, progress=False)
+    pressure = torch.tensor(101325.0, dtype=torch.float64, requires_grad=True)
+    bending = Shadow.earth(Atmosphere.earth(surface_pressure_pa=pressure), n_altitude=33)
+    with pytest.raises(ValueError, match="surface_pressure_pa"):
+        bending.relative_illuminance(MOON_DISTANCE, 3.0e6, 550.0)
     scattering = Shadow.earth(Atmosphere.earth(turbidity=turbidity), n_altitude=33,
                               scattering=True)
     with pytest.raises(ValueError, match="not differentiable with respect to the atmosphere"):

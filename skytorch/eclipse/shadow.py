@@ -748,6 +748,14 @@ def _atmosphere_gradients(atmosphere) -> list[str]:
                                      *atmosphere.named_buffers()) if value.requires_grad]
 
 
+#: atmosphere parameters that change the extinction only, not the refractivity: the
+#: ring's gradient with respect to them is complete (the bending, the lowest ray and the
+#: quadrature nodes do not depend on them)
+EXTINCTION_PARAMETERS = ("angstrom_beta", "angstrom_alpha", "aerosol_scale_height_m",
+                         "aerosol_single_scattering_albedo", "aerosol_asymmetry", "ozone_du",
+                         "ozone_peak_altitude_m", "ozone_half_width_m")
+
+
 def _refuse_atmosphere_gradients(atmosphere, what: str) -> None:
     """Raise if a parameter of ``atmosphere`` requires a gradient that ``what`` would drop.
 
@@ -780,8 +788,9 @@ class Shadow(nn.Module):
         Parameters that require a gradient (``Atmosphere.earth(turbidity=t)`` with
         ``t.requires_grad``) give :meth:`relative_illuminance` a gradient with respect to
         them through the optical depths of the ring (the ring table is then rebuilt on
-        every call instead of cached; the bending is held fixed); ``scattering=True``
-        refuses them (``ValueError``).
+        every call instead of cached). Only the extinction parameters
+        (:data:`EXTINCTION_PARAMETERS`) may require one with refraction on (the bending
+        is not differentiated); ``scattering=True`` refuses them all (``ValueError``).
     sun_radius_m : float
         Solar radius [m].
     refraction, extinction : bool
@@ -956,7 +965,16 @@ class Shadow(nn.Module):
         key = tuple(round(float(x), 9) for x in wavelength)
         # with atmosphere parameters that require a gradient the optical depths carry it
         # and the profile is rebuilt on every call (a cached graph would be stale)
-        differentiable = bool(_atmosphere_gradients(self.atmosphere))
+        requiring = _atmosphere_gradients(self.atmosphere)
+        differentiable = bool(requiring)
+        bending = [name for name in requiring if name not in EXTINCTION_PARAMETERS]
+        if bending and self.refraction:
+            raise ValueError(
+                "the eclipse shadow is differentiable with respect to the atmosphere's "
+                f"extinction parameters {EXTINCTION_PARAMETERS} only; atmosphere parameters "
+                f"{bending} require a gradient and change the refractivity (the bending of "
+                "the grazing rays is not differentiated): pass them detached, or use "
+                "refraction=False")
         if key in self._profiles and not differentiable:
             return self._profiles[key]
         from skytorch.atmosphere.refraction import trace_grazing_rays
