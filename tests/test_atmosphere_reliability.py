@@ -499,3 +499,17 @@ def test_texture_rays_tangent_ray_is_exact():
         assert float(mu[0]) == 0.0 and not math.copysign(1.0, float(mu[0])) < 0
         assert torch.allclose(mu.double(), expected, rtol=1e-5 if dtype == torch.float32
                               else 1e-12, atol=0.0)
+
+
+def test_deviation_table_lookups_validate():
+    from skytorch.atmosphere.refraction import DeviationTable, deviation_table, lookup_deviation
+
+    table = DeviationTable(deviation_table(Atmosphere.earth(), 8, 8, progress=False))
+    with pytest.raises(ValueError, match=r"altitude_m \(3,\), zenith_rad \(2,\)"):
+        table(torch.zeros(3), torch.zeros(2))
+    with pytest.raises(ValueError, match="altitude_m"):
+        table(-1.0, 0.5)
+    with pytest.raises(TypeError, match="dataset"):
+        lookup_deviation("table", 0.0, 0.5)
+    with pytest.raises(ValueError, match="scalar parameters"):
+        deviation_table(Atmosphere.earth(turbidity=_f64(2.0, 3.0)), 4, 4, progress=False)

@@ -1487,6 +1487,11 @@ class DeviationTable(torch.nn.Module):
 
     def __init__(self, dataset):
         super().__init__()
+        import xarray as xr
+
+        if not isinstance(dataset, xr.Dataset) or "deviation" not in dataset:
+            raise TypeError("dataset must be an xarray.Dataset from deviation_table; got "
+                            f"{type(dataset).__name__}")
         self.planet_radius_m = float(dataset.attrs["parameter_planet_radius_m"])
         self.top_altitude_m = float(dataset.attrs["parameter_top_altitude_m"])
         self.register_buffer("deviation_rad", torch.deg2rad(
@@ -1510,6 +1515,11 @@ class DeviationTable(torch.nn.Module):
         top = self.top_altitude_m
         height = check_range("altitude_m", altitude_m, 0.0, top, unit=" m", dtype=dtype)
         zenith = check_range("zenith_rad", zenith_rad, 0.0, math.pi, unit=" rad", dtype=dtype)
+        try:
+            broadcast_shape(height.shape, zenith.shape)
+        except ValueError:
+            raise ValueError(f"shapes do not broadcast: altitude_m {tuple(height.shape)}, "
+                             f"zenith_rad {tuple(zenith.shape)}") from None
         height, zenith = torch.broadcast_tensors(height, zenith)
         x_r, x_mu = texture_coordinates(height, torch.cos(zenith), self.planet_radius_m,
                                             self.planet_radius_m + top)
