@@ -127,7 +127,9 @@ def emission_intensity(cos_psi: torch.Tensor, emission: str = "garstang1986",
     else:
         f = float(parameters.get("F", GARSTANG_F))
         g = float(parameters.get("G", GARSTANG_G))
-        psi = torch.acos(c.clamp(0.0, 1.0))
+        # acos has an infinite slope at c = 1, where ψ⁴ has a zero one: acos of c below
+        # 1 − eps keeps the gradient finite (and ψ⁴ changes by < 1e-13 there)
+        psi = torch.acos(c.clamp(0.0, 1.0 - torch.finfo(c.dtype).eps))
         psi2 = psi * psi
         value = (2.0 * g * (1.0 - f) * c + _GARSTANG_PSI4_NORM * f * psi2 * psi2) / (2.0 * math.pi)
     return torch.where(up, value, torch.zeros_like(value))
@@ -337,7 +339,9 @@ class Medium:
         h = altitude_m.clamp(0.0, top)
         mu = mu.clamp(0.0, 1.0)
         radius = h + big_r
-        rho = torch.sqrt(h * (h + 2.0 * big_r))
+        # the table coordinate ρ = √(h (h + 2R)) has an infinite slope at the ground; the
+        # floor (h < 1e-12 m) keeps its gradient finite instead of inf (0 · inf = NaN)
+        rho = torch.sqrt((h * (h + 2.0 * big_r)).clamp_min(1e-5))
         d_min = top - h
         below_top = d_min * (radius + self.top_radius_m)  # r_t^2 - r^2 >= 0
         d_max = torch.sqrt(below_top)
@@ -348,7 +352,8 @@ class Medium:
         # bilinear interpolation of all wavelengths at once: grid_sample on the table as an
         # image (wavelength channels, x_r rows, x_mu columns), coordinates in [-1, 1]
         shape = x_r.shape
-        grid = torch.stack([2.0 * x_mu - 1.0, 2.0 * x_r - 1.0], dim=-1).reshape(1, -1, 1, 2)
+        grid = _inside(torch.stack([2.0 * x_mu - 1.0, 2.0 * x_r - 1.0], dim=-1)).reshape(
+            1, -1, 1, 2)
         image = self._table_image(dtype)
         log_tau = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
                                                   padding_mode="border", align_corners=True)
@@ -369,12 +374,24 @@ class Medium:
             cache[dtype] = self.scattering_table.permute(0, 2, 1).reshape(
                 1, n_s * n_wl, n_h, 1).to(dtype).contiguous()
         image = cache[dtype]
-        y = (2.0 * altitude_m / self.top_altitude_m - 1.0).reshape(1, -1, 1)
+        y = _inside(2.0 * altitude_m / self.top_altitude_m - 1.0).reshape(1, -1, 1)
         grid = torch.stack([torch.zeros_like(y), y], dim=-1)
         values = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
                                                  padding_mode="border", align_corners=True)
         n_s, _, n_wl = self.scattering_table.shape
         return values[0, :, :, 0].T.reshape(*altitude_m.shape, n_s, n_wl)
+
+
+def _inside(grid: torch.Tensor) -> torch.Tensor:
+    """``grid_sample`` coordinates pulled inside [−1, 1] by 4 ulp of 1.
+
+    With ``padding_mode="border"`` the gradient of ``grid_sample`` with respect to a
+    coordinate exactly on the edge of the table is 0 (the clipping is differentiated, not
+    the interpolation): a horizontal ray (μ = 0) or an observer on the ground would lose
+    its derivative. A hair inside, the one-sided slope of the edge cell is returned; the
+    value moves by < 1e-4 of a cell in float32 (< 1e-13 in float64).
+    """
+    return grid * (1.0 - 4.0 * torch.finfo(grid.dtype).eps)
 
 
 def _interpolate_altitude(table: torch.Tensor, altitude_m: torch.Tensor, step_m: float):

@@ -257,6 +257,23 @@ def _check_tables(model) -> None:
                          "truncated file?): " + "; ".join(problems))
 
 
+def polar_offsets(dx: torch.Tensor, dy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Distance ``√(dx² + dy²)`` [m] and azimuth ``atan2(dx, dy)`` in [0, 2π) [rad] of cells
+    east ``dx`` and north ``dy`` of an observer.
+
+    Differentiable everywhere: for a cell exactly at the observer (r = 0, where neither
+    is differentiable) the distance 0 and azimuth 0 come with zero gradients instead of
+    the NaN of ``sqrt`` and ``atan2`` at the origin.
+    """
+    r2 = dx * dx + dy * dy
+    at_observer = r2 == 0
+    safe_dx = torch.where(at_observer, torch.ones_like(dx), dx)
+    r = torch.sqrt(torch.where(at_observer, torch.ones_like(r2), r2))
+    r = torch.where(at_observer, torch.zeros_like(r), r)
+    azimuth = torch.remainder(torch.atan2(safe_dx, dy), 2 * math.pi)
+    return r, torch.where(at_observer, torch.zeros_like(azimuth), azimuth)
+
+
 def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
     """Cell coordinates and fluxes of a light map, validated.
 
@@ -757,8 +774,8 @@ class SkyglowModel(nn.Module):
         n_obs = observer_xy.shape[0]
         dx = x_m[None, :] - observer_xy[:, 0:1].contiguous()
         dy = y_m[None, :] - observer_xy[:, 1:2].contiguous()
-        r = torch.sqrt(dx * dx + dy * dy)
-        ft = torch.remainder(torch.atan2(dx, dy), 2 * math.pi) * (n_t / (2 * math.pi))
+        r, azimuth = polar_offsets(dx, dy)
+        ft = azimuth * (n_t / (2 * math.pi))
         i0 = ft.detach().floor().clamp(0, n_t - 1)
         wt = ft - i0
         if self.parameters_used.get("distance_spacing", "linear") == "linear" and n_r > 1:

@@ -19,8 +19,6 @@ References
 
 from __future__ import annotations
 
-import math
-
 import torch
 
 from skytorch._validate import check_choice, check_int
@@ -32,6 +30,7 @@ from skytorch.skyglow.model import (
     light_map_arrays,
     observer_altitudes,
     observer_positions,
+    polar_offsets,
 )
 
 __all__ = ["NAIVE_SOURCES", "kernel_table_sum", "naive_radiance_per_lumen", "render_naive"]
@@ -116,9 +115,9 @@ def naive_radiance_per_lumen(model: SkyglowModel, cells, observer_xy, observer_a
             keep = flux != 0
             dx = cells["x"].reshape(-1)[keep] - observer_xy[i, 0]
             dy = cells["y"].reshape(-1)[keep] - observer_xy[i, 1]
-            r = torch.sqrt(dx**2 + dy**2)
+            r, theta = polar_offsets(dx, dy)
             inside = r <= float(model.distance_edges_m[-1])
-            theta = torch.remainder(torch.atan2(dx, dy), 2 * math.pi)[inside]
+            theta = theta[inside]
             h_c = cells["altitude"].reshape(-1)[keep][inside]
             results.append(_accumulate(model, medium, theta, r[inside], h_c, h_o[i],
                                        flux[keep][inside], chunk_size))
