@@ -624,15 +624,13 @@ def _fraction_without_gradient(rho_s, rho_o, d, radial, s, weight, out: torch.Te
     p = torch.add(half_difference, half_d, out=new()).sin_()  # sin((d + rho_o - rho_s) / 2)
     q = torch.sub(half_d, half_difference, out=new()).sin_()  # sin((d + rho_s - rho_o) / 2)
     sin_d_o = torch.mul(sin_d, sin_o, out=new())
-    # alpha from its haversine and the complement cos^2(alpha / 2) (both exact near their
-    # tangency, see _half_angles); alpha needs no containment fix: the fraction is set to 0
-    # where the Sun is hidden (no overlap gives exactly alpha = 0 and t_max = 0)
-    denominator = torch.mul(sin_d, sin_s, out=new())
-    cos2_alpha = _haversine_quotient_(torch.mul(plus, q, out=new()),
-                                      new().copy_(denominator), None, scratch)
-    alpha = _haversine_quotient_(torch.mul(p, outer, out=new()), denominator, None,
-                                 scratch).sqrt_()
-    alpha = torch.atan2(alpha, cos2_alpha.sqrt_(), out=alpha).mul_(2.0)
+    # alpha = 2 atan2(sqrt(hav alpha), sqrt(cos^2(alpha / 2))), both exact near their
+    # tangency (see _half_angles); their common denominator sin d sin rho_s cancels in the
+    # ratio. alpha needs no containment fix: the fraction is set to 0 where the Sun is
+    # hidden (no overlap gives exactly alpha = 0 and t_max = 0)
+    alpha = torch.mul(p, outer, out=new()).clamp_(min=0.0).sqrt_()
+    cos_alpha = torch.mul(plus, q, out=new()).clamp_(min=0.0).sqrt_()
+    alpha = torch.atan2(alpha, cos_alpha, out=alpha).mul_(2.0)
     # t_max = tan(phi_max / 16) from q = hav(phi_max) = sin^2(phi_max / 2) and its
     # complement c = cos^2(phi_max / 2): tan(phi_max / 4) = sqrt(q) / (1 + sqrt(c)); then
     # twice the half-angle tangent tan(x / 2) = tan x cos x / (1 + cos x),
