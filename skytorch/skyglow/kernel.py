@@ -583,7 +583,7 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     # source leg S -> P: length, emission cosine, scattering cosine, zenith cosine at P
     along = u - u_proj[:, None]
     s2 = along * along + off_line2[:, None]  # |u d − v|²
-    s_len = torch.sqrt(s2).clamp_min(1e-12)
+    s_len = torch.sqrt(s2.clamp_min(1e-24))  # = max(|S P|, 1e-12 m), finite gradient at 0
     cos_psi = ((u * d_n[:, None] - height_o[:, None]) / s_len).clamp(-1.0, 1.0)
     intensity = emission_intensity(cos_psi, emission, emission_parameters)
     cos_scatter = (-along / s_len).clamp(-1.0, 1.0)
