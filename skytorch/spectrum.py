@@ -57,6 +57,7 @@ import torch
 from skytorch._data import data_path
 from skytorch._validate import (
     as_tensor,
+    check_broadcastable,
     check_choice,
     check_finite,
     check_range,
@@ -185,6 +186,9 @@ def wavelength_grid(preset: str = "rgb", dtype: torch.dtype = torch.float64) -> 
     tensor([375.6667, 407.0000], dtype=torch.float64)
     """
     check_choice("preset", preset, WAVELENGTH_PRESETS)
+    if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+        raise TypeError(f"dtype must be a floating torch.dtype (torch.float64, torch.float32); "
+                        f"got {dtype!r:.60}")
     if preset == "rgb":
         values = torch.tensor(RGB_WAVELENGTHS_NM, dtype=torch.float64)
     elif preset == "bands15":
@@ -393,7 +397,7 @@ def _projection_matrix(wavelengths: tuple[float, ...], response: str,
 
 
 def _projection(wavelength_nm, n_spectral: int, response: str, reference: str,
-                dtype: torch.dtype) -> torch.Tensor:
+                dtype: torch.dtype, spectrum_name: str = "the spectrum") -> torch.Tensor:
     """Matrix (n_wavelength, k): ∫ S(λ) r_k(λ) dλ for a spectrum sampled at ``wavelength_nm``.
 
     ``response`` names the response functions (:func:`_fine_response`). The spectrum is
@@ -408,7 +412,7 @@ def _projection(wavelength_nm, n_spectral: int, response: str, reference: str,
         )
     if wavelength.shape[0] != n_spectral:
         raise ValueError(
-            f"the trailing dimension of the spectrum ({n_spectral}) must match "
+            f"the trailing dimension of {spectrum_name} ({n_spectral}) must match "
             f"wavelength_nm ({wavelength.shape[0]} wavelengths)"
         )
     order = torch.argsort(wavelength)
@@ -474,7 +478,8 @@ def spectrum_to_xyz(spectral_radiance, wavelength_nm, *, reference: str = "none"
     [0.313, 0.324]
     """
     values, dtype = _spectral_input("spectral_radiance", spectral_radiance, wavelength_nm)
-    matrix = _projection(wavelength_nm, values.shape[-1], "xyz", reference, dtype)
+    matrix = _projection(wavelength_nm, values.shape[-1], "xyz", reference, dtype,
+                         "spectral_radiance")
     xyz = values @ matrix
     return xyz * LUMINOUS_EFFICACY_LM_PER_W if luminous else xyz
 
@@ -607,7 +612,8 @@ def spectrum_to_magnitude(spectral_flux, wavelength_nm, band: str = "V",
         flux_zero = float(check_range("zero_point", zero_point, low=0.0, low_inclusive=False,
                                       unit=" W m^-2 nm^-1"))
     _, trapezoid = _fine_grid(torch.float64)
-    matrix = _projection(wavelength_nm, values.shape[-1], band, reference, dtype)[:, 0]
+    matrix = _projection(wavelength_nm, values.shape[-1], band, reference, dtype,
+                         "spectral_flux")[:, 0]
     normalisation = float((_fine_response(band)[:, 0] * trapezoid).sum())
     mean_flux = values @ matrix / normalisation
     return -2.5 * torch.log10(mean_flux / flux_zero)
@@ -647,6 +653,7 @@ def blackbody_radiance(wavelength_nm, temperature_k) -> torch.Tensor:
     temperature = check_range("temperature_k", temperature_k, low=0.0, low_inclusive=False,
                               unit=" K", dtype=None if isinstance(temperature_k, torch.Tensor)
                               else dtype)
+    check_broadcastable(wavelength_nm=wavelength, temperature_k=temperature)
     lam_um = wavelength.to(dtype) * 1e-3
     x = _C2_UM_K / (lam_um * temperature.to(dtype))
     decay = torch.exp(-x)

@@ -245,3 +245,50 @@ def test_extinction_refuses_bad_tables_and_shapes():
 @pytest.mark.parametrize("atmosphere_value", ["earth", None, 3, object()])
 def test_extinction_coefficient_refuses_non_atmospheres(atmosphere_value):
     expect_rejected(lambda: extinction_coefficient(atmosphere_value), ("atmosphere",))
+
+
+# ------------------------------------------- spectrum functions behind star colours ---
+
+WAVELENGTHS = torch.tensor([450.0, 550.0, 650.0])
+
+
+@SETTINGS
+@given(flux=arg([torch.ones(3), torch.ones(2, 3), torch.tensor([1, 2, 3])],
+                [*BAD, torch.ones(4), -torch.ones(3), torch.tensor([1.0, math.nan, 1.0])]),
+       wavelength=arg([WAVELENGTHS, [450, 550, 650]],
+                      [*BAD, WAVELENGTHS[None], torch.tensor([550.0, 550.0, 600.0])]),
+       band=arg(["V", "B"], ["Q", 3, None]))
+def test_spectrum_to_magnitude_contract(flux, wavelength, band):
+    from skytorch.spectrum import spectrum_to_magnitude
+
+    call_and_check(spectrum_to_magnitude, {"spectral_flux": flux, "wavelength_nm": wavelength,
+                                           "band": band}, bounds=(-30.0, 40.0))
+
+
+@SETTINGS
+@given(wavelength=arg([WAVELENGTHS, 550.0, torch.tensor([[500.0], [600.0]])],
+                      [*BAD, 0.0, -5.0]),
+       temperature=arg([5772.0, torch.tensor([3000, 6000, 10000]), 1.0,
+                        torch.ones(2) * 5000.0], [*BAD, 0.0, -5.0]))
+def test_blackbody_radiance_contract(wavelength, temperature):
+    from skytorch.spectrum import blackbody_radiance
+
+    bad = False
+    if not wavelength[1] and not temperature[1]:
+        try:
+            np.broadcast_shapes(np.shape(np.asarray(wavelength[0])),
+                                np.shape(np.asarray(temperature[0])))
+        except ValueError:
+            bad = True
+    call_and_check(blackbody_radiance, {"wavelength_nm": wavelength,
+                                        "temperature_k": temperature}, bad=bad,
+                   bounds=(0.0, math.inf))
+
+
+@SETTINGS
+@given(preset=arg(["rgb", "cie5", "bands15"], ["x", 3, None]),
+       dtype=arg([torch.float64, torch.float32], ["float64", torch.int64, None]))
+def test_wavelength_grid_contract(preset, dtype):
+    from skytorch.spectrum import wavelength_grid
+
+    call_and_check(wavelength_grid, {"preset": preset, "dtype": dtype}, bounds=(300.0, 900.0))
