@@ -36,6 +36,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
 import sys
 import time
 import warnings
@@ -1324,12 +1325,17 @@ class SkyglowModel(nn.Module):
         """
         from skytorch.dataset import open_dataset
 
+        if not isinstance(path, (str, os.PathLike)):
+            raise TypeError(f"path must be a str or os.PathLike; got {type(path).__name__}")
         try:
             ds = open_dataset(path)
         except FileNotFoundError:
             raise
-        except (OSError, RuntimeError, ValueError, KeyError) as error:
-            raise ValueError(f"cannot read a skyglow model from {path}: {error}") from error
+        except Exception as error:  # noqa: BLE001 - any failure to parse the bytes
+            # (netCDF4 raises OSError, RuntimeError, AttributeError, UnicodeDecodeError ...)
+            raise ValueError(f"cannot read a skyglow model from {path} (corrupted or "
+                             f"truncated; rebuild it): {type(error).__name__}: {error}"
+                             ) from error
         try:
             missing = [name for name in _TABLE_VARIABLES if name not in ds.variables]
             if missing or "parameters" not in ds.attrs:
@@ -1354,7 +1360,8 @@ class SkyglowModel(nn.Module):
                        coefficients=t("coefficients"),
                        explained_variance_ratio=t("explained_variance_ratio"),
                        parameters=parameters)
-        except (ValueError, KeyError, TypeError, RuntimeError) as error:
+        except (ValueError, KeyError, TypeError, RuntimeError, OSError, AttributeError,
+                IndexError) as error:
             raise ValueError(f"{path} is not a valid skyglow model file (corrupted or "
                              f"truncated; rebuild it): {error}") from error
 
