@@ -18,7 +18,7 @@ import torch
 import xarray as xr
 
 from skytorch._validate import check_range
-from skytorch.constants import DEGREE
+from skytorch.constants import ASTRONOMICAL_UNIT_M, DEGREE, MEAN_EARTH_MOON_DISTANCE_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.moon import geometry as _geometry
 from skytorch.moon.brightness import magnitude
@@ -209,7 +209,10 @@ def _wavelengths(wavelength_nm) -> torch.Tensor:
 
 
 def moon_disc_image(phase_angle_deg: float, bright_limb_angle_deg: float = 270.0,
-                    n_pixels: int = 128, wavelength_nm=None, **kwargs) -> xr.Dataset:
+                    n_pixels: int = 128, wavelength_nm=None, *,
+                    sun_distance_m=ASTRONOMICAL_UNIT_M, distance_m=MEAN_EARTH_MOON_DISTANCE_M,
+                    earthshine: bool = True, model: str = "hapke2012",
+                    parameters="helfenstein1987") -> xr.Dataset:
     """Spectral radiance image of the lunar disc as a Dataset (Müller et al. 2012, Fig. 1).
 
     Parameters
@@ -220,8 +223,8 @@ def moon_disc_image(phase_angle_deg: float, bright_limb_angle_deg: float = 270.0
         Pixels across the lunar diameter.
     wavelength_nm : sequence of float, optional
         Wavelengths [nm]; default (680, 550, 440).
-    **kwargs
-        Passed to :func:`skytorch.moon.disc.disc_radiance`.
+    sun_distance_m, distance_m, earthshine, model, parameters
+        As in :func:`skytorch.moon.disc.disc_radiance` ([m], [m]).
 
     Returns
     -------
@@ -231,7 +234,9 @@ def moon_disc_image(phase_angle_deg: float, bright_limb_angle_deg: float = 270.0
     wl = _wavelengths(wavelength_nm)
     image = disc_image(torch.tensor(phase_angle_deg * DEGREE, dtype=torch.float64),
                        torch.tensor(bright_limb_angle_deg * DEGREE, dtype=torch.float64),
-                       n_pixels=n_pixels, wavelength_nm=wl, **kwargs)
+                       n_pixels=n_pixels, wavelength_nm=wl, sun_distance_m=sun_distance_m,
+                       distance_m=distance_m, earthshine=earthshine, model=model,
+                       parameters=parameters)
     return _disc_dataset(image, (), wl, n_pixels, {},
                          {"phase_angle_deg": float(phase_angle_deg),
                           "bright_limb_angle_deg": float(bright_limb_angle_deg),

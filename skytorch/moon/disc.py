@@ -43,7 +43,14 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from skytorch._validate import as_tensor, check_choice, check_int, check_range, common_dtype
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_choice,
+    check_int,
+    check_range,
+    common_dtype,
+)
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MEAN_EARTH_MOON_DISTANCE_M, MOON_RADIUS_M
 from skytorch.moon.reflectance import REFLECTANCE_MODELS, reflectance
 
@@ -150,7 +157,8 @@ def sun_direction(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi) -> torch
     dtype = common_dtype(phase_angle_rad, bright_limb_angle_rad)
     alpha = check_range("phase_angle_rad", as_tensor("phase_angle_rad", phase_angle_rad,
                                                      dtype=dtype), 0.0, math.pi, unit=" rad")
-    chi = as_tensor("bright_limb_angle_rad", bright_limb_angle_rad, dtype=dtype)
+    chi = check_range("bright_limb_angle_rad", bright_limb_angle_rad, unit=" rad", dtype=dtype)
+    check_broadcastable(phase_angle_rad=alpha, bright_limb_angle_rad=chi)
     alpha, chi = torch.broadcast_tensors(alpha, chi)
     s = torch.sin(alpha)
     return torch.stack([-s * torch.sin(chi), s * torch.cos(chi), torch.cos(alpha)], dim=-1)
@@ -272,16 +280,28 @@ def disc_radiance(normal, phase_angle_rad, wavelength_nm, bright_limb_angle_rad=
     Tensor (..., n_point, n_wavelength)
         Spectral radiance [W m^-2 sr^-1 nm^-1] above the Earth's atmosphere.
     """
+    from skytorch.moon.brightness import _flag
     from skytorch.moon.earthshine import earth_angular_radius, earthshine_irradiance_ratio
     from skytorch.spectrum import solar_irradiance
 
     dtype = common_dtype(phase_angle_rad, normal)
     wl = as_tensor("wavelength_nm", wavelength_nm, dtype=dtype)
-    sun_dir = sun_direction(phase_angle_rad, bright_limb_angle_rad).to(dtype)
+    if wl.ndim > 1:
+        raise ValueError(f"wavelength_nm must have shape (n_wavelength,); got shape "
+                         f"{tuple(wl.shape)}")
     normal = as_tensor("normal", normal, dtype=dtype)
+    if normal.ndim != 2 or normal.shape[-1] != 3:
+        raise ValueError(f"normal must have shape (n_point, 3); got shape "
+                         f"{tuple(normal.shape)}")
+    earthshine = _flag("earthshine", earthshine)
+    d_sun = check_range("sun_distance_m", sun_distance_m, 0.0, low_inclusive=False,
+                        unit=" m", dtype=dtype)
+    sun_dir = sun_direction(phase_angle_rad, bright_limb_angle_rad).to(dtype)
+    check_broadcastable(phase_angle_rad=sun_dir[..., 0], sun_distance_m=d_sun,
+                        distance_m=as_tensor("distance_m", distance_m, dtype=dtype))
     r = disc_reflectance(normal, sun_dir, model=model, wavelength_nm=wl,
                          parameters=parameters)
-    scale = (ASTRONOMICAL_UNIT_M / as_tensor("sun_distance_m", sun_distance_m, dtype=dtype)) ** 2
+    scale = (ASTRONOMICAL_UNIT_M / d_sun) ** 2
     irradiance = solar_irradiance(wl).to(dtype) * scale.unsqueeze(-1)  # (..., n_wl)
     if earthshine:
         alpha = _phase_of(sun_dir)
@@ -327,7 +347,9 @@ def integrate_disc(radiance, weight, distance_m=MEAN_EARTH_MOON_DISTANCE_M,
 
 
 def disc_image(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi, n_pixels: int = 64,
-               wavelength_nm=None, **kwargs) -> torch.Tensor:
+               wavelength_nm=None, *, sun_distance_m=ASTRONOMICAL_UNIT_M,
+               distance_m=MEAN_EARTH_MOON_DISTANCE_M, earthshine: bool = True,
+               model: str = "hapke2012", parameters="helfenstein1987") -> torch.Tensor:
     """Image of the lunar disc: spectral radiance on an n × n pixel grid (Müller Fig. 1).
 
     Parameters
@@ -338,8 +360,8 @@ def disc_image(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi, n_pixels: i
         Pixels across the lunar diameter.
     wavelength_nm : Tensor (n_wavelength,), optional
         Wavelengths [nm]; default: the RGB wavelengths (680, 550, 440).
-    **kwargs
-        Passed to :func:`disc_radiance` (distances, earthshine, model, parameters).
+    sun_distance_m, distance_m, earthshine, model, parameters
+        As in :func:`disc_radiance`.
 
     Returns
     -------
@@ -347,7 +369,7 @@ def disc_image(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi, n_pixels: i
         Radiance [W m^-2 sr^-1 nm^-1]; row 0 is the southern edge (y increases north),
         column 0 the eastern edge (x increases west); 0 outside the disc.
     """
-    n_pixels = check_int("n_pixels", n_pixels, low=1)
+    n_pixels = check_int("n_pixels", n_pixels, low=1, high=4096)
     dtype = common_dtype(phase_angle_rad, bright_limb_angle_rad)
     if wavelength_nm is None:
         wavelength_nm = torch.tensor([680.0, 550.0, 440.0], dtype=dtype)
@@ -361,6 +383,7 @@ def disc_image(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi, n_pixels: i
     scale = torch.where(inside, torch.ones_like(rr), torch.rsqrt(rr.clamp_min(1e-300)))
     normal = torch.stack([xx * scale, yy * scale, zz], dim=-1).reshape(-1, 3)
     radiance = disc_radiance(normal, phase_angle_rad, wavelength_nm, bright_limb_angle_rad,
-                             **kwargs)
+                             sun_distance_m=sun_distance_m, distance_m=distance_m,
+                             earthshine=earthshine, model=model, parameters=parameters)
     radiance = radiance * inside.reshape(-1, 1).to(radiance.dtype)
     return radiance.reshape(radiance.shape[:-2] + (n_pixels, n_pixels, radiance.shape[-1]))
