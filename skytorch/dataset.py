@@ -297,13 +297,14 @@ def _compressible(var: xr.Variable) -> bool:
             and var.dtype.kind in "biufcmM")
 
 
-def _netcdf_encoding(dataset: xr.Dataset, compress: bool,
-                     level: int) -> dict[str, dict[str, object]]:
+def _netcdf_encoding(dataset: xr.Dataset, compress: bool, level: int,
+                     significant_digits: int | None = None) -> dict[str, dict[str, object]]:
     """The encoding of every variable: exact datetimes and, with ``compress``, zlib+shuffle.
 
     zlib (deflate) with the byte-shuffle filter is lossless, so float32/float64 values come
     back bit for bit; scalars and strings are stored uncompressed (netCDF-4 can only deflate
-    chunked fixed-size data).
+    chunked fixed-size data). With ``significant_digits`` the floating-point arrays that are
+    compressed are first quantised by netCDF-4's granular bit rounding (lossy, opt-in).
     """
     encoding: dict[str, dict[str, object]] = {name: {} for name in dataset.variables}
     for name, spec in _time_encoding(dataset).items():
@@ -311,6 +312,9 @@ def _netcdf_encoding(dataset: xr.Dataset, compress: bool,
     for name, var in dataset.variables.items():
         if compress and _compressible(var):
             encoding[name].update(zlib=True, complevel=level, shuffle=True)
+            if significant_digits is not None and np.issubdtype(var.dtype, np.floating):
+                encoding[name].update(significant_digits=significant_digits,
+                                      quantize_mode="GranularBitRound")
         else:
             encoding[name].update(zlib=False)
     return {name: spec for name, spec in encoding.items() if spec}
@@ -350,7 +354,8 @@ def _new_temporary_file(path: Path, suffix: str) -> Path:
 
 
 def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike, *, compress: bool = True,
-              compression_level: int = DEFAULT_COMPRESSION_LEVEL) -> Path:
+              compression_level: int = DEFAULT_COMPRESSION_LEVEL,
+              significant_digits: int | None = None) -> Path:
     """Write ``dataset`` to a netCDF-4 file atomically and return the path.
 
     The file is first written next to its destination and then renamed, so an interrupted
@@ -380,6 +385,15 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike, *, compress: bool = 
     compression_level : int
         zlib level, 1 (fastest) to 9 (smallest); default
         :data:`DEFAULT_COMPRESSION_LEVEL` (4); checked but unused when ``compress`` is False.
+    significant_digits : int, optional
+        **Lossy, opt-in.** Keep this many significant decimal digits (1-15) of the
+        compressed floating-point arrays, by netCDF-4's granular bit rounding (Kouznetsov
+        2021, doi:10.5194/gmd-14-377-2021), before deflating: the relative error of every
+        value is below half a unit in the last kept digit,
+        ``5 * 10**-significant_digits``, and the files shrink further (a
+        384 x 384 all-sky render: 1.8x lossless, 4.7x with 7 digits). The default (None)
+        keeps the exact round trip. Needs ``compress=True``. The number of digits is
+        recorded in each quantised variable's attributes.
 
     Returns
     -------
@@ -421,11 +435,24 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike, *, compress: bool = 
             f"compression_level must be an integer from 1 to 9; got {compression_level!r:.80}")
     if not 1 <= int(compression_level) <= 9:
         raise ValueError(f"compression_level must be from 1 to 9; got {int(compression_level)}")
+    if significant_digits is not None:
+        if isinstance(significant_digits, (bool, np.bool_)) or not isinstance(
+                significant_digits, (int, np.integer)):
+            raise TypeError("significant_digits must be None or an integer from 1 to 15; "
+                            f"got {significant_digits!r:.80}")
+        if not 1 <= int(significant_digits) <= 15:
+            raise ValueError("significant_digits must be from 1 to 15; "
+                             f"got {int(significant_digits)}")
+        if not compress:
+            raise ValueError("significant_digits needs compress=True (quantisation only "
+                             "pays off before deflation); got compress=False")
+        significant_digits = int(significant_digits)
     path.parent.mkdir(parents=True, exist_ok=True)
     dataset = _sanitized(dataset)
     for var in dataset.variables.values():
         var.encoding = {}  # stale chunk sizes or filters of a file it was read from
-    encoding = _netcdf_encoding(dataset, bool(compress), int(compression_level))
+    encoding = _netcdf_encoding(dataset, bool(compress), int(compression_level),
+                                significant_digits)
     temporary = _new_temporary_file(path, ".nc.tmp")
     try:
         dataset.to_netcdf(temporary, engine="netcdf4", encoding=encoding)

@@ -50,6 +50,8 @@ CALBUCO_SCALE_HEIGHT_M = 3000.0
 #: the city of the all-sky renders: centre 12 km south-east of the observer
 CITY = {"population": 1_000_000.0, "scale_length_m": 4_000.0, "centre_xy": (8_000.0, -9_000.0)}
 #: sweep grid of the Moon's colour at totality
+#: significant digits kept in the demo's all-sky render files (see to_netcdf)
+RENDER_SIGNIFICANT_DIGITS = 7
 SWEEP_TURBIDITY = (1.5, 3.0, 6.0)
 SWEEP_OZONE_DU = (0.0, 300.0, 450.0)
 
@@ -290,7 +292,9 @@ def all_sky_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
         ds = scene.render()
         seconds = time.perf_counter() - start
         stem = f"allsky_{index + 1}_{label.split()[0]}"
-        to_netcdf(ds, output_dir / f"{stem}.nc")
+        # 7 significant digits (relative error < 5e-7, far below the model's own accuracy
+        # of about 1e-2): the 384 x 384 render shrinks 4.7x instead of 1.8x lossless
+        to_netcdf(ds, output_dir / f"{stem}.nc", significant_digits=RENDER_SIGNIFICANT_DIGITS)
         exposure = float(ds.attrs["parameter_exposure"]) if exposure is None else exposure
         moon = (ds.attrs["parameter_moon_altitude_deg"], ds.attrs["parameter_moon_azimuth_deg"])
         plot.all_sky(ds, axes[index], exposure=exposure, night=True,
