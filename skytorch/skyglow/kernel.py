@@ -490,6 +490,7 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
               ("observer_altitude_m", observer_altitude_m))
     dtype = common_dtype(*(v for _, v in inputs))
     values = [as_tensor(n, v, dtype=dtype) for n, v in inputs]
+    check_range("azimuth_rad", values[0], unit=" rad")  # finite (any angle)
     check_range("elevation_rad", values[1], -1e-9, math.pi / 2 + 1e-9, unit=" rad")
     check_range("distance_m", values[2], 0.0, unit=" m")
     check_range("source_altitude_m", values[3], 0.0, medium.top_altitude_m, unit=" m")

@@ -206,6 +206,16 @@ def _check_catalog(catalog) -> xr.Dataset:
     return catalog
 
 
+def _parse_times(times) -> np.ndarray:
+    """:func:`skytorch.ephemeris.parse_times`, its errors prefixed with the parameter name."""
+    try:
+        return parse_times(times)
+    except (ValueError, TypeError) as error:
+        if str(error).startswith("times"):
+            raise
+        raise type(error)(f"times: {error}") from error
+
+
 def _observer_arrays(lat_deg, lon_deg, elevation_m):
     """Observer coordinates as 1-d float arrays of one common length (ValueError naming
     the parameters and their shapes otherwise)."""
@@ -499,7 +509,7 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     lat_t, lon_t, _ = check_observer(lat_deg, lon_deg, 0.0)
     lat, lon = float(lat_t), float(lon_t)
     elevation = float(check_range("elevation_m", elevation_m, *ELEVATION_RANGE_M, unit=" m"))
-    values = parse_times(times)
+    values = _parse_times(times)
     if sky_values.ndim > 1 or sky_values.numel() not in (1, values.size):
         raise ValueError(f"sky_brightness_mag_arcsec2 must be a number or have one value per "
                          f"time ({values.size},); got shape {tuple(sky_values.shape)}")
