@@ -551,6 +551,21 @@ class SkyglowModel(nn.Module):
             n_workers = check_int("n_workers", n_workers, low=1)
         check_positive("max_distance_m", max_distance_m, unit=" m")
         check_choice("emission", emission, EMISSION_FUNCTIONS)
+        check_choice("distance_spacing", distance_spacing, DISTANCE_SPACINGS)
+        for name, value in (("source_altitude_range_m", source_altitude_range_m),
+                            ("observer_altitude_range_m", observer_altitude_range_m)):
+            pair = check_range(name, value, 0.0, OBSERVER_ALTITUDE_MAX_M, unit=" m",
+                               dtype=torch.float64)
+            if pair.shape != (2,) or float(pair[0]) > float(pair[1]):
+                raise ValueError(f"{name} must be (low, high) [m] with low <= high; got "
+                                 f"{value!r:.60}")
+        normalize = check_flag("normalize", normalize)
+        progress = check_flag("progress", progress)
+        keep_kernel = check_flag("keep_kernel", keep_kernel)
+        chunk_size = check_int("chunk_size", chunk_size, low=1)
+        if compute_dtype not in (torch.float64, torch.float32):
+            raise TypeError(f"compute_dtype must be torch.float64 or torch.float32; got "
+                            f"{compute_dtype!r:.60}")
         if wavelength_nm is None:
             from skytorch.spectrum import wavelength_grid
 
