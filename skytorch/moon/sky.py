@@ -53,7 +53,7 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_int, check_range, common_dtype
+from skytorch._validate import as_tensor, check_broadcastable, check_int, check_range, common_dtype
 from skytorch.constants import (
     ARCSECOND,
     DEGREE,
@@ -169,6 +169,10 @@ def moonlit_sky_ks1991(phase_angle_rad, separation_rad, moon_zenith_rad, zenith_
     dtype = common_dtype(phase_angle_rad, separation_rad, moon_zenith_rad, zenith_rad)
     k = check_range("extinction_mag", as_tensor("extinction_mag", extinction_mag, dtype=dtype),
                     0.0, unit=" mag/airmass")
+    check_broadcastable(**{name: as_tensor(name, value, dtype=dtype) for name, value in (
+        ("phase_angle_rad", phase_angle_rad), ("separation_rad", separation_rad),
+        ("moon_zenith_rad", moon_zenith_rad), ("zenith_rad", zenith_rad),
+        ("extinction_mag", k))})
     f = scattering_function_ks1991(as_tensor("separation_rad", separation_rad, dtype=dtype))
     illuminance = moon_illuminance_ks1991(as_tensor("phase_angle_rad", phase_angle_rad,
                                                     dtype=dtype))
@@ -205,8 +209,17 @@ def radiance_to_mag_arcsec2(spectral_radiance, wavelength_nm) -> torch.Tensor:
     return spectrum_to_magnitude(radiance * ARCSECOND**2, wavelength_nm, band="V")
 
 
+def _check_atmosphere(atmosphere, methods) -> None:
+    missing = [m for m in methods if not callable(getattr(atmosphere, m, None))]
+    if missing or isinstance(atmosphere, (str, bytes, bool, int, float)):
+        raise TypeError(f"atmosphere must be a skytorch.atmosphere.Atmosphere (with "
+                        f"{', '.join(methods)}); got {type(atmosphere).__name__}: "
+                        f"{atmosphere!r:.60}")
+
+
 def extinction_coefficient_v(atmosphere, wavelength_nm=550.0, altitude_m=0.0) -> torch.Tensor:
     """Zenith extinction of an atmosphere at one wavelength, k = 2.5 log10(e) τ [mag/airmass]."""
+    _check_atmosphere(atmosphere, ("optical_depth",))
     wl = as_tensor("wavelength_nm", wavelength_nm).reshape(-1)
     tau = atmosphere.optical_depth(wl, zenith_rad=0.0, altitude_m=altitude_m)
     return (2.5 / math.log(10.0)) * tau[..., 0]
@@ -253,7 +266,10 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
     from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM, lunar_irradiance
     from skytorch.moon.geometry import angle_between
 
-    n_steps = check_int("n_steps", n_steps, low=2)
+    _check_atmosphere(atmosphere, ("optical_depth", "scattering_coefficients",
+                                   "extinction_coefficient", "aerosol_phase"))
+    n_steps = check_int("n_steps", n_steps, low=2, high=100_000)
+    altitude_m = float(check_range("altitude_m", altitude_m, 0.0, 1e5, unit=" m"))
     dtype = common_dtype(phase_angle_rad, moon_zenith_rad, view_zenith_rad,
                          relative_azimuth_rad)
     if wavelength_nm is None:
@@ -261,7 +277,13 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
     wl = as_tensor("wavelength_nm", wavelength_nm, dtype=dtype)
     zm = _angle("moon_zenith_rad", moon_zenith_rad, dtype, high=_MAX_ZENITH)
     zv = _angle("view_zenith_rad", view_zenith_rad, dtype, high=_MAX_ZENITH)
-    daz = as_tensor("relative_azimuth_rad", relative_azimuth_rad, dtype=dtype)
+    daz = check_range("relative_azimuth_rad", relative_azimuth_rad, unit=" rad", dtype=dtype)
+    if wl.ndim > 1:
+        raise ValueError(f"wavelength_nm must have shape (n_wavelength,); got shape "
+                         f"{tuple(wl.shape)}")
+    check_broadcastable(phase_angle_rad=as_tensor("phase_angle_rad", phase_angle_rad),
+                        moon_zenith_rad=zm, view_zenith_rad=zv, relative_azimuth_rad=daz,
+                        distance_m=as_tensor("distance_m", distance_m))
     zm, zv, daz = torch.broadcast_tensors(zm, zv, daz)
     moon_dir = torch.stack([torch.sin(zm), torch.zeros_like(zm), torch.cos(zm)], dim=-1)
     view_dir = torch.stack([torch.sin(zv) * torch.cos(daz), torch.sin(zv) * torch.sin(daz),
