@@ -34,6 +34,7 @@ __all__ = [
     "check_positive",
     "check_range",
     "check_shape_last",
+    "check_zenith",
     "check_broadcastable",
     "check_int",
 ]
@@ -169,6 +170,22 @@ def _range_text(low, high, low_inclusive, high_inclusive, unit) -> str:
     if high is not None:
         return f"{'<=' if high_inclusive else '<'} {high}{unit}"
     return "finite"
+
+
+def check_zenith(value, *, name: str = "zenith_rad",
+                 dtype: torch.dtype | None = None) -> torch.Tensor:
+    """Return a zenith angle [rad] as a finite tensor within [-pi, pi].
+
+    Only the cosine of a zenith angle enters the ray geometry, so a negative angle is the
+    same ray mirrored through the zenith (and finite differences across 0 stay valid);
+    beyond pi the number is no longer a zenith angle.
+
+    >>> check_zenith(4.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: zenith_rad must be in [-3.141592653589793, 3.141592653589793]; got 4.0
+    """
+    return check_range(name, value, -math.pi, math.pi, dtype=dtype)
 
 
 def check_positive(name: str, value, *, allow_zero: bool = False, unit: str = "",

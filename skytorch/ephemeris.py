@@ -186,8 +186,8 @@ def _parse_string(text: str) -> np.datetime64:
     text = text.strip()
     if _LEAP_SECOND.search(text):
         raise ValueError(
-            f"time {original!r} is a leap second (23:59:60), which numpy datetime64 cannot "
-            "represent; give the instants before and after it instead"
+            f"times: time {original!r} is a leap second (23:59:60), which numpy datetime64 "
+            "cannot represent; give the instants before and after it instead"
         )
     try:
         if text[-1:] in "Zz":
@@ -199,7 +199,7 @@ def _parse_string(text: str) -> np.datetime64:
         return np.datetime64(text, "ns")
     except (ValueError, IndexError) as error:
         raise ValueError(
-            f"cannot parse time {original!r}; expected ISO 8601 UTC such as "
+            f"times: cannot parse time {original!r}; expected ISO 8601 UTC such as "
             "'2015-09-28T02:47:17Z' or '2015-09-28 02:47'"
         ) from error
 
@@ -288,7 +288,7 @@ def _check_time_range(values: np.ndarray) -> None:
     if bad.any():
         index = int(np.flatnonzero(bad)[0])
         raise ValueError(
-            f"time {values[index]} (index {index}) is outside the range of the DE421 "
+            f"times: time {values[index]} (index {index}) is outside the range of the DE421 "
             f"ephemeris ({DE421_RANGE_TEXT}); valid UTC times are "
             f"{np.datetime_as_string(TIME_MIN, 'm')} .. {np.datetime_as_string(TIME_MAX, 'm')}"
         )

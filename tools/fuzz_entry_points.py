@@ -61,6 +61,8 @@ class EntryPoint:
     skip_bad: tuple = ()
     #: the baseline itself is invalid and must be refused
     expect_error: bool = False
+    #: parameters for which None is a valid value (the documented default)
+    none_ok: tuple = ()
 
 
 def _finite(value) -> bool:
@@ -103,7 +105,8 @@ def mutations(entry: EntryPoint):
     for parameter, value in entry.baseline.items():
         if parameter not in entry.skip_bad:
             for label, bad in BAD.items():
-                yield parameter, {**entry.baseline, parameter: bad}, False, label
+                valid = bad is None and parameter in entry.none_ok
+                yield parameter, {**entry.baseline, parameter: bad}, valid, label
         for bad in entry.out_of_range.get(parameter, ()):
             yield parameter, {**entry.baseline, parameter: bad}, False, f"range {bad!r}"
         if parameter in entry.batched:
@@ -139,7 +142,8 @@ def entry_points() -> list[EntryPoint]:
     return [
         EntryPoint("Atmosphere.earth", Atmosphere.earth,
                    {"turbidity": 2.0, "ozone_du": 300.0},
-                   out_of_range={"turbidity": [0.5, -1.0], "ozone_du": [-10.0]}),
+                   out_of_range={"turbidity": [0.5, -1.0], "ozone_du": [-10.0]},
+                   none_ok=("turbidity",)),
         EntryPoint("Atmosphere.optical_depth", atmosphere.optical_depth,
                    {"wavelength_nm": three, "zenith_rad": zen, "altitude_m": heights,
                     "rtol": 1e-9},
@@ -251,10 +255,10 @@ def entry_points() -> list[EntryPoint]:
                    skip_bad=("path",)),
         EntryPoint("sweep", lambda **kw: st.sweep(progress=False, **kw),
                    {"fn": lambda turbidity: {"t": turbidity * 2.0},
-                    "turbidity": [2.0, 3.0], "units": {"t": "1"}},
-                   out_of_range={"units": [{"t": 3}, ["t"], {"nope": "1"}],
+                    "turbidity": [2.0, 3.0], "units": {"turbidity": "1"}},
+                   out_of_range={"units": [{"turbidity": 3}, ["turbidity"], {"nope": "1"}],
                                  "turbidity": [[]]},
-                   skip_bad=("fn",)),
+                   skip_bad=("fn",), none_ok=("units",)),
         EntryPoint("skyglow.synthetic_city", st.skyglow.synthetic_city,
                    {"extent_m": 4000.0, "cell_m": 500.0},
                    out_of_range={"extent_m": [0.0, -1.0], "cell_m": [0.0, -5.0],

@@ -61,9 +61,9 @@ from skytorch._validate import (
     as_tensor,
     broadcast_shape,
     check_choice,
-    check_finite,
     check_int,
     check_range,
+    check_zenith,
     common_dtype,
 )
 from skytorch.atmosphere import aerosol as _aerosol
@@ -776,7 +776,7 @@ class Atmosphere(nn.Module):
                                                torch.float64):
             raise TypeError(f"dtype must be a floating torch.dtype; got {dtype!r}")
         dtype = dtype or common_dtype(zenith_rad, altitude_m)
-        zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
+        zenith = check_zenith(zenith_rad, dtype=dtype)
         altitude = self._altitude(altitude_m, dtype)
         _check_quadrature(method, n_steps, rtol)
         self._check_shapes(zenith_rad=zenith, altitude_m=altitude)
@@ -871,7 +871,7 @@ class Atmosphere(nn.Module):
                             "True); straight rays take method, n_steps and rtol")
         dtype = common_dtype(wavelength_nm, zenith_rad, altitude_m)
         wavelength = self._wavelength(wavelength_nm, dtype)
-        zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
+        zenith = check_zenith(zenith_rad, dtype=dtype)
         altitude = self._altitude(altitude_m, dtype)
         _check_quadrature(method, n_steps, rtol)
         self._check_shapes(zenith_rad=zenith, altitude_m=altitude)
@@ -916,7 +916,7 @@ class Atmosphere(nn.Module):
         check_choice("species", species, SPECIES)
         _check_flag("refraction", refraction)
         dtype = common_dtype(zenith_rad, altitude_m)
-        zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
+        zenith = check_zenith(zenith_rad, dtype=dtype)
         if refraction:
             wavelength = torch.tensor([550.0], dtype=dtype)
             options = {"method": method, "n_steps": n_steps, "rtol": rtol}

@@ -73,6 +73,7 @@ from skytorch._validate import (
     check_int,
     check_positive,
     check_range,
+    check_zenith,
     common_dtype,
 )
 from skytorch.atmosphere.geometry import (
@@ -523,7 +524,7 @@ class TransmittanceTable(nn.Module):
         :math:`\\tau = \\tau_{top}(R, -\\mu_g) - \\tau_{top}(r, -\\mu)` (ref. 1).
         """
         dtype = common_dtype(zenith_rad, altitude_m)
-        zenith = check_finite("zenith_rad", zenith_rad, dtype=dtype)
+        zenith = check_zenith(zenith_rad, dtype=dtype)
         # (checked in the input's precision, then cast)
         altitude = check_range("altitude_m", altitude_m, 0.0, self.top_altitude_m,
                                unit=" m (the table's range)").to(dtype)

@@ -43,7 +43,7 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import as_tensor, check_choice, check_int
+from skytorch._validate import check_choice, check_finite, check_int
 from skytorch.constants import EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
 from skytorch.dataset import (
     VariableSpec,
@@ -176,7 +176,7 @@ def danjon_l(v_magnitude) -> torch.Tensor:
     >>> round(float(danjon_l(-0.65)), 2)
     2.0
     """
-    v = as_tensor("v_magnitude", v_magnitude)
+    v = check_finite("v_magnitude", v_magnitude)
     (l0, v0), (l1, v1) = DANJON_ANCHORS
     return torch.clamp(l0 + (v - v0) * (l1 - l0) / (v1 - v0), 0.0, 4.0)
 
