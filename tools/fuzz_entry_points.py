@@ -119,6 +119,7 @@ def mutations(entry: EntryPoint):
 
 
 def entry_points() -> list[EntryPoint]:
+    """The fuzzed entry points (phase angles are signed: [-pi, pi] is valid)."""
     import skytorch as st
     from skytorch.atmosphere import Atmosphere
     from skytorch.eclipse import danjon_l, shadow_radii, sun_visible_fraction
@@ -191,7 +192,7 @@ def entry_points() -> list[EntryPoint]:
                    {"phase_angle_rad": torch.tensor([0.0, 1.0, 3.0], dtype=torch.float64),
                     "distance_m": torch.full((3,), 3.844e8, dtype=torch.float64),
                     "n_quadrature": 16},
-                   out_of_range={"phase_angle_rad": [-1.0, 4.0], "n_quadrature": [0, -3, 2.5],
+                   out_of_range={"phase_angle_rad": [-4.0, 4.0], "n_quadrature": [0, -3, 2.5],
                                  "distance_m": [0.0, -1.0]},
                    batched=("phase_angle_rad", "distance_m")),
         EntryPoint("moon.phase_angle", phase_angle,
@@ -205,12 +206,12 @@ def entry_points() -> list[EntryPoint]:
                    skip_bad=("sun_vec", "moon_vec"), expect_error=True),
         EntryPoint("moon.illuminated_fraction", illuminated_fraction,
                    {"phase_angle_rad": torch.tensor([0.0, 1.0, 3.1], dtype=torch.float64)},
-                   out_of_range={"phase_angle_rad": [-1.0, 4.0]},
+                   out_of_range={"phase_angle_rad": [-4.0, 4.0]},
                    integer_ok=("phase_angle_rad",)),
         EntryPoint("moon.moonlit_sky_ks1991", moonlit_sky_ks1991,
                    {"phase_angle_rad": 1.0, "separation_rad": zen[1:] + 0.2,
                     "moon_zenith_rad": 0.8, "zenith_rad": zen[1:]},
-                   out_of_range={"phase_angle_rad": [-1.0], "extinction_mag": [-0.1]},
+                   out_of_range={"phase_angle_rad": [-4.0], "extinction_mag": [-0.1]},
                    batched=("separation_rad", "zenith_rad")),
         EntryPoint("stars.limiting_magnitude", limiting_magnitude,
                    {"sky_mag_arcsec2": torch.tensor([18.0, 21.0, 22.0], dtype=torch.float64)},

@@ -62,6 +62,7 @@ from skytorch._validate import (
     check_broadcastable,
     check_finite,
     check_positive,
+    check_range,
     check_shape_last,
     common_dtype,
 )
@@ -207,14 +208,15 @@ def illuminated_fraction(phase_angle_rad) -> torch.Tensor:
     Parameters
     ----------
     phase_angle_rad : Tensor (...)
-        Phase angle i [rad].
+        Phase angle i [rad], in [-pi, pi] (signed phase angles, as in the photometry).
 
     Returns
     -------
     Tensor (...)
         Fraction in [0, 1]; 1 at full Moon, 0 at new Moon.
     """
-    i = _tensor("phase_angle_rad", phase_angle_rad, None)
+    i = check_range("phase_angle_rad", as_tensor("phase_angle_rad", phase_angle_rad),
+                    -math.pi, math.pi, unit=" rad")
     return 0.5 * (1.0 + torch.cos(i))
 
 

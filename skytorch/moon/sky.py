@@ -120,9 +120,12 @@ def nanolambert_to_mag_arcsec2(brightness_nl) -> torch.Tensor:
     return (20.7233 - torch.log(b / 34.08)) / 0.92104
 
 
-def airmass_ks1991(zenith_rad) -> torch.Tensor:
-    """K&S (1991, eq. 3) airmass X = (1 − 0.96 sin² Z)^{−1/2}, finite at the horizon (5)."""
-    z = _angle("zenith_rad", zenith_rad, high=_MAX_ZENITH)
+def airmass_ks1991(zenith_rad, *, name: str = "zenith_rad") -> torch.Tensor:
+    """K&S (1991, eq. 3) airmass X = (1 − 0.96 sin² Z)^{−1/2}, finite at the horizon (5).
+
+    ``name`` is the parameter named in error messages.
+    """
+    z = _angle(name, zenith_rad, high=_MAX_ZENITH)
     return (1.0 - 0.96 * torch.sin(z) ** 2) ** -0.5
 
 
@@ -176,7 +179,8 @@ def moonlit_sky_ks1991(phase_angle_rad, separation_rad, moon_zenith_rad, zenith_
     f = scattering_function_ks1991(as_tensor("separation_rad", separation_rad, dtype=dtype))
     illuminance = moon_illuminance_ks1991(as_tensor("phase_angle_rad", phase_angle_rad,
                                                     dtype=dtype))
-    x_moon = airmass_ks1991(as_tensor("moon_zenith_rad", moon_zenith_rad, dtype=dtype))
+    x_moon = airmass_ks1991(as_tensor("moon_zenith_rad", moon_zenith_rad, dtype=dtype),
+                            name="moon_zenith_rad")
     x_sky = airmass_ks1991(as_tensor("zenith_rad", zenith_rad, dtype=dtype))
     return (f * illuminance * 10.0 ** (-0.4 * k * x_moon)
             * -torch.expm1(-0.4 * math.log(10.0) * k * x_sky))
