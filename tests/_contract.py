@@ -22,7 +22,8 @@ import numpy as np
 import torch
 import xarray as xr
 
-__all__ = ["ContractViolation", "all_finite", "check_contract", "expect_rejected"]
+__all__ = ["ContractViolation", "all_finite", "arg", "call_and_check", "check_contract",
+           "expect_rejected"]
 
 
 class ContractViolation(AssertionError):
@@ -101,3 +102,75 @@ def expect_rejected(call: Callable[[], object], parameters: Iterable[str]):
 def bad_values() -> list:
     """Values that no numeric parameter accepts: wrong types and non-finite numbers."""
     return ["3", None, object(), [1.0, "x"], math.nan, math.inf, -math.inf]
+
+
+def arg(valid, bad=()):
+    """Hypothesis strategy of ``(value, is_bad)`` pairs from lists of valid and bad values."""
+    from hypothesis import strategies
+
+    good = strategies.sampled_from(list(valid)).map(lambda v: (v, False))
+    if not bad:
+        return good
+    return strategies.one_of(good, strategies.sampled_from(list(bad)).map(lambda v: (v, True)))
+
+
+def _shape(value) -> tuple:
+    try:
+        return tuple(np.shape(value.detach().numpy() if isinstance(value, torch.Tensor)
+                              else value))
+    except (TypeError, ValueError):
+        return ()
+
+
+def call_and_check(function, arguments: dict, *, names=None, bad: bool = False,
+                   misspelled: str | None = None, bounds=None, shape_arguments=(),
+                   trailing: int = 0):
+    """Call ``function(**values)`` for drawn ``arguments``: refused if bad, else accepted.
+
+    Parameters
+    ----------
+    function : callable
+        The entry point.
+    arguments : dict
+        ``name -> (value, is_bad)`` as drawn by :func:`arg`.
+    names : iterable of str, optional
+        Parameter names an error may name (default: the keys of ``arguments``).
+    bad : bool
+        The combination is bad although no single argument is.
+    misspelled : str, optional
+        Add this unknown keyword (the call must then be refused).
+    bounds : (low, high), optional
+        Every number of an accepted result must lie within.
+    shape_arguments : iterable of str
+        Arguments whose shapes (less ``trailing`` component dimensions) must broadcast; if
+        they do not, the call must be refused.
+    """
+    values = {k: v for k, (v, _) in arguments.items()}
+    bad = bad or any(flag for _, flag in arguments.values())
+    names = tuple(names or arguments)
+    if not bad and shape_arguments:
+        shapes = [_shape(values[k]) for k in shape_arguments]
+        if trailing:
+            shapes = [s[:-trailing] if len(s) >= trailing else s for s in shapes]
+        try:
+            np.broadcast_shapes(*shapes)
+        except ValueError:
+            bad = True
+    if misspelled is not None:
+        values[misspelled] = 1.0
+        names, bad = (*names, misspelled), True
+
+    def outcome_call():
+        return function(**values)
+
+    if bad:
+        return expect_rejected(outcome_call, names)
+    result = check_contract(outcome_call, names)
+    assert not isinstance(result, Exception), f"valid input rejected: {result}"
+    if bounds is not None:
+        low, high = bounds
+        for values_out in (result if isinstance(result, tuple) else (result,)):
+            values_out = torch.as_tensor(values_out)
+            assert bool((values_out >= low).all()) and bool((values_out <= high).all()), (
+                f"result outside [{low}, {high}]: {values_out}")
+    return result

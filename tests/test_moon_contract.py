@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 import torch
-from _contract import bad_values, check_contract, expect_rejected
+from _contract import arg, bad_values, call_and_check
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -28,56 +28,10 @@ PI = math.pi
 # ------------------------------------------------------------------------------ helpers ---
 
 
-def arg(valid, bad=()):
-    """Strategy of (value, is_bad) pairs from lists of valid and bad values."""
-    good = st.sampled_from(list(valid)).map(lambda v: (v, False))
-    if not bad:
-        return good
-    return st.one_of(good, st.sampled_from(list(bad)).map(lambda v: (v, True)))
 
 
-def _shape(value):
-    try:
-        return tuple(np.shape(value.detach().numpy() if isinstance(value, torch.Tensor)
-                              else value))
-    except (TypeError, ValueError):
-        return ()
 
 
-def call_and_check(function, arguments: dict, *, names=None, shape_arguments=(),
-                   trailing=0, misspelled=None, bounds=None):
-    """Call ``function(**values)`` and assert the contract for the drawn arguments.
-
-    ``shape_arguments`` are the names whose leading shapes must broadcast (``trailing``
-    component dimensions excluded); ``misspelled`` adds an unknown keyword.
-    """
-    values = {k: v for k, (v, _) in arguments.items()}
-    bad = any(flag for _, flag in arguments.values())
-    names = tuple(names or arguments)
-    if not bad and shape_arguments:
-        shapes = [_shape(values[k]) for k in shape_arguments]
-        if trailing:
-            shapes = [s[:-trailing] if len(s) >= trailing else s for s in shapes]
-        try:
-            np.broadcast_shapes(*shapes)
-        except ValueError:
-            bad = True
-    if misspelled is not None:
-        values[misspelled] = 1.0
-        names = (*names, misspelled)
-        bad = True
-    outcome_call = lambda: function(**values)  # noqa: E731
-    if bad:
-        return expect_rejected(outcome_call, names)
-    result = check_contract(outcome_call, names)
-    assert not isinstance(result, Exception), f"valid input rejected: {result}"
-    if bounds is not None:
-        low, high = bounds
-        for values_out in (result if isinstance(result, tuple) else (result,)):
-            values_out = torch.as_tensor(values_out)
-            assert bool((values_out >= low).all()) and bool((values_out <= high).all()), (
-                f"result outside [{low}, {high}]: {values_out}")
-    return result
 
 
 BAD = bad_values()

@@ -19,7 +19,7 @@ import warnings
 import numpy as np
 import pytest
 import torch
-from _contract import bad_values, check_contract, expect_rejected
+from _contract import arg, bad_values, call_and_check, expect_rejected
 from _skyglow_standin import cached_model, medium, single_torch_thread  # noqa: F401
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -47,33 +47,8 @@ SETTINGS = settings(max_examples=60, derandomize=True, deadline=None)
 BAD = bad_values()
 
 
-def arg(valid, bad=()):
-    """Strategy of (value, is_bad) pairs from lists of valid and bad values."""
-    good = st.sampled_from(list(valid)).map(lambda v: (v, False))
-    if not bad:
-        return good
-    return st.one_of(good, st.sampled_from(list(bad)).map(lambda v: (v, True)))
 
 
-def call_and_check(function, arguments: dict, *, bad=False, misspelled=None, bounds=None,
-                   names=None):
-    """Call ``function(**values)``: refused if any argument is bad, accepted otherwise."""
-    values = {k: v for k, (v, _) in arguments.items()}
-    bad = bad or any(flag for _, flag in arguments.values())
-    names = tuple(names or arguments)
-    if misspelled is not None:
-        values[misspelled] = 1.0
-        names, bad = (*names, misspelled), True
-    outcome_call = lambda: function(**values)  # noqa: E731
-    if bad:
-        return expect_rejected(outcome_call, names)
-    result = check_contract(outcome_call, names)
-    assert not isinstance(result, Exception), f"valid input rejected: {result}"
-    if bounds is not None:
-        low, high = bounds
-        out = torch.as_tensor(result)
-        assert bool((out >= low).all()) and bool((out <= high).all()), out
-    return result
 
 
 @pytest.fixture(scope="module")
