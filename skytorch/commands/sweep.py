@@ -38,27 +38,13 @@ import importlib
 import logging
 from pathlib import Path
 
+from skytorch._toml import loads as toml_loads
+
 logger = logging.getLogger(__name__)
 
 #: option names accepted in the TOML ``[options]`` table
 OPTIONS = ("backend", "chunk_size", "memory_budget_bytes", "store", "key", "n_workers",
            "scheduler_address", "cluster_options", "units", "progress")
-
-
-def _toml_loads(text: str) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        try:
-            import tomli as tomllib
-        except ModuleNotFoundError as error:
-            raise ValueError(
-                "reading TOML on Python 3.10 needs the 'tomli' package (pip install tomli)"
-            ) from error
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"invalid TOML: {error}") from error
 
 
 def resolve_function(path: str):
@@ -84,7 +70,7 @@ def load_config(path: str | Path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"sweep configuration {str(path)!r} not found")
-    config = _toml_loads(path.read_text(encoding="utf-8"))
+    config = toml_loads(path.read_text(encoding="utf-8"))
     unknown = set(config) - {"function", "parameters", "fixed", "options"}
     if unknown:
         raise ValueError(f"unknown keys in {path.name}: {sorted(unknown)} (valid: function, "

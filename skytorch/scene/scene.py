@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from skytorch._toml import loads as toml_loads
 from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
 
 #: view kinds of a scene
@@ -824,8 +825,6 @@ class Scene:
     @classmethod
     def from_toml(cls, path) -> Scene:
         """Read a scene from a TOML file (format in ``docs/scene.md``)."""
-        from skytorch.commands.sweep import _toml_loads
-
         path = Path(path)
-        return cls.from_dict(_toml_loads(path.read_text(encoding="utf-8")),
+        return cls.from_dict(toml_loads(path.read_text(encoding="utf-8")),
                              base_dir=path.parent)
