@@ -54,7 +54,9 @@ __all__ = [
     "VariableSpec",
     "build_dataset",
     "coordinate",
+    "import_zarr",
     "open_dataset",
+    "sanitized_attributes",
     "to_netcdf",
     "to_numpy",
     "to_zarr",
@@ -247,8 +249,20 @@ def build_dataset(
     return dataset
 
 
-def _sanitized(dataset: xr.Dataset) -> xr.Dataset:
-    """Copy of ``dataset`` whose attributes netCDF can store."""
+def sanitized_attributes(dataset: xr.Dataset) -> xr.Dataset:
+    """Copy of ``dataset`` whose attributes netCDF can store.
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        Any Dataset; its data are shared, not copied.
+
+    Returns
+    -------
+    xarray.Dataset
+        A shallow copy whose global and variable attributes are netCDF-safe values
+        (booleans, None, sequences and mappings converted as :func:`build_dataset` does).
+    """
     out = dataset.copy(deep=False)
     out.attrs = {k: _attribute_value(v) for k, v in dataset.attrs.items()}
     for name in out.variables:
@@ -448,7 +462,7 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike, *, compress: bool = 
                              "pays off before deflation); got compress=False")
         significant_digits = int(significant_digits)
     path.parent.mkdir(parents=True, exist_ok=True)
-    dataset = _sanitized(dataset)
+    dataset = sanitized_attributes(dataset)
     for var in dataset.variables.values():
         var.encoding = {}  # stale chunk sizes or filters of a file it was read from
     encoding = _netcdf_encoding(dataset, bool(compress), int(compression_level),
@@ -463,8 +477,19 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike, *, compress: bool = 
     return path
 
 
-def _import_zarr():
-    """The zarr package, or an ImportError that names the extra providing it."""
+def import_zarr():
+    """Import the optional zarr package.
+
+    Returns
+    -------
+    module
+        The ``zarr`` module.
+
+    Raises
+    ------
+    ImportError
+        When zarr is not installed; the message names the extra that provides it.
+    """
     try:
         import zarr
     except ImportError as error:
@@ -549,9 +574,9 @@ def to_zarr(dataset: xr.Dataset, path: str | os.PathLike) -> Path:
     powers.zarr True True
     """
     path = _check_dataset_and_path(dataset, path)
-    _import_zarr()
+    import_zarr()
     path.parent.mkdir(parents=True, exist_ok=True)
-    dataset = _sanitized(dataset)
+    dataset = sanitized_attributes(dataset)
     temporary = _new_temporary_directory(path, ".zarr.tmp")
     try:
         dataset.to_zarr(temporary, mode="w", encoding=_time_encoding(dataset),
@@ -604,7 +629,7 @@ def open_dataset(path: str | os.PathLike) -> xr.Dataset:
         raise TypeError(f"path must be a str or os.PathLike; got {type(path).__name__}")
     path = Path(path)
     if _is_zarr(path) or path.is_dir():
-        _import_zarr()
+        import_zarr()
         engine = "zarr"
     else:
         engine = "netcdf4"

@@ -85,6 +85,9 @@ __all__ = [
     "altaz_from_horizontal",
     "check_observer",
     "earth_barycentric_velocity",
+    "earth_rotation",
+    "geodetic_to_itrs",
+    "horizontal_rows",
     "icrs_to_horizontal_matrices",
     "load_ephemeris",
     "observer_gcrs_velocity",
@@ -362,8 +365,19 @@ def check_observer(lat_deg, lon_deg, elevation_m=0.0, dtype=torch.float64):
     return lat.expand(shape), lon.expand(shape), elevation.expand(shape)
 
 
-def _horizontal_rows(lat_rad: torch.Tensor, lon_rad: torch.Tensor) -> torch.Tensor:
-    """Rotation ITRS -> (north, east, up) at geodetic latitude/longitude, shape (..., 3, 3)."""
+def horizontal_rows(lat_rad: torch.Tensor, lon_rad: torch.Tensor) -> torch.Tensor:
+    """Rotation from Earth-fixed (ITRS) axes to the local (north, east, up) axes.
+
+    Parameters
+    ----------
+    lat_rad, lon_rad : Tensor (...)
+        Geodetic latitude and east longitude [rad].
+
+    Returns
+    -------
+    Tensor (..., 3, 3)
+        Matrices whose rows are the north, east and up unit vectors in ITRS axes [1].
+    """
     sin_lat, cos_lat = torch.sin(lat_rad), torch.cos(lat_rad)
     sin_lon, cos_lon = torch.sin(lon_rad), torch.cos(lon_rad)
     zero = torch.zeros_like(lat_rad)
@@ -373,8 +387,21 @@ def _horizontal_rows(lat_rad: torch.Tensor, lon_rad: torch.Tensor) -> torch.Tens
     return torch.stack([north, east, up], dim=-2)
 
 
-def _geodetic_to_itrs(lat_rad, lon_rad, elevation_m) -> torch.Tensor:
-    """WGS84 geodetic coordinates to Earth-fixed Cartesian position [m], shape (..., 3)."""
+def geodetic_to_itrs(lat_rad, lon_rad, elevation_m) -> torch.Tensor:
+    """Earth-fixed (ITRS) Cartesian position of a point given in WGS84 geodetic coordinates.
+
+    Parameters
+    ----------
+    lat_rad, lon_rad : Tensor (...)
+        Geodetic latitude and east longitude [rad].
+    elevation_m : Tensor (...)
+        Height above the WGS84 ellipsoid [m].
+
+    Returns
+    -------
+    Tensor (..., 3)
+        Position [m] in ITRS axes.
+    """
     e2 = WGS84_FLATTENING * (2.0 - WGS84_FLATTENING)
     sin_lat = torch.sin(lat_rad)
     n = WGS84_SEMI_MAJOR_AXIS_M / torch.sqrt(1.0 - e2 * sin_lat**2)
@@ -383,11 +410,21 @@ def _geodetic_to_itrs(lat_rad, lon_rad, elevation_m) -> torch.Tensor:
     return torch.stack([xy * torch.cos(lon_rad), xy * torch.sin(lon_rad), z], dim=-1)
 
 
-def _earth_rotation(t) -> torch.Tensor:
-    """ICRS -> Earth-fixed (pseudo-ITRS, no polar motion) matrices, (n_time, 3, 3) float64.
+def earth_rotation(t) -> torch.Tensor:
+    """Rotation from ICRS to Earth-fixed axes (pseudo-ITRS, no polar motion).
 
     ``R3(GAST) @ N @ P @ B`` with skyfield's IAU 2006/2000A precession-nutation matrix
     ``t.M`` and Greenwich apparent sidereal time ``t.gast`` (ref. 3, eq. 6.5).
+
+    Parameters
+    ----------
+    t : skyfield.timelib.Time
+        The instants (scalar or array).
+
+    Returns
+    -------
+    Tensor (n_time, 3, 3)
+        Rotation matrices [1], float64.
     """
     m = np.moveaxis(np.asarray(t.M, dtype=np.float64), -1, 0).reshape(-1, 3, 3)
     theta = np.asarray(t.gast, dtype=np.float64).reshape(-1) * (np.pi / 12.0)
@@ -454,8 +491,8 @@ def icrs_to_horizontal_matrices(times, lat_deg, lon_deg, elevation_m=0.0) -> tor
     """
     t = skyfield_time(times)
     lat, lon, _ = check_observer(lat_deg, lon_deg, elevation_m)
-    earth = _earth_rotation(t)  # (n, 3, 3)
-    local = _horizontal_rows(torch.deg2rad(lat), torch.deg2rad(lon))  # (*obs, 3, 3)
+    earth = earth_rotation(t)  # (n, 3, 3)
+    local = horizontal_rows(torch.deg2rad(lat), torch.deg2rad(lon))  # (*obs, 3, 3)
     earth = earth.reshape(earth.shape[0], *([1] * lat.ndim), 3, 3)
     return local.to(torch.float64) @ earth
 
@@ -518,10 +555,10 @@ def observer_gcrs_velocity(times, lat_deg, lon_deg, elevation_m=0.0) -> torch.Te
     """
     t = skyfield_time(times)
     lat, lon, elevation = check_observer(lat_deg, lon_deg, elevation_m)
-    position = _geodetic_to_itrs(torch.deg2rad(lat), torch.deg2rad(lon), elevation)
+    position = geodetic_to_itrs(torch.deg2rad(lat), torch.deg2rad(lon), elevation)
     x, y, _ = position.unbind(-1)
     velocity = EARTH_ANGULAR_VELOCITY_RAD_S * torch.stack([-y, x, torch.zeros_like(x)], dim=-1)
-    earth = _earth_rotation(t)
+    earth = earth_rotation(t)
     earth = earth.reshape(earth.shape[0], *([1] * lat.ndim), 3, 3)
     return (earth.transpose(-1, -2) @ velocity.to(torch.float64).unsqueeze(-1)).squeeze(-1)
 

@@ -87,6 +87,7 @@ __all__ = [
     "spectrum_to_magnitude",
     "spectrum_to_srgb",
     "spectrum_to_xyz",
+    "srgb_transfer",
     "temperature_to_srgb",
     "temperature_to_xyz",
     "v_band_response",
@@ -506,8 +507,22 @@ def _check_last3(name: str, value) -> torch.Tensor:
     return check_shape_last(name, check_finite(name, value), 3)
 
 
-def _srgb_transfer(linear: torch.Tensor) -> torch.Tensor:
-    """IEC 61966-2-1 transfer function, odd-symmetric for negative (out-of-gamut) values."""
+def srgb_transfer(linear: torch.Tensor) -> torch.Tensor:
+    """The sRGB transfer function (IEC 61966-2-1), from linear to encoded values.
+
+    Odd-symmetric: a negative (out-of-gamut) value is encoded as minus the encoding of
+    its magnitude.
+
+    Parameters
+    ----------
+    linear : Tensor (...)
+        Linear sRGB values [1].
+
+    Returns
+    -------
+    Tensor (...)
+        Encoded (gamma-corrected) values [1].
+    """
     magnitude = linear.abs()
     power = 1.055 * magnitude.clamp_min(0.0031308) ** (1 / 2.4) - 0.055
     encoded = torch.where(magnitude <= 0.0031308, 12.92 * magnitude, power)
@@ -540,7 +555,7 @@ def xyz_to_srgb(xyz, gamma: bool = True, clip: bool = False) -> torch.Tensor:
     """
     rgb = xyz_to_linear_srgb(xyz)
     if gamma:
-        rgb = _srgb_transfer(rgb)
+        rgb = srgb_transfer(rgb)
     return rgb.clamp(0.0, 1.0) if clip else rgb
 
 
@@ -703,7 +718,7 @@ def temperature_to_srgb(temperature_k, gamma: bool = True) -> torch.Tensor:
     """
     linear = xyz_to_linear_srgb(temperature_to_xyz(temperature_k)).clamp_min(0.0)
     linear = linear / linear.amax(dim=-1, keepdim=True)
-    return _srgb_transfer(linear) if gamma else linear
+    return srgb_transfer(linear) if gamma else linear
 
 
 def bv_to_temperature(bv) -> torch.Tensor:

@@ -114,11 +114,11 @@ from skytorch._validate import check_choice, check_int
 from skytorch.dataset import (
     ZARR_SUFFIX,
     VariableSpec,
-    _import_zarr,
-    _sanitized,
     build_dataset,
     coordinate,
+    import_zarr,
     open_dataset,
+    sanitized_attributes,
     to_netcdf,
     to_numpy,
     write_dataset,
@@ -441,7 +441,7 @@ def _compute_chunk(fn: Callable, names: tuple[str, ...], grids: tuple[np.ndarray
             view[i] = -1
             kwargs[name] = torch.as_tensor(values, dtype=torch.float64).reshape(view)
         sliced_shape = tuple(len(v) for v in sliced)
-        return _sanitized(_broadcast_chunk(fn(**kwargs), sliced_shape))
+        return sanitized_attributes(_broadcast_chunk(fn(**kwargs), sliced_shape))
     indices = np.unravel_index(np.arange(start, stop), shape)
     results = []
     for point in range(stop - start):
@@ -450,7 +450,7 @@ def _compute_chunk(fn: Callable, names: tuple[str, ...], grids: tuple[np.ndarray
         results.append(_as_record(fn(**kwargs)))
     if isinstance(results[0], dict):
         return _stack_records(results)
-    return _sanitized(_stack_points(results))
+    return sanitized_attributes(_stack_points(results))
 
 
 # --- store ---------------------------------------------------------------------------------
@@ -932,7 +932,7 @@ def sweep(
     if store is not None:
         suffix = _store_format(store)
         if suffix == ZARR_SUFFIX:
-            _import_zarr()  # fail before computing anything
+            import_zarr()  # fail before computing anything
         directory, sweep_key = _store_directory(store, fn, names, grids, chunk_size, backend,
                                                 key)
         for start, stop in spans:

@@ -106,12 +106,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from skytorch.dataset import ZARR_SUFFIX, _import_zarr, write_dataset
+    from skytorch.dataset import ZARR_SUFFIX, import_zarr, write_dataset
     from skytorch.sweep import sweep
 
     if Path(args.output).suffix.lower() == ZARR_SUFFIX:
         try:
-            _import_zarr()  # before the sweep runs, not after
+            import_zarr()  # before the sweep runs, not after
         except ImportError as error:
             raise ValueError(str(error)) from error
     config = load_config(args.config)

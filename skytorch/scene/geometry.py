@@ -111,7 +111,7 @@ def apparent_geocentric(time) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]
     rotation : Tensor (3, 3) float64
         ICRS -> Earth-fixed (true equator of date rotated by the apparent sidereal time).
     """
-    from skytorch.ephemeris import _earth_rotation, aberrate, skyfield_time
+    from skytorch.ephemeris import aberrate, earth_rotation, skyfield_time
 
     t = skyfield_time([time])
     earth_body, *bodies = _bodies()
@@ -122,7 +122,7 @@ def apparent_geocentric(time) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]
                                           for body in bodies]))  # (2, 3): Sun, Moon
     distance = torch.linalg.vector_norm(relative, dim=-1, keepdim=True)
     vectors = distance * aberrate(relative / distance, earth_velocity)
-    return vectors[0], vectors[1], _earth_rotation(t)[0]
+    return vectors[0], vectors[1], earth_rotation(t)[0]
 
 
 @lru_cache(maxsize=1)
@@ -150,16 +150,16 @@ def site_geometries(time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
         One per observer.
     """
     from skytorch.eclipse import shadow_radii
-    from skytorch.ephemeris import _geodetic_to_itrs, _horizontal_rows, altaz_from_horizontal
+    from skytorch.ephemeris import altaz_from_horizontal, geodetic_to_itrs, horizontal_rows
     from skytorch.moon.geometry import phase_angle
 
     sun, moon, rotation = apparent_geocentric(time)
     lat = torch.deg2rad(torch.as_tensor(np.asarray(lat_deg, float).reshape(-1)))
     lon = torch.deg2rad(torch.as_tensor(np.asarray(lon_deg, float).reshape(-1)))
     height = torch.as_tensor(np.asarray(elevation_m, float).reshape(-1))
-    rows = _horizontal_rows(lat, lon)  # (observer, 3, 3) Earth-fixed -> horizontal
+    rows = horizontal_rows(lat, lon)  # (observer, 3, 3) Earth-fixed -> horizontal
     # a few 3-vectors per observer: numpy from here (cheaper than torch for tiny arrays)
-    observer = np.einsum("oij,oj->oi", rows.numpy(), _geodetic_to_itrs(lat, lon, height).numpy())
+    observer = np.einsum("oij,oj->oi", rows.numpy(), geodetic_to_itrs(lat, lon, height).numpy())
     to_horizontal = rows.numpy() @ rotation.numpy()
     sun_h = to_horizontal @ sun.numpy() - observer
     moon_h = to_horizontal @ moon.numpy() - observer

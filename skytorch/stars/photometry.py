@@ -53,10 +53,10 @@ from skytorch._validate import (
 )
 from skytorch.spectrum import (
     BV_RANGE_MAG,
-    _srgb_transfer,
     blackbody_radiance,
     bv_to_temperature,
     spectrum_to_xyz,
+    srgb_transfer,
     temperature_to_srgb,
     v_band_response,
     xyz_to_linear_srgb,
@@ -498,7 +498,7 @@ def apparent_color(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     per_star = linear[:, lower + 1] * w + linear[:, lower] * (1.0 - w)  # (h, star, 3)
     per_star = per_star / per_star.amax(dim=-1, keepdim=True)
     if gamma:
-        per_star = _srgb_transfer(per_star)
+        per_star = srgb_transfer(per_star)
     values = per_star.permute(2, 1, 0).contiguous()  # (3, star, h)
     slopes = torch.diff(values, dim=-1, append=values[..., -1:])
     index, weight = table_lookup(apparent_altitude_rad, n_nodes)
