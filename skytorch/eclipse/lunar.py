@@ -199,8 +199,7 @@ def nearest_eclipse(date, enlargement: str = "danjon"):
     Returns the one-eclipse :func:`skytorch.eclipse.lunar_eclipses` Dataset (dimension
     ``eclipse`` of length 1); raises ValueError when no eclipse is that near.
     """
-    from skytorch.eclipse import lunar_eclipses
-    from skytorch.eclipse.circumstances import _parse_one, _search_range
+    from skytorch.eclipse.circumstances import _parse_one, _search_range, lunar_eclipses
     from skytorch.ephemeris import parse_times
 
     check_choice("enlargement", enlargement, ENLARGEMENTS)

@@ -91,9 +91,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-from functools import lru_cache
 
-import numpy as np
 import torch
 from torch import nn
 
@@ -122,6 +120,8 @@ from skytorch.eclipse.occlusion import (
     _safe_sqrt,
     sun_visible_fraction,
 )
+from skytorch.eclipse.occlusion import _nodes as _unit_gauss
+from skytorch.eclipse.shadow_scattering import ScatteringProfile, scattered_illuminance
 
 __all__ = [
     "EARTH_MEAN_TERRAIN_HEIGHT_M",
@@ -159,13 +159,6 @@ _RANK_TOLERANCE = 1e-13
 _COARSE_STRIDE = 4
 #: points per chunk in the ring integral (bounds the temporaries to ~100 MB)
 _CHUNK = 4096
-
-
-@lru_cache(maxsize=32)
-def _unit_gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss–Legendre nodes and weights on [0, 1]."""
-    x, w = np.polynomial.legendre.leggauss(n)
-    return 0.5 * (x + 1.0), 0.5 * w
 
 
 def solar_normalisation(sun_radius_rad, limb_darkening=0.6, law: str = "linear",
@@ -1046,8 +1039,6 @@ class Shadow(nn.Module):
         """
         if self.atmosphere is None or not self.scattering:
             return None
-        from skytorch.eclipse.shadow_scattering import ScatteringProfile
-
         _refuse_atmosphere_gradients(self.atmosphere, "the scattered light (scattering=True)")
         wavelength = _check_wavelength(wavelength_nm, torch.float64)
         key = tuple(round(float(x), 9) for x in wavelength)
@@ -1156,8 +1147,6 @@ class Shadow(nn.Module):
         total = direct[..., None, None] + ring / normalisation[..., None, None]
         scattering = self.scattering_profile(wavelength)
         if scattering is not None:
-            from skytorch.eclipse.shadow_scattering import scattered_illuminance
-
             total = total + scattered_illuminance(scattering, centre, sigma, scale)
         if not self.batch_shape:
             return total.squeeze(-2)

@@ -121,6 +121,7 @@ import torch
 
 from skytorch._validate import check_int, check_positive
 from skytorch.atmosphere.scattering import rayleigh_phase
+from skytorch.eclipse.occlusion import _nodes as _unit_gauss
 
 __all__ = [
     "DEFAULT_SCATTERING_RESOLUTION",
@@ -149,8 +150,6 @@ _RAY_CHUNK = 65536
 
 def _gauss(n: int, dtype=torch.float64):
     """Gauss–Legendre nodes and weights on [0, 1]."""
-    from skytorch.eclipse.shadow import _unit_gauss
-
     x, w = _unit_gauss(n)
     return torch.as_tensor(x, dtype=dtype), torch.as_tensor(w, dtype=dtype)
 

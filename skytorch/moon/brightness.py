@@ -47,7 +47,6 @@ from __future__ import annotations
 import math
 from types import MappingProxyType
 
-import numpy as np
 import torch
 
 from skytorch._validate import (
@@ -63,7 +62,7 @@ from skytorch.constants import (
     MEAN_EARTH_MOON_DISTANCE_M,
     MOON_RADIUS_M,
 )
-from skytorch.moon.disc import dark_disc_quadrature, lit_disc_quadrature
+from skytorch.moon.disc import _flag, dark_disc_quadrature, lit_disc_quadrature
 from skytorch.moon.reflectance import albedo, reflectance
 
 __all__ = [
@@ -97,13 +96,6 @@ MAX_QUADRATURE = 512
 
 def _quadrature(n_quadrature) -> int:
     return check_int("n_quadrature", n_quadrature, low=1, high=MAX_QUADRATURE)
-
-
-def _flag(name: str, value) -> bool:
-    """A boolean option; anything else (strings such as "no", numbers) is a TypeError."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False; got {value!r}")
-    return bool(value)
 
 
 def _phase(phase_angle_rad):

@@ -71,6 +71,13 @@ __all__ = [
 DISC_GRID_METHODS = ("polar", "pixels")
 
 
+def _flag(name: str, value) -> bool:
+    """A boolean option; anything else (strings such as "no", numbers) is a TypeError."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False; got {value!r}")
+    return bool(value)
+
+
 @lru_cache(maxsize=64)
 def _gauss_legendre_numpy(n: int):
     return np.polynomial.legendre.leggauss(n)
@@ -280,7 +287,6 @@ def disc_radiance(normal, phase_angle_rad, wavelength_nm, bright_limb_angle_rad=
     Tensor (..., n_point, n_wavelength)
         Spectral radiance [W m^-2 sr^-1 nm^-1] above the Earth's atmosphere.
     """
-    from skytorch.moon.brightness import _flag
     from skytorch.moon.earthshine import earth_angular_radius, earthshine_irradiance_ratio
     from skytorch.spectrum import solar_irradiance
 

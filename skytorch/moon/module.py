@@ -34,10 +34,10 @@ from skytorch._validate import (
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MEAN_EARTH_MOON_DISTANCE_M, MOON_RADIUS_M
 from skytorch.moon.brightness import (
     V_BAND_WAVELENGTHS_NM,
-    _flag,
     _quadrature,
     disc_integrated_reflectance,
 )
+from skytorch.moon.disc import _flag
 from skytorch.moon.earthshine import earthshine_irradiance_ratio
 from skytorch.moon.reflectance import REFLECTANCE_MODELS, _parameters, albedo
 
