@@ -76,6 +76,8 @@ from skytorch.constants import (
     SUN_RADIUS_M,
 )
 from skytorch.scene.geometry import Geometry, scene_geometry
+from skytorch.scene.geometry import clear_cache as clear_geometry
+from skytorch.scene.resources import cached_atmosphere, refracted_altitude
 
 logger = logging.getLogger(__name__)
 
@@ -211,8 +213,6 @@ def _deepest_sunlit_deg(turbidity: float, ozone_du: float) -> float:
     the observer's zenith (seen from the planet's centre); with the Sun deeper than
     twice that angle below the horizon all of it is in the Earth's shadow.
     """
-    from skytorch.scene.render import cached_atmosphere
-
     atm = cached_atmosphere(turbidity, ozone_du)
     return 2.0 * math.degrees(math.acos(atm.planet_radius_m / atm.top_radius_m))
 
@@ -239,7 +239,6 @@ def sky_flux_table(turbidity: float, ozone_du: float, elevation_m: float,
         where the flux is zero).
     """
     from skytorch.moon.sky import radiance_to_mag_arcsec2
-    from skytorch.scene.render import cached_atmosphere
 
     atm = cached_atmosphere(turbidity, ozone_du)
     low = -_deepest_sunlit_deg(turbidity, ozone_du) + segment * SKY_TABLE_SEGMENT_DEG
@@ -338,8 +337,6 @@ def _above_horizon(altitude_deg: float) -> bool:
 
 def _pixel_moves(scene, view, altitude_deg: float, azimuth_deg: float) -> tuple[bool, float]:
     """Whether refraction moves a point to another pixel, and the shift [rad]."""
-    from skytorch.scene.render import refracted_altitude
-
     true = torch.tensor([math.radians(altitude_deg)], dtype=torch.float64)
     apparent = torch.tensor([refracted_altitude(scene, math.radians(altitude_deg))],
                             dtype=torch.float64)
@@ -483,8 +480,6 @@ def plan(scene, view=None) -> Plan:
 
 def clear_cache() -> None:
     """Forget the geometry cached per time and site (a planner meeting a new instant)."""
-    from skytorch.scene.geometry import clear_cache as clear_geometry
-
     clear_geometry()
 
 

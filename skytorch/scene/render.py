@@ -45,6 +45,11 @@ import numpy as np
 import torch
 
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MOON_RADIUS_M, SUN_RADIUS_M
+from skytorch.scene.planner import EFFECTS, FIDELITY, HORIZON_REFRACTION_RAD, Plan, catalogue
+from skytorch.scene.planner import plan as make_plan
+from skytorch.scene.resources import _star_site_tables, cached_atmosphere, refracted_altitude
+from skytorch.scene.scene import Scene
+from skytorch.scene.tonemap import tonemap
 
 logger = logging.getLogger(__name__)
 
@@ -54,14 +59,6 @@ COMPONENTS = ("natural", "sky", "skyglow", "stars", "moon", "sun")
 RESOLVED_DISC_PIXELS = 16
 #: largest view zenith angle of the moonlit-sky table [rad] (its valid range is < 90°)
 _MAX_MOONLIT_ZENITH = math.radians(89.9)
-
-
-@lru_cache(maxsize=8)
-def cached_atmosphere(turbidity: float, ozone_du: float):
-    """``Atmosphere.earth(turbidity, ozone_du)``, shared by scenes with those parameters."""
-    from skytorch.atmosphere import Atmosphere
-
-    return Atmosphere.earth(turbidity=turbidity, ozone_du=ozone_du)
 
 
 @lru_cache(maxsize=8)
@@ -378,17 +375,6 @@ def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux
     return image.to(dtype)
 
 
-def refracted_altitude(scene, true_altitude_rad: float) -> float:
-    """Apparent altitude [rad] from a cached refraction table of the scene's site
-    (:func:`skytorch.stars.refraction_table`, ray-traced refraction of the atmosphere)."""
-    from skytorch.stars import refract
-
-    table, _ = _star_site_tables(float(scene.turbidity), float(scene.ozone_du),
-                                 float(scene.elevation_m), True)
-    true = torch.tensor([max(true_altitude_rad, math.radians(-1.0))], dtype=torch.float64)
-    return float(refract(true, table)[0])
-
-
 def _apparent(scene, altitude_deg: float, refraction: bool) -> float:
     true = math.radians(altitude_deg)
     return refracted_altitude(scene, true) if refraction else true
@@ -601,8 +587,6 @@ def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tens
 @lru_cache(maxsize=4)
 def _catalogue_spectra(limit_magnitude: float, wavelengths: tuple) -> torch.Tensor:
     """Spectra of V = 0 for every catalogue star (star, wl), cached."""
-    from skytorch.scene.planner import catalogue
-
     bv = torch.as_tensor(catalogue(limit_magnitude)["bv"].values, dtype=torch.float64)
     bv = torch.nan_to_num(bv, nan=0.65)  # stars without B-V: solar colour
     return star_spectra(torch.zeros_like(bv), bv, torch.tensor(wavelengths,
@@ -611,7 +595,6 @@ def _catalogue_spectra(limit_magnitude: float, wavelengths: tuple) -> torch.Tens
 
 @lru_cache(maxsize=4)
 def _star_vectors(limit_magnitude: float):
-    from skytorch.scene.planner import catalogue
     from skytorch.stars import star_vectors
 
     cat = catalogue(limit_magnitude)
@@ -620,16 +603,6 @@ def _star_vectors(limit_magnitude: float):
     return (vectors, torch.as_tensor(cat["vmag"].values, dtype=torch.float64),
             torch.as_tensor(cat["bv"].values, dtype=torch.float64),
             float(cat.attrs.get("epoch_jyear", 2000.0)))
-
-
-@lru_cache(maxsize=8)
-def _star_site_tables(turbidity: float, ozone_du: float, elevation_m: float,
-                      refraction: bool):
-    from skytorch.stars import extinction_table, refraction_table
-
-    atm = cached_atmosphere(turbidity, ozone_du)
-    return (refraction_table(atm, elevation_m) if refraction else None,
-            extinction_table(atm, elevation_m, refraction=refraction))
 
 
 def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
@@ -664,8 +637,6 @@ def occulted(scene, geometry, altitude_rad, azimuth_rad, refraction: bool) -> to
     are refracted alike, so the small flattening of the disc by differential refraction
     (under 1 % of its radius above 10° altitude) is neglected.
     """
-    from skytorch.scene.planner import HORIZON_REFRACTION_RAD
-
     if (math.radians(geometry.moon_altitude_deg) + geometry.moon_radius_rad
             + HORIZON_REFRACTION_RAD < 0.0):  # below the horizon even when refracted
         return torch.zeros(altitude_rad.shape, dtype=torch.bool)
@@ -780,8 +751,6 @@ def _fractional(nodes: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
 
 def render_components(scene, plan, view) -> tuple[dict, dict]:
     """Spectral radiance of each component (*view, wl) and the seconds each took."""
-    from skytorch.scene.planner import FIDELITY
-
     knobs = FIDELITY[scene.fidelity]
     wavelength = scene.wavelength_nm()
     g = plan.geometry
@@ -810,8 +779,6 @@ def render_components(scene, plan, view) -> tuple[dict, dict]:
 
 
 def _check_scene(scene) -> None:
-    from skytorch.scene.scene import Scene
-
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be a skytorch.Scene; got {type(scene).__name__}")
 
@@ -826,9 +793,6 @@ def render(scene, plan=None):
     plan : Plan, optional
         The planner's decision (:meth:`Scene.plan`; a list of them for several observers).
     """
-    from skytorch.scene.planner import Plan
-    from skytorch.scene.planner import plan as make_plan
-
     _check_scene(scene)
     if scene.several_observers:
         return render_observers(scene, plan)
@@ -866,7 +830,6 @@ def render_observers(scene, plans=None):
     xarray.Dataset
     """
     from skytorch.dataset import VariableSpec, coordinate, variable
-    from skytorch.scene.planner import Plan
 
     _check_scene(scene)
     singles = scene.observers()
@@ -900,7 +863,6 @@ def scene_dataset(scene, view, plan, components, total, seconds):
     """Dataset of a rendered scene: per-component and total radiance, XYZ, sRGB, V mag."""
     from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
     from skytorch.moon.sky import radiance_to_mag_arcsec2
-    from skytorch.scene.tonemap import tonemap
     from skytorch.spectrum import spectrum_to_xyz
 
     wavelength = scene.wavelength_nm()
@@ -1046,7 +1008,6 @@ def _stack(frames, dim: str, coordinate, title: str):
     import xarray as xr
 
     from skytorch.dataset import VariableSpec, variable
-    from skytorch.scene.planner import EFFECTS
 
     computed = [f.attrs["effects_computed"] for f in frames]
     skipped = [f.attrs["effects_skipped"] for f in frames]

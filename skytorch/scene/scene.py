@@ -48,6 +48,10 @@ import torch
 
 from skytorch._toml import loads as toml_loads
 from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
+from skytorch.scene.geometry import geometries, scene_geometry
+from skytorch.scene.planner import EFFECTS
+from skytorch.scene.planner import plan as make_plan
+from skytorch.scene.resources import cached_atmosphere, refracted_altitude
 
 #: view kinds of a scene
 VIEWS = ("fisheye", "panorama", "directions", "camera")
@@ -527,8 +531,6 @@ class Scene:
 
     def __post_init__(self):
         from skytorch.ephemeris import parse_times
-        from skytorch.scene.planner import EFFECTS
-        from skytorch.scene.render import cached_atmosphere
 
         self.time = parse_times(self.time)
         if self.time.shape != (1,):
@@ -681,9 +683,6 @@ class Scene:
         (refracted) place of its target."""
         if "target" not in self.camera:
             return float(self.camera["altitude_deg"]), float(self.camera["azimuth_deg"])
-        from skytorch.scene.geometry import scene_geometry
-        from skytorch.scene.render import refracted_altitude
-
         g = scene_geometry(self)
         body = self.camera["target"]
         altitude = getattr(g, f"{body}_altitude_deg")
@@ -692,8 +691,6 @@ class Scene:
 
     def atmosphere(self):
         """The scene's :class:`skytorch.atmosphere.Atmosphere` (cached per parameters)."""
-        from skytorch.scene.render import cached_atmosphere
-
         return cached_atmosphere(float(self.turbidity), float(self.ozone_du))
 
     def replace(self, **changes) -> Scene:
@@ -730,13 +727,10 @@ class Scene:
     def plan(self):
         """Decide the effects to compute (:func:`skytorch.scene.planner.plan`); a list of
         plans, one per observer, for several observers."""
-        from skytorch.scene.geometry import geometries
-        from skytorch.scene.planner import plan
-
         if not self.several_observers:
-            return plan(self)
+            return make_plan(self)
         geometries(self.time, self.lat_deg, self.lon_deg, self.elevation_m)  # one call
-        return [plan(scene) for scene in self.observers()]
+        return [make_plan(scene) for scene in self.observers()]
 
     def render(self, plan=None):
         """Render the scene to a Dataset (:func:`skytorch.scene.render.render`)."""
