@@ -195,8 +195,10 @@ def test_gradients_with_respect_to_turbidity_and_ozone():
         return Atmosphere.earth(turbidity=t, ozone_du=o).sky_radiance(
             WAVELENGTH, zenith, 0.0, 60.0 * DEGREE, 0.0, n_samples=16, sun_steps=4)
 
+    # eps 1e-4: tau is linear in ozone_du, and at 89 deg (tau = 18) a 1e-6 step leaves a
+    # float64 rounding error of 2e-9 in the central difference
     for function in (straight, refracted, sky):
-        assert gradcheck(function, (turbidity, ozone), eps=1e-6, atol=1e-9, rtol=1e-5)
+        assert gradcheck(function, (turbidity, ozone), eps=1e-4, atol=1e-9, rtol=1e-5)
 
 
 def test_rk4_backward_matches_finite_differences():
@@ -326,9 +328,9 @@ def test_cache_without_record_is_rebuilt(earth, tmp_path):
 # --- ozone outside its table ---------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("wavelength", [300.0, 359.9, 830.1, 900.0])
+@pytest.mark.parametrize("wavelength", [200.0, 213.9, 1100.1, 1200.0])
 def test_ozone_outside_its_table_is_refused(wavelength):
-    with pytest.raises(ValueError, match=r"wavelength_nm must be in \[360.0, 830.0\] nm") as info:
+    with pytest.raises(ValueError, match=r"wavelength_nm must be in \[214.0, 1100.0\] nm") as info:
         ozone_cross_section(_f64(wavelength))
     assert str(wavelength) in str(info.value)
     with pytest.raises(ValueError, match="wavelength_nm"):
@@ -451,7 +453,10 @@ def test_extreme_accepted_parameters_give_finite_optical_depths():
                 "ozone_half_width_m", "angstrom_beta"):
         low, high, inclusive, _ = PARAMETER_RANGES[key]
         for value in (low if inclusive else low * (1 + 1e-9) + 1e-300, high):
-            atm = Atmosphere.earth(**{key: value}) if key != "angstrom_beta" else Atmosphere(
+            # (ozone_temperature_k given: its default, the US 1976 temperature over the
+            # tent, is outside the cross-sections' 203-293 K for a 1e7 m half width)
+            atm = Atmosphere.earth(**{key: value}, ozone_temperature_k=223.0) if (
+                key != "angstrom_beta") else Atmosphere(
                 planet_radius_m=6.371e6, top_altitude_m=1e5, angstrom_beta=value)
             for dtype in (torch.float64, torch.float32):
                 tau = atm.optical_depth(WAVELENGTH.to(dtype), zenith.to(dtype), 10.0)

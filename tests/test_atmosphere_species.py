@@ -44,10 +44,11 @@ def test_ozone_optical_depth_300_du(wavelength, reference):
 
 
 def test_ozone_column_equals_dobson_units():
-    # vertical ozone optical depth = column [DU] * 2.687e20 m^-2 * cross-section
-    atm = Atmosphere.earth(turbidity=1.0, ozone_du=300.0)
+    # vertical ozone optical depth = column [DU] * 2.687e20 m^-2 * cross-section (the
+    # 600 nm, 223 K row of data/ozone_cross_section_serdyuchenko2014.csv)
+    atm = Atmosphere.earth(turbidity=1.0, ozone_du=300.0, ozone_temperature_k=223.0)
     tau = atm.optical_depth(torch.tensor([600.0], dtype=torch.float64), per_species=True)
-    assert float(tau["ozone"][0]) == pytest.approx(300 * 2.687e20 * 5.019e-25, rel=1e-9)
+    assert float(tau["ozone"][0]) == pytest.approx(300 * 2.687e20 * 5.1088e-25, rel=1e-9)
 
 
 def test_preetham_turbidity_aerosol_optical_depth():

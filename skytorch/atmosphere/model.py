@@ -12,7 +12,8 @@ times a spectral extinction coefficient at the reference level :math:`k_s(\\lamb
 * aerosols (Ångström law from Preetham turbidity or an optical depth at 550 nm;
   :mod:`skytorch.atmosphere.aerosol`), exponential profile, single-scattering albedo
   and Cornette–Shanks or Henyey–Greenstein phase function;
-* ozone (absorbing only; :mod:`skytorch.atmosphere.ozone`), tent profile with the
+* ozone (absorbing only; :mod:`skytorch.atmosphere.ozone`, 214–1100 nm at the layer's
+  temperature ``ozone_temperature_k``), tent profile with the
   column given in Dobson units.
 
 The refractivity :math:`n - 1` is proportional to the gas density,
@@ -68,6 +69,7 @@ from skytorch._validate import (
 )
 from skytorch.atmosphere import aerosol as _aerosol
 from skytorch.atmosphere import optical_depth as _od
+from skytorch.atmosphere import ozone as _ozone
 from skytorch.atmosphere import profiles as _profiles
 from skytorch.atmosphere import rayleigh as _rayleigh
 from skytorch.atmosphere.ozone import ozone_cross_section
@@ -116,8 +118,8 @@ _PARAMETERS = (
     "surface_pressure_pa", "surface_temperature_k", "gravity_m_s2", "molar_mass_kg_mol",
     "rayleigh_scale_height_m", "angstrom_beta", "angstrom_alpha", "aerosol_scale_height_m",
     "aerosol_single_scattering_albedo", "aerosol_asymmetry", "ozone_du",
-    "ozone_peak_altitude_m", "ozone_half_width_m", "reference_refractivity",
-    "reference_pressure_pa", "reference_temperature_k",
+    "ozone_peak_altitude_m", "ozone_half_width_m", "ozone_temperature_k",
+    "reference_refractivity", "reference_pressure_pa", "reference_temperature_k",
 )
 
 #: accepted range of every constructor parameter: (low, high, low inclusive, unit). The
@@ -140,6 +142,7 @@ PARAMETER_RANGES = {
     "ozone_du": (0.0, 1e5, True, " DU"),
     "ozone_peak_altitude_m": (0.0, 1e7, False, " m"),
     "ozone_half_width_m": (1.0, 1e7, True, " m"),
+    "ozone_temperature_k": (*_ozone.OZONE_TEMPERATURE_RANGE_K, True, " K"),
     "reference_refractivity": (0.0, 1e-2, True, ""),
     "reference_pressure_pa": (0.0, 1e8, False, " Pa"),
     "reference_temperature_k": (1.0, 1e4, True, " K"),
@@ -245,6 +248,11 @@ class Atmosphere(nn.Module):
         Ozone column [DU].
     ozone_peak_altitude_m, ozone_half_width_m : float or Tensor
         Altitude of the ozone peak and half width of the tent [m].
+    ozone_temperature_k : float or Tensor, optional
+        Temperature of the ozone cross-sections [K], in [203, 293] K; default: the
+        tent-weighted mean U.S. Standard Atmosphere 1976 temperature over the layer
+        (:func:`skytorch.atmosphere.ozone.ozone_effective_temperature`; 222.9 K for the
+        default tent 10–40 km).
     reference_refractivity, reference_pressure_pa, reference_temperature_k : float
         :math:`n - 1` at 589.3 nm and the pressure [Pa] and temperature [K] it refers to.
     name : str
@@ -281,6 +289,7 @@ class Atmosphere(nn.Module):
                  aerosol_asymmetry=EARTH_AEROSOL_ASYMMETRY,
                  aerosol_phase_model: str = "cornetteshanks1992",
                  ozone_du=0.0, ozone_peak_altitude_m=25_000.0, ozone_half_width_m=15_000.0,
+                 ozone_temperature_k=None,
                  reference_refractivity: float = EARTH_REFRACTIVITY_SEA_LEVEL,
                  reference_pressure_pa: float = STANDARD_PRESSURE_PA,
                  reference_temperature_k: float = STANDARD_TEMPERATURE_K,
@@ -323,6 +332,7 @@ class Atmosphere(nn.Module):
             "reference_temperature_k": reference_temperature_k,
         }
         values = {key: _check_parameter(key, value) for key, value in given.items()}
+        values["ozone_temperature_k"] = self._ozone_temperature(ozone_temperature_k, values)
         for key, value in values.items():
             # not detached: parameters given as tensors with requires_grad stay
             # differentiable (e.g. fitting turbidity to observed extinction)
@@ -532,6 +542,24 @@ class Atmosphere(nn.Module):
             return self._p("aerosol_scale_height_m", dtype, extra)
         return self._p("ozone_half_width_m", dtype, extra)
 
+    @staticmethod
+    def _ozone_temperature(given, values: dict) -> torch.Tensor:
+        """``ozone_temperature_k`` checked, or by default the US 1976 tent average [K]."""
+        if given is not None:
+            return _check_parameter("ozone_temperature_k", given)
+        temperature = _ozone.ozone_effective_temperature(values["ozone_peak_altitude_m"],
+                                                         values["ozone_half_width_m"])
+        low, high = _ozone.OZONE_TEMPERATURE_RANGE_K
+        with torch.no_grad():
+            bad = (temperature < low) | (temperature > high)
+            if bool(bad.any()):
+                raise ValueError(
+                    f"ozone_temperature_k must be in [{low}, {high}] K; its default, the US "
+                    "1976 temperature averaged over the ozone tent (ozone_peak_altitude_m, "
+                    f"ozone_half_width_m), is {float(temperature[bad].reshape(-1)[0]):.2f} K "
+                    "there: pass ozone_temperature_k or a lower ozone layer")
+        return temperature
+
     def _ozone_absent(self) -> bool:
         """Whether the ozone column is exactly zero everywhere and needs no gradient."""
         ozone = self.ozone_du
@@ -543,7 +571,7 @@ class Atmosphere(nn.Module):
 
         ``extra`` geometry dims are placed between the batch dims and the wavelength.
         Without ozone (a zero column that needs no gradient) its coefficient is exactly
-        zero at every wavelength, so the cross-section table (360-830 nm) is not needed.
+        zero at every wavelength, so the cross-section table (214-1100 nm) is not needed.
         """
         dtype = wavelength_nm.dtype
         if dtype != torch.float64:
@@ -563,7 +591,8 @@ class Atmosphere(nn.Module):
         if self._ozone_absent():
             ozone = column * torch.zeros_like(wavelength_nm)
         else:
-            ozone = column * ozone_cross_section(wavelength_nm)
+            ozone = column * ozone_cross_section(
+                wavelength_nm, self._p("ozone_temperature_k", dtype, extra + 1))
         return {"rayleigh": rayleigh, "aerosol": aerosol, "ozone": ozone}
 
     def reference_extinction(self, wavelength_nm) -> dict[str, torch.Tensor]:
@@ -817,8 +846,8 @@ class Atmosphere(nn.Module):
         Parameters
         ----------
         wavelength_nm : Tensor (wavelength,)
-            Wavelength [nm], in :data:`WAVELENGTH_RANGE_NM` (360–830 nm where the ozone
-            column is not zero: the range of the ozone cross-sections).
+            Wavelength [nm], in :data:`WAVELENGTH_RANGE_NM` (230–1100 nm where the ozone
+            column is not zero: up to 1100 nm, the end of the ozone cross-sections).
         zenith_rad : Tensor (...)
             Zenith angle of the viewing direction at the observer [rad]; > π/2 looks
             down (the ray may hit the ground).

@@ -105,7 +105,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: bump when the layout or the numerics of the table change (invalidates caches)
-TABLE_FORMAT_VERSION = 3
+TABLE_FORMAT_VERSION = 4
 
 _REFERENCES = [
     "Bruneton, E. 2017, Precomputed Atmospheric Scattering: a New Implementation, "

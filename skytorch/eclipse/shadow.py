@@ -746,7 +746,7 @@ def _atmosphere_gradients(atmosphere) -> list[str]:
 #: quadrature nodes do not depend on them)
 EXTINCTION_PARAMETERS = ("angstrom_beta", "angstrom_alpha", "aerosol_scale_height_m",
                          "aerosol_single_scattering_albedo", "aerosol_asymmetry", "ozone_du",
-                         "ozone_peak_altitude_m", "ozone_half_width_m")
+                         "ozone_peak_altitude_m", "ozone_half_width_m", "ozone_temperature_k")
 
 
 def _refuse_atmosphere_gradients(atmosphere, what: str) -> None:
