@@ -50,6 +50,8 @@ import numpy as np
 import torch
 import xarray as xr
 
+from skytorch import __version__
+
 __all__ = [
     "VariableSpec",
     "build_dataset",
@@ -223,8 +225,6 @@ def build_dataset(
     ValueError
         If a dimension has no coordinate.
     """
-    from skytorch import __version__
-
     dataset = xr.Dataset(dict(data_vars), coords=dict(coords))
     uncovered = [dim for dim in dataset.dims if dim not in dataset.coords]
     if uncovered:

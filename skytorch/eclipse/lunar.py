@@ -43,8 +43,14 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_choice, check_finite, check_int
-from skytorch.constants import EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
+from skytorch._validate import check_choice, check_finite, check_int, check_positive, check_range
+from skytorch.atmosphere import Atmosphere
+from skytorch.atmosphere.aerosol import (
+    ANGSTROM_REFERENCE_NM,
+    PREETHAM_ANGSTROM_ALPHA,
+    preetham_angstrom_beta,
+)
+from skytorch.constants import EARTH_AEROSOL_SCALE_HEIGHT_M, EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
 from skytorch.dataset import (
     VariableSpec,
     build_dataset,
@@ -53,8 +59,14 @@ from skytorch.dataset import (
     to_numpy,
     variable,
 )
+from skytorch.eclipse.circumstances import _parse_one, _search_range, lunar_eclipses
 from skytorch.eclipse.cone import ENLARGEMENTS
-from skytorch.eclipse.shadow import Shadow  # re-exported by the package
+from skytorch.eclipse.occlusion import sun_visible_fraction
+from skytorch.eclipse.shadow import (
+    Shadow,  # re-exported by the package
+    _check_wavelength,
+    shadow_angles,
+)
 from skytorch.eclipse.shadow_table import ShadowTable
 
 __all__ = [
@@ -105,15 +117,6 @@ def volcanic_atmosphere(turbidity=2.0, ozone_du=300.0, *, density_factor=2.0,
     -------
     skytorch.atmosphere.Atmosphere
     """
-    from skytorch._validate import check_positive, check_range
-    from skytorch.atmosphere import Atmosphere
-    from skytorch.atmosphere.aerosol import (
-        ANGSTROM_REFERENCE_NM,
-        PREETHAM_ANGSTROM_ALPHA,
-        preetham_angstrom_beta,
-    )
-    from skytorch.constants import EARTH_AEROSOL_SCALE_HEIGHT_M
-
     turbidity = check_range("turbidity", turbidity, 1.0, 64.0)
     if turbidity.numel() != 1:
         raise ValueError(f"turbidity must be one number; got shape {tuple(turbidity.shape)}")
@@ -199,7 +202,6 @@ def nearest_eclipse(date, enlargement: str = "danjon"):
     Returns the one-eclipse :func:`skytorch.eclipse.lunar_eclipses` Dataset (dimension
     ``eclipse`` of length 1); raises ValueError when no eclipse is that near.
     """
-    from skytorch.eclipse.circumstances import _parse_one, _search_range, lunar_eclipses
     from skytorch.ephemeris import parse_times
 
     check_choice("enlargement", enlargement, ENLARGEMENTS)
@@ -352,7 +354,6 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     ``flux`` is (n_time, *B, n_wavelength) for a shadow with atmosphere batch shape ``B``;
     ``flux_full`` (the uneclipsed Moon) is (n_time, n_wavelength).
     """
-    from skytorch.eclipse.shadow import _check_wavelength
     from skytorch.ephemeris import sun_moon_vectors
     from skytorch.moon.disc import disc_grid, disc_radiance
     from skytorch.spectrum import wavelength_grid
@@ -684,9 +685,6 @@ def _shadow_lookup(table, sun):
     (:func:`sun_visible_fraction` with the top of the atmosphere as occluder), for Sun
     vectors (n, 3).
     """
-    from skytorch.eclipse.occlusion import sun_visible_fraction
-    from skytorch.eclipse.shadow import shadow_angles
-
     distance = torch.linalg.norm(sun, dim=-1)
 
     def function(along, offset):

@@ -120,7 +120,7 @@ import math
 import torch
 
 from skytorch._validate import check_int, check_positive
-from skytorch.atmosphere.scattering import rayleigh_phase
+from skytorch.atmosphere.scattering import phase_function, rayleigh_phase
 from skytorch.eclipse.occlusion import _nodes as _unit_gauss
 
 __all__ = [
@@ -365,8 +365,6 @@ def _aerosol_phase(atmosphere, cos_theta: torch.Tensor, n_batch: int) -> torch.T
     """Aerosol phase function (..., n_batch) [1/sr] for every member."""
     batch = tuple(getattr(atmosphere, "batch_shape", ()))
     g = atmosphere.aerosol_asymmetry.to(cos_theta.dtype)
-    from skytorch.atmosphere.scattering import phase_function
-
     if g.ndim == 0:
         return phase_function(cos_theta, g, atmosphere.aerosol_phase_model)[..., None].expand(
             *cos_theta.shape, n_batch)

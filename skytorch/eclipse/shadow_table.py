@@ -72,6 +72,12 @@ from skytorch._validate import (
     common_dtype,
 )
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, to_numpy, variable
+from skytorch.eclipse.shadow import (
+    Shadow,
+    _check_wavelength,
+    _refuse_atmosphere_gradients,
+    shadow_angles,
+)
 
 __all__ = [
     "INTERPOLATIONS",
@@ -327,8 +333,6 @@ class ShadowTable(nn.Module):
         """
         from tqdm.auto import tqdm
 
-        from skytorch.eclipse.shadow import Shadow, _refuse_atmosphere_gradients
-
         if not isinstance(shadow, Shadow):
             raise TypeError(f"shadow must be a skytorch.eclipse.Shadow; got "
                             f"{type(shadow).__name__}: {shadow!r:.60}")
@@ -356,8 +360,6 @@ class ShadowTable(nn.Module):
         # illuminance is evaluated in ``dtype``
         u = torch.linspace(u_low, u_high, n_u, dtype=torch.float64)
         v = torch.linspace(0.0, 1.0, n_v, dtype=torch.float64)
-        from skytorch.eclipse.shadow import _check_wavelength
-
         wavelength = _check_wavelength(wavelength_nm, dtype)
         position = shadow_uv_inverse(u[:, None].expand(n_u, n_v), v[None, :].expand(n_u, n_v),
                                      big_d, r_s, r_o)
@@ -440,8 +442,6 @@ class ShadowTable(nn.Module):
         -------
         Tensor (..., wavelength) or (..., *B, wavelength) for a batched table
         """
-        from skytorch.eclipse.shadow import shadow_angles
-
         dtype = common_dtype(distance_m, offset_m)
         distance = check_range("distance_m", distance_m, unit=" m", dtype=dtype)
         offset = check_range("offset_m", offset_m, 0.0, unit=" m", dtype=dtype)
@@ -488,8 +488,6 @@ class ShadowTable(nn.Module):
                     f"wavelength_nm: the table was built for {ours.tolist()} nm; got "
                     f"{wavelength.tolist()} nm (build a table for these wavelengths)")
         if shadow is not None:
-            from skytorch.eclipse.shadow import Shadow
-
             if not isinstance(shadow, Shadow):
                 raise TypeError(f"shadow must be a skytorch.eclipse.Shadow; got "
                                 f"{type(shadow).__name__}")

@@ -63,6 +63,7 @@ from skytorch.constants import (
     MOON_RADIUS_M,
 )
 from skytorch.moon.disc import _flag, dark_disc_quadrature, lit_disc_quadrature
+from skytorch.moon.earthshine import earth_angular_radius, earthshine_irradiance_ratio
 from skytorch.moon.reflectance import albedo, reflectance
 
 __all__ = [
@@ -171,8 +172,6 @@ def disc_integrated_reflectance(phase_angle_rad, *, model: str = "hapke2012",
     n = _quadrature(n_quadrature)
     alpha = _phase(phase_angle_rad)
     if _flag("earthshine", earthshine):
-        from skytorch.moon.earthshine import earth_angular_radius
-
         g = earth_angular_radius(distance_m).to(alpha.dtype)
         check_broadcastable(phase_angle_rad=alpha, distance_m=g)
         mu0, mu, weight = dark_disc_quadrature(alpha, n)
@@ -246,8 +245,6 @@ def lunar_irradiance(phase_angle_rad, wavelength_nm, *, distance_m=MEAN_EARTH_MO
     q = disc_integrated_reflectance(alpha, model=model, parameters=parameters,
                                     n_quadrature=n_quadrature)
     if earthshine:
-        from skytorch.moon.earthshine import earthshine_irradiance_ratio
-
         q_earth = disc_integrated_reflectance(alpha, model=model, parameters=parameters,
                                               n_quadrature=n_quadrature, earthshine=True,
                                               distance_m=d)

@@ -52,6 +52,7 @@ from skytorch._validate import (
     common_dtype,
 )
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MEAN_EARTH_MOON_DISTANCE_M, MOON_RADIUS_M
+from skytorch.moon.earthshine import earth_angular_radius, earthshine_irradiance_ratio
 from skytorch.moon.reflectance import REFLECTANCE_MODELS, reflectance
 
 __all__ = [
@@ -287,7 +288,6 @@ def disc_radiance(normal, phase_angle_rad, wavelength_nm, bright_limb_angle_rad=
     Tensor (..., n_point, n_wavelength)
         Spectral radiance [W m^-2 sr^-1 nm^-1] above the Earth's atmosphere.
     """
-    from skytorch.moon.earthshine import earth_angular_radius, earthshine_irradiance_ratio
     from skytorch.spectrum import solar_irradiance
 
     dtype = common_dtype(phase_angle_rad, normal)

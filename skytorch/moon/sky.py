@@ -60,6 +60,8 @@ from skytorch.constants import (
     MEAN_EARTH_MOON_DISTANCE_M,
     NATURAL_ZENITH_SKY_MAG_ARCSEC2,
 )
+from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM, lunar_irradiance
+from skytorch.moon.geometry import angle_between
 
 __all__ = [
     "KS1991_EXTINCTION_MAG",
@@ -267,8 +269,6 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
     """
     from skytorch.atmosphere.geometry import distance_to_top
     from skytorch.atmosphere.scattering import rayleigh_phase
-    from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM, lunar_irradiance
-    from skytorch.moon.geometry import angle_between
 
     _check_atmosphere(atmosphere, ("optical_depth", "scattering_coefficients",
                                    "extinction_coefficient", "aerosol_phase"))

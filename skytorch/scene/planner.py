@@ -70,6 +70,7 @@ import numpy as np
 import torch
 
 from skytorch.constants import (
+    ASTRONOMICAL_UNIT_M,
     EARTH_MEAN_RADIUS_M,
     EARTH_TOP_OF_ATMOSPHERE_M,
     MOON_RADIUS_M,
@@ -264,8 +265,6 @@ def _moon_fluxes(geometry: Geometry) -> tuple[float, float]:
     """V flux of the Moon with earthshine and of its earthshine alone (relative to V = 0),
     interpolated in a table of :func:`skytorch.moon.magnitude` over phase angle and
     distance (:func:`moon_flux_table`)."""
-    from skytorch.constants import ASTRONOMICAL_UNIT_M
-
     alpha, distance, table = moon_flux_table()
     u = min(max(geometry.phase_angle_rad, 0.0), math.pi) / math.pi * (alpha.size - 1)
     v = (min(max(geometry.moon_distance_m, distance[0]), distance[-1]) - distance[0]) / (

@@ -44,6 +44,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
+from skytorch._validate import as_tensor
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MOON_RADIUS_M, SUN_RADIUS_M
 from skytorch.scene.planner import EFFECTS, FIDELITY, HORIZON_REFRACTION_RAD, Plan, catalogue
 from skytorch.scene.planner import plan as make_plan
@@ -434,8 +435,6 @@ def natural_gradient(zenith_rad, airglow_fraction: float = 0.6,
     >>> round(float(natural_gradient(torch.tensor(math.pi / 2))), 2)
     4.01
     """
-    from skytorch._validate import as_tensor
-
     zenith_rad = as_tensor("zenith_rad", zenith_rad)
     if not 0.0 <= observer_height_m < airglow_height_m:
         raise ValueError(f"observer_height_m must be in [0, airglow_height_m = "

@@ -44,6 +44,7 @@ import numpy as np
 import torch
 
 from skytorch._validate import as_tensor, check_finite, check_int, check_range
+from skytorch.skyglow.lamps import luminance_weights
 from skytorch.skyglow.model import (
     SkyglowModel,
     _linear_weights,
@@ -210,8 +211,6 @@ def pollution_influence(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
 def region_luminance(model: SkyglowModel, flux: torch.Tensor, cells, region: torch.Tensor,
                      observer_xy, observer_altitude_m, lamp) -> torch.Tensor:
     """Mean luminance [cd m^-2] over the region's pixels for the given fluxes (y, x)."""
-    from skytorch.skyglow.lamps import luminance_weights
-
     check_model("model", model)
     region = check_region(model, region)
     flux = as_tensor("flux", flux)

@@ -56,6 +56,13 @@ from skytorch._validate import (
 )
 from skytorch.skyglow.basis import fit_basis, resolve_components
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
+from skytorch.skyglow.lamps import luminance_weights
+from skytorch.skyglow.units import (
+    NATURAL_ZENITH_SKY_MAG_ARCSEC2,
+    artificial_to_natural_ratio,
+    naked_eye_limiting_magnitude,
+    total_mag_arcsec2,
+)
 
 __all__ = ["DISTANCE_SPACINGS", "RESAMPLINGS", "SkyglowModel", "SplatPlan", "light_map_arrays"]
 
@@ -1176,9 +1183,6 @@ class SkyglowModel(nn.Module):
         TypeError
             For non-numeric inputs, a malformed lamp spectrum or a non-boolean option.
         """
-        from skytorch.skyglow.lamps import luminance_weights
-        from skytorch.skyglow.units import NATURAL_ZENITH_SKY_MAG_ARCSEC2
-
         as_dataset = check_flag("as_dataset", as_dataset)
         check_choice("resampling", resampling, RESAMPLINGS)
         natural = NATURAL_ZENITH_SKY_MAG_ARCSEC2 if natural_mag_arcsec2 is None else float(
@@ -1205,11 +1209,6 @@ class SkyglowModel(nn.Module):
     def _dataset(self, outputs, cells, observer_xy, observer_altitude_m, lamp, natural,
                  single, **resampling):
         from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
-        from skytorch.skyglow.units import (
-            artificial_to_natural_ratio,
-            naked_eye_limiting_magnitude,
-            total_mag_arcsec2,
-        )
 
         prefix = () if single else ("observer",)
         luminance = outputs["luminance"].detach()

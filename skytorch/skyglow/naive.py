@@ -23,6 +23,7 @@ import torch
 
 from skytorch._validate import check_choice, check_int
 from skytorch.skyglow.kernel import Medium, kernel_radiance
+from skytorch.skyglow.lamps import luminance_weights
 from skytorch.skyglow.model import (
     SkyglowModel,
     check_flag,
@@ -32,6 +33,7 @@ from skytorch.skyglow.model import (
     observer_positions,
     polar_offsets,
 )
+from skytorch.skyglow.units import NATURAL_ZENITH_SKY_MAG_ARCSEC2
 
 __all__ = ["NAIVE_SOURCES", "kernel_table_sum", "naive_radiance_per_lumen", "render_naive"]
 
@@ -161,9 +163,6 @@ def render_naive(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
     >>> ds["luminance"].dims
     ('elevation', 'azimuth')
     """
-    from skytorch.skyglow.lamps import luminance_weights
-    from skytorch.skyglow.units import NATURAL_ZENITH_SKY_MAG_ARCSEC2
-
     check_model("model", model)
     as_dataset = check_flag("as_dataset", as_dataset)
     cells = light_map_arrays(light_map, x_m, y_m, altitude_m)

@@ -32,7 +32,7 @@ from skytorch._validate import (
     check_range,
 )
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
-from skytorch.ephemeris import check_observer, parse_times
+from skytorch.ephemeris import check_observer, parse_times, sun_moon
 from skytorch.stars.photometry import (
     apparent_color,
     apparent_color_table,
@@ -536,8 +536,6 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     limit = limiting_magnitude(sky)
     factor = None
     if visibility == "muller2012":
-        from skytorch.ephemeris import sun_moon
-
         sun = sun_moon(values, lat, lon, elevation)
         factor = muller_day_night_factor(torch.deg2rad(
             torch.as_tensor(sun["sun_altitude"].values, dtype=dtype)))
