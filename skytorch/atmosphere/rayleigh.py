@@ -38,7 +38,13 @@ import math
 import torch
 
 from skytorch._validate import check_choice, check_positive, check_range
-from skytorch.constants import AVOGADRO_PER_MOL, BOLTZMANN_J_K
+from skytorch.constants import (
+    AVOGADRO_PER_MOL,
+    BOLTZMANN_J_K,
+    MARS_REFRACTIVITY_SURFACE,
+    MARS_SURFACE_PRESSURE_PA,
+    MARS_SURFACE_TEMPERATURE_K,
+)
 
 __all__ = [
     "RAYLEIGH_GASES",
@@ -191,11 +197,6 @@ def rayleigh_cross_section(wavelength_nm, gas: str = "air", *, co2_ppv: float = 
         return _lorentz_lorenz_cross_section(
             wavelength_nm, air_refractivity(wavelength_nm, co2_ppv),
             STANDARD_AIR_NUMBER_DENSITY_M3, air_king_factor(wavelength_nm, co2_ppv)).to(dtype)
-    from skytorch.constants import (
-        MARS_REFRACTIVITY_SURFACE,
-        MARS_SURFACE_PRESSURE_PA,
-        MARS_SURFACE_TEMPERATURE_K,
-    )
     refractivity = MARS_REFRACTIVITY_SURFACE if reference_refractivity is None \
         else reference_refractivity
     density = (MARS_SURFACE_PRESSURE_PA / (BOLTZMANN_J_K * MARS_SURFACE_TEMPERATURE_K)

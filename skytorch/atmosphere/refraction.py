@@ -106,6 +106,8 @@ from skytorch._validate import (
     common_dtype,
 )
 from skytorch.atmosphere.geometry import texture_coordinates, texture_rays
+from skytorch.atmosphere.optical_depth import check_rtol
+from skytorch.atmosphere.rayleigh import refractivity_dispersion
 
 __all__ = [
     "METHODS",
@@ -466,8 +468,6 @@ class _Dispersive:
     """
 
     def __init__(self, atm, wavelength_nm: torch.Tensor):
-        from skytorch.atmosphere.rayleigh import refractivity_dispersion
-
         self.wrapped = atm
         self.factor = refractivity_dispersion(wavelength_nm)
         self.planet_radius_m = atm.planet_radius_m
@@ -831,8 +831,6 @@ def bent_optical_depth(
     >>> tuple(tau.shape)
     (2, 1)
     """
-    from skytorch.atmosphere.optical_depth import check_rtol
-
     method, n_nodes = _check_method(method, n_nodes, n_steps)
     check_rtol(rtol)
     if not isinstance(per_species, bool):

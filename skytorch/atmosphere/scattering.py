@@ -27,7 +27,15 @@ import math
 
 import torch
 
-from skytorch._validate import broadcast_shape, check_choice, check_range
+from skytorch._validate import (
+    broadcast_shape,
+    check_choice,
+    check_finite,
+    check_int,
+    check_range,
+    common_dtype,
+)
+from skytorch.atmosphere.geometry import _distance_to_ground, _distance_to_top, _ray_hits_ground
 
 __all__ = [
     "PHASE_FUNCTIONS",
@@ -167,12 +175,6 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     :math:`T(0 \\to s)` integrated along the view ray (trapezoid on the samples) and
     :math:`T_\\odot(s) = 0` where the ray to the Sun meets the planet (its shadow).
     """
-    from skytorch._validate import check_finite, check_int, common_dtype
-    from skytorch.atmosphere.geometry import (
-        _distance_to_ground,
-        _distance_to_top,
-        _ray_hits_ground,
-    )
     from skytorch.atmosphere.model import Atmosphere
 
     if not isinstance(atmosphere, Atmosphere):
