@@ -273,7 +273,14 @@ def loaded_with(module: str) -> set[str]:
 def test_no_needless_function_level_imports():
     """An import inside a function is for a module that importing this one does not load
     anyway (an optional or costly dependency, imported when first needed); one of a module
-    that is loaded already saves nothing and only hides the dependency (or a loop)."""
+    that is loaded already saves nothing and only hides the dependency (or a loop).
+
+    The late imports left are of other packages and of optional dependencies (matplotlib,
+    zarr, dask, tqdm, miepython). Measured: ``import skytorch.scene`` takes about 0.05 s
+    after torch, numpy and xarray (about 3 s themselves); loading the physics packages it
+    uses (atmosphere, stars, moon, eclipse, skyglow, ephemeris, spectrum) and skyfield at
+    the top would add about 0.2-0.3 s to every import of the package.
+    """
     bad = []
     for name in MODULES:
         loaded = loaded_with(name)
