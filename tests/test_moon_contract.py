@@ -28,12 +28,6 @@ PI = math.pi
 # ------------------------------------------------------------------------------ helpers ---
 
 
-
-
-
-
-
-
 BAD = bad_values()
 PHASE_VALID = [0.0, PI, -PI, 1e-12, PI - 1e-9, 1.0, torch.tensor([0, 1, 3]),
                torch.tensor([0.0, PI / 2, PI]), torch.tensor([[0.3], [2.0]]),

@@ -47,10 +47,6 @@ SETTINGS = settings(max_examples=60, derandomize=True, deadline=None)
 BAD = bad_values()
 
 
-
-
-
-
 @pytest.fixture(scope="module")
 def model():
     return cached_model()

@@ -36,10 +36,6 @@ SETTINGS = settings(max_examples=60, derandomize=True, deadline=None)
 BAD = bad_values()
 
 
-
-
-
-
 @pytest.fixture(scope="module")
 def atmosphere():
     from skytorch.atmosphere import Atmosphere
