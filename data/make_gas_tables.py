@@ -42,9 +42,8 @@ Usage (from the repository root)::
 
 Binning: every cross-section is put on a 0.01 nm grid (linear interpolation of the
 source samples; the Serdyuchenko files already are on it) and averaged over 1 nm bins
-[lambda - 0.5, lambda + 0.5) centred on whole nanometres (unlike the 10 nm bins of
-``ozone_cross_section_serdyuchenko2014_233k.csv``, which are labelled by their lower
-edge). At the ends of a source's range only the covered part of a bin is averaged, and
+[lambda - 0.5, lambda + 0.5) centred on whole nanometres (in the Huggins band a bin
+labelled by its lower edge would sit 23 % below the point value at 320 nm). At the ends of a source's range only the covered part of a bin is averaged, and
 a bin is written when at least half of it is covered.
 """
 
