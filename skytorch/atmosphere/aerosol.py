@@ -1,4 +1,5 @@
-"""Aerosol optical properties: Ångström law, Preetham turbidity, Mars dust.
+"""Aerosol optical properties: Ångström law, Preetham turbidity, Mars dust, and the
+stratospheric sulfate layer.
 
 The aerosol optical depth follows the Ångström law
 :math:`\\tau_a(\\lambda) = \\beta (\\lambda / 1\\,\\mu m)^{-\\alpha}` (ref. 1). From
@@ -17,26 +18,61 @@ References
    doi:10.1016/j.icarus.2014.03.029.
 4. Tomasko, M. G. et al. 1999, "Properties of dust in the Martian atmosphere from the
    Imager on Mars Pathfinder", J. Geophys. Res. 104, 8987, doi:10.1029/1998JE900016.
+5. Deshler, T. et al. 2003, "Thirty years of in situ stratospheric aerosol size
+   distribution measurements from Laramie, Wyoming (41°N), using balloon-borne
+   instruments", J. Geophys. Res. 108(D5), 4167, doi:10.1029/2002JD002514.
+6. Palmer, K. F. & Williams, D. 1975, "Optical constants of sulfuric acid; application
+   to the clouds of Venus?", Appl. Opt. 14, 208, doi:10.1364/AO.14.000208.
+7. Henyey, L. G. & Greenstein, J. L. 1941, "Diffuse radiation in the Galaxy", ApJ 93,
+   70, doi:10.1086/144246.
+
+Stratospheric sulfate layer
+---------------------------
+Droplets of 75 % H2SO4 (refractive index 1.43 + 1e-8 i, ref. 6) with a lognormal size
+distribution (median radius 0.08 um, geometric standard deviation 1.8; ref. 5): the
+extinction relative to 550 nm, the single-scattering albedo and the asymmetry parameter
+come from Mie theory, tabulated 230–1690 nm in ``data/aerosol_mie_sulfate.csv``
+(generator: ``data/make_aerosol_tables.py``) and interpolated linearly; the phase
+function is Henyey–Greenstein (ref. 7) with the tabulated asymmetry. The vertical profile
+is a Gaussian in altitude, :func:`gaussian_layer`, whose integral from the ground to the
+top of the atmosphere is :func:`gaussian_layer_column` (closed form with erf).
 
 Examples
 --------
 >>> from skytorch.atmosphere.aerosol import preetham_angstrom_beta
 >>> round(float(preetham_angstrom_beta(2.0)), 5)
 0.0463
+>>> ratio, albedo, g = sulfate_mie_properties(torch.tensor([550.0, 1000.0]))
+>>> [round(float(v), 3) for v in ratio]
+[1.0, 0.345]
 """
 
 from __future__ import annotations
 
+import math
+from functools import lru_cache
+
+import numpy as np
 import torch
 
-from skytorch._validate import as_tensor
+from skytorch._data import data_path
+from skytorch._validate import as_tensor, check_range
 
 __all__ = [
     "MARS_DUST",
     "PREETHAM_ANGSTROM_ALPHA",
+    "SULFATE_RANGE_NM",
     "angstrom_optical_depth",
+    "gaussian_layer",
+    "gaussian_layer_column",
     "preetham_angstrom_beta",
+    "sulfate_mie_properties",
 ]
+
+#: shipped Mie table of the stratospheric sulfate aerosol (``data/``)
+SULFATE_TABLE = "aerosol_mie_sulfate.csv"
+#: wavelengths the sulfate table covers [nm]
+SULFATE_RANGE_NM = (230.0, 1690.0)
 
 #: Ångström exponent of Preetham's turbidity model (ref. 2)
 PREETHAM_ANGSTROM_ALPHA = 1.3
@@ -92,3 +128,93 @@ def angstrom_optical_depth(wavelength_nm, beta, alpha) -> torch.Tensor:
     beta = torch.as_tensor(beta, dtype=wavelength_nm.dtype)
     alpha = torch.as_tensor(alpha, dtype=wavelength_nm.dtype)
     return beta[..., None] * (wavelength_nm / ANGSTROM_REFERENCE_NM) ** (-alpha[..., None])
+
+
+@lru_cache(maxsize=1)
+def _sulfate_table() -> np.ndarray:
+    """Rows (wavelength_nm, extinction_550, single_scattering_albedo, asymmetry)."""
+    path = data_path(SULFATE_TABLE)
+    table = np.loadtxt(path, delimiter=",", comments="#", skiprows=5)
+    grid = table[:, 0]
+    if not (np.all(np.diff(grid) > 0.0) and grid[0] == SULFATE_RANGE_NM[0]
+            and grid[-1] == SULFATE_RANGE_NM[1]):
+        raise ValueError(f"{SULFATE_TABLE} does not span {SULFATE_RANGE_NM} nm in order")
+    return table
+
+
+@lru_cache(maxsize=4)
+def _sulfate_tensors(dtype: torch.dtype) -> torch.Tensor:
+    return torch.as_tensor(np.ascontiguousarray(_sulfate_table().T), dtype=dtype)
+
+
+def sulfate_mie_properties(wavelength_nm):
+    """Mie optical properties of the stratospheric sulfate aerosol (75 % H2SO4).
+
+    Linear interpolation of ``data/aerosol_mie_sulfate.csv`` (lognormal size
+    distribution, r_g = 0.08 um, sigma_g = 1.8, m = 1.43 + 1e-8 i; refs. 5, 6).
+
+    Parameters
+    ----------
+    wavelength_nm : Tensor (...)
+        Wavelength [nm], in :data:`SULFATE_RANGE_NM` = [230, 1690] nm (ValueError
+        outside).
+
+    Returns
+    -------
+    tuple of Tensor (...)
+        Extinction relative to 550 nm [1], single-scattering albedo [1] and asymmetry
+        parameter g [1].
+    """
+    low, high = SULFATE_RANGE_NM
+    wavelength = check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm")
+    if not wavelength.is_floating_point():
+        wavelength = wavelength.to(torch.get_default_dtype())
+    table = _sulfate_tensors(wavelength.dtype)
+    grid = table[0]
+    index = torch.clamp(torch.searchsorted(grid, wavelength.detach().contiguous(),
+                                           right=True) - 1, 0, grid.numel() - 2)
+    weight = (wavelength - grid[index]) / (grid[index + 1] - grid[index])
+    return tuple(table[c, index] + weight * (table[c, index + 1] - table[c, index])
+                 for c in (1, 2, 3))
+
+
+def gaussian_layer(altitude_m, center_m, width_m) -> torch.Tensor:
+    """Gaussian layer :math:`\\exp[-(h - h_c)^2 / (2 w^2)]`, 1 at the peak.
+
+    Parameters
+    ----------
+    altitude_m : Tensor (...)
+        Altitude [m].
+    center_m, width_m : float or Tensor (...)
+        Peak altitude :math:`h_c` [m] and width :math:`w` [m] (the standard deviation).
+
+    Returns
+    -------
+    Tensor (...)
+        Relative density [1].
+    """
+    altitude_m = as_tensor("altitude_m", altitude_m)
+    return torch.exp(-0.5 * ((altitude_m - center_m) / width_m) ** 2)
+
+
+def gaussian_layer_column(center_m, width_m, top_m) -> torch.Tensor:
+    """:math:`\\int_0^{h_{top}}` of :func:`gaussian_layer` [m], truncated at ground and top.
+
+    :math:`w\\sqrt{\\pi/2}\\,[\\mathrm{erf}((h_{top} - h_c)/(\\sqrt2 w))
+    + \\mathrm{erf}(h_c/(\\sqrt2 w))]`.
+
+    Parameters
+    ----------
+    center_m, width_m : Tensor (...)
+        Peak altitude and width (standard deviation) [m].
+    top_m : float
+        Altitude of the top of the atmosphere [m].
+
+    Returns
+    -------
+    Tensor (...)
+        Column height [m].
+    """
+    scale = math.sqrt(2.0) * width_m
+    return (width_m * math.sqrt(0.5 * math.pi)
+            * (torch.erf((top_m - center_m) / scale) + torch.erf(center_m / scale)))
