@@ -95,7 +95,7 @@ from skytorch.constants import (
 __all__ = ["Atmosphere", "SPECIES"]
 
 #: constituents, in the order of ``per_species`` outputs
-SPECIES = ("rayleigh", "aerosol", "ozone")
+SPECIES = ("rayleigh", "aerosol", "ozone", "stratospheric_aerosol")
 
 #: gravity at sea level, latitude 45° (Bodhaine et al. 1999, eq. 11) [m s^-2]
 EARTH_GRAVITY_M_S2 = 9.80616
@@ -120,7 +120,11 @@ _PARAMETERS = (
     "aerosol_single_scattering_albedo", "aerosol_asymmetry", "ozone_du",
     "ozone_peak_altitude_m", "ozone_half_width_m", "ozone_temperature_k",
     "reference_refractivity", "reference_pressure_pa", "reference_temperature_k",
+    "stratospheric_aerosol_optical_depth", "stratospheric_aerosol_altitude_m",
+    "stratospheric_aerosol_width_m",
 )
+#: levels of the stratospheric Gaussian layer's quadrature, in widths about its peak
+_GAUSSIAN_LEVELS = (-8.0, -5.0, -3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 5.0, 8.0)
 
 #: accepted range of every constructor parameter: (low, high, low inclusive, unit). The
 #: bounds are wide (Venus' 9.2 MPa surface, scale heights from 1 m, a Preetham turbidity
@@ -146,6 +150,9 @@ PARAMETER_RANGES = {
     "reference_refractivity": (0.0, 1e-2, True, ""),
     "reference_pressure_pa": (0.0, 1e8, False, " Pa"),
     "reference_temperature_k": (1.0, 1e4, True, " K"),
+    "stratospheric_aerosol_optical_depth": (0.0, 100.0, True, ""),
+    "stratospheric_aerosol_altitude_m": (0.0, 1e7, True, " m"),
+    "stratospheric_aerosol_width_m": (1.0, 1e7, True, " m"),
 }
 #: Preetham turbidity accepted by :meth:`Atmosphere.earth`: 1 (aerosol-free) to 64
 #: (beta = 2.9, a vertical aerosol optical depth of 6.3 at 550 nm: thick fog)
@@ -255,6 +262,15 @@ class Atmosphere(nn.Module):
         default tent 10–40 km).
     reference_refractivity, reference_pressure_pa, reference_temperature_k : float
         :math:`n - 1` at 589.3 nm and the pressure [Pa] and temperature [K] it refers to.
+    stratospheric_aerosol_optical_depth : float or Tensor
+        Vertical optical depth at 550 nm of the stratospheric sulfate layer (species
+        ``"stratospheric_aerosol"``), in [0, 100]; default 0 (no layer).
+    stratospheric_aerosol_altitude_m, stratospheric_aerosol_width_m : float or Tensor
+        Peak altitude [m] and width [m] of the layer: a Gaussian in altitude whose width
+        is its standard deviation, normalised so that its column from the ground to
+        ``top_altitude_m`` (truncation included) is the given optical depth. Spectrum,
+        single-scattering albedo and Henyey-Greenstein asymmetry from Mie theory for 75 %
+        H2SO4 droplets (:func:`skytorch.atmosphere.aerosol.sulfate_mie_properties`).
     name : str
         Label stored in Datasets.
 
@@ -293,6 +309,9 @@ class Atmosphere(nn.Module):
                  reference_refractivity: float = EARTH_REFRACTIVITY_SEA_LEVEL,
                  reference_pressure_pa: float = STANDARD_PRESSURE_PA,
                  reference_temperature_k: float = STANDARD_TEMPERATURE_K,
+                 stratospheric_aerosol_optical_depth=0.0,
+                 stratospheric_aerosol_altitude_m=20e3,
+                 stratospheric_aerosol_width_m=3e3,
                  name: str = "custom"):
         super().__init__()
         self.gas = check_choice("gas", gas, _rayleigh.RAYLEIGH_GASES)
@@ -330,6 +349,9 @@ class Atmosphere(nn.Module):
             "reference_refractivity": reference_refractivity,
             "reference_pressure_pa": reference_pressure_pa,
             "reference_temperature_k": reference_temperature_k,
+            "stratospheric_aerosol_optical_depth": stratospheric_aerosol_optical_depth,
+            "stratospheric_aerosol_altitude_m": stratospheric_aerosol_altitude_m,
+            "stratospheric_aerosol_width_m": stratospheric_aerosol_width_m,
         }
         values = {key: _check_parameter(key, value) for key, value in given.items()}
         values["ozone_temperature_k"] = self._ozone_temperature(ozone_temperature_k, values)
@@ -494,6 +516,10 @@ class Atmosphere(nn.Module):
         if species == "aerosol":
             height = self._p("aerosol_scale_height_m", dtype, 1 + extra)
             return lambda h: _profiles.exponential(h, height)
+        if species == "stratospheric_aerosol":
+            center = self._p("stratospheric_aerosol_altitude_m", dtype, 1 + extra)
+            width = self._p("stratospheric_aerosol_width_m", dtype, 1 + extra)
+            return lambda h: _aerosol.gaussian_layer(h, center, width)
         center = self._p("ozone_peak_altitude_m", dtype, 1 + extra)
         width = self._p("ozone_half_width_m", dtype, 1 + extra)
         return lambda h: _profiles.tent(h, center, width)
@@ -512,6 +538,11 @@ class Atmosphere(nn.Module):
             key = "rayleigh_scale_height_m" if species == "rayleigh" else "aerosol_scale_height_m"
             height = self._p(key, dtype, 1 + extra) * factors
             return lambda base: base[..., None] + height
+        if species == "stratospheric_aerosol":
+            center = self._p("stratospheric_aerosol_altitude_m", dtype, extra)[..., None]
+            width = self._p("stratospheric_aerosol_width_m", dtype, extra)[..., None]
+            return torch.clamp(center + width * torch.tensor(_GAUSSIAN_LEVELS, dtype=dtype),
+                               min=0.0)
         center = self._p("ozone_peak_altitude_m", dtype, extra)
         width = self._p("ozone_half_width_m", dtype, extra)
         return torch.stack(torch.broadcast_tensors(torch.clamp(center - width, min=0.0), center,
@@ -540,6 +571,10 @@ class Atmosphere(nn.Module):
             return self._p("rayleigh_scale_height_m", dtype, extra)
         if species == "aerosol":
             return self._p("aerosol_scale_height_m", dtype, extra)
+        if species == "stratospheric_aerosol":
+            return _aerosol.gaussian_layer_column(
+                self._p("stratospheric_aerosol_altitude_m", dtype, extra),
+                self._p("stratospheric_aerosol_width_m", dtype, extra), self.top_altitude_m)
         return self._p("ozone_half_width_m", dtype, extra)
 
     @staticmethod
@@ -559,6 +594,11 @@ class Atmosphere(nn.Module):
                     f"ozone_half_width_m), is {float(temperature[bad].reshape(-1)[0]):.2f} K "
                     "there: pass ozone_temperature_k or a lower ozone layer")
         return temperature
+
+    def _stratospheric_absent(self) -> bool:
+        """Whether the stratospheric aerosol is exactly zero everywhere, without gradient."""
+        tau = self.stratospheric_aerosol_optical_depth
+        return not tau.requires_grad and not bool(tau.detach().any())
 
     def _ozone_absent(self) -> bool:
         """Whether the ozone column is exactly zero everywhere and needs no gradient."""
@@ -593,7 +633,12 @@ class Atmosphere(nn.Module):
         else:
             ozone = column * ozone_cross_section(
                 wavelength_nm, self._p("ozone_temperature_k", dtype, extra + 1))
-        return {"rayleigh": rayleigh, "aerosol": aerosol, "ozone": ozone}
+        extinction, _, _ = _aerosol.sulfate_mie_properties(wavelength_nm)
+        stratospheric = (self._p("stratospheric_aerosol_optical_depth", dtype, extra + 1)
+                         / self._profile_height("stratospheric_aerosol", dtype, extra + 1)
+                         * extinction)
+        return {"rayleigh": rayleigh, "aerosol": aerosol, "ozone": ozone,
+                "stratospheric_aerosol": stratospheric}
 
     def reference_extinction(self, wavelength_nm) -> dict[str, torch.Tensor]:
         """Extinction coefficient of each species where its relative density is 1.
@@ -613,8 +658,9 @@ class Atmosphere(nn.Module):
         Returns
         -------
         dict of Tensor (..., wavelength)
-            ``"rayleigh"``, ``"aerosol"`` (scattering plus absorption) and ``"ozone"``
-            [1/m]; leading dims are the batch dims of the parameters.
+            ``"rayleigh"``, ``"aerosol"`` (scattering plus absorption), ``"ozone"`` and
+            ``"stratospheric_aerosol"`` [1/m]; leading dims are the batch dims of the
+            parameters.
 
         Notes
         -----
@@ -698,16 +744,46 @@ class Atmosphere(nn.Module):
         return sum(self._local(altitude_m, wavelength_nm).values())
 
     def scattering_coefficients(self, altitude_m, wavelength_nm) -> dict[str, torch.Tensor]:
-        """Scattering coefficients ``{"rayleigh", "aerosol"}`` (..., wavelength) [1/m]."""
+        """Scattering coefficients ``{"rayleigh", "aerosol", "stratospheric_aerosol"}``
+        (..., wavelength) [1/m]."""
         local = self._local(altitude_m, wavelength_nm)
         albedo = self._p("aerosol_single_scattering_albedo", local["aerosol"].dtype, 1)
-        return {"rayleigh": local["rayleigh"], "aerosol": albedo * local["aerosol"]}
+        return {"rayleigh": local["rayleigh"], "aerosol": albedo * local["aerosol"],
+                "stratospheric_aerosol": self._stratospheric_albedo(wavelength_nm,
+                                                                    local["aerosol"].dtype)
+                * local["stratospheric_aerosol"]}
 
     def absorption_coefficient(self, altitude_m, wavelength_nm) -> torch.Tensor:
         """Absorption coefficient: ozone + aerosol absorption (..., wavelength) [1/m]."""
         local = self._local(altitude_m, wavelength_nm)
         albedo = self._p("aerosol_single_scattering_albedo", local["aerosol"].dtype, 1)
-        return local["ozone"] + (1.0 - albedo) * local["aerosol"]
+        stratospheric = self._stratospheric_albedo(wavelength_nm, local["aerosol"].dtype)
+        return (local["ozone"] + (1.0 - albedo) * local["aerosol"]
+                + (1.0 - stratospheric) * local["stratospheric_aerosol"])
+
+    def _stratospheric_albedo(self, wavelength_nm, dtype) -> torch.Tensor:
+        return _aerosol.sulfate_mie_properties(self._wavelength(wavelength_nm, dtype))[1]
+
+    def stratospheric_aerosol_phase(self, cos_theta, wavelength_nm) -> torch.Tensor:
+        """Henyey-Greenstein phase function of the stratospheric sulfate layer [1/sr].
+
+        Parameters
+        ----------
+        cos_theta : Tensor (...)
+            Cosine of the scattering angle, in [-1, 1].
+        wavelength_nm : Tensor (wavelength,)
+            Wavelength [nm] (the asymmetry parameter of the Mie table depends on it).
+
+        Returns
+        -------
+        Tensor (..., wavelength)
+            Phase function normalised over 4π.
+        """
+        cos_theta = check_range("cos_theta", cos_theta, -1.0, 1.0)
+        dtype = common_dtype(cos_theta, wavelength_nm)
+        wavelength = self._wavelength(wavelength_nm, dtype)
+        g = _aerosol.sulfate_mie_properties(wavelength)[2]
+        return phase_function(cos_theta.to(dtype)[..., None], g, "henyeygreenstein1941")
 
     def aerosol_phase(self, cos_theta) -> torch.Tensor:
         """Aerosol phase function [1/sr], normalised over 4π; shape broadcast(cos, batch)."""
@@ -829,12 +905,16 @@ class Atmosphere(nn.Module):
         return self._column_integrals(r, mu, method, n_steps, rtol, dtype, extra)
 
     def _column_integrals(self, r, mu, method, n_steps, rtol, dtype, extra: int = 0):
-        return {s: _od.column_integral(self._density(s, dtype, extra=extra), r, mu,
-                                       self.planet_radius_m, self.top_radius_m,
-                                       self._levels(s, dtype, extra),
-                                       method=method, n_steps=n_steps, rtol=rtol,
-                                       truncate=self._truncates(s), support=s == "ozone")
-                for s in SPECIES}
+        absent = self._stratospheric_absent()
+        columns = {s: _od.column_integral(self._density(s, dtype, extra=extra), r, mu,
+                                          self.planet_radius_m, self.top_radius_m,
+                                          self._levels(s, dtype, extra),
+                                          method=method, n_steps=n_steps, rtol=rtol,
+                                          truncate=self._truncates(s), support=s == "ozone")
+                   for s in SPECIES if not (absent and s == "stratospheric_aerosol")}
+        if absent:  # no layer: its column is not needed (zero optical depth)
+            columns["stratospheric_aerosol"] = torch.zeros_like(columns["aerosol"])
+        return columns
 
     def optical_depth(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, *,
                       method: str = "gauss", n_steps: int | None = None,
@@ -860,7 +940,8 @@ class Atmosphere(nn.Module):
         n_steps : int, optional
             Resolution of the quadrature (default per method).
         per_species : bool
-            Return ``{"rayleigh", "aerosol", "ozone"}`` instead of the total.
+            Return ``{"rayleigh", "aerosol", "ozone", "stratospheric_aerosol"}`` instead
+            of the total (with ``refraction=True`` the first three only).
         refraction : bool
             Integrate along the refracted ray (:mod:`skytorch.atmosphere.refraction`).
         rtol : float
@@ -917,7 +998,8 @@ class Atmosphere(nn.Module):
         result = {s: columns[s][..., None] * coefficients[s] for s in SPECIES}
         if per_species:
             return result
-        return result["rayleigh"] + result["aerosol"] + result["ozone"]
+        return (result["rayleigh"] + result["aerosol"] + result["ozone"]
+                + result["stratospheric_aerosol"])
 
     def transmittance(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, **options
                       ) -> torch.Tensor:

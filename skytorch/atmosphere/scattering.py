@@ -239,7 +239,8 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     else:
         tau_sun = atmosphere._optical_depth(wavelength, sun_zenith_local, height,
                                             n_steps=sun_steps, extra=1)
-    extinction = local["rayleigh"] + local["aerosol"] + local["ozone"]
+    extinction = (local["rayleigh"] + local["aerosol"] + local["ozone"]
+                  + local["stratospheric_aerosol"])
     step = (s[..., 1:] - s[..., :-1])[..., None]
     increments = 0.5 * step * (extinction[..., 1:, :] + extinction[..., :-1, :])
     tau_view = torch.cat([torch.zeros_like(increments[..., :1, :]),
