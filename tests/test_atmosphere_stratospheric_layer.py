@@ -203,3 +203,13 @@ def test_bad_types_and_typos_refused():
         Atmosphere.earth(stratospheric_aerosol_optical_depth="0.1")
     with pytest.raises(TypeError, match="stratospheric_aerosol_optical_dept"):
         Atmosphere.earth(stratospheric_aerosol_optical_dept=0.1)
+
+
+def test_refracted_per_species_includes_the_layer():
+    """Refracted rays report the layer too: at the zenith (no bending) its optical depth
+    is the AOD (1e-6), and the species add up to the refracted total."""
+    atm = Atmosphere.earth(stratospheric_aerosol_optical_depth=AOD)
+    parts = atm.optical_depth(WL, _f64(0.0, 1.2), refraction=True, per_species=True)
+    assert float(parts["stratospheric_aerosol"][0, 0]) == pytest.approx(AOD, rel=1e-6)
+    total = atm.optical_depth(WL, _f64(0.0, 1.2), refraction=True)
+    torch.testing.assert_close(sum(parts.values()), total, rtol=1e-9, atol=0.0)

@@ -941,7 +941,7 @@ class Atmosphere(nn.Module):
             Resolution of the quadrature (default per method).
         per_species : bool
             Return ``{"rayleigh", "aerosol", "ozone", "stratospheric_aerosol"}`` instead
-            of the total (with ``refraction=True`` the first three only).
+            of the total.
         refraction : bool
             Integrate along the refracted ray (:mod:`skytorch.atmosphere.refraction`).
         rtol : float

@@ -797,7 +797,8 @@ def bent_optical_depth(
     n_steps : int, optional
         Alias of ``n_nodes`` (the straight-ray integrators' name for their resolution).
     per_species : bool
-        Return ``{"rayleigh", "aerosol", "ozone"}`` optical depths separately; needs an
+        Return ``{"rayleigh", "aerosol", "ozone", "stratospheric_aerosol"}`` optical
+        depths separately; needs an
         :class:`~skytorch.atmosphere.Atmosphere` (``relative_density`` and
         ``reference_extinction``).
     rtol : float
@@ -847,7 +848,7 @@ def bent_optical_depth(
         wavelength = atm._wavelength(wavelength, dtype)
     elevation = torch.clamp(0.5 * math.pi - zenith, -0.5 * math.pi, 0.5 * math.pi)
     if per_species:
-        species = ("rayleigh", "aerosol", "ozone")
+        species = ("rayleigh", "aerosol", "ozone", "stratospheric_aerosol")
         coefficient_of = _species_densities_of(species)
     else:
         coefficient_of = _extinction_of(wavelength)
