@@ -213,3 +213,30 @@ def test_refracted_per_species_includes_the_layer():
     assert float(parts["stratospheric_aerosol"][0, 0]) == pytest.approx(AOD, rel=1e-6)
     total = atm.optical_depth(WL, _f64(0.0, 1.2), refraction=True)
     torch.testing.assert_close(sum(parts.values()), total, rtol=1e-9, atol=0.0)
+
+
+def test_single_scattering_of_a_thin_layer():
+    """Sky radiance at the zenith, no molecules or other aerosol, optically thin layer
+    (tau = 1e-4): the single-scattering closed form omega tau P_HG(theta) times the
+    attenuation to first order, 1 - tau/2 (1 + 1/mu_sun) (half the layer lies above
+    the mean scatterer), within 2e-5 relative."""
+    from skytorch.atmosphere.aerosol import sulfate_mie_properties
+
+    tau, sun_zenith = 1e-4, 0.8
+    atm = Atmosphere.earth(aerosol_optical_depth=0.0, ozone_du=0.0, surface_pressure_pa=0.0,
+                           stratospheric_aerosol_optical_depth=tau)
+    radiance = float(atm.sky_radiance(WL, 0.0, 0.0, sun_zenith, 0.0)[0])
+    _, albedo, g = (float(v[0]) for v in sulfate_mie_properties(WL))
+    mu = math.cos(sun_zenith)
+    phase = (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
+    expected = albedo * tau * phase * (1 - 0.5 * tau * (1 + 1 / mu))
+    assert radiance == pytest.approx(expected, rel=2e-5)
+
+
+def test_sky_radiance_default_bit_identical():
+    plain = Atmosphere.earth()
+    explicit = Atmosphere.earth(stratospheric_aerosol_optical_depth=0.0)
+    wl = _f64(400.0, 700.0)
+    view = _f64(0.1, 0.9, 1.5)
+    assert torch.equal(plain.sky_radiance(wl, view, 0.3, 1.0, 0.0),
+                       explicit.sky_radiance(wl, view, 0.3, 1.0, 0.0))

@@ -35,6 +35,7 @@ from skytorch._validate import (
     check_range,
     common_dtype,
 )
+from skytorch.atmosphere import aerosol as _aerosol
 from skytorch.atmosphere.geometry import _distance_to_ground, _distance_to_top, _ray_hits_ground
 
 __all__ = [
@@ -252,5 +253,11 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     phase_a = phase_function(cos_theta, atmosphere._p("aerosol_asymmetry", dtype),
                              atmosphere.aerosol_phase_model)[..., None, None]
     source = (local["rayleigh"] * phase_r + albedo * local["aerosol"] * phase_a)
+    if not atmosphere._stratospheric_absent():
+        # stratospheric sulfate layer: Mie albedo and Henyey-Greenstein asymmetry per
+        # wavelength (skytorch.atmosphere.aerosol.sulfate_mie_properties)
+        _, albedo_s, g_s = _aerosol.sulfate_mie_properties(wavelength)
+        phase_s = phase_function(cos_theta[..., None], g_s, "henyeygreenstein1941")
+        source = source + albedo_s * local["stratospheric_aerosol"] * phase_s[..., None, :]
     integrand = source * torch.exp(-tau_view) * sun_transmittance
     return (0.5 * step * (integrand[..., 1:, :] + integrand[..., :-1, :])).sum(-2)
