@@ -6,13 +6,12 @@ import importlib.util
 import math
 from pathlib import Path
 
+import miepython  # in the test extra; the generator imports it too
 import numpy as np
 import pytest
 import torch
 
 from skytorch.atmosphere.aerosol import SULFATE_RANGE_NM, sulfate_mie_properties
-
-miepython = pytest.importorskip("miepython")
 
 GENERATOR = Path(__file__).resolve().parents[1] / "data" / "make_aerosol_tables.py"
 
