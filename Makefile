@@ -20,7 +20,7 @@ test: $(STAMP)
 	$(PY) -m pytest
 
 lint: $(STAMP)
-	$(PY) -m ruff check skytorch tests experiments benchmarks tools
+	$(PY) -m ruff check skytorch tests experiments benchmarks tools data
 
 bench: $(STAMP)
 	$(PY) benchmarks/run.py
