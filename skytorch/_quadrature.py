@@ -10,7 +10,7 @@ Examples
 >>> import torch
 >>> from skytorch._quadrature import gauss_legendre, unit_nodes
 >>> x, w = unit_nodes(3, torch.float64)
->>> float(w.sum())
+>>> round(float(w.sum()), 12)
 1.0
 >>> x, w = gauss_legendre(4, torch.tensor(0.0), torch.tensor(2.0))
 >>> round(float((w * x**3).sum()), 12)  # exact for polynomials up to degree 7
@@ -85,8 +85,9 @@ def unit_nodes(n: int, dtype: torch.dtype = torch.float64, ndim: int = 0
     """
     x, w = legendre_unit(n)
     shape = (x.shape[0],) + (1,) * int(ndim)
-    return (torch.as_tensor(x, dtype=dtype).reshape(shape),
-            torch.as_tensor(w, dtype=dtype).reshape(shape))
+    # torch.tensor copies: the cached arrays are read-only
+    return (torch.tensor(x, dtype=dtype).reshape(shape),
+            torch.tensor(w, dtype=dtype).reshape(shape))
 
 
 def gauss_legendre(n: int, low, high, dtype: torch.dtype = torch.float64
