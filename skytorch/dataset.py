@@ -53,7 +53,9 @@ import xarray as xr
 from skytorch import __version__
 
 __all__ = [
+    "UNIT_SUFFIXES",
     "VariableSpec",
+    "batch_coordinates",
     "build_dataset",
     "coordinate",
     "import_zarr",
@@ -62,6 +64,7 @@ __all__ = [
     "to_netcdf",
     "to_numpy",
     "to_zarr",
+    "units_from_name",
     "variable",
     "write_dataset",
 ]
@@ -144,6 +147,127 @@ def variable(dims, values, spec: VariableSpec | Mapping[str, str]) -> xr.Variabl
 def coordinate(dim: str, values, spec: VariableSpec | Mapping[str, str]) -> xr.Variable:
     """A one-dimensional coordinate variable for dimension ``dim``."""
     return variable((dim,), values, spec)
+
+
+#: UDUNITS strings of the parameter-name suffixes :func:`units_from_name` recognises, the
+#: longest first (``gravity_m_s2`` is ``m s-2``, not ``1``; ``pressure_hpa`` is ``hPa``)
+UNIT_SUFFIXES = (
+    ("_kg_mol", "kg mol-1"), ("_m_s2", "m s-2"), ("_hpa", "hPa"), ("_deg", "degree"),
+    ("_rad", "rad"), ("_mag", "mag"), ("_nm", "nm"), ("_km", "km"), ("_pa", "Pa"),
+    ("_du", "DU"), ("_m", "m"), ("_k", "K"), ("_s", "s"),
+)
+
+
+def units_from_name(name: str, units: Mapping[str, str] | None = None) -> str:
+    """UDUNITS string of a parameter, given explicitly or read from its name's suffix.
+
+    Parameters
+    ----------
+    name : str
+        Parameter name, by the project's convention ending in its unit (``ozone_du``,
+        ``wavelength_nm``, ``surface_pressure_pa``; case-insensitive).
+    units : mapping of str to str, optional
+        Explicit units by name; they take precedence over the suffix.
+
+    Returns
+    -------
+    str
+        ``units[name]`` if given, else the unit of the first matching suffix of
+        :data:`UNIT_SUFFIXES`, else ``"1"`` (dimensionless or unknown).
+
+    Examples
+    --------
+    >>> units_from_name("ozone_du"), units_from_name("gravity_m_s2"), units_from_name("turbidity")
+    ('DU', 'm s-2', '1')
+    >>> units_from_name("turbidity", {"turbidity": "1e-3"})
+    '1e-3'
+    """
+    if units and name in units:
+        return units[name]
+    lower = name.lower()
+    for suffix, unit in UNIT_SUFFIXES:
+        if lower.endswith(suffix):
+            return unit
+    return "1"
+
+
+def batch_coordinates(
+    sizes: Mapping[str, int],
+    parameters: Mapping[str, tuple[Iterable[str], object]] | None = None,
+    *,
+    units: Mapping[str, str] | None = None,
+    long_name: str = "{label}",
+    description: str = "Parameter {name} of the batch members",
+    index_long_name: str = "index along {dim}",
+    index_description: str = "Position along the batch dimension {dim}",
+) -> dict[str, xr.Variable]:
+    """Coordinates of batch dimensions: the parameters that vary along them, else an index.
+
+    Each parameter becomes a coordinate over the dimensions it varies along, with units
+    from :func:`units_from_name`. A dimension named after a parameter that varies along
+    it alone is labelled by that parameter's values; every other dimension of ``sizes``
+    gets an integer index coordinate ``0 .. n - 1``.
+
+    Parameters
+    ----------
+    sizes : mapping of str to int
+        The batch dimensions and their lengths, in order.
+    parameters : mapping of str to (dims, values), optional
+        Values of each parameter over the named subset of ``sizes``' dimensions (a tensor
+        or array of that shape, as in ``xarray.Variable((dims), values)``).
+    units : mapping of str to str, optional
+        Explicit units of parameters (see :func:`units_from_name`).
+    long_name, description : str
+        Templates of a parameter coordinate's metadata; ``{name}`` is the parameter's
+        name, ``{label}`` the name with spaces for underscores.
+    index_long_name, index_description : str
+        Templates of an index coordinate's metadata; ``{dim}`` is the dimension's name,
+        ``{axis}`` its position in ``sizes``.
+
+    Returns
+    -------
+    dict of str to xarray.Variable
+        The parameter coordinates (in the order given), then the index coordinates.
+
+    Raises
+    ------
+    ValueError
+        If a parameter names a dimension not in ``sizes`` or its shape differs from the
+        sizes, or if a dimension is named after a parameter that varies along other
+        dimensions too.
+
+    Examples
+    --------
+    >>> import torch
+    >>> coords = batch_coordinates({"ozone_du": 2, "case": 3},
+    ...                            {"ozone_du": (("ozone_du",), torch.tensor([250.0, 350.0]))})
+    >>> coords["ozone_du"].attrs["units"], coords["case"].values.tolist()
+    ('DU', [0, 1, 2])
+    """
+    coords: dict[str, xr.Variable] = {}
+    for name, (dims, values) in (parameters or {}).items():
+        dims = (dims,) if isinstance(dims, str) else tuple(dims)
+        array = to_numpy(values)
+        expected = tuple(sizes.get(dim, -1) for dim in dims)
+        if array.shape != expected:
+            raise ValueError(
+                f"batch coordinate {name} over {dims} must have shape "
+                f"{tuple(sizes.get(dim) for dim in dims)} (batch dimensions "
+                f"{dict(sizes)}); got {array.shape}")
+        text = {"name": name, "label": name.replace("_", " ")}
+        coords[name] = variable(dims, array, VariableSpec(
+            units_from_name(name, units), long_name.format(**text),
+            description.format(**text)))
+    for axis, (dim, size) in enumerate(sizes.items()):
+        if dim in coords and coords[dim].dims == (dim,):
+            continue  # labelled by the parameter's values
+        if dim in coords:
+            raise ValueError(f"batch dimension {dim!r} is named after a parameter that "
+                             f"varies along {coords[dim].dims}")
+        text = {"dim": dim, "axis": axis}
+        coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
+            "1", index_long_name.format(**text), index_description.format(**text)))
+    return coords
 
 
 TIME_SPEC = VariableSpec("", "time (UTC)", "Instant in Coordinated Universal Time.", "time")

@@ -113,9 +113,8 @@ from skytorch._modules import FunctionModule, make_callable
 from skytorch._validate import check_choice, check_int
 from skytorch.dataset import (
     ZARR_SUFFIX,
-    VariableSpec,
+    batch_coordinates,
     build_dataset,
-    coordinate,
     import_zarr,
     open_dataset,
     sanitized_attributes,
@@ -143,11 +142,6 @@ DEFAULT_WORKERS = 2
 #: slower in worker processes than in the calling process. glibc's default is kept instead
 #: (a ``MALLOC_TRIM_THRESHOLD_`` exported by the user still applies).
 WORKER_PROCESS_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
-#: units inferred from a parameter name's suffix (``ozone_du``, ``wavelength_nm``, ...)
-_UNIT_SUFFIXES = {
-    "_nm": "nm", "_m": "m", "_km": "km", "_k": "K", "_deg": "degree", "_rad": "rad",
-    "_s": "s", "_pa": "Pa", "_hpa": "hPa", "_du": "DU", "_mag": "mag",
-}
 
 
 # --- grid -----------------------------------------------------------------------------------------
@@ -198,15 +192,6 @@ def _function_name(fn: Callable) -> str:
     module = getattr(fn, "__module__", None) or type(fn).__module__
     name = getattr(fn, "__qualname__", None) or type(fn).__qualname__
     return f"{module}.{name}"
-
-
-def _units(name: str, units: Mapping[str, str]) -> str:
-    if name in units:
-        return units[name]
-    for suffix, unit in _UNIT_SUFFIXES.items():
-        if name.lower().endswith(suffix):
-            return unit
-    return "1"
 
 
 def _chunks(n_points: int, chunk_size: int) -> list[tuple[int, int]]:
@@ -748,18 +733,18 @@ def _assemble(chunks: list[xr.Dataset], names, grids, units, fn):
             (*names, *inner_dims), values.reshape(shape + values.shape[1:]),
             attrs=_result_attrs(name, first[name].attrs),
         )
-    coords = {}
-    for name, grid in zip(names, grids, strict=True):
-        coords[name] = coordinate(name, grid, VariableSpec(
-            _units(name, units), f"swept parameter {name}",
-            f"Values of the keyword argument {name} passed to {_function_name(fn)}."))
+    function = _function_name(fn).replace("{", "{{").replace("}", "}}")
+    coords = batch_coordinates(
+        {name: len(grid) for name, grid in zip(names, grids, strict=True)},
+        {name: ((name,), grid) for name, grid in zip(names, grids, strict=True)},
+        units=units, long_name="swept parameter {name}",
+        description=f"Values of the keyword argument {{name}} passed to {function}.")
     for name, coord in first.coords.items():
         coords[name] = coord.variable
     used = {dim for v in data_vars.values() for dim in v.dims}
-    for dim in sorted(used - set(coords)):
-        size = first.sizes[dim]
-        coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
-            "1", f"index along {dim}", f"Position along the result dimension {dim}."))
+    coords.update(batch_coordinates(
+        {dim: first.sizes[dim] for dim in sorted(used - set(coords))},
+        index_description="Position along the result dimension {dim}."))
     references = first.attrs.get("references", ())
     references = [r for r in (references.split("\n") if isinstance(references, str)
                               else references) if r]
@@ -851,7 +836,8 @@ def sweep(
     units : mapping of str to str, optional
         Units (UDUNITS strings) of swept parameters for the coordinates' metadata, keyed
         by swept parameter name; by default inferred from suffixes (``_nm`` nm, ``_m`` m,
-        ``_k`` K, ``_deg`` degree, ``_du`` DU, ...), otherwise ``"1"``. A key that names
+        ``_k`` K, ``_deg`` degree, ``_du`` DU, ``_m_s2`` m s-2, ...:
+        :func:`skytorch.dataset.units_from_name`), otherwise ``"1"``. A key that names
         no swept parameter, or a value that is not a non-empty string, is rejected.
     torch_threads : int, optional
         torch intra-op threads of each worker thread while it computes a chunk (see

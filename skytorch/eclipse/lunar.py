@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import logging
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -53,6 +54,7 @@ from skytorch.atmosphere.aerosol import (
 from skytorch.constants import EARTH_AEROSOL_SCALE_HEIGHT_M, EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
 from skytorch.dataset import (
     VariableSpec,
+    batch_coordinates,
     build_dataset,
     coordinate,
     time_coordinate,
@@ -347,16 +349,41 @@ _SPECS = {
 }
 
 
-def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement,
-                 shadow, table_n_u, table_n_v, progress, ring_phase) -> dict:
-    """Geometry, shadow table and disc-integrated fluxes shared by the light-curve APIs.
+@dataclass(frozen=True)
+class _Run:
+    """What :func:`lunar_eclipse` needs of a light-curve run beyond the light curve.
 
-    ``flux`` is (n_time, *B, n_wavelength) for a shadow with atmosphere batch shape ``B``;
-    ``flux_full`` (the uneclipsed Moon) is (n_time, n_wavelength).
+    ``times`` (time,) datetime64, ``row`` the eclipse's circumstances (a one-eclipse row
+    of :func:`lunar_eclipses`), ``sun`` and ``moon`` the GCRS vectors (time, 3) [m],
+    ``sun_distance`` their mean distance [m], the ``shadow`` and its ``table``,
+    ``wavelength`` [nm] and ``axis_distance`` (time,) [m] of the Moon's centre from the
+    shadow axis, whose minimum is greatest eclipse (index ``greatest``).
+    """
+
+    times: np.ndarray
+    row: xr.Dataset
+    sun: torch.Tensor
+    moon: torch.Tensor
+    sun_distance: float
+    shadow: Shadow
+    table: ShadowTable
+    wavelength: torch.Tensor
+    axis_distance: torch.Tensor
+    greatest: int
+
+
+def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement,
+                 shadow, table_n_u, table_n_v, progress,
+                 ring_phase) -> tuple[dict[str, torch.Tensor], _Run]:
+    """Compute the light curve of :func:`lunar_light_curve` and the run behind it.
+
+    Returns the dictionary :func:`lunar_light_curve` returns (batch dimensions ``B`` of the
+    shadow's atmosphere leading) and the :class:`_Run` the Dataset and images of
+    :func:`lunar_eclipse` are built from.
     """
     from skytorch.ephemeris import sun_moon_vectors
     from skytorch.moon.disc import disc_grid, disc_radiance
-    from skytorch.spectrum import wavelength_grid
+    from skytorch.spectrum import spectrum_to_magnitude, wavelength_grid
 
     n_times = check_int("n_times", n_times, low=2)
     n_disc = check_int("n_disc", n_disc, low=2)
@@ -402,9 +429,22 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     anti_sun = -sun / torch.linalg.norm(sun, dim=-1, keepdim=True)
     along = (moon * anti_sun).sum(-1)
     axis_distance = torch.linalg.norm(moon - along[:, None] * anti_sun, dim=-1)
-    return {"times": times, "row": row, "sun": sun, "moon": moon, "wavelength": wavelength,
-            "sun_distance": sun_distance, "shadow": shadow, "table": table, "flux": flux,
-            "flux_full": flux_full, "axis_distance": axis_distance}
+    flux = flux.movedim(0, len(batch))  # (*B, time, wavelength)
+    v_mag = spectrum_to_magnitude(flux, wavelength, "V")
+    b_mag = spectrum_to_magnitude(flux, wavelength, "B")
+    v_full = spectrum_to_magnitude(flux_full, wavelength, "V")
+    greatest = int(torch.argmin(axis_distance))
+    curve = {
+        "v_magnitude": v_mag,
+        "b_magnitude": b_mag,
+        "b_minus_v": b_mag - v_mag,
+        "relative_brightness": 10 ** (-0.4 * (v_mag - v_full)),
+        "spectral_irradiance": flux,
+        "greatest_v_magnitude": v_mag[..., greatest],
+        "danjon_l": danjon_l(v_mag[..., greatest]),
+    }
+    return curve, _Run(times, row, sun, moon, sun_distance, shadow, table, wavelength,
+                       axis_distance, greatest)
 
 
 def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
@@ -444,26 +484,8 @@ def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
     >>> tuple(curve["v_magnitude"].shape), tuple(curve["danjon_l"].shape)
     ((2, 2, 8), (2, 2))
     """
-    from skytorch.spectrum import spectrum_to_magnitude
-
-    curve = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
-                         enlargement, shadow, table_n_u, table_n_v, progress, ring_phase)
-    wavelength = curve["wavelength"]
-    batch = curve["table"].batch_shape
-    flux = curve["flux"].movedim(0, len(batch))  # (*B, time, wavelength)
-    v_mag = spectrum_to_magnitude(flux, wavelength, "V")
-    b_mag = spectrum_to_magnitude(flux, wavelength, "B")
-    v_full = spectrum_to_magnitude(curve["flux_full"], wavelength, "V")
-    greatest = int(torch.argmin(curve["axis_distance"]))
-    return {
-        "v_magnitude": v_mag,
-        "b_magnitude": b_mag,
-        "b_minus_v": b_mag - v_mag,
-        "relative_brightness": 10 ** (-0.4 * (v_mag - v_full)),
-        "spectral_irradiance": flux,
-        "greatest_v_magnitude": v_mag[..., greatest],
-        "danjon_l": danjon_l(v_mag[..., greatest]),
-    }
+    return _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement,
+                        shadow, table_n_u, table_n_v, progress, ring_phase)[0]
 
 
 def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
@@ -533,42 +555,33 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     >>> ds.v_magnitude.dims, ds.sizes["turbidity_case"]
     (('turbidity_case', 'time'), 2)
     """
-    from skytorch.spectrum import spectrum_to_magnitude, spectrum_to_xyz
+    from skytorch.spectrum import spectrum_to_xyz
 
     n_images = check_int("n_images", n_images, low=0)
     image_pixels = check_int("image_pixels", image_pixels, low=4)
-    curve = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
-                         enlargement, shadow, table_n_u, table_n_v, progress, ring_phase)
-    times, row, shadow, table = curve["times"], curve["row"], curve["shadow"], curve["table"]
-    sun, moon, wavelength = curve["sun"], curve["moon"], curve["wavelength"]
-    sun_distance = curve["sun_distance"]
-    batch = tuple(table.batch_shape)
+    curve, run = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
+                              enlargement, shadow, table_n_u, table_n_v, progress, ring_phase)
+    times, row, shadow, wavelength = run.times, run.row, run.shadow, run.wavelength
+    batch = tuple(run.table.batch_shape)
     dims = _batch_dims(batch, batch_dims)
-    # (*B, time, wavelength): batch dimensions lead
-    flux = curve["flux"].movedim(0, len(batch))
-    flux_full, axis_distance = curve["flux_full"], curve["axis_distance"]
+    flux, v_mag = curve["spectral_irradiance"], curve["v_magnitude"]  # (*B, time, ...)
+    greatest_v = curve["greatest_v_magnitude"]
     image_index = (np.round(np.linspace(0, n_times - 1, n_images)).astype(int)
                    if n_images else np.zeros(0, dtype=int))
-    v_mag, b_mag, v_full = (spectrum_to_magnitude(f, wavelength, band)
-                            for f, band in ((flux, "V"), (flux, "B"), (flux_full, "V")))
-    colour = _colour(flux, wavelength)
-
-    greatest = int(torch.argmin(axis_distance))
-    greatest_v = v_mag[..., greatest]
     total = str(row.kind.values) == "total"
     data_vars = {
-        "v_magnitude": variable((*dims, "time"), to_numpy(v_mag), _SPECS["v_magnitude"]),
-        "b_magnitude": variable((*dims, "time"), to_numpy(b_mag), _SPECS["b_magnitude"]),
-        "b_minus_v": variable((*dims, "time"), to_numpy(b_mag - v_mag), _SPECS["b_minus_v"]),
-        "colour": variable((*dims, "time", "channel"), to_numpy(colour), _SPECS["colour"]),
-        "relative_brightness": variable((*dims, "time"),
-                                        to_numpy(10 ** (-0.4 * (v_mag - v_full))),
-                                        _SPECS["relative_brightness"]),
-        "spectral_irradiance": variable((*dims, "time", "wavelength"), to_numpy(flux),
-                                        _SPECS["spectral_irradiance"]),
-        "shadow_axis_distance": variable(("time",), to_numpy(axis_distance),
-                                         _SPECS["shadow_axis_distance"]),
+        name: variable((*dims, "time"), to_numpy(curve[name]), _SPECS[name])
+        for name in ("v_magnitude", "b_magnitude", "b_minus_v")
     }
+    data_vars["colour"] = variable((*dims, "time", "channel"),
+                                   to_numpy(_colour(flux, wavelength)), _SPECS["colour"])
+    data_vars["relative_brightness"] = variable((*dims, "time"),
+                                                to_numpy(curve["relative_brightness"]),
+                                                _SPECS["relative_brightness"])
+    data_vars["spectral_irradiance"] = variable((*dims, "time", "wavelength"), to_numpy(flux),
+                                                _SPECS["spectral_irradiance"])
+    data_vars["shadow_axis_distance"] = variable(("time",), to_numpy(run.axis_distance),
+                                                 _SPECS["shadow_axis_distance"])
     coords = {
         "time": time_coordinate(times),
         "wavelength": coordinate("wavelength", to_numpy(wavelength), _SPECS["wavelength"]),
@@ -579,12 +592,12 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         data_vars["greatest_v_magnitude"] = variable(dims, to_numpy(greatest_v),
                                                      _SPECS["greatest_v_magnitude"])
         if total:
-            data_vars["danjon_l"] = variable(dims, to_numpy(danjon_l(greatest_v)),
+            data_vars["danjon_l"] = variable(dims, to_numpy(curve["danjon_l"]),
                                              _SPECS["danjon_l"])
     if n_images:
-        pixels = _disc_images(_shadow_lookup(table, sun[image_index]), sun[image_index],
-                              moon[image_index], wavelength, image_pixels, sun_distance,
-                              ring_phase)
+        sun, moon = run.sun[image_index], run.moon[image_index]
+        pixels = _disc_images(_shadow_lookup(run.table, sun), sun, moon, wavelength,
+                              image_pixels, run.sun_distance, ring_phase)
         images = _display(spectrum_to_xyz(pixels, wavelength), 3)
         centres = (np.arange(image_pixels) + 0.5) * (2.0 / image_pixels) - 1.0
         data_vars["image"] = variable((*dims, "image_time", "y", "x", "channel"),
@@ -609,8 +622,8 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         "greatest_eclipse": when("time"), **{c: when(c) for c in ("p1", "u1", "u2", "u3",
                                                                   "u4", "p4")},
         "enlargement": enlargement, "greatest_v_magnitude": scalar_or_list(greatest_v),
-        "greatest_time": np.datetime_as_string(times[greatest], unit="s"),
-        "danjon_l": scalar_or_list(danjon_l(greatest_v)) if total else "none",
+        "greatest_time": np.datetime_as_string(times[run.greatest], unit="s"),
+        "danjon_l": scalar_or_list(curve["danjon_l"]) if total else "none",
         "danjon_l_relation": DANJON_RELATION,
         "n_disc": n_disc, "table_n_u": table_n_u, "table_n_v": table_n_v,
         "ring_phase": str(bool(ring_phase)),
@@ -618,15 +631,6 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     }
     return build_dataset(data_vars, coords, title="Lunar eclipse light curve",
                          references=_REFERENCES, parameters=parameters)
-
-
-def _parameter_units(name: str) -> str:
-    """UDUNITS string of an atmosphere parameter, from the unit suffix of its name."""
-    for suffix, units in (("_m_s2", "m s-2"), ("_kg_mol", "kg mol-1"), ("_pa", "Pa"),
-                          ("_du", "DU"), ("_k", "K"), ("_m", "m")):
-        if name.endswith(suffix):
-            return units
-    return "1"
 
 
 def _batch_dims(batch: tuple[int, ...], names) -> tuple[str, ...]:
@@ -644,38 +648,29 @@ def _batch_dims(batch: tuple[int, ...], names) -> tuple[str, ...]:
 
 
 def _batch_coordinates(shadow, batch: tuple[int, ...], dims: tuple[str, ...]) -> dict:
-    """Coordinates of the atmosphere batch dimensions.
+    """Coordinates of the atmosphere batch dimensions (:func:`batch_coordinates`).
 
     Every atmosphere parameter with a batch shape becomes a coordinate over the dimensions
     along which it varies; a dimension named after a parameter that varies along it alone
     takes that parameter's values, any other an index.
     """
-    coords = {}
+    parameters = {}
     atmosphere = getattr(shadow, "atmosphere", None)
-    parameters = ()
     if atmosphere is not None and hasattr(atmosphere, "parameters_dict"):
-        parameters = [key for key, value in atmosphere.parameters_dict().items()
-                      if isinstance(value, list)]
-    for key in parameters:
-        values = getattr(atmosphere, key).detach().to(torch.float64)
-        values = values.reshape((1,) * (len(batch) - values.ndim) + tuple(values.shape))
-        along = tuple(k for k, size in enumerate(values.shape) if size > 1)
-        if not along:
-            continue
-        index = tuple(slice(None) if k in along else 0 for k in range(len(batch)))
-        spec = VariableSpec(_parameter_units(key), key.replace("_", " "),
-                            f"Atmosphere parameter {key} of the batch members")
-        coords[key] = variable(tuple(dims[k] for k in along), to_numpy(values[index]), spec)
-    for k, (dim, size) in enumerate(zip(dims, batch, strict=True)):
-        if dim in coords and coords[dim].dims == (dim,):
-            continue  # labelled by the parameter's values
-        if dim in coords:  # a parameter of that name varies along other dims too
-            raise ValueError(f"batch dimension {dim!r} is named after a parameter that "
-                             f"varies along {coords[dim].dims}")
-        coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
-            "1", "atmosphere batch index", f"Index of the atmosphere along batch "
-            f"dimension {k}"))
-    return coords
+        for key, value in atmosphere.parameters_dict().items():
+            if not isinstance(value, list):
+                continue
+            values = getattr(atmosphere, key).detach().to(torch.float64)
+            values = values.reshape((1,) * (len(batch) - values.ndim) + tuple(values.shape))
+            along = tuple(k for k, size in enumerate(values.shape) if size > 1)
+            if along:
+                index = tuple(slice(None) if k in along else 0 for k in range(len(batch)))
+                parameters[key] = (tuple(dims[k] for k in along), values[index])
+    return batch_coordinates(
+        dict(zip(dims, batch, strict=True)), parameters, long_name="{label}",
+        description="Atmosphere parameter {name} of the batch members",
+        index_long_name="atmosphere batch index",
+        index_description="Index of the atmosphere along batch dimension {axis}")
 
 
 def _shadow_lookup(table, sun):
