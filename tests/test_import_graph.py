@@ -34,16 +34,13 @@ ALLOWED_CYCLE_EDGES = {
     # checks its argument against Scene, so one of the two must import the other late.
     ("skytorch.scene.scene", "skytorch.scene.render"):
         "Scene.render() calls skytorch.scene.render.render (facade method)",
-    # The atmosphere's lower modules check their argument against Atmosphere (and
-    # refraction reads the US 1976 quadrature levels) from atmosphere/model.py, which
-    # imports them. Breaking this needs an edit of model.py (e.g. the type check and
-    # _US1976_BREAKS_M moved below it), left to the developers who own that file.
+    # The atmosphere's lower modules check their argument against Atmosphere from
+    # atmosphere/model.py, which imports them. Breaking this needs an edit of model.py
+    # (e.g. the type check moved below it), left to the developers who own that file.
     ("skytorch.atmosphere.scattering", "skytorch.atmosphere.model"):
         "isinstance(atmosphere, Atmosphere) in single_scattering (model.py imports scattering)",
     ("skytorch.atmosphere.tables", "skytorch.atmosphere.model"):
         "isinstance(atmosphere, Atmosphere) in _check_build (model.py -> scattering -> tables)",
-    ("skytorch.atmosphere.refraction", "skytorch.atmosphere.model"):
-        "_US1976_BREAKS_M fallback in _breakpoints (model.py imports refraction)",
 }
 
 
