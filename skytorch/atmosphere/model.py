@@ -51,8 +51,8 @@ torch.Size([2, 2, 1])
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
-import math
 from functools import lru_cache
 
 import torch
@@ -68,12 +68,14 @@ from skytorch._validate import (
     common_dtype,
 )
 from skytorch.atmosphere import aerosol as _aerosol
+from skytorch.atmosphere import constituents as _constituents
 from skytorch.atmosphere import optical_depth as _od
 from skytorch.atmosphere import ozone as _ozone
 from skytorch.atmosphere import profiles as _profiles
 from skytorch.atmosphere import rayleigh as _rayleigh
+from skytorch.atmosphere.constituents import Constituents, Profile, Species, SpeciesBuilder
 from skytorch.atmosphere.ozone import ozone_cross_section
-from skytorch.atmosphere.scattering import PHASE_FUNCTIONS, phase_function
+from skytorch.atmosphere.scattering import PHASE_FUNCTIONS, phase_function, rayleigh_phase
 from skytorch.constants import (
     AVOGADRO_PER_MOL,
     DOBSON_UNIT_PER_M2,
@@ -92,7 +94,7 @@ from skytorch.constants import (
     STANDARD_TEMPERATURE_K,
 )
 
-__all__ = ["Atmosphere", "SPECIES"]
+__all__ = ["SPECIES", "SPECIES_BUILDERS", "Atmosphere", "altitude_tensor", "wavelength_tensor"]
 
 #: constituents, in the order of ``per_species`` outputs
 SPECIES = ("rayleigh", "aerosol", "ozone", "stratospheric_aerosol")
@@ -110,9 +112,6 @@ _EXPONENTIAL_LEVELS = (0.5, 1.5, 4.0, 10.0, 30.0)
 #: quadrature levels of the US 1976 profile [m]: its layer bases (kinks) and, below the
 #: first, levels that resolve the exponential-like decay near the ground
 _US1976_BREAKS_M = (1000.0, 2000.0, 4000.0, 8000.0, *_profiles.US1976_KINK_ALTITUDES_M)
-
-#: rays per chunk in column integrals (keeps intermediates in cache)
-_CHUNK = 4096
 
 _PARAMETERS = (
     "surface_pressure_pa", "surface_temperature_k", "gravity_m_s2", "molar_mass_kg_mol",
@@ -503,55 +502,69 @@ class Atmosphere(nn.Module):
         return clone
 
     # ------------------------------------------------------------------ species
-    def _density(self, species: str, dtype: torch.dtype, profile: str | None = None,
-                 extra: int = 0):
-        """Density profile of a species as a function of altitude with a trailing sample dim
-        (``profile`` overrides the molecules' profile; ``extra`` geometry dims follow the
-        batch dims, before the sample dim)."""
-        if species == "rayleigh":
-            if (profile or self.molecule_profile) == "us1976":
-                return _profiles.us1976
-            height = self._p("rayleigh_scale_height_m", dtype, 1 + extra)
-            return lambda h: _profiles.exponential(h, height)
-        if species == "aerosol":
-            height = self._p("aerosol_scale_height_m", dtype, 1 + extra)
-            return lambda h: _profiles.exponential(h, height)
-        if species == "stratospheric_aerosol":
-            center = self._p("stratospheric_aerosol_altitude_m", dtype, 1 + extra)
-            width = self._p("stratospheric_aerosol_width_m", dtype, 1 + extra)
-            return lambda h: _aerosol.gaussian_layer(h, center, width)
-        center = self._p("ozone_peak_altitude_m", dtype, 1 + extra)
-        width = self._p("ozone_half_width_m", dtype, 1 + extra)
-        return lambda h: _profiles.tent(h, center, width)
+    def profiles(self, dtype: torch.dtype = torch.float64) -> dict[str, Profile]:
+        """The vertical profile of every species, by name (see
+        :class:`skytorch.atmosphere.constituents.Profile`).
 
-    def _levels(self, species: str, dtype: torch.dtype, extra: int = 0):
-        """Breakpoint altitudes (..., n_level) for the path quadrature [m].
+        Parameters
+        ----------
+        dtype : torch.dtype
+            Floating dtype of the profiles' parameters.
 
-        Exponential profiles: the leg's lowest altitude plus multiples of the scale height
-        (the relative accuracy does not depend on the observer's altitude); US 1976: the
-        layer boundaries; ozone tent: its three kinks.
+        Returns
+        -------
+        dict of Profile
+            Keys of :data:`SPECIES`.
         """
-        factors = torch.tensor(_EXPONENTIAL_LEVELS, dtype=dtype)
-        if species == "rayleigh" and self.molecule_profile == "us1976":
-            return torch.tensor(_US1976_BREAKS_M, dtype=dtype)
-        if species in ("rayleigh", "aerosol"):
-            key = "rayleigh_scale_height_m" if species == "rayleigh" else "aerosol_scale_height_m"
-            height = self._p(key, dtype, 1 + extra) * factors
-            return lambda base: base[..., None] + height
-        if species == "stratospheric_aerosol":
-            center = self._p("stratospheric_aerosol_altitude_m", dtype, extra)[..., None]
-            width = self._p("stratospheric_aerosol_width_m", dtype, extra)[..., None]
-            return torch.clamp(center + width * torch.tensor(_GAUSSIAN_LEVELS, dtype=dtype),
-                               min=0.0)
-        center = self._p("ozone_peak_altitude_m", dtype, extra)
-        width = self._p("ozone_half_width_m", dtype, extra)
-        return torch.stack(torch.broadcast_tensors(torch.clamp(center - width, min=0.0), center,
-                                                   center + width), dim=-1)
+        return {builder.name: builder.profile(self, dtype) for builder in SPECIES_BUILDERS}
 
-    def _truncates(self, species: str) -> bool:
-        """Whether the last quadrature level of ``species`` ends the integration."""
-        return species == "aerosol" or (species == "rayleigh"
-                                        and self.molecule_profile == "exponential")
+    def constituents(self, wavelength_nm, dtype: torch.dtype | None = None, *,
+                     extra_species: tuple = ()) -> Constituents:
+        """Every species at ``wavelength_nm``: the interface that every kernel takes.
+
+        Parameters
+        ----------
+        wavelength_nm : Tensor (wavelength,)
+            Wavelength [nm], in :data:`WAVELENGTH_RANGE_NM`.
+        dtype : torch.dtype, optional
+            Floating dtype of the result (default: that of ``wavelength_nm``).
+        extra_species : tuple of SpeciesBuilder
+            Species added after those of :data:`SPECIES_BUILDERS` (experiments; the
+            library's species are listed there).
+
+        Returns
+        -------
+        Constituents
+            Immutable; profiles, coefficients (*batch, wavelength) [1/m], albedos, phase
+            functions, optical-depth laws and quadrature breakpoints
+            (:mod:`skytorch.atmosphere.constituents`).
+
+        Examples
+        --------
+        >>> import torch
+        >>> atm = Atmosphere.earth(turbidity=torch.tensor([2.0, 3.0]))
+        >>> c = atm.constituents(torch.tensor([550.0]))
+        >>> tuple(c["aerosol"].extinction.shape)
+        (2, 1)
+        """
+        dtype = _floating_dtype(dtype, wavelength_nm)
+        return self._constituents(wavelength_tensor(wavelength_nm, dtype), extra_species)
+
+    def _constituents(self, wavelength: torch.Tensor, extra_species: tuple = ()
+                      ) -> Constituents:
+        """:meth:`constituents` of a checked wavelength tensor."""
+        dtype = wavelength.dtype
+        species = []
+        for builder in (*SPECIES_BUILDERS, *extra_species):
+            if not isinstance(builder, SpeciesBuilder):
+                raise TypeError("species builders must be skytorch.atmosphere.constituents."
+                                f"SpeciesBuilder; got {type(builder).__name__}")
+            built = builder.build(self, wavelength, dtype, builder.profile(self, dtype))
+            if builder.absent is not None and builder.absent(self):
+                built = dataclasses.replace(built, vanishes=True)
+            species.append(built)
+        return Constituents(wavelength, tuple(species), self.planet_radius_m,
+                            self.top_radius_m, self.batch_shape)
 
     def molecular_column_m2(self, dtype: torch.dtype = torch.float64) -> torch.Tensor:
         """Vertical column of molecules :math:`p N_A/(m g)` [m^-2], shape ``batch_shape``."""
@@ -562,20 +575,13 @@ class Atmosphere(nn.Module):
                 / (self._p("molar_mass_kg_mol", dtype, extra)
                    * self._p("gravity_m_s2", dtype, extra)))
 
-    def _profile_height(self, species: str, dtype: torch.dtype, extra: int = 0
-                        ) -> torch.Tensor:
-        """:math:`\\int_0^\\infty \\rho_s(h)\\,dh` [m]."""
-        if species == "rayleigh":
-            if self.molecule_profile == "us1976":
-                return torch.tensor(_us1976_column_height_m(), dtype=dtype)
-            return self._p("rayleigh_scale_height_m", dtype, extra)
-        if species == "aerosol":
-            return self._p("aerosol_scale_height_m", dtype, extra)
-        if species == "stratospheric_aerosol":
-            return _aerosol.gaussian_layer_column(
-                self._p("stratospheric_aerosol_altitude_m", dtype, extra),
-                self._p("stratospheric_aerosol_width_m", dtype, extra), self.top_altitude_m)
-        return self._p("ozone_half_width_m", dtype, extra)
+    def _shape_profile(self, kind: str, dtype: torch.dtype):
+        """The molecular density shape ``kind`` ("exponential", "us1976") as a function of
+        altitude with a trailing sample dim (refractivity)."""
+        if kind == "us1976":
+            return _profiles.us1976
+        height = self._p("rayleigh_scale_height_m", dtype, 1)
+        return lambda h: _profiles.exponential(h, height)
 
     @staticmethod
     def _ozone_temperature(given, values: dict) -> torch.Tensor:
@@ -604,41 +610,6 @@ class Atmosphere(nn.Module):
         """Whether the ozone column is exactly zero everywhere and needs no gradient."""
         ozone = self.ozone_du
         return not ozone.requires_grad and not bool(ozone.detach().any())
-
-    def _coefficients(self, wavelength_nm: torch.Tensor, extra: int = 0
-                      ) -> dict[str, torch.Tensor]:
-        """Reference-level extinction coefficients k_s (..., n_wavelength) [1/m].
-
-        ``extra`` geometry dims are placed between the batch dims and the wavelength.
-        Without ozone (a zero column that needs no gradient) its coefficient is exactly
-        zero at every wavelength, so the cross-section table (214-1100 nm) is not needed.
-        """
-        dtype = wavelength_nm.dtype
-        if dtype != torch.float64:
-            # formed in float64 and cast: p N_A / (m g) alone overflows float32 at the edge
-            # of PARAMETER_RANGES (the coefficients themselves are far inside its range)
-            wide = self._coefficients(wavelength_nm.to(torch.float64), extra)
-            return {key: value.to(dtype) for key, value in wide.items()}
-        sigma_r = _rayleigh.rayleigh_cross_section(wavelength_nm, self.gas)
-        rayleigh = (self._molecular_column(dtype, extra + 1)
-                    / self._profile_height("rayleigh", dtype, extra + 1)) * sigma_r
-        aerosol = (self._p("angstrom_beta", dtype, extra + 1)
-                   * (wavelength_nm / _aerosol.ANGSTROM_REFERENCE_NM)
-                   ** (-self._p("angstrom_alpha", dtype, extra + 1))
-                   / self._p("aerosol_scale_height_m", dtype, extra + 1))
-        column = (self._p("ozone_du", dtype, extra + 1) * DOBSON_UNIT_PER_M2
-                  / self._p("ozone_half_width_m", dtype, extra + 1))
-        if self._ozone_absent():
-            ozone = column * torch.zeros_like(wavelength_nm)
-        else:
-            ozone = column * ozone_cross_section(
-                wavelength_nm, self._p("ozone_temperature_k", dtype, extra + 1))
-        extinction, _, _ = _aerosol.sulfate_mie_properties(wavelength_nm)
-        stratospheric = (self._p("stratospheric_aerosol_optical_depth", dtype, extra + 1)
-                         / self._profile_height("stratospheric_aerosol", dtype, extra + 1)
-                         * extinction)
-        return {"rayleigh": rayleigh, "aerosol": aerosol, "ozone": ozone,
-                "stratospheric_aerosol": stratospheric}
 
     def reference_extinction(self, wavelength_nm) -> dict[str, torch.Tensor]:
         """Extinction coefficient of each species where its relative density is 1.
@@ -677,27 +648,26 @@ class Atmosphere(nn.Module):
         >>> round(float(k["rayleigh"][0]) * 8000.0, 3)   # vertical Rayleigh optical depth
         0.097
         """
-        return self._coefficients(self._wavelength(wavelength_nm, common_dtype(wavelength_nm)))
+        constituents = self.constituents(wavelength_nm)
+        return {species.name: species.extinction for species in constituents.species}
 
     @staticmethod
     def _wavelength(wavelength_nm, dtype=None) -> torch.Tensor:
-        low, high = WAVELENGTH_RANGE_NM
-        # checked in the input's own precision, then cast (a value outside the range must
-        # not slip in by rounding to a lower precision)
-        wavelength = check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm")
-        wavelength = wavelength if dtype is None else wavelength.to(dtype)
-        if wavelength.ndim > 1:
-            raise ValueError("wavelength_nm must be a scalar or a 1-D tensor (n_wavelength,); "
-                             f"got shape {tuple(wavelength.shape)}")
-        return wavelength.reshape(-1)
+        """Alias of :func:`wavelength_tensor` (kept for callers not yet switched)."""
+        return wavelength_tensor(wavelength_nm, dtype)
 
     @staticmethod
     def _altitude(altitude_m, dtype) -> torch.Tensor:
-        # checked in the input's own precision (-1e-300 is below the ground even though it
-        # rounds to -0.0 in float32), then cast
-        altitude = check_range("altitude_m", altitude_m, 0.0, unit=" m (observer inside the "
-                               "planet?)")
-        return altitude if dtype is None else altitude.to(dtype)
+        return altitude_tensor(altitude_m, dtype)
+
+    def check_geometry(self, extra: int = 0, **named) -> torch.Size:
+        """Broadcast shape of the named geometry tensors and the parameters' batch shape.
+
+        Raises ValueError naming every input and its shape when they do not broadcast
+        (before any arithmetic). With ``extra`` the last ``extra`` dims of the geometry
+        follow the batch dims (the parameters are aligned before them).
+        """
+        return self._check_shapes(extra, **named)
 
     def _check_shapes(self, extra: int = 0, **named) -> torch.Size:
         """Broadcast shape of the named geometry tensors and the parameters' batch shape.
@@ -716,15 +686,14 @@ class Atmosphere(nn.Module):
                              f"parameters {tuple(self.batch_shape)}") from None
 
     # ------------------------------------------------------------------ local coefficients
-    def _local(self, altitude_m, wavelength_nm, extra: int = 0):
+    def _local(self, altitude_m, wavelength_nm):
+        """The constituents and each species' local extinction (..., wavelength) [1/m]."""
         dtype = common_dtype(altitude_m, wavelength_nm)
-        wavelength = self._wavelength(wavelength_nm, dtype)
-        altitude = self._altitude(altitude_m, dtype)
-        self._check_shapes(extra, altitude_m=altitude)
-        altitude = altitude[..., None]
-        coefficients = self._coefficients(wavelength, extra)
-        return {s: self._density(s, dtype, extra=extra)(altitude) * coefficients[s]
-                for s in SPECIES}
+        constituents = self._constituents(wavelength_tensor(wavelength_nm, dtype))
+        altitude = altitude_tensor(altitude_m, dtype)
+        self._check_shapes(altitude_m=altitude)
+        local = constituents.extinction_coefficients(altitude[..., None])
+        return constituents, altitude, {key: value[..., 0, :] for key, value in local.items()}
 
     def extinction_coefficient(self, altitude_m, wavelength_nm) -> torch.Tensor:
         """Total extinction coefficient (scattering + absorption).
@@ -741,28 +710,21 @@ class Atmosphere(nn.Module):
         Tensor (..., wavelength)
             Extinction coefficient [1/m]; leading dims broadcast altitude and parameters.
         """
-        return sum(self._local(altitude_m, wavelength_nm).values())
+        return sum(self._local(altitude_m, wavelength_nm)[2].values())
 
     def scattering_coefficients(self, altitude_m, wavelength_nm) -> dict[str, torch.Tensor]:
         """Scattering coefficients ``{"rayleigh", "aerosol", "stratospheric_aerosol"}``
-        (..., wavelength) [1/m]."""
-        local = self._local(altitude_m, wavelength_nm)
-        albedo = self._p("aerosol_single_scattering_albedo", local["aerosol"].dtype, 1)
-        return {"rayleigh": local["rayleigh"], "aerosol": albedo * local["aerosol"],
-                "stratospheric_aerosol": self._stratospheric_albedo(wavelength_nm,
-                                                                    local["aerosol"].dtype)
-                * local["stratospheric_aerosol"]}
+        (..., wavelength) [1/m] (every species that scatters)."""
+        constituents, altitude, _ = self._local(altitude_m, wavelength_nm)
+        local = constituents.scattering_coefficients(altitude[..., None])
+        return {key: value[..., 0, :] for key, value in local.items()}
 
     def absorption_coefficient(self, altitude_m, wavelength_nm) -> torch.Tensor:
         """Absorption coefficient: ozone + aerosol absorption (..., wavelength) [1/m]."""
-        local = self._local(altitude_m, wavelength_nm)
-        albedo = self._p("aerosol_single_scattering_albedo", local["aerosol"].dtype, 1)
-        stratospheric = self._stratospheric_albedo(wavelength_nm, local["aerosol"].dtype)
-        return (local["ozone"] + (1.0 - albedo) * local["aerosol"]
-                + (1.0 - stratospheric) * local["stratospheric_aerosol"])
-
-    def _stratospheric_albedo(self, wavelength_nm, dtype) -> torch.Tensor:
-        return _aerosol.sulfate_mie_properties(self._wavelength(wavelength_nm, dtype))[1]
+        constituents, altitude, extinction = self._local(altitude_m, wavelength_nm)
+        scattering = constituents.scattering_coefficients(altitude[..., None])
+        return sum(value - scattering[key][..., 0, :] if key in scattering else value
+                   for key, value in extinction.items())
 
     def stratospheric_aerosol_phase(self, cos_theta, wavelength_nm) -> torch.Tensor:
         """Henyey-Greenstein phase function of the stratospheric sulfate layer [1/sr].
@@ -781,7 +743,7 @@ class Atmosphere(nn.Module):
         """
         cos_theta = check_range("cos_theta", cos_theta, -1.0, 1.0)
         dtype = common_dtype(cos_theta, wavelength_nm)
-        wavelength = self._wavelength(wavelength_nm, dtype)
+        wavelength = wavelength_tensor(wavelength_nm, dtype)
         g = _aerosol.sulfate_mie_properties(wavelength)[2]
         return phase_function(cos_theta.to(dtype)[..., None], g, "henyeygreenstein1941")
 
@@ -795,9 +757,9 @@ class Atmosphere(nn.Module):
     def relative_density(self, species: str, altitude_m) -> torch.Tensor:
         """Dimensionless density profile of ``species`` (1 at the surface for molecules)."""
         check_choice("species", species, SPECIES)
-        altitude = self._altitude(altitude_m, common_dtype(altitude_m))
+        altitude = altitude_tensor(altitude_m, common_dtype(altitude_m))
         self._check_shapes(altitude_m=altitude)
-        return self._density(species, altitude.dtype)(altitude[..., None])[..., 0]
+        return self.profiles(altitude.dtype)[species](altitude[..., None])[..., 0]
 
     @property
     def refractivity_breakpoints_m(self) -> tuple[float, ...]:
@@ -841,19 +803,19 @@ class Atmosphere(nn.Module):
             ``refractivity_profile`` normalised to 1 at the ground.
         """
         dtype = common_dtype(altitude_m, wavelength_nm)
-        altitude = self._altitude(altitude_m, dtype)
+        altitude = altitude_tensor(altitude_m, dtype)
         self._check_shapes(altitude_m=altitude)
         surface = (self._p("reference_refractivity", dtype)
                    * self._p("surface_pressure_pa", dtype) / self._p("reference_pressure_pa",
                                                                      dtype)
                    * self._p("reference_temperature_k", dtype)
                    / self._p("surface_temperature_k", dtype))
-        density = self._density("rayleigh", dtype, self.refractivity_profile)(
+        density = self._shape_profile(self.refractivity_profile, dtype)(
             altitude[..., None])[..., 0]
         value = surface * density
         if wavelength_nm is None:
             return value
-        wavelength = self._wavelength(wavelength_nm, dtype)
+        wavelength = wavelength_tensor(wavelength_nm, dtype)
         return value[..., None] * _rayleigh.refractivity_dispersion(wavelength)
 
     # ------------------------------------------------------------------ optical depth
@@ -882,39 +844,19 @@ class Atmosphere(nn.Module):
             raise TypeError(f"dtype must be a floating torch.dtype; got {dtype!r}")
         dtype = dtype or common_dtype(zenith_rad, altitude_m)
         zenith = check_zenith(zenith_rad, dtype=dtype)
-        altitude = self._altitude(altitude_m, dtype)
+        altitude = altitude_tensor(altitude_m, dtype)
         _check_quadrature(method, n_steps, rtol)
         self._check_shapes(zenith_rad=zenith, altitude_m=altitude)
         return self._columns(zenith, altitude, method, n_steps, rtol, dtype)
 
     def _columns(self, zenith, altitude, method, n_steps, rtol, dtype, extra: int = 0):
         """Column integrals of checked inputs (``extra``: geometry dims after the batch)."""
-        r = self.planet_radius_m + altitude
-        mu = torch.cos(zenith)
-        shape = broadcast_shape(r.shape, mu.shape)
-        count = math.prod(shape)
-        if self.batch_shape == () and count > _CHUNK:
-            # unbatched parameters: integrate cache-sized chunks of rays
-            r_flat = r.expand(shape).reshape(-1)
-            mu_flat = mu.expand(shape).reshape(-1)
-            pieces = [self._column_integrals(r_flat[i:i + _CHUNK], mu_flat[i:i + _CHUNK],
-                                             method, n_steps, rtol, dtype)
-                      for i in range(0, count, _CHUNK)]
-            return {s: torch.cat([piece[s] for piece in pieces]).reshape(shape)
-                    for s in SPECIES}
-        return self._column_integrals(r, mu, method, n_steps, rtol, dtype, extra)
-
-    def _column_integrals(self, r, mu, method, n_steps, rtol, dtype, extra: int = 0):
-        absent = self._stratospheric_absent()
-        columns = {s: _od.column_integral(self._density(s, dtype, extra=extra), r, mu,
-                                          self.planet_radius_m, self.top_radius_m,
-                                          self._levels(s, dtype, extra),
-                                          method=method, n_steps=n_steps, rtol=rtol,
-                                          truncate=self._truncates(s), support=s == "ozone")
-                   for s in SPECIES if not (absent and s == "stratospheric_aerosol")}
-        if absent:  # no layer: its column is not needed (zero optical depth)
-            columns["stratospheric_aerosol"] = torch.zeros_like(columns["aerosol"])
-        return columns
+        vanishing = tuple(builder.name for builder in SPECIES_BUILDERS
+                          if builder.absent is not None and builder.absent(self))
+        return _constituents.column_integrals(
+            self.profiles(dtype), self.planet_radius_m + altitude, torch.cos(zenith),
+            self.planet_radius_m, self.top_radius_m, method=method, n_steps=n_steps,
+            rtol=rtol, extra=extra, vanishing=vanishing, batch_shape=self.batch_shape)
 
     def optical_depth(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, *,
                       method: str = "gauss", n_steps: int | None = None,
@@ -980,9 +922,9 @@ class Atmosphere(nn.Module):
             raise TypeError(f"{', '.join(given)} apply to refracted rays only (refraction="
                             "True); straight rays take method, n_steps and rtol")
         dtype = common_dtype(wavelength_nm, zenith_rad, altitude_m)
-        wavelength = self._wavelength(wavelength_nm, dtype)
+        wavelength = wavelength_tensor(wavelength_nm, dtype)
         zenith = check_zenith(zenith_rad, dtype=dtype)
-        altitude = self._altitude(altitude_m, dtype)
+        altitude = altitude_tensor(altitude_m, dtype)
         _check_quadrature(method, n_steps, rtol)
         self._check_shapes(zenith_rad=zenith, altitude_m=altitude)
         return self._optical_depth(wavelength, zenith, altitude, method=method,
@@ -992,14 +934,11 @@ class Atmosphere(nn.Module):
                        rtol=1e-9, per_species=False, extra: int = 0):
         """Straight-ray optical depth of checked inputs; ``extra`` geometry dims follow the
         parameters' batch dims (e.g. samples along a view ray), before the wavelength."""
-        dtype = wavelength.dtype
-        columns = self._columns(zenith, altitude, method, n_steps, rtol, dtype, extra)
-        coefficients = self._coefficients(wavelength, extra)
-        result = {s: columns[s][..., None] * coefficients[s] for s in SPECIES}
-        if per_species:
-            return result
-        return (result["rayleigh"] + result["aerosol"] + result["ozone"]
-                + result["stratospheric_aerosol"])
+        constituents = self._constituents(wavelength)
+        columns = constituents.column_integrals(self.planet_radius_m + altitude,
+                                                torch.cos(zenith), method=method,
+                                                n_steps=n_steps, rtol=rtol, extra=extra)
+        return constituents.optical_depth(columns, per_species=per_species, extra=extra)
 
     def transmittance(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, **options
                       ) -> torch.Tensor:
@@ -1076,7 +1015,7 @@ class Atmosphere(nn.Module):
         if solar_irradiance:
             from skytorch.spectrum import solar_irradiance as irradiance
 
-            wavelength = self._wavelength(wavelength_nm, radiance.dtype)
+            wavelength = wavelength_tensor(wavelength_nm, radiance.dtype)
             radiance = radiance * irradiance(wavelength).to(radiance.dtype)
         return radiance
 
@@ -1102,6 +1041,172 @@ class Atmosphere(nn.Module):
                 ) -> torch.Tensor:
         """Same as :meth:`transmittance`."""
         return self.transmittance(wavelength_nm, zenith_rad, altitude_m, **options)
+
+
+def wavelength_tensor(wavelength_nm, dtype: torch.dtype | None = None) -> torch.Tensor:
+    """Checked wavelengths as a 1-D tensor (n_wavelength,) [nm].
+
+    Parameters
+    ----------
+    wavelength_nm : float, sequence or Tensor (wavelength,)
+        Wavelength [nm], in :data:`WAVELENGTH_RANGE_NM`; a scalar becomes shape (1,).
+    dtype : torch.dtype, optional
+        Cast to this dtype after the check (the check is done in the input's own
+        precision, so that a value outside the range cannot slip in by rounding).
+
+    Returns
+    -------
+    Tensor (wavelength,)
+
+    Raises
+    ------
+    ValueError
+        A wavelength outside the range, NaN, or more than one dimension.
+
+    Examples
+    --------
+    >>> import torch
+    >>> wavelength_tensor(torch.tensor(550.0))
+    tensor([550.])
+    """
+    low, high = WAVELENGTH_RANGE_NM
+    wavelength = check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm")
+    wavelength = wavelength if dtype is None else wavelength.to(dtype)
+    if wavelength.ndim > 1:
+        raise ValueError("wavelength_nm must be a scalar or a 1-D tensor (n_wavelength,); "
+                         f"got shape {tuple(wavelength.shape)}")
+    return wavelength.reshape(-1)
+
+
+def altitude_tensor(altitude_m, dtype: torch.dtype | None = None) -> torch.Tensor:
+    """Checked observer altitudes (>= 0) [m], cast to ``dtype`` after the check.
+
+    Checked in the input's own precision (-1e-300 is below the ground even though it
+    rounds to -0.0 in float32); ValueError below the surface.
+    """
+    altitude = check_range("altitude_m", altitude_m, 0.0, unit=" m (observer inside the "
+                           "planet?)")
+    return altitude if dtype is None else altitude.to(dtype)
+
+
+def _floating_dtype(dtype, *tensors) -> torch.dtype:
+    if dtype is None:
+        return common_dtype(*tensors)
+    if dtype not in (torch.float16, torch.bfloat16, torch.float32, torch.float64):
+        raise TypeError(f"dtype must be a floating torch.dtype; got {dtype!r}")
+    return dtype
+
+
+# ---------------------------------------------------------------------- species builders
+# Each species: profile(atmosphere, dtype) -> Profile and build(atmosphere, wavelength,
+# dtype, profile) -> Species (see skytorch.atmosphere.constituents, "Adding a species").
+# Spectral coefficients are formed in float64 and cast: p N_A / (m g) alone overflows
+# float32 at the edge of PARAMETER_RANGES (the coefficients are far inside its range).
+
+def _rayleigh_profile(atm: Atmosphere, dtype: torch.dtype) -> Profile:
+    if atm.molecule_profile == "us1976":
+        return Profile(_profiles.us1976, {}, torch.tensor(_us1976_column_height_m(),
+                                                          dtype=dtype),
+                       breakpoints_m=torch.tensor(_US1976_BREAKS_M, dtype=dtype))
+    height = atm._p("rayleigh_scale_height_m", dtype)
+    return Profile(_profiles.exponential, {"scale_height_m": height}, height,
+                   relative_breakpoints_m=height[..., None]
+                   * torch.tensor(_EXPONENTIAL_LEVELS, dtype=dtype), truncate=True)
+
+
+def _rayleigh_species(atm, wavelength, dtype, profile) -> Species:
+    wide = wavelength.to(torch.float64)
+    density = atm._molecular_column(torch.float64) / profile.column_height_m.to(torch.float64)
+    extinction = (density[..., None] * _rayleigh.rayleigh_cross_section(wide, atm.gas)
+                  ).to(dtype)
+    return Species("rayleigh", profile, extinction, extinction,
+                   phase=lambda cos_theta, extra=0: rayleigh_phase(cos_theta)[..., None])
+
+
+def _aerosol_profile(atm, dtype) -> Profile:
+    height = atm._p("aerosol_scale_height_m", dtype)
+    return Profile(_profiles.exponential, {"scale_height_m": height}, height,
+                   relative_breakpoints_m=height[..., None]
+                   * torch.tensor(_EXPONENTIAL_LEVELS, dtype=dtype), truncate=True)
+
+
+def _aerosol_species(atm, wavelength, dtype, profile) -> Species:
+    wide = wavelength.to(torch.float64)
+    extinction = (atm._p("angstrom_beta", torch.float64, 1)
+                  * (wide / _aerosol.ANGSTROM_REFERENCE_NM)
+                  ** (-atm._p("angstrom_alpha", torch.float64, 1))
+                  / atm._p("aerosol_scale_height_m", torch.float64, 1))
+    scattering = atm._p("aerosol_single_scattering_albedo", torch.float64, 1) * extinction
+    asymmetry = atm._p("aerosol_asymmetry", dtype)
+    model = atm.aerosol_phase_model
+
+    def phase(cos_theta, extra=0):
+        return phase_function(cos_theta, _constituents.insert_dims(asymmetry, extra, 0),
+                              model)[..., None]
+
+    return Species("aerosol", profile, extinction.to(dtype), scattering.to(dtype), phase)
+
+
+def _ozone_profile(atm, dtype) -> Profile:
+    center = atm._p("ozone_peak_altitude_m", dtype)
+    width = atm._p("ozone_half_width_m", dtype)
+    levels = torch.stack(torch.broadcast_tensors(torch.clamp(center - width, min=0.0), center,
+                                                 center + width), dim=-1)
+    return Profile(_profiles.tent, {"center_m": center, "half_width_m": width}, width,
+                   breakpoints_m=levels, support=True)
+
+
+def _ozone_species(atm, wavelength, dtype, profile) -> Species:
+    wide = wavelength.to(torch.float64)
+    column = (atm._p("ozone_du", torch.float64, 1) * DOBSON_UNIT_PER_M2
+              / atm._p("ozone_half_width_m", torch.float64, 1))
+    if atm._ozone_absent():
+        # a zero column needing no gradient: exactly zero at every wavelength, so the
+        # cross-section table (214-1100 nm) is not needed
+        extinction = column * torch.zeros_like(wide)
+    else:
+        extinction = column * ozone_cross_section(
+            wide, atm._p("ozone_temperature_k", torch.float64, 1))
+    return Species("ozone", profile, extinction.to(dtype))
+
+
+def _stratospheric_profile(atm, dtype) -> Profile:
+    center = atm._p("stratospheric_aerosol_altitude_m", dtype)
+    width = atm._p("stratospheric_aerosol_width_m", dtype)
+    levels = torch.clamp(center[..., None] + width[..., None]
+                         * torch.tensor(_GAUSSIAN_LEVELS, dtype=dtype), min=0.0)
+    height = _aerosol.gaussian_layer_column(center, width, atm.top_altitude_m)
+    return Profile(_aerosol.gaussian_layer, {"center_m": center, "width_m": width}, height,
+                   breakpoints_m=levels)
+
+
+def _stratospheric_species(atm, wavelength, dtype, profile) -> Species:
+    wide = wavelength.to(torch.float64)
+    extinction, albedo, asymmetry = _aerosol.sulfate_mie_properties(wide)
+    height = _aerosol.gaussian_layer_column(
+        atm._p("stratospheric_aerosol_altitude_m", torch.float64, 1),
+        atm._p("stratospheric_aerosol_width_m", torch.float64, 1), atm.top_altitude_m)
+    extinction = atm._p("stratospheric_aerosol_optical_depth", torch.float64, 1) / height \
+        * extinction
+    g = asymmetry.to(dtype)
+
+    def phase(cos_theta, extra=0):
+        # Henyey-Greenstein with the Mie table's asymmetry per wavelength
+        return phase_function(cos_theta[..., None], g, "henyeygreenstein1941")
+
+    return Species("stratospheric_aerosol", profile, extinction.to(dtype),
+                   (albedo * extinction).to(dtype), phase)
+
+
+#: how the species are built, in the order of :data:`SPECIES` (see
+#: :mod:`skytorch.atmosphere.constituents`, "Adding a species")
+SPECIES_BUILDERS = (
+    SpeciesBuilder("rayleigh", _rayleigh_profile, _rayleigh_species),
+    SpeciesBuilder("aerosol", _aerosol_profile, _aerosol_species),
+    SpeciesBuilder("ozone", _ozone_profile, _ozone_species),
+    SpeciesBuilder("stratospheric_aerosol", _stratospheric_profile, _stratospheric_species,
+                   absent=lambda atm: atm._stratospheric_absent()),
+)
 
 
 def _check_flag(name: str, value) -> bool:

@@ -35,11 +35,12 @@ from skytorch._validate import (
     check_range,
     common_dtype,
 )
-from skytorch.atmosphere import aerosol as _aerosol
+from skytorch.atmosphere.constituents import insert_dims
 from skytorch.atmosphere.geometry import _distance_to_ground, _distance_to_top, _ray_hits_ground
 
 __all__ = [
     "PHASE_FUNCTIONS",
+    "constituent_radiance",
     "single_scattering_radiance",
     "cornette_shanks",
     "henyey_greenstein",
@@ -176,7 +177,7 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     :math:`T(0 \\to s)` integrated along the view ray (trapezoid on the samples) and
     :math:`T_\\odot(s) = 0` where the ray to the Sun meets the planet (its shadow).
     """
-    from skytorch.atmosphere.model import Atmosphere
+    from skytorch.atmosphere.model import Atmosphere, altitude_tensor, wavelength_tensor
 
     if not isinstance(atmosphere, Atmosphere):
         raise TypeError("atmosphere must be a skytorch.atmosphere.Atmosphere; got "
@@ -186,19 +187,19 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
         sun_steps = check_int("sun_steps", sun_steps, 1)
     dtype = common_dtype(wavelength_nm, view_zenith_rad, view_azimuth_rad, sun_zenith_rad,
                          sun_azimuth_rad, altitude_m)
-    wavelength = atmosphere._wavelength(wavelength_nm, dtype)
+    wavelength = wavelength_tensor(wavelength_nm, dtype)
     view_zenith = check_finite("view_zenith_rad", view_zenith_rad, dtype=dtype)
     view_azimuth = check_finite("view_azimuth_rad", view_azimuth_rad, dtype=dtype)
     sun_zenith = check_finite("sun_zenith_rad", sun_zenith_rad, dtype=dtype)
     sun_azimuth = check_finite("sun_azimuth_rad", sun_azimuth_rad, dtype=dtype)
-    altitude = atmosphere._altitude(altitude_m, dtype)
+    altitude = altitude_tensor(altitude_m, dtype)
     if bool((altitude > atmosphere.top_altitude_m).any()):
         raise ValueError("altitude_m must be inside the atmosphere (<= "
                          f"{atmosphere.top_altitude_m} m) for sky radiance; got "
                          f"{float(altitude.max())} m")
-    atmosphere._check_shapes(view_zenith_rad=view_zenith, view_azimuth_rad=view_azimuth,
-                             sun_zenith_rad=sun_zenith, sun_azimuth_rad=sun_azimuth,
-                             altitude_m=altitude)
+    atmosphere.check_geometry(view_zenith_rad=view_zenith, view_azimuth_rad=view_azimuth,
+                              sun_zenith_rad=sun_zenith, sun_azimuth_rad=sun_azimuth,
+                              altitude_m=altitude)
     if table is not None:
         from skytorch.atmosphere.tables import TransmittanceTable
 
@@ -206,8 +207,26 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
             raise TypeError("table must be a skytorch.atmosphere.tables.TransmittanceTable; "
                             f"got {type(table).__name__}")
         table.check_compatible(atmosphere, wavelength)
-    planet = atmosphere.planet_radius_m
-    top = atmosphere.top_radius_m
+    return constituent_radiance(atmosphere.constituents(wavelength), view_zenith,
+                                view_azimuth, sun_zenith, sun_azimuth, altitude,
+                                n_samples=n_samples, table=table, sun_steps=sun_steps)
+
+
+def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth,
+                         altitude, *, n_samples: int = 128, table=None,
+                         sun_steps: int | None = None) -> torch.Tensor:
+    """Single-scattering radiance :math:`L/E_\\odot` (..., wavelength) [sr^-1] of
+    :class:`~skytorch.atmosphere.constituents.Constituents` (checked inputs).
+
+    The kernel behind :func:`single_scattering_radiance`: every species that scatters
+    contributes its scattering coefficient and phase function; the view-path optical
+    depth comes from cumulative per-species path columns along the samples and the Sun's
+    from straight-ray columns (or ``table``), both through
+    :meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`.
+    """
+    dtype = constituents.dtype
+    planet = constituents.planet_radius_m
+    top = constituents.top_radius_m
     view = _direction(view_zenith, view_azimuth)
     sun = _direction(sun_zenith, sun_azimuth)
     cos_theta = torch.clamp((view * sun).sum(-1), -1.0, 1.0)
@@ -224,40 +243,42 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     r = torch.sqrt(r_sq)
     # (rounding can put the last sample a hair outside the shell)
     height = torch.clamp(((r_sq - planet ** 2) / (r + planet)), 0.0,
-                         atmosphere.top_altitude_m)
+                         constituents.top_altitude_m)
     # cosine of the Sun's zenith angle at each sample: (p . sun) / r
     p_dot_sun = r0_ * sun[..., 2:3] + s * cos_theta[..., None]
     mu_sun = torch.clamp(p_dot_sun / r, -1.0, 1.0)
-    sun_zenith_local = torch.acos(mu_sun)
-    # the geometry carries one dim (the samples, n) after the parameters' batch dims:
-    # passed as ``extra=1`` (explicit, so that the atmosphere can be shared by threads)
-    coefficients = atmosphere._coefficients(wavelength, extra=1)  # (batch, 1, wavelength)
-    local = {name: atmosphere._density(name, dtype, extra=1)(height)[..., None]
-             * coefficients[name] for name in coefficients}
+    # the samples are one geometry dim after the parameters' batch dims: passed as
+    # ``extra=1`` (explicit, so that the atmosphere can be shared by threads)
+    densities = constituents.densities(height)  # (..., n): the samples are the sample dim
     # transmittance towards the Sun from each sample (zero in the planet's shadow)
     if table is not None:
-        tau_sun = table._optical_depth(sun_zenith_local, height)
+        tau_sun = table.lookup(torch.acos(mu_sun), height)
     else:
-        tau_sun = atmosphere._optical_depth(wavelength, sun_zenith_local, height,
-                                            n_steps=sun_steps, extra=1)
-    extinction = (local["rayleigh"] + local["aerosol"] + local["ozone"]
-                  + local["stratospheric_aerosol"])
-    step = (s[..., 1:] - s[..., :-1])[..., None]
-    increments = 0.5 * step * (extinction[..., 1:, :] + extinction[..., :-1, :])
-    tau_view = torch.cat([torch.zeros_like(increments[..., :1, :]),
-                          torch.cumsum(increments, dim=-2)], dim=-2)
+        columns = constituents.column_integrals(planet + height, mu_sun, n_steps=sun_steps,
+                                                extra=1)
+        tau_sun = constituents.optical_depth(columns, extra=1)
+    # view path: cumulative trapezoid columns of every species along the samples
+    step = s[..., 1:] - s[..., :-1]
+    view_columns = {}
+    for name, density in densities.items():
+        increments = 0.5 * step * (density[..., 1:] + density[..., :-1])
+        view_columns[name] = torch.cat([torch.zeros_like(increments[..., :1]),
+                                        torch.cumsum(increments, dim=-1)], dim=-1)
+    tau_view = constituents.optical_depth(view_columns, extra=1)
     shadow = _ray_hits_ground(r, mu_sun, planet)[..., None]
     sun_transmittance = torch.where(shadow, torch.zeros_like(tau_sun), torch.exp(-tau_sun))
-    albedo = atmosphere._p("aerosol_single_scattering_albedo", dtype, 2)
-    phase_r = rayleigh_phase(cos_theta)[..., None, None]
-    phase_a = phase_function(cos_theta, atmosphere._p("aerosol_asymmetry", dtype),
-                             atmosphere.aerosol_phase_model)[..., None, None]
-    source = (local["rayleigh"] * phase_r + albedo * local["aerosol"] * phase_a)
-    if not atmosphere._stratospheric_absent():
-        # stratospheric sulfate layer: Mie albedo and Henyey-Greenstein asymmetry per
-        # wavelength (skytorch.atmosphere.aerosol.sulfate_mie_properties)
-        _, albedo_s, g_s = _aerosol.sulfate_mie_properties(wavelength)
-        phase_s = phase_function(cos_theta[..., None], g_s, "henyeygreenstein1941")
-        source = source + albedo_s * local["stratospheric_aerosol"] * phase_s[..., None, :]
+    source = None
+    for species in constituents.scatterers():
+        if species.vanishes:
+            continue
+        # (..., n, wavelength): density times the reference scattering coefficient times
+        # the phase function at the (per view ray) scattering angle
+        term = (densities[species.name][..., None]
+                * insert_dims(species.scattering, 1, 1)
+                * species.phase(cos_theta)[..., None, :])
+        source = term if source is None else source + term
+    if source is None:
+        source = torch.zeros_like(tau_view)
+    step = step[..., None]
     integrand = source * torch.exp(-tau_view) * sun_transmittance
     return (0.5 * step * (integrand[..., 1:, :] + integrand[..., :-1, :])).sum(-2)

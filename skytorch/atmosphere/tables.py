@@ -139,7 +139,7 @@ def radius_nodes(atmosphere, n_r: int) -> torch.Tensor:
     """
     planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
     horizon = math.sqrt(top ** 2 - planet ** 2)
-    kinks = atmosphere._levels("ozone", torch.float64).reshape(-1).tolist()
+    kinks = atmosphere.profiles(torch.float64)["ozone"].breakpoints_m.reshape(-1).tolist()
     cuts = sorted({math.sqrt(h * (2.0 * planet + h)) / horizon for h in kinks
                    if 0.0 < h < atmosphere.top_altitude_m})
     edges = [0.0, *cuts, 1.0]
@@ -188,7 +188,7 @@ def table_key(atmosphere, wavelength_nm, n_mu: int, n_r: int, method: str,
 
 def _check_build(atmosphere, wavelength_nm, n_mu, n_r, method, n_steps):
     """Checked arguments of a table build (TypeError/ValueError naming the parameter)."""
-    from skytorch.atmosphere.model import Atmosphere
+    from skytorch.atmosphere.model import Atmosphere, wavelength_tensor
 
     if not isinstance(atmosphere, Atmosphere):
         raise TypeError("atmosphere must be a skytorch.atmosphere.Atmosphere; got "
@@ -202,7 +202,7 @@ def _check_build(atmosphere, wavelength_nm, n_mu, n_r, method, n_steps):
         raise ValueError("transmittance tables need an Atmosphere with scalar parameters; "
                          f"got batch shape {tuple(atmosphere.batch_shape)} (loop over the "
                          "sweep)")
-    wavelength = atmosphere._wavelength(wavelength_nm, torch.float64)
+    wavelength = wavelength_tensor(wavelength_nm, torch.float64)
     if wavelength.numel() == 0:
         raise ValueError("wavelength_nm must hold at least one wavelength; got none")
     return wavelength, n_mu, n_r, n_steps
@@ -535,10 +535,11 @@ class TransmittanceTable(nn.Module):
                              f"altitude_m {tuple(altitude.shape)}") from None
         if wavelength_nm is not None:
             self.check_compatible(wavelength_nm=wavelength_nm)
-        return self._optical_depth(zenith, altitude)
+        return self.lookup(zenith, altitude)
 
-    def _optical_depth(self, zenith, altitude) -> torch.Tensor:
-        """Look-up of checked inputs (``altitude`` in [0, top])."""
+    def lookup(self, zenith, altitude) -> torch.Tensor:
+        """:meth:`optical_depth` of checked tensors (``altitude`` in [0, top] [m], finite
+        ``zenith`` [rad], same dtype), without the checks (..., wavelength)."""
         r = self.planet_radius_m + altitude
         mu = torch.cos(zenith)
         r, mu = torch.broadcast_tensors(r, mu)

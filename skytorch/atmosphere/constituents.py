@@ -1,0 +1,476 @@
+"""The constituents of an atmosphere at given wavelengths: the one interface to every kernel.
+
+:meth:`skytorch.atmosphere.Atmosphere.constituents` returns a :class:`Constituents`, an
+immutable value object holding, per species by name (a :class:`Species`):
+
+* its vertical **profile** (a :class:`Profile`): the density relative to a reference
+  density as a pure function of altitude, callable on tensors, with the quadrature
+  **breakpoints** (profile kinks, layer peaks) and the column height
+  :math:`\\int_0^{top}\\rho\\,dh`;
+* its **extinction** and **scattering** coefficients at the reference density
+  (``(*batch, wavelength)`` [1/m], batched over the atmosphere's parameters), hence its
+  **single-scattering albedo**;
+* a **phase-function** handle (``None`` for pure absorbers);
+* an optional **nonlinear law** :math:`\\tau = f(u)` of its path column :math:`u` (band
+  models with a curve of growth); linear species have :math:`\\tau = k\\,u`.
+
+Every optical depth in skytorch is computed from per-species PATH COLUMNS through one
+method, :meth:`Constituents.optical_depth`: straight rays
+(:meth:`Constituents.column_integrals`), refracted rays (columns integrated along the bent
+path), the view path of single scattering (cumulative columns along the samples), the
+eclipse shadow and the skyglow kernel all hand their columns to it, so a species with a
+nonlinear law is right along every path, including refracted limb paths.
+
+Shapes and alignment
+--------------------
+Parameters have the atmosphere's batch shape ``B``; geometry tensors broadcast with
+``B`` and may carry ``extra`` further dims after it (e.g. the samples along a view ray).
+Every method that combines the two takes ``extra`` explicitly (never held as state, so
+one :class:`Constituents` or :class:`Atmosphere` can be shared by threads): batched
+tensors of the constituents get ``extra`` singleton dims inserted after their batch dims.
+
+Adding a species
+----------------
+A species is registered in :data:`skytorch.atmosphere.model.SPECIES_BUILDERS` (a tuple,
+one :class:`SpeciesBuilder` line per species, in output order) with two pure functions
+of the atmosphere's parameters:
+
+* ``profile(atmosphere, dtype) -> Profile``: its relative density versus altitude;
+* ``build(atmosphere, wavelength_nm, dtype, profile) -> Species``: its coefficients at
+  the checked 1-D ``wavelength_nm`` (in ``dtype``), phase function and law;
+* optionally ``absent(atmosphere) -> bool``: True where its amount is exactly zero and
+  needs no gradient (its columns are then not integrated).
+
+A new parameter of the species is a keyword of :class:`~skytorch.atmosphere.Atmosphere`
+(add it to ``_PARAMETERS``, ``PARAMETER_RANGES`` and the constructor's signature; it
+becomes a float64 buffer, ``atmosphere.<name>``, batched like the others; read it cast
+to ``dtype``). Nothing else changes: every kernel (optical depth, refraction, single
+scattering, shadow, skyglow) sees the species through :class:`Constituents`. Worked
+example: a uniformly mixed absorber following the molecules with a curve-of-growth law
+:math:`\\tau = S(\\lambda)\\sqrt{u}` of its column :math:`u = N_{ref}\\int\\rho\\,ds`
+[m^-2] (a nonlinear law: only the path column is used, so it is right along refracted
+paths as well):
+
+>>> import torch
+>>> from skytorch.atmosphere import Atmosphere
+>>> from skytorch.atmosphere.constituents import Species, SpeciesBuilder, insert_dims
+>>> def band_profile(atmosphere, dtype):
+...     return atmosphere.profiles(dtype)["rayleigh"]      # mixed like the air
+>>> def band_species(atmosphere, wavelength_nm, dtype, profile):
+...     # reference number density [m^-3], shape (*B)
+...     n_ref = atmosphere.molecular_column_m2(dtype) / profile.column_height_m
+...     strength = 1e-16 * torch.exp(-((wavelength_nm - 760.0) / 2.0) ** 2)  # [m]
+...     def law(column, extra):                 # column (*B', *extra) [m]
+...         u = column * insert_dims(n_ref, extra, 0)       # [m^-2]
+...         return torch.sqrt(u)[..., None] * strength
+...     return Species("toy_band", profile, extinction=torch.zeros_like(strength), law=law)
+>>> builder = SpeciesBuilder("toy_band", band_profile, band_species)
+>>> atm = Atmosphere.earth(ozone_du=0.0, aerosol_optical_depth=0.0)
+>>> c = atm.constituents(torch.tensor([700.0, 760.0], dtype=torch.float64),
+...                      extra_species=(builder,))
+>>> columns = c.column_integrals(torch.tensor(6_371_000.0, dtype=torch.float64),
+...                              torch.tensor(1.0, dtype=torch.float64))
+>>> tau = c.optical_depth(columns, per_species=True)
+>>> bool(tau["toy_band"][0] < 1e-6 < tau["toy_band"][1])
+True
+>>> bool(torch.allclose(c.optical_depth(columns), sum(tau.values())))
+True
+
+In the library the two functions live in the species' own module (e.g.
+``skytorch/atmosphere/gases.py``) and its builder is listed in ``SPECIES_BUILDERS``
+(``extra_species`` is for experiments); every kernel then sees the species without
+further change (its density by :meth:`Constituents.densities`, its scattering by
+:meth:`Constituents.scatterers`). A species whose ``scattering`` is not ``None`` must
+give a ``phase``.
+
+Examples
+--------
+>>> import torch
+>>> from skytorch.atmosphere import Atmosphere
+>>> c = Atmosphere.earth(turbidity=2.0).constituents(torch.tensor([550.0]))
+>>> c.names
+('rayleigh', 'aerosol', 'ozone', 'stratospheric_aerosol')
+>>> c["ozone"].phase is None    # pure absorber
+True
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import torch
+
+from skytorch._validate import broadcast_shape
+from skytorch.atmosphere import optical_depth as _od
+
+__all__ = ["CHUNK", "Constituents", "Profile", "Species", "SpeciesBuilder", "column_integrals",
+           "insert_dims"]
+
+#: rays per chunk in column integrals of unbatched parameters (keeps intermediates in cache)
+CHUNK = 4096
+
+
+def insert_dims(tensor: torch.Tensor, extra: int, core: int) -> torch.Tensor:
+    """``tensor`` of shape ``(*B, *core_dims)`` with ``extra`` singleton dims after ``B``.
+
+    Parameters
+    ----------
+    tensor : Tensor (*B, *core_dims)
+        ``core`` trailing dims (e.g. 1 for a spectrum) after the batch dims ``B``.
+    extra, core : int
+        Number of singleton dims to insert and of trailing core dims.
+
+    Returns
+    -------
+    Tensor
+        ``(*B, 1, ..., 1, *core_dims)``; unchanged when ``B`` is empty (an unbatched
+        tensor broadcasts against anything) or ``extra`` is 0.
+    """
+    if extra == 0 or tensor.ndim <= core:
+        return tensor
+    shape = tuple(tensor.shape)
+    split = len(shape) - core
+    return tensor.reshape(shape[:split] + (1,) * extra + shape[split:])
+
+
+def _frozen(mapping: Mapping[str, torch.Tensor]) -> Mapping[str, torch.Tensor]:
+    return MappingProxyType(dict(mapping))
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A vertical profile: relative density as a pure function of altitude.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(altitude_m, **parameters)`` -> relative density [1], same shape as
+        ``altitude_m``; pure, differentiable, broadcasting its parameters.
+    parameters : mapping of str to Tensor (*B)
+        Keyword arguments of ``function`` (batch-shaped or 0-d).
+    breakpoints_m : Tensor (*B, n_level), optional
+        Increasing absolute altitudes [m] where the integrand changes character (kinks,
+        layer boundaries, peaks); the path quadrature cuts its pieces there.
+    relative_breakpoints_m : Tensor (*B, n_level), optional
+        Breakpoints counted from the lowest altitude of each leg of a path (exponential
+        profiles: multiples of the scale height, so that the relative accuracy does not
+        depend on the observer's altitude). Exactly one of the two is given.
+    column_height_m : Tensor (*B)
+        :math:`\\int_0^{top}\\rho(h)\\,dh` [m]: a vertical column of the species is its
+        reference density times this height.
+    truncate : bool
+        The last breakpoint ends the path integrals (negligible density above).
+    support : bool
+        The density vanishes outside [first, last breakpoint] (only that range is
+        integrated).
+    """
+
+    function: Callable[..., torch.Tensor]
+    parameters: Mapping[str, torch.Tensor]
+    column_height_m: torch.Tensor
+    breakpoints_m: torch.Tensor | None = None
+    relative_breakpoints_m: torch.Tensor | None = None
+    truncate: bool = False
+    support: bool = False
+
+    def __post_init__(self):
+        if (self.breakpoints_m is None) == (self.relative_breakpoints_m is None):
+            raise ValueError("a Profile takes exactly one of breakpoints_m and "
+                             "relative_breakpoints_m")
+        object.__setattr__(self, "parameters", _frozen(self.parameters))
+
+    def __call__(self, altitude_m: torch.Tensor, extra: int = 0) -> torch.Tensor:
+        """Relative density at ``altitude_m`` (*B', *extra, n_sample) [1], same shape.
+
+        ``altitude_m`` has the batch dims, ``extra`` geometry dims and one sample dim.
+        """
+        parameters = {key: insert_dims(value, extra + 1, 0)
+                      for key, value in self.parameters.items()}
+        return self.function(altitude_m, **parameters)
+
+    def levels(self, extra: int = 0):
+        """Breakpoints for :func:`skytorch.atmosphere.optical_depth.column_integral`.
+
+        A tensor (*B, *extra, n_level) of absolute altitudes, or a function of the lowest
+        altitude of each leg (shape (*B', *extra)) returning them.
+        """
+        if self.breakpoints_m is not None:
+            return insert_dims(self.breakpoints_m, extra, 1)
+        offsets = insert_dims(self.relative_breakpoints_m, extra, 1)
+        return lambda base: base[..., None] + offsets
+
+
+@dataclass(frozen=True)
+class Species:
+    """One constituent: profile, spectral coefficients, phase function, optical-depth law.
+
+    Parameters
+    ----------
+    name : str
+        Key of the species (``per_species`` outputs, Datasets).
+    profile : Profile
+        Its relative density versus altitude.
+    extinction : Tensor (*B, wavelength)
+        Extinction coefficient where the relative density is 1 [1/m] (absorption plus
+        scattering). For a species with a nonlinear ``law`` it is the coefficient used
+        where a local value is needed (e.g. zero, or the weak-line limit) and may be
+        zero.
+    scattering : Tensor (*B, wavelength), optional
+        Scattering coefficient where the relative density is 1 [1/m]; ``None`` for a pure
+        absorber.
+    phase : callable, optional
+        ``phase(cos_theta, extra=0)``: with ``cos_theta`` (*B', *extra) the phase function
+        [1/sr] normalised over 4π, shape (*B', *extra, wavelength) or (*B', *extra, 1);
+        required when ``scattering`` is given.
+    law : callable, optional
+        ``law(column, extra)``: with the path column ``column`` (*B', *extra) [m] the
+        optical depth (*B', *extra, wavelength) [1]. ``None``: linear,
+        :math:`\\tau = k_{ext}\\,u`.
+    vanishes : bool
+        The species is exactly absent (a zero amount that needs no gradient): its
+        columns are zero without integration.
+    """
+
+    name: str
+    profile: Profile
+    extinction: torch.Tensor
+    scattering: torch.Tensor | None = None
+    phase: Callable[..., torch.Tensor] | None = None
+    law: Callable[[torch.Tensor, int], torch.Tensor] | None = None
+    vanishes: bool = False
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name:
+            raise TypeError(f"a species name must be a non-empty string; got {self.name!r}")
+        if self.scattering is not None and self.phase is None:
+            raise ValueError(f"species {self.name!r} scatters but has no phase function")
+
+    @property
+    def single_scattering_albedo(self) -> torch.Tensor:
+        """Scattering over extinction (*B, wavelength) [1] (0 for pure absorbers and where
+        the extinction is zero)."""
+        if self.scattering is None:
+            return torch.zeros_like(self.extinction)
+        safe = torch.where(self.extinction > 0, self.extinction,
+                           torch.ones_like(self.extinction))
+        return torch.where(self.extinction > 0, self.scattering / safe,
+                           torch.zeros_like(self.extinction))
+
+    def optical_depth(self, column: torch.Tensor, extra: int = 0) -> torch.Tensor:
+        """Optical depth (*B', *extra, wavelength) [1] of the path column (*B', *extra) [m]."""
+        if self.law is not None:
+            return self.law(column, extra)
+        return column[..., None] * insert_dims(self.extinction, extra, 1)
+
+
+@dataclass(frozen=True)
+class SpeciesBuilder:
+    """How an :class:`~skytorch.atmosphere.Atmosphere` builds one species.
+
+    Parameters
+    ----------
+    name : str
+        The species' name (key of ``per_species`` outputs).
+    profile : callable
+        ``profile(atmosphere, dtype) -> Profile``.
+    build : callable
+        ``build(atmosphere, wavelength_nm, dtype, profile) -> Species`` with the checked
+        1-D ``wavelength_nm`` in ``dtype`` and the species' ``profile``.
+    absent : callable, optional
+        ``absent(atmosphere) -> bool``: the amount is exactly zero and needs no gradient.
+    """
+
+    name: str
+    profile: Callable
+    build: Callable
+    absent: Callable | None = None
+
+
+def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: float,
+                     top_radius_m: float, *, method: str = "gauss",
+                     n_steps: int | None = None, rtol: float = 1e-9, extra: int = 0,
+                     vanishing: tuple[str, ...] = (), batch_shape: tuple = ()
+                     ) -> dict[str, torch.Tensor]:
+    """Path columns :math:`\\int\\rho_s\\,ds` [m] of each profile along straight rays.
+
+    Parameters
+    ----------
+    profiles : mapping of str to Profile
+        The species' profiles.
+    r, mu : Tensor (*B', *extra)
+        Radius of the ray origins [m] and cosine of their zenith angle [1].
+    planet_radius_m, top_radius_m : float
+        Radii of the ground and of the top of the atmosphere [m].
+    method, n_steps, rtol
+        Quadrature (:func:`skytorch.atmosphere.optical_depth.column_integral`).
+    extra : int
+        Geometry dims after the batch dims.
+    vanishing : tuple of str
+        Species whose columns are zero (not integrated).
+    batch_shape : tuple
+        Batch shape of the parameters; without batch dims large ray sets are integrated
+        in chunks of :data:`CHUNK` rays.
+
+    Returns
+    -------
+    dict of Tensor (*broadcast)
+        One column per profile [m].
+    """
+    shape = broadcast_shape(r.shape, mu.shape)
+    count = math.prod(shape)
+    if tuple(batch_shape) == () and count > CHUNK:
+        r_flat = r.expand(shape).reshape(-1)
+        mu_flat = mu.expand(shape).reshape(-1)
+        pieces = [column_integrals(profiles, r_flat[i:i + CHUNK], mu_flat[i:i + CHUNK],
+                                   planet_radius_m, top_radius_m, method=method,
+                                   n_steps=n_steps, rtol=rtol, vanishing=vanishing)
+                  for i in range(0, count, CHUNK)]
+        return {name: torch.cat([piece[name] for piece in pieces]).reshape(shape)
+                for name in profiles}
+    columns = {}
+    for name, profile in profiles.items():
+        if name in vanishing:
+            continue
+        columns[name] = _od.column_integral(
+            lambda h, p=profile: p(h, extra), r, mu, planet_radius_m, top_radius_m,
+            profile.levels(extra), method=method, n_steps=n_steps, rtol=rtol,
+            truncate=profile.truncate, support=profile.support)
+    if vanishing:
+        reference = next(iter(columns.values())) if columns else 0.0 * (r * mu)
+        for name in vanishing:
+            columns[name] = torch.zeros_like(reference)
+        columns = {name: columns[name] for name in profiles}
+    return columns
+
+
+@dataclass(frozen=True)
+class Constituents:
+    """Every species of an atmosphere at given wavelengths (immutable).
+
+    Parameters
+    ----------
+    wavelength_nm : Tensor (wavelength,)
+        Wavelengths [nm] of the spectral coefficients.
+    species : tuple of Species
+        The species, in output order (names unique).
+    planet_radius_m, top_radius_m : float
+        Radii of the ground and of the top of the atmosphere [m].
+    batch_shape : torch.Size
+        Batch shape of the atmosphere's parameters.
+
+    Notes
+    -----
+    Built by :meth:`skytorch.atmosphere.Atmosphere.constituents`; every kernel takes it
+    as an argument. It holds no mutable state and may be shared between threads.
+    """
+
+    wavelength_nm: torch.Tensor
+    species: tuple[Species, ...]
+    planet_radius_m: float
+    top_radius_m: float
+    batch_shape: torch.Size = field(default_factory=torch.Size)
+
+    def __post_init__(self):
+        species = tuple(self.species)
+        names = [s.name for s in species]
+        if len(set(names)) != len(names):
+            raise ValueError(f"species names must be unique; got {names}")
+        object.__setattr__(self, "species", species)
+        object.__setattr__(self, "batch_shape", torch.Size(self.batch_shape))
+
+    # ------------------------------------------------------------------ access
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Species names, in output order."""
+        return tuple(s.name for s in self.species)
+
+    @property
+    def dtype(self) -> torch.dtype:
+        return self.wavelength_nm.dtype
+
+    @property
+    def top_altitude_m(self) -> float:
+        return self.top_radius_m - self.planet_radius_m
+
+    def __getitem__(self, name: str) -> Species:
+        for species in self.species:
+            if species.name == name:
+                return species
+        raise KeyError(f"no species {name!r}; species: {', '.join(self.names)}")
+
+    def __contains__(self, name) -> bool:
+        return name in self.names
+
+    @property
+    def profiles(self) -> dict[str, Profile]:
+        """The profile of each species, by name."""
+        return {s.name: s.profile for s in self.species}
+
+    def scatterers(self) -> tuple[Species, ...]:
+        """The species that scatter (``scattering`` not None)."""
+        return tuple(s for s in self.species if s.scattering is not None)
+
+    # ------------------------------------------------------------------ columns
+    def column_integrals(self, r, mu, *, method: str = "gauss", n_steps: int | None = None,
+                         rtol: float = 1e-9, extra: int = 0) -> dict[str, torch.Tensor]:
+        """Path columns [m] of every species along straight rays from radius ``r`` [m]
+        with zenith cosine ``mu`` (*B', *extra) (see :func:`column_integrals`)."""
+        return column_integrals(self.profiles, r, mu, self.planet_radius_m, self.top_radius_m,
+                                method=method, n_steps=n_steps, rtol=rtol, extra=extra,
+                                vanishing=tuple(s.name for s in self.species if s.vanishes),
+                                batch_shape=self.batch_shape)
+
+    def densities(self, altitude_m: torch.Tensor, extra: int = 0) -> dict[str, torch.Tensor]:
+        """Relative density of every species at ``altitude_m`` (*B', *extra, n_sample)."""
+        return {s.name: s.profile(altitude_m, extra) for s in self.species}
+
+    # ------------------------------------------------------------------ optical depth
+    def optical_depth(self, columns: Mapping[str, torch.Tensor], *, per_species: bool = False,
+                      extra: int = 0):
+        """Optical depth of per-species path columns: the one place where columns become τ.
+
+        Parameters
+        ----------
+        columns : mapping of str to Tensor (*B', *extra)
+            Path column :math:`\\int\\rho_s\\,ds` [m] of every species (straight,
+            refracted or partial paths alike).
+        per_species : bool
+            Return a dict by species name instead of the total.
+        extra : int
+            Geometry dims of the columns after the batch dims.
+
+        Returns
+        -------
+        Tensor (*B', *extra, wavelength) or dict of them
+            Optical depth [1]; the dict's values sum to the total.
+        """
+        missing = [name for name in self.names if name not in columns]
+        if missing:
+            raise ValueError(f"columns lack species {missing}; every species of "
+                             f"{list(self.names)} needs its path column")
+        result = {s.name: s.optical_depth(columns[s.name], extra) for s in self.species}
+        if per_species:
+            return result
+        total = None
+        for value in result.values():
+            total = value if total is None else total + value
+        return total
+
+    # ------------------------------------------------------------------ local coefficients
+    def extinction_coefficients(self, altitude_m: torch.Tensor, extra: int = 0
+                                ) -> dict[str, torch.Tensor]:
+        """Local extinction coefficient of every species (*B', *extra, n_sample, wavelength)
+        [1/m] at ``altitude_m`` (*B', *extra, n_sample) (the linear coefficient times the
+        density; a species with a nonlinear law contributes its ``extinction``)."""
+        return {s.name: s.profile(altitude_m, extra)[..., None]
+                * insert_dims(s.extinction, extra + 1, 1) for s in self.species}
+
+    def scattering_coefficients(self, altitude_m: torch.Tensor, extra: int = 0
+                                ) -> dict[str, torch.Tensor]:
+        """Local scattering coefficient of every scattering species (*B', *extra, n_sample,
+        wavelength) [1/m]."""
+        return {s.name: s.profile(altitude_m, extra)[..., None]
+                * insert_dims(s.scattering, extra + 1, 1) for s in self.scatterers()}
