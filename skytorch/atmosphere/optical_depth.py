@@ -56,11 +56,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from functools import lru_cache
 
-import numpy as np
 import torch
 
+from skytorch._quadrature import unit_nodes
 from skytorch._validate import (
     as_tensor,
     broadcast_shape,
@@ -95,11 +94,6 @@ def check_rtol(rtol) -> float:
     if isinstance(rtol, bool) or (isinstance(rtol, torch.Tensor) and rtol.numel() != 1):
         raise TypeError(f"rtol must be a number; got {rtol!r}")
     return float(check_range("rtol", as_tensor("rtol", rtol), 0.0, 1.0, low_inclusive=False))
-
-
-@lru_cache(maxsize=32)
-def _gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
-    return np.polynomial.legendre.leggauss(n)
 
 
 def _altitude(c_lo, lo, u, planet_radius):
@@ -187,17 +181,14 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support
             u_levels = u_levels[..., :-1]
         edges = torch.cat([torch.zeros(*shape, 1, dtype=dtype), u_levels,
                            length[..., None].expand(*shape, 1)], dim=-1)
-    half = 0.5 * (edges[..., 1:] - edges[..., :-1])
-    middle = edges[..., :-1] + half
-    nodes, weights = _gauss_legendre(n_nodes)
-    nodes = torch.as_tensor(nodes, dtype=dtype)
-    weights = torch.as_tensor(weights, dtype=dtype)
-    u = torch.addcmul(middle[..., None], half[..., None], nodes)  # (..., pieces, nodes)
+    width = edges[..., 1:] - edges[..., :-1]
+    nodes, weights = unit_nodes(n_nodes, dtype)
+    u = torch.addcmul(edges[..., :-1, None], width[..., None], nodes)  # (..., pieces, nodes)
     n_pieces = u.shape[-2]
     altitude = _altitude(c_lo[..., None, None], lo[..., None, None], u, planet_radius)
     values = density(altitude.reshape(*altitude.shape[:-2], n_pieces * n_nodes))
     values = values.reshape(*values.shape[:-1], n_pieces, n_nodes)
-    return ((values @ weights) * half).sum(-1)
+    return ((values @ weights) * width).sum(-1)
 
 
 def _trapezoid_leg(density, leg, planet_radius, n_steps):
@@ -330,20 +321,19 @@ _CHAPMAN_NODES = 12
 
 def _chapman_exact_upward(x, y):
     """Exact Ch(x, z) for z <= 90 deg from :math:`y = \\sqrt{x/2}\\cos z` (see chapman)."""
-    nodes, weights = _gauss_legendre(_CHAPMAN_NODES)
+    nodes, weights = unit_nodes(_CHAPMAN_NODES, y.dtype)
     levels = torch.tensor((0.0, *_CHAPMAN_LEVELS), dtype=y.dtype)
     y_ = y[..., None]
     # v at each level u: u = v (v + 2y)  ->  v = u / (y + sqrt(y^2 + u)) (no cancellation)
     ends = levels / (y_ + torch.sqrt(y_ * y_ + levels))
     low, high = ends[..., :-1, None], ends[..., 1:, None]
-    half = 0.5 * (high - low)
-    v = low + half * (1.0 + torch.as_tensor(nodes, dtype=y.dtype))
+    v = low + (high - low) * nodes
     x_ = x[..., None, None]
     u = v * (v + 2.0 * y_[..., None])
     w2 = (y_[..., None] + v) ** 2
     q = (1.0 + u / x_) / torch.sqrt(1.0 + u * u / (2.0 * x_ * w2))
-    integrand = torch.exp(-u) * q * torch.as_tensor(weights, dtype=y.dtype)
-    return torch.sqrt(2.0 * x) * (half * integrand).sum(dim=(-1, -2))
+    integrand = torch.exp(-u) * q * weights
+    return torch.sqrt(2.0 * x) * ((high - low) * integrand).sum(dim=(-1, -2))
 
 
 def chapman(x, zenith_rad, *, exact: bool = False) -> torch.Tensor:

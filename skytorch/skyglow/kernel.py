@@ -41,9 +41,9 @@ import logging
 import math
 from collections.abc import Callable, Mapping
 
-import numpy as np
 import torch
 
+from skytorch._quadrature import unit_nodes
 from skytorch._validate import (
     as_tensor,
     check_broadcastable,
@@ -161,13 +161,6 @@ def _emission_parameters(emission: str, parameters) -> dict:
 _TINY_OPTICAL_DEPTH = 1e-30
 
 
-def _gauss_legendre(n: int, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
-    """Nodes and weights on [0, 1]."""
-    x, w = np.polynomial.legendre.leggauss(n)
-    return (torch.as_tensor(0.5 * (x + 1.0), dtype=dtype),
-            torch.as_tensor(0.5 * w, dtype=dtype))
-
-
 class Medium:
     """Tables of an atmosphere needed by the kernel, at fixed wavelengths.
 
@@ -269,7 +262,7 @@ class Medium:
                          torch.ones_like(distance))
         # nodes clustered near the start of the ray where the air is densest: s = D w^2
         panels, order = max(n_steps // 8, 1), 8
-        xg, wg = _gauss_legendre(order, torch.float64)
+        xg, wg = unit_nodes(order, torch.float64)
         edges = torch.linspace(0.0, 1.0, panels + 1, dtype=torch.float64)
         w_nodes = (edges[:-1, None] + (edges[1:] - edges[:-1])[:, None] * xg).reshape(-1)
         w_weights = ((edges[1:] - edges[:-1])[:, None] * wg).reshape(-1)
@@ -499,7 +492,7 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
                                                                    strict=True)})
     flat = [v.expand(shape).reshape(-1) for v in values]
     n = flat[0].numel()
-    xg, wg = _gauss_legendre(n_steps if quadrature == "split" else 2 * n_steps, dtype)
+    xg, wg = unit_nodes(n_steps if quadrature == "split" else 2 * n_steps, dtype)
     out = []
     for start in range(0, max(n, 1), chunk_size):
         part = [v[start:start + chunk_size] for v in flat]
