@@ -1,4 +1,8 @@
-"""Verified cache files: a content checksum and the parameter hash, checked on every load.
+"""Verified cache files, and bounded in-memory tables keyed by value.
+
+:class:`MemoryCache` (with :func:`value_key` and :func:`atmosphere_key`) holds small
+tables derived from an atmosphere in memory, bounded, thread-safe and keyed by the
+parameters' values, never by object identity.
 
 Every file that skytorch caches on disk (transmittance tables, skyglow models, sweep
 chunks) is written with :func:`write_verified` and read back with :func:`read_verified`.
@@ -35,11 +39,14 @@ import json
 import logging
 import os
 import tempfile
+import threading
+from collections import OrderedDict
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
-__all__ = ["discard", "file_sha256", "read_verified", "record_path", "verify", "write_verified"]
+__all__ = ["MemoryCache", "atmosphere_key", "clone_tables", "discard", "file_sha256",
+           "read_verified", "record_path", "value_key", "verify", "write_verified"]
 
 logger = logging.getLogger(__name__)
 
@@ -165,3 +172,123 @@ def discard(path: str | os.PathLike) -> None:
     path = Path(path)
     path.unlink(missing_ok=True)
     record_path(path).unlink(missing_ok=True)
+
+
+# --- in-memory tables keyed by value --------------------------------------------------------
+
+
+def value_key(*parts) -> str:
+    """SHA-256 hex digest of JSON-serialisable parts: a key that depends on values only.
+
+    Floats are written by ``repr`` (round-trip exact), mappings with sorted keys; other
+    objects by ``str``. Two calls with equal values give the same key whatever the objects'
+    identities.
+
+    Examples
+    --------
+    >>> value_key("refraction", {"b": 2.0, "a": 1}) == value_key("refraction", {"a": 1, "b": 2.0})
+    True
+    """
+    text = json.dumps(parts, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def atmosphere_key(atmosphere) -> str | None:
+    """Value key of an atmosphere model, or ``None`` when it cannot be keyed by value.
+
+    The key hashes the model's class, its ``parameters_dict()`` (every parameter, lists for
+    batched ones) and the dtypes of its buffers: two atmospheres built with the same
+    parameters share it, any difference in a parameter changes it. An object without
+    ``parameters_dict`` (a user's duck-typed model) gets ``None``: tables derived from it
+    are computed afresh on every call (:meth:`MemoryCache.get` does not store them).
+    """
+    parameters = getattr(atmosphere, "parameters_dict", None)
+    if not callable(parameters):
+        return None
+    kind = f"{type(atmosphere).__module__}.{type(atmosphere).__qualname__}"
+    buffers = getattr(atmosphere, "buffers", None)
+    dtypes = sorted({str(b.dtype) for b in buffers()}) if callable(buffers) else []
+    return value_key(kind, parameters(), dtypes)
+
+
+def clone_tables(table: dict) -> dict:
+    """A copy of a dict of tensors with every tensor cloned (what table caches hand out)."""
+    return {key: value.clone() for key, value in table.items()}
+
+
+class MemoryCache:
+    """A bounded, thread-safe, least-recently-used cache of computed values keyed by value.
+
+    Used for small tables derived from an atmosphere (refraction, extinction, colour) that
+    cost milliseconds to seconds and are asked for again with the same parameters. Keys are
+    value keys (:func:`value_key`, :func:`atmosphere_key`), never object identities, so an
+    atmosphere garbage-collected and another allocated at the same address cannot be
+    served the first one's table. ``copy`` is applied to every value handed out, so a
+    caller that modifies its table in place does not change the stored one.
+
+    Thread safety: the dictionary is only touched under a lock; the computation runs
+    outside it, so two threads missing the same key at once both compute (identical values;
+    the first one stored is kept) and threads computing other keys never wait.
+
+    Parameters
+    ----------
+    maxsize : int
+        Entries kept; the least recently used is dropped beyond it.
+    copy : callable, optional
+        ``value -> value`` applied to what :meth:`get` returns (default: the value itself).
+
+    Examples
+    --------
+    >>> cache = MemoryCache(2)
+    >>> cache.get("a", lambda: 1), cache.get("a", lambda: 2), cache.get(None, lambda: 3)
+    (1, 1, 3)
+    >>> cache.cache_info()
+    {'hits': 1, 'misses': 1, 'uncached': 1, 'size': 1, 'maxsize': 2}
+    """
+
+    def __init__(self, maxsize: int, copy: Callable[[T], T] | None = None) -> None:
+        if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
+            raise ValueError(f"maxsize must be an integer >= 1; got {maxsize!r}")
+        self.maxsize = maxsize
+        self._copy = copy
+        self._data: OrderedDict[str, object] = OrderedDict()
+        self._lock = threading.Lock()
+        self._counts = {"hits": 0, "misses": 0, "uncached": 0}
+
+    def get(self, key: str | None, compute: Callable[[], T]) -> T:
+        """The value stored under ``key``, else ``compute()`` stored under it.
+
+        A ``None`` key (no value key exists) computes without storing.
+        """
+        if key is None:
+            with self._lock:
+                self._counts["uncached"] += 1
+            return self._hand_out(compute())
+        with self._lock:
+            found = key in self._data
+            if found:
+                self._data.move_to_end(key)
+                value = self._data[key]
+            self._counts["hits" if found else "misses"] += 1
+        if not found:
+            value = compute()
+            with self._lock:
+                value = self._data.setdefault(key, value)
+                self._data.move_to_end(key)
+                while len(self._data) > self.maxsize:
+                    self._data.popitem(last=False)
+        return self._hand_out(value)
+
+    def _hand_out(self, value):
+        return value if self._copy is None else self._copy(value)
+
+    def clear(self) -> None:
+        """Drop every entry and reset the counts."""
+        with self._lock:
+            self._data.clear()
+            self._counts = dict.fromkeys(self._counts, 0)
+
+    def cache_info(self) -> dict[str, int]:
+        """Counts of hits, misses and unkeyed calls, the entries held and the bound."""
+        with self._lock:
+            return {**self._counts, "size": len(self._data), "maxsize": self.maxsize}

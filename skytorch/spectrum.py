@@ -49,7 +49,7 @@ tensor([680., 550., 440.], dtype=torch.float64)
 
 from __future__ import annotations
 
-from functools import cache, lru_cache
+from functools import lru_cache
 
 import numpy as np
 import torch
@@ -135,7 +135,7 @@ BV_RANGE_MAG = (-0.5, 3.0)
 
 # --- tables -----------------------------------------------------------------------------------
 
-@cache
+@lru_cache(maxsize=8)  # three shipped tables; 0.8 ms to parse one
 def _table(name: str) -> torch.Tensor:
     """A shipped CSV table as a float64 tensor (rows, columns); '#' lines are comments."""
     lines = data_path(name).read_text(encoding="utf-8").splitlines()

@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import logging
 import math
-from functools import lru_cache
 
 import numpy as np
 import torch
@@ -122,7 +121,6 @@ def _mean_full_moons(start: np.datetime64, end: np.datetime64) -> tuple[np.ndarr
     return times, np.abs(np.sin(f))
 
 
-@lru_cache(maxsize=4)
 def _chebyshev_nodes(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Chebyshev nodes on [-1, 1] and the matrix turning values at them into coefficients."""
     j = np.arange(n)

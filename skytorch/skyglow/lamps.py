@@ -35,6 +35,8 @@ References
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import torch
 
 from skytorch._validate import as_tensor, check_choice, check_positive, check_range
@@ -175,9 +177,6 @@ def _hat_matrix(wavelength: torch.Tensor, fine: torch.Tensor) -> torch.Tensor:
     return hat
 
 
-_WEIGHTS_CACHE: dict = {}
-
-
 def luminance_weights(lamp, wavelength_nm) -> tuple[torch.Tensor, torch.Tensor]:
     """Weights turning per-lumen kernel radiances at a few wavelengths into luminance.
 
@@ -186,6 +185,10 @@ def luminance_weights(lamp, wavelength_nm) -> tuple[torch.Tensor, torch.Tensor]:
     ``K_m ∫ s(λ) V(λ) b(λ) dλ = Σ_m w_m b(λ_m)`` with ``w_m = K_m ∫ h_m s V dλ``
     (``s`` from :func:`per_lumen`); the weights sum to 1.
 
+    The weights of a named lamp are kept for the 32 most recent (lamp, wavelengths)
+    (``functools.lru_cache`` keyed by those values; 0.5-2 ms to integrate, as much as a
+    small skyglow fit step that asks for them); each call returns its own copy.
+
     Returns
     -------
     (weights, band_power) : Tensors (wavelength,)
@@ -193,17 +196,27 @@ def luminance_weights(lamp, wavelength_nm) -> tuple[torch.Tensor, torch.Tensor]:
         [W nm^-1 lm^-1] (``∫ h_m s dλ / ∫ h_m dλ``), used for spectral radiance.
     """
     wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
-    key = (lamp, tuple(wavelength.tolist())) if isinstance(lamp, str) else None
-    if key is not None and key in _WEIGHTS_CACHE:
-        return _WEIGHTS_CACHE[key]
+    if isinstance(lamp, str):
+        weights, band_power = _named_lamp_weights(lamp, tuple(wavelength.tolist()))
+        return weights.clone(), band_power.clone()
+    return _lamp_weights(lamp, wavelength)
+
+
+@lru_cache(maxsize=32)
+def _named_lamp_weights(lamp: str, wavelength_nm: tuple[float, ...]
+                        ) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`luminance_weights` of a named lamp at the given wavelengths (cached)."""
+    return _lamp_weights(lamp, torch.tensor(wavelength_nm, dtype=torch.float64))
+
+
+def _lamp_weights(lamp, wavelength: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Weights and band power of :func:`luminance_weights` (float64 wavelengths (m,))."""
     fine, v = _fine_grid()
     s = per_lumen(lamp)
     hat = _hat_matrix(wavelength, fine)
     weights = LUMINOUS_EFFICACY_LM_PER_W * torch.trapezoid(hat * (s * v)[:, None], fine, dim=0)
     band_power = (torch.trapezoid(hat * s[:, None], fine, dim=0)
                   / torch.trapezoid(hat, fine, dim=0))
-    if key is not None:
-        _WEIGHTS_CACHE[key] = (weights, band_power)
     return weights, band_power
 
 

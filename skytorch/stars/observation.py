@@ -24,6 +24,7 @@ import numpy as np
 import torch
 import xarray as xr
 
+from skytorch._cache import MemoryCache, atmosphere_key, clone_tables, value_key
 from skytorch._validate import (
     check_broadcastable,
     check_choice,
@@ -67,7 +68,9 @@ logger = logging.getLogger(__name__)
 TIME_CHUNK = 32
 #: squared floor of the horizontal component (keeps d altitude finite at the zenith)
 _TINY = 1e-30
-_REFRACTION_CACHE: dict[str, dict[str, torch.Tensor]] = {}
+#: refraction tables of recent (atmosphere parameters, altitude, nodes), keyed by value: a
+#: table costs about 0.5 s to trace and 0.1 ms to find again (docs/stars.md, "Caches")
+_REFRACTION_TABLES = MemoryCache(8, copy=clone_tables)
 
 
 def refraction_table(atmosphere, altitude_m: float = 0.0, n_nodes: int = 256
@@ -94,15 +97,25 @@ def refraction_table(atmosphere, altitude_m: float = 0.0, n_nodes: int = 256
     ``atmosphere.refraction`` is evaluated on a grid of 4 n_nodes apparent altitudes in
     [0, π/2] (dense near the horizon), giving true = apparent − R; R is then resampled
     on the true-altitude grid by linear interpolation.
+
+    The tables of the 8 most recent (atmosphere parameters, ``altitude_m``, ``n_nodes``)
+    are kept in memory, keyed by the atmosphere's ``parameters_dict()`` values (two equal
+    atmospheres share a table; :func:`skytorch._cache.atmosphere_key`); every call returns
+    its own copy. An atmosphere without ``parameters_dict`` is traced on every call.
     """
     check_atmosphere("atmosphere", atmosphere, ("refraction",))
     altitude_m = float(check_range("altitude_m", altitude_m, 0.0, 1e5, unit=" m"))
     n_nodes = check_int("n_nodes", n_nodes, 8, 100_000)
-    key = json.dumps([id(atmosphere), atmosphere.parameters_dict()
-                      if hasattr(atmosphere, "parameters_dict") else {},
-                      float(altitude_m), n_nodes], sort_keys=True, default=str)
-    if key in _REFRACTION_CACHE:
-        return _REFRACTION_CACHE[key]
+    key = atmosphere_key(atmosphere)
+    if key is not None:
+        key = value_key("refraction_table", key, altitude_m, n_nodes)
+    return _REFRACTION_TABLES.get(
+        key, lambda: _trace_refraction_table(atmosphere, altitude_m, n_nodes))
+
+
+def _trace_refraction_table(atmosphere, altitude_m: float, n_nodes: int
+                            ) -> dict[str, torch.Tensor]:
+    """The table of :func:`refraction_table`, traced (checked arguments, not cached)."""
     with torch.no_grad():
         apparent = grid_altitudes(4 * n_nodes, 0.0, torch.float64)
         bend = atmosphere.refraction(apparent, altitude_m).to(torch.float64).reshape(-1)
@@ -110,12 +123,8 @@ def refraction_table(atmosphere, altitude_m: float = 0.0, n_nodes: int = 256
         low = float(true[0])
         nodes = grid_altitudes(n_nodes, low, torch.float64)
         resampled = np.interp(nodes.numpy(), true.numpy(), bend.numpy())
-    table = {"true_altitude_rad": nodes, "refraction_rad": torch.from_numpy(resampled),
-             "low_rad": torch.tensor(low, dtype=torch.float64)}
-    if len(_REFRACTION_CACHE) > 8:
-        _REFRACTION_CACHE.clear()
-    _REFRACTION_CACHE[key] = table
-    return table
+    return {"true_altitude_rad": nodes, "refraction_rad": torch.from_numpy(resampled),
+            "low_rad": torch.tensor(low, dtype=torch.float64)}
 
 
 def refract(true_altitude_rad: torch.Tensor, table: dict[str, torch.Tensor]) -> torch.Tensor:

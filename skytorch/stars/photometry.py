@@ -33,15 +33,14 @@ Examples
 
 from __future__ import annotations
 
-import json
 import logging
 import math
-from collections import OrderedDict
 from collections.abc import Mapping
 
 import numpy as np
 import torch
 
+from skytorch._cache import MemoryCache, atmosphere_key, clone_tables, value_key
 from skytorch._validate import (
     as_tensor,
     check_broadcastable,
@@ -96,8 +95,11 @@ COLOR_BV_GRID = (BV_RANGE_MAG[0], BV_RANGE_MAG[1], 71)
 #: shape parameter of the altitude grid h = H (x² + c x)/(1 + c), x ∈ [0, 1]
 GRID_SHAPE = 0.05
 _HALF_PI = 0.5 * math.pi
-_CACHE: OrderedDict[str, dict[str, torch.Tensor]] = OrderedDict()
-_CACHE_SIZE = 8
+
+
+#: extinction and colour tables of recent (atmosphere parameters, arguments), keyed by value:
+#: a table costs 0.8-0.9 s to integrate and 0.1 ms to find again (docs/stars.md, "Caches")
+_TABLES = MemoryCache(8, copy=clone_tables)
 
 
 def relative_brightness(magnitude, control_magnitude: float = 6.0) -> torch.Tensor:
@@ -219,17 +221,11 @@ def _star_inputs(bv, apparent_altitude_rad):
     return bv, altitude
 
 
-def _cache_key(atmosphere, altitude_m, n_nodes, refraction, method) -> str:
-    params = atmosphere.parameters_dict() if hasattr(atmosphere, "parameters_dict") else {}
-    return json.dumps([type(atmosphere).__name__, id(atmosphere), params, float(altitude_m),
-                       n_nodes, refraction, method], sort_keys=True, default=str)
-
-
-def _cached(key: str, table: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-    _CACHE[key] = table
-    while len(_CACHE) > _CACHE_SIZE:
-        _CACHE.popitem(last=False)
-    return table
+def _cache_key(atmosphere, altitude_m, n_nodes, refraction, method) -> str | None:
+    """Value key of a table (``None``: an atmosphere without ``parameters_dict``)."""
+    key = atmosphere_key(atmosphere)
+    return None if key is None else value_key("photometry", key, float(altitude_m), n_nodes,
+                                              refraction, method)
 
 
 def _slant_optical_depth(atmosphere, wavelength: torch.Tensor, heights: torch.Tensor,
@@ -261,7 +257,9 @@ def extinction_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 256,
         the zenith optical depth times the Kasten & Young (1989) air mass (a
         plane-parallel shortcut, compared in the accuracy experiment).
     cache : bool
-        Reuse a table computed earlier for the same atmosphere object and arguments.
+        Reuse a table computed earlier for an atmosphere with the same parameters and the
+        same arguments (the 8 most recent tables are kept, keyed by the atmosphere's
+        ``parameters_dict()`` values; each call gets its own copy).
 
     Returns
     -------
@@ -282,10 +280,16 @@ def extinction_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 256,
     cache = check_flag("cache", cache)
     n_nodes = check_int("n_nodes", n_nodes, 8, 100_000)
     altitude = float(check_range("altitude_m", altitude_m, 0.0, 1e5, unit=" m"))
-    key = _cache_key(atmosphere, altitude, n_nodes, refraction, method)
-    if cache and key in _CACHE:
-        _CACHE.move_to_end(key)
-        return _CACHE[key]
+    if cache:
+        return _TABLES.get(_cache_key(atmosphere, altitude, n_nodes, refraction, method),
+                           lambda: _extinction_table(atmosphere, altitude, n_nodes, refraction,
+                                                     method))
+    return _extinction_table(atmosphere, altitude, n_nodes, refraction, method)
+
+
+def _extinction_table(atmosphere, altitude: float, n_nodes: int, refraction: bool,
+                      method: str) -> dict[str, torch.Tensor]:
+    """The table of :func:`extinction_table` (checked arguments, not cached)."""
     dtype = torch.float64
     heights = grid_altitudes(n_nodes, 0.0, dtype)
     wavelength = torch.linspace(*V_BAND_WAVELENGTHS_NM[:2], V_BAND_WAVELENGTHS_NM[2],
@@ -311,10 +315,9 @@ def extinction_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 256,
         residual = (design @ coefficients).T - delta_m
         sun_like = torch.argmin((bv - 0.65).abs())
         airmass = delta_m[:, sun_like] / delta_m[-1, sun_like]
-    table = {"apparent_altitude_rad": heights, "offset": coefficients[0],
-             "colour": coefficients[1], "airmass": airmass,
-             "fit_error": residual.abs().amax(dim=-1)}
-    return _cached(key, table) if cache else table
+    return {"apparent_altitude_rad": heights, "offset": coefficients[0],
+            "colour": coefficients[1], "airmass": airmass,
+            "fit_error": residual.abs().amax(dim=-1)}
 
 
 def extinction(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
@@ -409,7 +412,9 @@ def apparent_color_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 
     refraction : bool
         Optical depth along refracted (True) or straight paths.
     cache : bool
-        Reuse a table computed earlier for the same atmosphere object and arguments.
+        Reuse a table computed earlier for an atmosphere with the same parameters and the
+        same arguments (the 8 most recent tables are kept, keyed by the atmosphere's
+        ``parameters_dict()`` values; each call gets its own copy).
 
     Returns
     -------
@@ -432,10 +437,16 @@ def apparent_color_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 
     cache = check_flag("cache", cache)
     n_nodes = check_int("n_nodes", n_nodes, 8, 100_000)
     altitude = float(check_range("altitude_m", altitude_m, 0.0, 1e5, unit=" m"))
-    key = _cache_key(atmosphere, altitude, n_nodes, refraction, "colour")
-    if cache and key in _CACHE:
-        _CACHE.move_to_end(key)
-        return _CACHE[key]
+    if cache:
+        return _TABLES.get(_cache_key(atmosphere, altitude, n_nodes, refraction, "colour"),
+                           lambda: _apparent_color_table(atmosphere, altitude, n_nodes,
+                                                         refraction))
+    return _apparent_color_table(atmosphere, altitude, n_nodes, refraction)
+
+
+def _apparent_color_table(atmosphere, altitude: float, n_nodes: int,
+                          refraction: bool) -> dict[str, torch.Tensor]:
+    """The table of :func:`apparent_color_table` (checked arguments, not cached)."""
     dtype = torch.float64
     heights = grid_altitudes(n_nodes, 0.0, dtype)
     wavelength = torch.linspace(*COLOR_WAVELENGTHS_NM[:2], COLOR_WAVELENGTHS_NM[2],
@@ -448,8 +459,7 @@ def apparent_color_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 
         xyz = spectrum_to_xyz(transmittance[:, None, :] * source, wavelength)
         linear = xyz_to_linear_srgb(xyz).clamp_min(0.0)
         linear = linear / linear.amax(dim=-1, keepdim=True)
-    table = {"apparent_altitude_rad": heights, "bv": bv, "linear_srgb": linear}
-    return _cached(key, table) if cache else table
+    return {"apparent_altitude_rad": heights, "bv": bv, "linear_srgb": linear}
 
 
 def apparent_color(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
