@@ -89,7 +89,7 @@ Examples
 >>> from skytorch.atmosphere import Atmosphere
 >>> c = Atmosphere.earth(turbidity=2.0).constituents(torch.tensor([550.0]))
 >>> c.names
-('rayleigh', 'aerosol', 'ozone', 'stratospheric_aerosol')
+('rayleigh', 'aerosol', 'ozone', 'stratospheric_aerosol', 'h2o', 'o2', 'o2o2')
 >>> c["ozone"].phase is None    # pure absorber
 True
 """
@@ -445,7 +445,8 @@ class Constituents:
         Returns
         -------
         Tensor (*B', *extra, wavelength) or dict of them
-            Optical depth [1]; the dict's values sum to the total.
+            Optical depth [1]; the dict's values (each broadcast to the total's shape)
+            sum to the total.
         """
         missing = [name for name in self.names if name not in columns]
         if missing:
@@ -453,7 +454,8 @@ class Constituents:
                              f"{list(self.names)} needs its path column")
         result = {s.name: s.optical_depth(columns[s.name], extra) for s in self.species}
         if per_species:
-            return result
+            # every species with the shape of the total (Dataset-ready; views, no copies)
+            return dict(zip(result, torch.broadcast_tensors(*result.values()), strict=True))
         total = None
         for value in result.values():
             total = value if total is None else total + value
