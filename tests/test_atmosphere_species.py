@@ -95,7 +95,8 @@ def test_reference_extinction_gives_vertical_optical_depths():
     atm = Atmosphere.earth(turbidity=3.0, ozone_du=300.0)
     wavelength = torch.tensor([550.0], dtype=torch.float64)
     k = atm.reference_extinction(wavelength)
-    assert set(k) == {"rayleigh", "aerosol", "ozone", "stratospheric_aerosol"}
+    assert set(k) == {"rayleigh", "aerosol", "ozone", "stratospheric_aerosol", "h2o", "o2",
+                      "o2o2"}
     assert float(k["rayleigh"][0]) * 8000.0 == pytest.approx(0.0971, rel=1e-2)
     beta = 0.04608 * 3.0 - 0.04586
     assert float(k["aerosol"][0]) * 1200.0 == pytest.approx(beta * 0.55 ** -1.3, rel=1e-9)

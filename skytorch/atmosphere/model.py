@@ -69,6 +69,7 @@ from skytorch._validate import (
 )
 from skytorch.atmosphere import aerosol as _aerosol
 from skytorch.atmosphere import constituents as _constituents
+from skytorch.atmosphere import gases as _gases
 from skytorch.atmosphere import optical_depth as _od
 from skytorch.atmosphere import ozone as _ozone
 from skytorch.atmosphere import profiles as _profiles
@@ -97,7 +98,7 @@ from skytorch.constants import (
 __all__ = ["SPECIES", "SPECIES_BUILDERS", "Atmosphere", "altitude_tensor", "wavelength_tensor"]
 
 #: constituents, in the order of ``per_species`` outputs
-SPECIES = ("rayleigh", "aerosol", "ozone", "stratospheric_aerosol")
+SPECIES = ("rayleigh", "aerosol", "ozone", "stratospheric_aerosol", *_gases.GAS_SPECIES)
 
 #: gravity at sea level, latitude 45° (Bodhaine et al. 1999, eq. 11) [m s^-2]
 EARTH_GRAVITY_M_S2 = 9.80616
@@ -121,6 +122,7 @@ _PARAMETERS = (
     "reference_refractivity", "reference_pressure_pa", "reference_temperature_k",
     "stratospheric_aerosol_optical_depth", "stratospheric_aerosol_altitude_m",
     "stratospheric_aerosol_width_m",
+    "precipitable_water_cm",  # gases (skytorch.atmosphere.gases)
 )
 #: levels of the stratospheric Gaussian layer's quadrature, in widths about its peak
 _GAUSSIAN_LEVELS = (-8.0, -5.0, -3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 5.0, 8.0)
@@ -152,6 +154,8 @@ PARAMETER_RANGES = {
     "stratospheric_aerosol_optical_depth": (0.0, 100.0, True, ""),
     "stratospheric_aerosol_altitude_m": (0.0, 1e7, True, " m"),
     "stratospheric_aerosol_width_m": (1.0, 1e7, True, " m"),
+    # gases: observed columns stay below ~7 cm (skytorch.atmosphere.gases)
+    "precipitable_water_cm": (*_gases.PRECIPITABLE_WATER_RANGE_CM, True, " cm"),
 }
 #: Preetham turbidity accepted by :meth:`Atmosphere.earth`: 1 (aerosol-free) to 64
 #: (beta = 2.9, a vertical aerosol optical depth of 6.3 at 550 nm: thick fog)
@@ -270,6 +274,12 @@ class Atmosphere(nn.Module):
         ``top_altitude_m`` (truncation included) is the given optical depth. Spectrum,
         single-scattering albedo and Henyey-Greenstein asymmetry from Mie theory for 75 %
         H2SO4 droplets (:func:`skytorch.atmosphere.aerosol.sulfate_mie_properties`).
+    precipitable_water_cm : float or Tensor
+        Vertical column of water vapour from the ground [cm of precipitable water], in
+        [0, 10]; default 0 (:meth:`earth`: 1.4). Species ``"h2o"``, ``"o2"`` and ``"o2o2"``
+        (O2 follows the molecules, volume mixing ratio 0.2095, only with ``gas="air"``):
+        band model with a curve of growth of the pressure-scaled path amount and O2-O2
+        collision-induced absorption, 242-1100 nm (:mod:`skytorch.atmosphere.gases`).
     name : str
         Label stored in Datasets.
 
@@ -311,6 +321,7 @@ class Atmosphere(nn.Module):
                  stratospheric_aerosol_optical_depth=0.0,
                  stratospheric_aerosol_altitude_m=20e3,
                  stratospheric_aerosol_width_m=3e3,
+                 precipitable_water_cm=0.0,
                  name: str = "custom"):
         super().__init__()
         self.gas = check_choice("gas", gas, _rayleigh.RAYLEIGH_GASES)
@@ -351,6 +362,7 @@ class Atmosphere(nn.Module):
             "stratospheric_aerosol_optical_depth": stratospheric_aerosol_optical_depth,
             "stratospheric_aerosol_altitude_m": stratospheric_aerosol_altitude_m,
             "stratospheric_aerosol_width_m": stratospheric_aerosol_width_m,
+            "precipitable_water_cm": precipitable_water_cm,
         }
         values = {key: _check_parameter(key, value) for key, value in given.items()}
         values["ozone_temperature_k"] = self._ozone_temperature(ozone_temperature_k, values)
@@ -389,7 +401,7 @@ class Atmosphere(nn.Module):
         **options
             Other constructor arguments (keywords of :class:`Atmosphere` except
             ``angstrom_beta``, which ``turbidity`` sets); an unknown keyword raises
-            TypeError.
+            TypeError. ``precipitable_water_cm`` defaults to 1.4 cm here.
 
         Raises
         ------
@@ -417,7 +429,8 @@ class Atmosphere(nn.Module):
             alpha = angstrom_alpha
         settings = {"planet_radius_m": EARTH_MEAN_RADIUS_M,
                     "top_altitude_m": EARTH_TOP_OF_ATMOSPHERE_M, "name": "earth",
-                    "refractivity_profile": "us1976"}
+                    "refractivity_profile": "us1976",
+                    "precipitable_water_cm": _gases.DEFAULT_PRECIPITABLE_WATER_CM}
         settings.update(options)
         return cls(angstrom_beta=beta, angstrom_alpha=alpha, ozone_du=ozone_du, **settings)
 
@@ -1206,6 +1219,7 @@ SPECIES_BUILDERS = (
     SpeciesBuilder("ozone", _ozone_profile, _ozone_species),
     SpeciesBuilder("stratospheric_aerosol", _stratospheric_profile, _stratospheric_species,
                    absent=lambda atm: atm._stratospheric_absent()),
+    *_gases.species_builders(),  # h2o, o2, o2o2 (skytorch.atmosphere.gases)
 )
 
 
