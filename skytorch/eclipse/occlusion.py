@@ -85,6 +85,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
+from skytorch._quadrature import legendre_unit
 from skytorch._validate import (
     as_tensor,
     check_broadcastable,
@@ -168,11 +169,11 @@ def _haversine(x: torch.Tensor) -> torch.Tensor:
     return torch.sin(0.5 * x) ** 2
 
 
-@lru_cache(maxsize=32)
 def _nodes(n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Legendre nodes and weights on [0, 1]."""
-    x, w = np.polynomial.legendre.leggauss(n_nodes)
-    return 0.5 * (x + 1.0), 0.5 * w
+    """Gauss-Legendre nodes and weights on [0, 1] (:func:`skytorch._quadrature.legendre_unit`),
+    as writable copies of its read-only cached arrays."""
+    x, w = legendre_unit(n_nodes)
+    return x.copy(), w.copy()
 
 
 def _series_terms(b: torch.Tensor) -> int:
@@ -811,7 +812,7 @@ def sun_visible_fraction(
         # scalars stay of length 1 and broadcast inside the kernel
         return x.reshape(1) if x.numel() == 1 else x.expand(shape).reshape(-1)
 
-    nodes, weights = _nodes(n_nodes)
+    nodes, weights = legendre_unit(n_nodes)
     s = torch.as_tensor(1.0 - nodes * nodes, dtype=dtype)
     weight = torch.as_tensor(2.0 * nodes * weights, dtype=dtype)
     sun = torch.broadcast_tensors(rho_s, a0, a1, a2)

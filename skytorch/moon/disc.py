@@ -38,11 +38,11 @@ Examples
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 import numpy as np
 import torch
 
+from skytorch import _quadrature
 from skytorch._validate import (
     as_tensor,
     check_broadcastable,
@@ -79,18 +79,16 @@ def _flag(name: str, value) -> bool:
     return bool(value)
 
 
-@lru_cache(maxsize=64)
-def _gauss_legendre_numpy(n: int):
-    return np.polynomial.legendre.leggauss(n)
-
-
 def gauss_legendre(n: int, low, high, dtype=torch.float64):
     """Gauss–Legendre nodes and weights on [low, high] (batched bounds).
+
+    The package's one rule, :func:`skytorch._quadrature.gauss_legendre`, with ``n``
+    checked under this function's name.
 
     Parameters
     ----------
     n : int
-        Number of nodes (≥ 1).
+        Number of nodes, in [1, 4096] (:data:`skytorch._quadrature.MAX_NODES`).
     low, high : float or Tensor (...)
         Interval bounds; tensors broadcast and the nodes get a trailing dimension.
 
@@ -98,13 +96,8 @@ def gauss_legendre(n: int, low, high, dtype=torch.float64):
     -------
     (nodes, weights) : Tensor (..., n)
     """
-    x, w = _gauss_legendre_numpy(check_int("n", n, low=1))
-    x = torch.as_tensor(x, dtype=dtype)
-    w = torch.as_tensor(w, dtype=dtype)
-    low = torch.as_tensor(low, dtype=dtype).unsqueeze(-1)
-    high = torch.as_tensor(high, dtype=dtype).unsqueeze(-1)
-    half = 0.5 * (high - low)
-    return low + half * (x + 1.0), half * w
+    return _quadrature.gauss_legendre(check_int("n", n, low=1, high=_quadrature.MAX_NODES),
+                                      low, high, dtype)
 
 
 def disc_grid(n: int, method: str = "polar", dtype: torch.dtype = torch.float64) -> dict:
