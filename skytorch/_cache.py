@@ -66,7 +66,7 @@ def file_sha256(path: str | os.PathLike) -> str:
 
 
 def record_path(path: str | os.PathLike) -> Path:
-    """The JSON record that belongs to cache file ``path``."""
+    """Return the JSON record that belongs to cache file ``path``."""
     path = Path(path)
     return path.with_name(path.name + ".sha256.json")
 
@@ -212,7 +212,7 @@ def atmosphere_key(atmosphere) -> str | None:
 
 
 def clone_tables(table: dict) -> dict:
-    """A copy of a dict of tensors with every tensor cloned (what table caches hand out)."""
+    """Copy a dict of tensors, cloning every tensor (what table caches hand out)."""
     return {key: value.clone() for key, value in table.items()}
 
 
@@ -256,7 +256,7 @@ class MemoryCache:
         self._counts = {"hits": 0, "misses": 0, "uncached": 0}
 
     def get(self, key: str | None, compute: Callable[[], T]) -> T:
-        """The value stored under ``key``, else ``compute()`` stored under it.
+        """Return the value stored under ``key``, else store and return ``compute()``.
 
         A ``None`` key (no value key exists) computes without storing.
         """
@@ -289,6 +289,6 @@ class MemoryCache:
             self._counts = dict.fromkeys(self._counts, 0)
 
     def cache_info(self) -> dict[str, int]:
-        """Counts of hits, misses and unkeyed calls, the entries held and the bound."""
+        """Return the counts of hits, misses and unkeyed calls, the entries held and the bound."""
         with self._lock:
             return {**self._counts, "size": len(self._data), "maxsize": self.maxsize}

@@ -14,7 +14,7 @@ _PACKAGE_DIR = Path(__file__).resolve().parent
 
 @lru_cache(maxsize=1)
 def data_dir() -> Path:
-    """The directory holding skytorch's shipped data files."""
+    """Return the directory holding skytorch's shipped data files."""
     for candidate in (_PACKAGE_DIR / "data", _PACKAGE_DIR.parent / "data"):
         if (candidate / "README.md").is_file():
             return candidate

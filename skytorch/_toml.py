@@ -1,10 +1,10 @@
-"""Reading TOML text (scene files, sweep configurations).
+r"""Reading TOML text (scene files, sweep configurations).
 
 The standard library's ``tomllib`` on Python >= 3.11; on Python 3.10 the ``tomli``
 package (a dependency there), and a clear error when it is missing.
 
 >>> from skytorch._toml import loads
->>> loads('turbidity = 3.0\\n[camera]\\ntarget = "moon"')
+>>> loads('turbidity = 3.0\n[camera]\ntarget = "moon"')
 {'turbidity': 3.0, 'camera': {'target': 'moon'}}
 """
 

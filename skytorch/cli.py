@@ -42,7 +42,7 @@ def _load(module_name: str):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every available subcommand."""
+    """Build the argument parser with every available subcommand."""
     parser = argparse.ArgumentParser(
         prog="skytorch",
         description="Batched physics of the sky: atmosphere, eclipses, stars, Moon, skyglow.",

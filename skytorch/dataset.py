@@ -101,7 +101,7 @@ class VariableSpec:
     standard_name: str | None = None
 
     def attrs(self) -> dict[str, str]:
-        """The attribute dictionary for xarray."""
+        """Return the attribute dictionary for xarray."""
         attrs = {"units": self.units, "long_name": self.long_name,
                  "description": self.description or self.long_name}
         if self.standard_name:
@@ -145,7 +145,7 @@ def variable(dims, values, spec: VariableSpec | Mapping[str, str]) -> xr.Variabl
 
 
 def coordinate(dim: str, values, spec: VariableSpec | Mapping[str, str]) -> xr.Variable:
-    """A one-dimensional coordinate variable for dimension ``dim``."""
+    """Build a one-dimensional coordinate variable for dimension ``dim``."""
     return variable((dim,), values, spec)
 
 
@@ -274,13 +274,13 @@ TIME_SPEC = VariableSpec("", "time (UTC)", "Instant in Coordinated Universal Tim
 
 
 def time_coordinate(times, dim: str = "time") -> xr.Variable:
-    """A ``datetime64[ns]`` UTC time coordinate from datetime64 values."""
+    """Build a ``datetime64[ns]`` UTC time coordinate from datetime64 values."""
     values = np.asarray(times, dtype="datetime64[ns]").reshape(-1)
     return coordinate(dim, values, TIME_SPEC)
 
 
 def _attribute_value(value):
-    """A netCDF-safe attribute value (str, int, float or 1-D numeric array)."""
+    """Return a netCDF-safe attribute value (str, int, float or 1-D numeric array)."""
     if isinstance(value, torch.Tensor):
         value = to_numpy(value)
     if isinstance(value, np.ndarray):
@@ -401,7 +401,7 @@ _TIME_UNITS = (("seconds", 10**9), ("milliseconds", 10**6), ("microseconds", 10*
 
 
 def _exact_time_units(values: np.ndarray) -> str:
-    """The coarsest ``"<unit> since 1970-01-01"`` in which every datetime is an integer."""
+    """Return the coarsest ``"<unit> since 1970-01-01"`` in which every datetime is an integer."""
     ticks = np.asarray(values, dtype="datetime64[ns]").view("int64").reshape(-1)
     ticks = ticks[ticks != np.iinfo(np.int64).min]  # NaT
     for unit, length in _TIME_UNITS:
@@ -411,8 +411,11 @@ def _exact_time_units(values: np.ndarray) -> str:
 
 
 def _time_encoding(dataset: xr.Dataset) -> dict[str, dict[str, str]]:
-    """Datetimes as int64 counts since 1970 in the coarsest exact unit (seconds for whole
-    seconds, ..., nanoseconds only where needed), so that the round trip is exact."""
+    """Encode datetimes as int64 counts since 1970 in the coarsest exact unit.
+
+    Seconds for whole seconds, ..., nanoseconds only where needed, so that the round trip
+    is exact.
+    """
     return {name: {"units": _exact_time_units(var.values), "dtype": "int64"}
             for name, var in dataset.variables.items()
             if np.issubdtype(var.dtype, np.datetime64)}
@@ -429,15 +432,17 @@ MIN_COMPRESSED_BYTES = 16384
 
 
 def _compressible(var: xr.Variable) -> bool:
-    """Whether netCDF-4 can deflate ``var`` with profit (chunked storage: not scalars,
-    strings or small arrays)."""
+    """Tell whether netCDF-4 can deflate ``var`` with profit.
+
+    Deflation needs chunked storage: not scalars, strings or small arrays.
+    """
     return (var.ndim > 0 and var.nbytes >= MIN_COMPRESSED_BYTES
             and var.dtype.kind in "biufcmM")
 
 
 def _netcdf_encoding(dataset: xr.Dataset, compress: bool, level: int,
                      significant_digits: int | None = None) -> dict[str, dict[str, object]]:
-    """The encoding of every variable: exact datetimes and, with ``compress``, zlib+shuffle.
+    """Return the encoding of every variable: exact datetimes and, with ``compress``, zlib+shuffle.
 
     zlib (deflate) with the byte-shuffle filter is lossless, so float32/float64 values come
     back bit for bit; scalars and strings are stored uncompressed (netCDF-4 can only deflate
@@ -470,7 +475,7 @@ def _check_dataset_and_path(dataset, path) -> Path:
 
 
 def _new_temporary_file(path: Path, suffix: str) -> Path:
-    """An empty file beside ``path`` created with the mode ``open(path, "w")`` would give.
+    """Create an empty file beside ``path`` with the mode ``open(path, "w")`` would give.
 
     ``open()`` creates a file with mode ``0o666`` less the process umask (0644 under umask
     022) and keeps the mode of a file it overwrites; ``tempfile.mkstemp`` would create
@@ -647,8 +652,10 @@ def _replace_path(source: Path, destination: Path) -> None:
 
 
 def _new_temporary_directory(path: Path, suffix: str) -> Path:
-    """An empty directory beside ``path`` with the mode ``os.mkdir`` gives (``0o777`` less
-    the umask; ``tempfile.mkdtemp`` would give 0700)."""
+    """Create an empty directory beside ``path`` with the mode ``os.mkdir`` gives.
+
+    That is ``0o777`` less the umask; ``tempfile.mkdtemp`` would give 0700.
+    """
     while True:
         temporary = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}{suffix}")
         try:

@@ -157,7 +157,7 @@ def _loader():
 
 @lru_cache(maxsize=1)
 def timescale():
-    """The offline skyfield ``Timescale`` (leap seconds and UT1-UTC from finals2000A.all).
+    """Return the offline skyfield ``Timescale`` (leap seconds and UT1-UTC from finals2000A.all).
 
     Returns
     -------
@@ -170,7 +170,7 @@ def timescale():
 
 @lru_cache(maxsize=1)
 def load_ephemeris():
-    """The JPL DE421 ephemeris shipped with skyfield-data (cached).
+    """Return the JPL DE421 ephemeris shipped with skyfield-data (cached).
 
     Returns
     -------
@@ -298,7 +298,7 @@ def _check_time_range(values: np.ndarray) -> None:
 
 
 def skyfield_time(times):
-    """A skyfield ``Time`` array for UTC ``times`` (anything :func:`parse_times` accepts).
+    """Return a skyfield ``Time`` array for UTC ``times`` (anything :func:`parse_times` accepts).
 
     Leap seconds are honoured: the UTC calendar day and the seconds within it are handed
     to skyfield separately, so ``2016-12-31T23:59:59`` and ``2017-01-01T00:00:01`` are
@@ -318,8 +318,10 @@ def skyfield_time(times):
 
 
 def check_observer(lat_deg, lon_deg, elevation_m=0.0, dtype=torch.float64):
-    """Validated observer coordinates, broadcast to one shape: the one definition of the
-    valid observer ranges, shared by every entry point that takes an observer.
+    """Validate observer coordinates and broadcast them to one shape.
+
+    The one definition of the valid observer ranges, shared by every entry point that
+    takes an observer.
 
     Parameters
     ----------

@@ -55,7 +55,7 @@ def fisheye_xy(altitude_deg, azimuth_deg):
 
 def all_sky(dataset, axes=None, *, title: str | None = None, exposure=None,
             night: bool = False, compass: bool = True, markers: dict | None = None):
-    """An all-sky (fisheye) or panorama image of a rendered scene (tone-mapped).
+    """Plot an all-sky (fisheye) or panorama image of a rendered scene (tone-mapped).
 
     Parameters
     ----------
@@ -145,7 +145,7 @@ def light_curve(times, magnitudes: dict, axes=None, *, ylabel: str = "V [mag]",
 
 
 def eclipse_strip(images, labels, figure=None):
-    """A row of disc images ``(n, y, x, 3)`` in [0, 1] with labels; returns the figure."""
+    """Plot a row of disc images ``(n, y, x, 3)`` in [0, 1] with labels; return the figure."""
     plt = _pyplot()
     images = np.asarray(images)
     n = images.shape[0]

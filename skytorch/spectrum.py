@@ -137,7 +137,7 @@ BV_RANGE_MAG = (-0.5, 3.0)
 
 @lru_cache(maxsize=8)  # three shipped tables; 0.8 ms to parse one
 def _table(name: str) -> torch.Tensor:
-    """A shipped CSV table as a float64 tensor (rows, columns); '#' lines are comments."""
+    """Read a shipped CSV table as a float64 tensor (rows, columns); '#' lines are comments."""
     lines = data_path(name).read_text(encoding="utf-8").splitlines()
     rows = [line for line in lines if line and not line.startswith("#")][1:]
     array = np.array([[float(v) for v in row.split(",")] for row in rows], dtype=np.float64)
@@ -349,7 +349,7 @@ def b_band_response(wavelength_nm) -> torch.Tensor:
 # --- integration of sampled spectra -------------------------------------------------------------
 
 def _fine_grid(dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
-    """The 1-nm grid of the tables and its trapezoid weights [nm]."""
+    """Return the 1-nm grid of the tables and its trapezoid weights [nm]."""
     fine = wavelength_grid("cie1", dtype=dtype)
     weights = torch.ones_like(fine)
     weights[0] = weights[-1] = 0.5
@@ -388,7 +388,7 @@ def _fine_response(response: str) -> torch.Tensor:
 @lru_cache(maxsize=128)
 def _projection_matrix(wavelengths: tuple[float, ...], response: str,
                        reference: str) -> torch.Tensor:
-    """Cached float64 projection matrix for sorted, distinct ``wavelengths``."""
+    """Return the cached float64 projection matrix for sorted, distinct ``wavelengths``."""
     ordered = torch.tensor(wavelengths, dtype=torch.float64)
     fine, trapezoid = _fine_grid(torch.float64)
     hat = _hat_weights(ordered, fine)
@@ -508,7 +508,7 @@ def _check_last3(name: str, value) -> torch.Tensor:
 
 
 def srgb_transfer(linear: torch.Tensor) -> torch.Tensor:
-    """The sRGB transfer function (IEC 61966-2-1), from linear to encoded values.
+    """Apply the sRGB transfer function (IEC 61966-2-1), from linear to encoded values.
 
     Odd-symmetric: a negative (out-of-gamut) value is encoded as minus the encoding of
     its magnitude.
@@ -530,7 +530,7 @@ def srgb_transfer(linear: torch.Tensor) -> torch.Tensor:
 
 
 def xyz_to_srgb(xyz, gamma: bool = True, clip: bool = False) -> torch.Tensor:
-    """sRGB from CIE XYZ, with the IEC 61966-2-1 transfer function.
+    """Convert CIE XYZ to sRGB, with the IEC 61966-2-1 transfer function.
 
     Parameters
     ----------
@@ -562,7 +562,7 @@ def xyz_to_srgb(xyz, gamma: bool = True, clip: bool = False) -> torch.Tensor:
 def spectrum_to_srgb(spectral_radiance, wavelength_nm, *, gamma: bool = True,
                      clip: bool = False, reference: str = "none",
                      luminous: bool = False) -> torch.Tensor:
-    """sRGB of spectra: :func:`spectrum_to_xyz` followed by :func:`xyz_to_srgb`.
+    """Convert spectra to sRGB: :func:`spectrum_to_xyz` followed by :func:`xyz_to_srgb`.
 
     The spectrum's scale sets the brightness: white (R = G = B = 1) is reached at Y = 1.
 

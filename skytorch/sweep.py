@@ -147,7 +147,7 @@ WORKER_PROCESS_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESH
 # --- grid -----------------------------------------------------------------------------------------
 
 def _grid_values(name: str, values) -> np.ndarray:
-    """The swept values of one parameter as a 1-D numpy array."""
+    """Return the swept values of one parameter as a 1-D numpy array."""
     if isinstance(values, (str, bytes)) or not hasattr(values, "__len__"):
         raise TypeError(
             f"sweep parameter {name} must be a sequence of values; got {values!r:.80}"
@@ -167,15 +167,17 @@ def _grid_values(name: str, values) -> np.ndarray:
 
 
 def _python_value(value):
-    """A numpy scalar as the plain Python value passed to ``fn`` (datetimes stay datetime64)."""
+    """Convert a numpy scalar to the Python value passed to ``fn`` (datetimes stay datetime64)."""
     if isinstance(value, (np.datetime64, np.timedelta64)):
         return value
     return value.item() if isinstance(value, np.generic) else value
 
 
 def _unwrap(fn: Callable) -> tuple[Callable, list[tuple[tuple, dict]]]:
-    """``fn`` without ``functools.partial`` layers and callable-module wrappers, and the
-    arguments the partials bind (outermost first)."""
+    """Strip ``functools.partial`` layers and callable-module wrappers from ``fn``.
+
+    Returns the inner function and the arguments the partials bind (outermost first).
+    """
     bound = []
     while True:
         if isinstance(fn, functools.partial):
@@ -276,7 +278,7 @@ def _stack_points(results: Sequence[xr.Dataset]) -> xr.Dataset:
 
 
 def _broadcast_chunk(result, grid_shape: tuple[int, ...]) -> xr.Dataset:
-    """A broadcast-mode result (leading dims over the grid) as a flat chunk Dataset."""
+    """Convert a broadcast-mode result (leading dims over the grid) to a flat chunk Dataset."""
     if isinstance(result, (xr.Dataset, xr.DataArray)):
         raise TypeError(
             "backend='broadcast' needs fn to return tensors, arrays, numbers or a mapping of "
@@ -315,7 +317,7 @@ def usable_cores() -> int:
 
 def default_torch_threads(threads_on_host: int, cores: int | None = None,
                           current: int | None = None) -> int:
-    """torch intra-op threads for each of ``threads_on_host`` concurrent workers.
+    """Return the torch intra-op threads for each of ``threads_on_host`` concurrent workers.
 
     ``max(1, cores // threads_on_host)``, but never more than the ``current`` setting
     (``torch.get_num_threads()``: a caller who limited torch to one thread keeps one), so
@@ -388,8 +390,11 @@ def _host_of(address: str) -> str:
 
 
 def _threads_by_worker(client, threads: int | None) -> dict[str, int]:
-    """torch threads per worker address: ``threads`` or ``max(1, cores // threads on the
-    host)`` with each worker's own core count and current torch setting."""
+    """Return the torch threads per worker address.
+
+    That is ``threads``, or ``max(1, cores // threads on the host)`` with each worker's own
+    core count and current torch setting.
+    """
     nthreads = client.nthreads()
     on_host: dict[str, int] = {}
     for address, count in nthreads.items():
@@ -441,7 +446,7 @@ def _compute_chunk(fn: Callable, names: tuple[str, ...], grids: tuple[np.ndarray
 # --- store ---------------------------------------------------------------------------------
 
 def _stable(value, containers: bool = True):
-    """A JSON-able description of ``value`` that is the same in every process and run.
+    """Describe ``value`` as JSON-able data that is the same in every process and run.
 
     Numbers, strings, tuples, frozensets, arrays and tensors are described by value
     (arrays and tensors by dtype, shape and a hash of their bytes), and so are lists, sets
@@ -475,7 +480,7 @@ def _stable(value, containers: bool = True):
 
 
 def _code_constant(value) -> str:
-    """A process-independent text for one constant of a code object."""
+    """Return a process-independent text for one constant of a code object."""
     if isinstance(value, types.CodeType):
         return _code_digest(value)
     if isinstance(value, frozenset):
@@ -513,7 +518,7 @@ def _code_identity(fn: Callable) -> dict[str, str | None]:
 
 
 def function_fingerprint(fn: Callable) -> str:
-    """A hash that changes when the swept function ``fn`` is edited.
+    """Return a hash that changes when the swept function ``fn`` is edited.
 
     It covers ``fn``'s qualified name; its code: the source text when Python can find it
     (``inspect.getsource``), else its bytecode with the constants (nested functions
@@ -574,7 +579,7 @@ def _store_format(store) -> str:
 
 
 def _store_directory(store, fn, names, grids, chunk_size, backend, key) -> tuple[Path, str]:
-    """The store's directory for this sweep and the sweep key (SHA-256 of its description)."""
+    """Return the store's directory for this sweep and the sweep key (SHA-256 of its text)."""
     description = {
         "function": _function_name(fn),
         "function_fingerprint": function_fingerprint(fn),
@@ -599,15 +604,18 @@ def _chunk_path(directory: Path, start: int, stop: int, suffix: str = ".nc") -> 
 
 
 def chunk_parameter_hash(sweep_key: str, start: int, stop: int, suffix: str) -> str:
-    """The parameter hash recorded beside a stored chunk: the sweep key and the chunk's
-    bounds and format, so that another chunk's file (or another sweep's) is never served."""
+    """Return the parameter hash recorded beside a stored chunk.
+
+    It hashes the sweep key and the chunk's bounds and format, so that another chunk's
+    file (or another sweep's) is never served.
+    """
     text = json.dumps({"sweep": sweep_key, "start": int(start), "stop": int(stop),
                        "format": suffix}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _zarr_manifest(store: Path) -> Path:
-    """The verified file standing for a Zarr chunk store (a directory): its file digests."""
+    """Return the verified file standing for a Zarr chunk store (a directory): its file digests."""
     return store.with_name(store.name + ".files.json")
 
 
@@ -642,7 +650,7 @@ def _read_zarr_chunk(path: Path, manifest: Path) -> xr.Dataset:
 
 
 def _load_chunk(path: Path, parameter_hash: str) -> xr.Dataset | None:
-    """A stored chunk if it is intact and is this chunk of this sweep, else ``None``.
+    """Load a stored chunk if it is intact and is this chunk of this sweep, else ``None``.
 
     :func:`skytorch._cache.read_verified` checks the content checksum and the parameter
     hash (sweep key and bounds); a corrupted, truncated, swapped or unreadable chunk is
@@ -872,13 +880,7 @@ def sweep(
     >>> ds["result"].values.tolist()
     [[2.0, 4.0], [3.0, 9.0]]
     """
-    if not isinstance(backend, str):
-        raise TypeError(f"backend must be one of {BACKENDS}; got {backend!r:.80}")
-    check_choice("backend", backend, BACKENDS)
-    if not callable(fn):
-        raise TypeError(f"fn must be callable; got {fn!r:.80}")
-    if not parameter_grids:
-        raise ValueError("sweep needs at least one parameter grid, e.g. turbidity=[1, 2, 3]")
+    _check_call(fn, backend, parameter_grids)
     names = tuple(parameter_grids)
     _check_accepted(fn, names)
     grids = tuple(_grid_values(n, v) for n, v in parameter_grids.items())
@@ -890,44 +892,15 @@ def sweep(
         torch_threads = check_int("torch_threads", torch_threads, 1)
     broadcast = backend == "broadcast"
     if broadcast:
-        for name, grid in zip(names, grids, strict=True):
-            if grid.dtype.kind not in "biuf":
-                raise TypeError(f"backend='broadcast' needs numeric grids; {name} is {grid.dtype}")
+        _check_numeric_grids(names, grids)
     if n_workers is not None:
         n_workers = check_int("n_workers", n_workers, 1)
-    shape = tuple(len(g) for g in grids)
-    n_points = math.prod(shape)
-    slab = math.prod(shape[1:]) if broadcast else 1
-
-    if chunk_size is not None:
-        chunk_size = check_int("chunk_size", chunk_size, 1)
-    elif memory_budget_bytes is not None:
-        budget = check_int("memory_budget_bytes", memory_budget_bytes, 1)
-        chunk_size = max(1, budget // _point_bytes(fn, names, grids, broadcast))
-    elif backend == "dask":
-        workers = DEFAULT_WORKERS if n_workers is None else n_workers
-        chunk_size = max(1, math.ceil(n_points / (4 * workers)))
-    else:
-        chunk_size = n_points
-    chunk_size = min(n_points, math.ceil(chunk_size / slab) * slab)
+    n_points = math.prod(len(g) for g in grids)
+    chunk_size = _chunk_size(fn, names, grids, backend, chunk_size, memory_budget_bytes,
+                             n_workers)
     spans = _chunks(n_points, chunk_size)
-
-    directory = None
-    suffix = ".nc"
-    results: dict[tuple[int, int], xr.Dataset] = {}
-    if store is not None:
-        suffix = _store_format(store)
-        if suffix == ZARR_SUFFIX:
-            import_zarr()  # fail before computing anything
-        directory, sweep_key = _store_directory(store, fn, names, grids, chunk_size, backend,
-                                                key)
-        for start, stop in spans:
-            loaded = _load_chunk(_chunk_path(directory, start, stop, suffix),
-                                 chunk_parameter_hash(sweep_key, start, stop, suffix))
-            if loaded is not None:
-                results[(start, stop)] = loaded
-        logger.info("sweep store %s: %d of %d chunks already done", directory, len(results),
-                    len(spans))
+    directory, sweep_key, suffix, results = _stored_chunks(store, fn, names, grids, chunk_size,
+                                                           backend, key, spans)
     todo = [span for span in spans if span not in results]
 
     from tqdm import tqdm
@@ -961,6 +934,50 @@ def sweep(
         torch.set_num_threads(caller_threads)
     ordered = [results[span] for span in spans]
     return _assemble(ordered, names, grids, units, fn)
+
+
+def _chunk_size(fn, names, grids, backend: str, chunk_size, memory_budget_bytes,
+                n_workers) -> int:
+    """Return the grid points per chunk (whole slabs of the first parameter for broadcast)."""
+    shape = tuple(len(g) for g in grids)
+    n_points = math.prod(shape)
+    broadcast = backend == "broadcast"
+    slab = math.prod(shape[1:]) if broadcast else 1
+    if chunk_size is not None:
+        chunk_size = check_int("chunk_size", chunk_size, 1)
+    elif memory_budget_bytes is not None:
+        budget = check_int("memory_budget_bytes", memory_budget_bytes, 1)
+        chunk_size = max(1, budget // _point_bytes(fn, names, grids, broadcast))
+    elif backend == "dask":
+        workers = DEFAULT_WORKERS if n_workers is None else n_workers
+        chunk_size = max(1, math.ceil(n_points / (4 * workers)))
+    else:
+        chunk_size = n_points
+    return min(n_points, math.ceil(chunk_size / slab) * slab)
+
+
+def _stored_chunks(store, fn, names, grids, chunk_size: int, backend: str, key,
+                   spans: list[tuple[int, int]]):
+    """Load the intact chunks of this sweep from ``store``.
+
+    Returns ``(directory, sweep_key, suffix, results)``: the sweep's directory and key
+    (``None`` without a store), the chunk file suffix and the loaded chunks by span.
+    """
+    results: dict[tuple[int, int], xr.Dataset] = {}
+    if store is None:
+        return None, None, ".nc", results
+    suffix = _store_format(store)
+    if suffix == ZARR_SUFFIX:
+        import_zarr()  # fail before computing anything
+    directory, sweep_key = _store_directory(store, fn, names, grids, chunk_size, backend, key)
+    for start, stop in spans:
+        loaded = _load_chunk(_chunk_path(directory, start, stop, suffix),
+                             chunk_parameter_hash(sweep_key, start, stop, suffix))
+        if loaded is not None:
+            results[(start, stop)] = loaded
+    logger.info("sweep store %s: %d of %d chunks already done", directory, len(results),
+                len(spans))
+    return directory, sweep_key, suffix, results
 
 
 # --- argument checks ------------------------------------------------------------------------
@@ -998,6 +1015,24 @@ def _check_accepted(fn: Callable, names: Sequence[str]) -> None:
             f"{_function_name(fn)}, which accepts {sorted(accepted)}{hint}")
 
 
+def _check_call(fn, backend, parameter_grids) -> None:
+    """Check the backend name, that ``fn`` is callable and that a grid is given."""
+    if not isinstance(backend, str):
+        raise TypeError(f"backend must be one of {BACKENDS}; got {backend!r:.80}")
+    check_choice("backend", backend, BACKENDS)
+    if not callable(fn):
+        raise TypeError(f"fn must be callable; got {fn!r:.80}")
+    if not parameter_grids:
+        raise ValueError("sweep needs at least one parameter grid, e.g. turbidity=[1, 2, 3]")
+
+
+def _check_numeric_grids(names: Sequence[str], grids) -> None:
+    """Raise ``TypeError`` unless every grid is numeric (needed by ``backend="broadcast"``)."""
+    for name, grid in zip(names, grids, strict=True):
+        if grid.dtype.kind not in "biuf":
+            raise TypeError(f"backend='broadcast' needs numeric grids; {name} is {grid.dtype}")
+
+
 def _check_units(units, names: Sequence[str]) -> dict[str, str]:
     if units is None:
         return {}
@@ -1022,6 +1057,7 @@ def _check_units(units, names: Sequence[str]) -> dict[str, str]:
 
 def _check_options(*, backend, progress, store, key, client, scheduler_address, n_workers,
                    cluster_options) -> None:
+    """Check the types of the options and their combinations (TypeError/ValueError)."""
     if not isinstance(progress, (bool, np.bool_)):
         raise TypeError(f"progress must be True or False; got {progress!r:.80}")
     if store is not None and not isinstance(store, (str, os.PathLike)):
@@ -1034,6 +1070,13 @@ def _check_options(*, backend, progress, store, key, client, scheduler_address, 
                         f"{scheduler_address!r:.80}")
     if client is not None and scheduler_address is not None:
         raise ValueError("pass either client or scheduler_address, not both")
+    _check_dask_options(backend=backend, client=client, scheduler_address=scheduler_address,
+                        n_workers=n_workers, cluster_options=cluster_options)
+
+
+def _check_dask_options(*, backend, client, scheduler_address, n_workers,
+                        cluster_options) -> None:
+    """Check the options that apply to ``backend="dask"`` only."""
     if cluster_options is not None:
         if not isinstance(cluster_options, Mapping) or not all(
                 isinstance(k, str) for k in cluster_options):

@@ -314,7 +314,7 @@ CAMERA_FOV_DEG = 1.2
 
 
 def moon_camera_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
-    """The Moon through a telescope (camera view) at the three phases of the all-sky part."""
+    """Render the Moon through a telescope (camera view) at the three phases of the all-sky part."""
     import torch
 
     from skytorch.dataset import to_netcdf

@@ -40,7 +40,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def format_table(dataset) -> str:
-    """A fixed-width text table of eclipse circumstances (one line per eclipse)."""
+    """Format a fixed-width text table of eclipse circumstances (one line per eclipse)."""
     header = (f"{'greatest eclipse (UTC)':<21} {'kind':<9} {'umbral':>7} {'penumb.':>7} "
               f"{'gamma':>7} {'pen.min':>7} {'par.min':>7} {'tot.min':>7}")
     lines = [header, "-" * len(header)]

@@ -1,10 +1,10 @@
-"""``skytorch ephemeris``: Sun and Moon positions over a time range, written to netCDF.
+r"""``skytorch ephemeris``: Sun and Moon positions over a time range, written to netCDF.
 
 Examples
 --------
 ::
 
-    skytorch ephemeris --start 2015-09-27T00:00 --end 2015-09-29T00:00 --step 10min \\
+    skytorch ephemeris --start 2015-09-27T00:00 --end 2015-09-29T00:00 --step 10min \
         --lat 48.14 --lon 11.58 -o out/ephemeris.nc
     skytorch ephemeris --times 2024-03-20T03:06Z 2024-06-20T20:51Z -o seasons.nc
 """
@@ -32,7 +32,7 @@ _STEP = re.compile(r"^\s*(\d+)\s*([a-z]+)\s*$")
 
 
 def parse_step(text: str) -> np.timedelta64:
-    """A positive step such as ``"10min"``, ``"30s"``, ``"1h"`` or ``"2d"``."""
+    """Parse a positive step such as ``"10min"``, ``"30s"``, ``"1h"`` or ``"2d"``."""
     match = _STEP.match(text.lower())
     if not match or match.group(2) not in _STEP_UNITS:
         raise ValueError(

@@ -1,11 +1,11 @@
-"""``skytorch moon``: phase, illumination, bright limb, libration, brightness and disc images.
+r"""``skytorch moon``: phase, illumination, bright limb, libration, brightness and disc images.
 
 Examples
 --------
 ::
 
     skytorch moon --time 2025-09-07T20:00 --lat 52.5 --lon 13.4 -o moon.nc --png moon.png
-    skytorch moon --start 2025-09-01 --end 2025-09-30 --step 1d --lat 52.5 --lon 13.4 \\
+    skytorch moon --start 2025-09-01 --end 2025-09-30 --step 1d --lat 52.5 --lon 13.4 \
         -o september.nc --pixels 32
 """
 

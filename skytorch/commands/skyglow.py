@@ -1,11 +1,11 @@
-"""``skytorch skyglow``: artificial sky brightness panorama from a city light map.
+r"""``skytorch skyglow``: artificial sky brightness panorama from a city light map.
 
 Examples
 --------
 ::
 
     skytorch skyglow --synthetic --lat 43.6 --lon 1.44 -o sky.nc --png sky.png
-    skytorch skyglow --lights map.nc --observer-x 12000 --observer-y -3000 \\
+    skytorch skyglow --lights map.nc --observer-x 12000 --observer-y -3000 \
         --model skyglow_model.nc -o sky.nc
     skytorch skyglow --synthetic --save-model model.nc --components 64 -o sky.nc
 

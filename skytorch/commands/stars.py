@@ -1,11 +1,11 @@
-"""``skytorch stars``: apparent star positions and magnitudes, netCDF and an all-sky chart.
+r"""``skytorch stars``: apparent star positions and magnitudes, netCDF and an all-sky chart.
 
 Examples
 --------
 ::
 
     skytorch stars --time 2025-09-07T20:00 --lat 52.5 --lon 13.4 -o stars.nc --png chart.png
-    skytorch stars --start 2025-09-07T18:00 --end 2025-09-08T04:00 --step 10min \\
+    skytorch stars --start 2025-09-07T18:00 --end 2025-09-08T04:00 --step 10min \
         --lat 28.76 --lon -17.89 --elevation 2400 --turbidity 1.5 -o lapalma.nc
 """
 
@@ -32,7 +32,7 @@ def add_time_and_observer(parser: argparse.ArgumentParser, step: str = "10min") 
 
 
 def times_from(args: argparse.Namespace):
-    """The instants given by :func:`add_time_and_observer`'s arguments."""
+    """Return the instants given by :func:`add_time_and_observer`'s arguments."""
     from skytorch.commands.ephemeris import time_range
 
     if args.time:

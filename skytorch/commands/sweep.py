@@ -48,7 +48,7 @@ OPTIONS = ("backend", "chunk_size", "memory_budget_bytes", "store", "key", "n_wo
 
 
 def resolve_function(path: str):
-    """The callable named ``"package.module:function"`` (attributes may be dotted)."""
+    """Import the callable named ``"package.module:function"`` (attributes may be dotted)."""
     if not isinstance(path, str) or ":" not in path:
         raise ValueError(f"function must be given as 'module:function'; got {path!r}")
     module_name, attribute = path.split(":", 1)
@@ -90,6 +90,7 @@ def load_config(path: str | Path) -> dict:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``skytorch sweep`` to ``parser``."""
     parser.add_argument("config", help="TOML file naming the function and the parameter grids")
     parser.add_argument("-o", "--output", required=True,
                         help="netCDF file to write, or a Zarr store if it ends in .zarr")
@@ -106,6 +107,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the sweep a TOML configuration describes and write its Dataset; exit status."""
     from skytorch.dataset import ZARR_SUFFIX, import_zarr, write_dataset
     from skytorch.sweep import sweep
 

@@ -1,4 +1,4 @@
-"""Umbra, penumbra and antumbra of a spherical occluder lit by a spherical Sun.
+r"""Umbra, penumbra and antumbra of a spherical occluder lit by a spherical Sun.
 
 Similar triangles give the shadow cones exactly. With the Sun (radius ``R_s``) at distance
 ``D`` from the occluder's centre (radius ``R``), the umbral cone is bounded by the external
@@ -7,22 +7,22 @@ half-angles
 
 .. math::
 
-    \\sin f_u = \\frac{R_s - R}{D}, \\qquad \\sin f_p = \\frac{R_s + R}{D} .
+    \sin f_u = \frac{R_s - R}{D}, \qquad \sin f_p = \frac{R_s + R}{D} .
 
 A tangent line at distance ``R`` from the occluder's centre crosses the plane
 perpendicular to the axis at distance ``x`` behind the centre at radius
 
 .. math::
 
-    r_u(x) = \\frac{R}{\\cos f_u} - x \\tan f_u , \\qquad
-    r_p(x) = \\frac{R}{\\cos f_p} + x \\tan f_p
+    r_u(x) = \frac{R}{\cos f_u} - x \tan f_u , \qquad
+    r_p(x) = \frac{R}{\cos f_p} + x \tan f_p
 
 (the Besselian ``l_1``, ``l_2`` of solar eclipses). The umbra ends at the apex
-``x_a = R / \\sin f_u``; beyond it ``r_u < 0`` and ``|r_u|`` is the radius of the antumbra
+``x_a = R / \sin f_u``; beyond it ``r_u < 0`` and ``|r_u|`` is the radius of the antumbra
 (annular zone). Seen from the occluder's centre, to first order in the small angles,
-``r_u / x = \\pi - s + \\pi_\\odot`` and ``r_p / x = \\pi + s + \\pi_\\odot`` with the occluder's
-parallax ``\\pi = R / x``, the Sun's semi-diameter ``s = R_s / D`` and its parallax
-``\\pi_\\odot = R / D`` — the classical lunar-eclipse formulas.
+``r_u / x = \pi - s + \pi_\odot`` and ``r_p / x = \pi + s + \pi_\odot`` with the occluder's
+parallax ``\pi = R / x``, the Sun's semi-diameter ``s = R_s / D`` and its parallax
+``\pi_\odot = R / D`` — the classical lunar-eclipse formulas.
 
 Shadow enlargement by Earth's atmosphere (Espenak & Meeus 2009, sect. 1.3):
 

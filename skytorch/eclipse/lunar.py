@@ -305,7 +305,7 @@ def _display(xyz: torch.Tensor, dims: int) -> torch.Tensor:
 
 
 def _colour(flux: torch.Tensor, wavelength: torch.Tensor) -> torch.Tensor:
-    """sRGB of a spectrum at constant luminance, brightest channel 1 -> (..., 3)."""
+    """Return the sRGB of a spectrum at constant luminance, brightest channel 1 (..., 3)."""
     from skytorch.spectrum import spectrum_to_xyz
 
     return _display(spectrum_to_xyz(flux, wavelength), 1)

@@ -326,7 +326,7 @@ _TAU_TERMS = (
 
 def physical_libration_angles(julian_centuries_tt) -> tuple[torch.Tensor, torch.Tensor,
                                                              torch.Tensor]:
-    """Forced physical libration ρ, σ, τ of the Moon (Meeus 1998, ch. 53) [rad].
+    """Compute the forced physical libration ρ, σ, τ of the Moon (Meeus 1998, ch. 53) [rad].
 
     Parameters
     ----------

@@ -73,6 +73,7 @@ class MoonPhotometry(nn.Module):
         self.register_buffer("reference_magnitude", reference)
 
     def extra_repr(self) -> str:
+        """Describe the model options in the module's ``repr``."""
         return (f"model={self.model!r}, n_quadrature={self.n_quadrature}, "
                 f"earthshine={self.earthshine}")
 

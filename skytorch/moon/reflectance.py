@@ -204,7 +204,7 @@ def chandrasekhar_h(x: torch.Tensor, single_scattering_albedo) -> torch.Tensor:
 
 
 def _safe_cot(x: torch.Tensor, eps: float) -> torch.Tensor:
-    """cot x for x in [0, π/2], capped at 1/eps for x -> 0 (finite value and gradient)."""
+    """Return cot x for x in [0, π/2], capped at 1/eps for x -> 0 (finite, with gradient)."""
     return torch.cos(x) / torch.sin(x).clamp_min(eps)
 
 
@@ -304,7 +304,7 @@ def _parameters(parameters):
 
 
 def _is_zero(value) -> bool:
-    """True for a plain number equal to 0 (tensor parameters always take the full path)."""
+    """Tell whether a plain number equals 0 (tensor parameters always take the full path)."""
     return not isinstance(value, torch.Tensor) and value == 0.0
 
 

@@ -1,4 +1,4 @@
-"""PCA basis of skyglow kernel images (Dobashi et al. 2023, eq. 4).
+r"""PCA basis of skyglow kernel images (Dobashi et al. 2023, eq. 4).
 
 Each kernel image b(θ, φ, λ) of one source (one distance r and source altitude h_c, for
 one observer altitude h_o) is a sample; :func:`fit_basis` finds the principal components
@@ -6,7 +6,7 @@ with scikit-learn's :class:`~sklearn.decomposition.PCA` and returns coefficients
 
 .. math::
 
-    b(θ, φ, λ; r, h_c) \\approx \\sum_{k=0}^{M} c_k(r, h_c)\\, B_k(θ, φ, λ),
+    b(θ, φ, λ; r, h_c) \approx \sum_{k=0}^{M} c_k(r, h_c)\, B_k(θ, φ, λ),
 
 where ``B_0`` is the mean of the normalised samples (PCA centres its data; the mean enters
 as one more basis image whose coefficient is the sample's scale) and ``B_1 … B_M`` are the
@@ -62,7 +62,7 @@ class BasisFit:
     n_components: int
 
     def reconstruct(self) -> torch.Tensor:
-        """The approximated samples (n_samples, n_features)."""
+        """Return the approximated samples (n_samples, n_features)."""
         return self.coefficients @ self.basis
 
 

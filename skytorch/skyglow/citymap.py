@@ -31,7 +31,7 @@ MAX_CELLS_PER_SIDE = 4096
 
 
 def _grid_size(extent_m, cell_m) -> tuple[float, float]:
-    """Validated map side and cell size [m]: at least one, at most MAX_CELLS_PER_SIDE cells."""
+    """Validate the map side and cell size [m]: at least one, at most MAX_CELLS_PER_SIDE cells."""
     extent = float(check_positive("extent_m", extent_m, unit=" m"))
     cell = float(check_positive("cell_m", cell_m, unit=" m"))
     n = round(extent / cell)
@@ -78,7 +78,7 @@ def synthetic_city(extent_m: float = 40_000.0, cell_m: float = 500.0, *,
                    lumens_per_capita: float = DEFAULT_LUMENS_PER_CAPITA,
                    n_towns: int = 0, town_population: float = 5_000.0,
                    terrain_amplitude_m: float = 0.0, seed: int = 0):
-    """A synthetic light map of a city with an exponential population profile.
+    """Make a synthetic light map of a city with an exponential population profile.
 
     Parameters
     ----------
@@ -160,7 +160,7 @@ def synthetic_city(extent_m: float = 40_000.0, cell_m: float = 500.0, *,
 
 def point_sources(n: int, extent_m: float = 20_000.0, cell_m: float = 250.0, *,
                   flux_range_lm=(1e5, 1e6), seed: int = 0, exclude_radius_m: float = 0.0):
-    """A map with ``n`` lit cells at random positions ("lighting cells", Dobashi §5.1).
+    """Make a map with ``n`` lit cells at random positions ("lighting cells", Dobashi §5.1).
 
     Parameters
     ----------

@@ -107,7 +107,7 @@ def _pair(name: str, value, low: float, high: float) -> tuple[float, float]:
 
 
 def check_region(model: SkyglowModel, region) -> torch.Tensor:
-    """A boolean (elevation, azimuth) mask of the model's panorama with at least one pixel."""
+    """Return a boolean (elevation, azimuth) mask of the panorama with at least one pixel."""
     if region is None or isinstance(region, (str, bytes)):
         raise TypeError(f"region must be a boolean mask (elevation, azimuth), e.g. from "
                         f"sky_region(); got {region!r:.60}")
@@ -298,7 +298,7 @@ def reduction_factors(influence, q_a: float, q_b: float, gamma_user: float = 1.0
 
 
 def apply_reduction(light_map, gamma):
-    """A copy of the light map with fluxes ``(1 − γ_i) L_i``."""
+    """Return a copy of the light map with fluxes ``(1 − γ_i) L_i``."""
     if not hasattr(light_map, "data_vars") or "flux" not in light_map:
         raise TypeError(f"light_map must be a Dataset with a variable 'flux' (y, x); got "
                         f"{type(light_map).__name__}")

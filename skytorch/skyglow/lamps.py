@@ -1,4 +1,4 @@
-"""Lamp spectra for city lights, and their conversion to per-lumen spectral power.
+r"""Lamp spectra for city lights, and their conversion to per-lumen spectral power.
 
 Spectra are built from documented spectral models rather than measured tables:
 
@@ -6,7 +6,7 @@ Spectra are built from documented spectral models rather than measured tables:
 * ``"incandescent"`` — CIE illuminant A: a black body at 2856 K.
 * ``"led3000k"``, ``"led4000k"`` — phosphor-converted white LEDs with Ohno's (2005)
   spectral model of each emission band, :math:`S(λ) = [g + 2 g^5]/3`,
-  :math:`g = \\exp(-((λ - λ_0)/Δ)^2)`: a blue pump at 450 nm (Δ = 20 nm) and a broad
+  :math:`g = \exp(-((λ - λ_0)/Δ)^2)`: a blue pump at 450 nm (Δ = 20 nm) and a broad
   phosphor band (Δ = 100 nm) whose centre and strength were fitted once so that the
   chromaticity lies on the Planckian locus at 3000 K and 4000 K (McCamy CCT 3005 K and
   4009 K, checked in the tests).
@@ -157,8 +157,11 @@ def per_lumen(lamp, wavelength_nm=None) -> torch.Tensor:
 
 
 def _hat_matrix(wavelength: torch.Tensor, fine: torch.Tensor) -> torch.Tensor:
-    """(n_fine, n) piecewise-linear interpolation from ``wavelength`` (any order) to ``fine``;
-    constant beyond the end samples."""
+    """Build the (n_fine, n) piecewise-linear interpolation from ``wavelength`` to ``fine``.
+
+    ``wavelength`` may be in any order; the interpolation is constant beyond the end
+    samples.
+    """
     order = torch.argsort(wavelength)
     ordered = wavelength[order]
     n = ordered.numel()

@@ -1,4 +1,4 @@
-"""Skyglow of whole cities by PCA + azimuthal FFT convolution (Dobashi et al. 2023 §3.3).
+r"""Skyglow of whole cities by PCA + azimuthal FFT convolution (Dobashi et al. 2023 §3.3).
 
 :meth:`SkyglowModel.precompute` tabulates the single-scattering kernel
 (:mod:`skytorch.skyglow.kernel`) on a grid of view azimuths θ, elevations φ, source
@@ -8,8 +8,8 @@ images' Fourier transforms over azimuth. :meth:`SkyglowModel.render` then evalua
 
 .. math::
 
-    L(θ, φ) = \\sum_k \\mathcal F^{-1}_θ\\big[\\mathcal F_θ[H_k]\\,\\mathcal F_θ[B_k]\\big],
-    \\qquad H_k(θ_c) = \\sum_{r, h_c} F(θ_c, r, h_c)\\, c_k(r, h_c)
+    L(θ, φ) = \sum_k \mathcal F^{-1}_θ\big[\mathcal F_θ[H_k]\,\mathcal F_θ[B_k]\big],
+    \qquad H_k(θ_c) = \sum_{r, h_c} F(θ_c, r, h_c)\, c_k(r, h_c)
 
 (eq. 7–9, with eq. 8's radial integral as a sum over the polar cells' flux ``F``).
 
@@ -99,8 +99,10 @@ def distance_edges(max_distance_m: float, n_distance: int, spacing: str) -> torc
 
 
 def _linear_weights(grid: torch.Tensor, value: torch.Tensor):
-    """Lower index and weight of the upper node for linear interpolation on ``grid``
-    (clamped to the ends)."""
+    """Return the lower index and the upper node's weight of linear interpolation on ``grid``.
+
+    Values beyond the grid are clamped to its ends.
+    """
     n = grid.numel()
     if n == 1:
         return torch.zeros_like(value, dtype=torch.long), torch.zeros_like(value)
@@ -162,7 +164,7 @@ def check_model(name: str, model) -> SkyglowModel:
 
 
 def check_flag(name: str, value) -> bool:
-    """A boolean option; strings such as "no" and numbers are a ``TypeError``."""
+    """Check a boolean option; strings such as "no" and numbers are a ``TypeError``."""
     if not isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be True or False; got {value!r:.60}")
     return bool(value)
@@ -224,8 +226,10 @@ def _stack_fits(fits, image_shape, sample_shape):
 
 
 def _check_tables(model) -> None:
-    """Raise ``ValueError`` unless the model's buffers have consistent shapes and finite
-    values (a truncated or corrupted file must not become a model)."""
+    """Raise ``ValueError`` unless the model's buffers have consistent shapes, finite values.
+
+    A truncated or corrupted file must not become a model.
+    """
     sizes = {name: getattr(model, name).numel() for name in (
         "azimuth_rad", "elevation_rad", "distance_m", "distance_edges_m",
         "source_altitude_m", "observer_altitude_m", "wavelength_nm")}
@@ -266,8 +270,9 @@ def _check_tables(model) -> None:
 
 
 def polar_offsets(dx: torch.Tensor, dy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Distance ``√(dx² + dy²)`` [m] and azimuth ``atan2(dx, dy)`` in [0, 2π) [rad] of cells
-    east ``dx`` and north ``dy`` of an observer.
+    """Return the distance and azimuth of cells east ``dx`` and north ``dy`` of an observer.
+
+    The distance is ``√(dx² + dy²)`` [m], the azimuth ``atan2(dx, dy)`` in [0, 2π) [rad].
 
     Differentiable everywhere: for a cell exactly at the observer (r = 0, where neither
     is differentiable) the distance 0 and azimuth 0 come with zero gradients instead of
@@ -387,8 +392,11 @@ class SplatPlan:
         return self.index.numel()
 
     def apply(self, flux: torch.Tensor) -> torch.Tensor:
-        """Polar node fluxes (observer, azimuth, distance, source_altitude) [lm] of the cell
-        fluxes ``flux`` (cell,) [lm] (differentiable in ``flux``)."""
+        """Map cell fluxes ``flux`` (cell,) [lm] to polar node fluxes [lm].
+
+        The result is (observer, azimuth, distance, source_altitude), differentiable in
+        ``flux``.
+        """
         flux = flux.reshape(-1)
         if flux.numel() != self.n_cells:
             raise ValueError(f"flux must have {self.n_cells} cells; got {flux.numel()}")
@@ -702,7 +710,7 @@ class SkyglowModel(nn.Module):
         return model
 
     def refit(self, n_components, normalize: bool | None = None) -> SkyglowModel:
-        """A new model with another number of components, from the kept kernel.
+        """Return a new model with another number of components, from the kept kernel.
 
         Requires ``keep_kernel=True`` at :meth:`precompute`.
         """
@@ -781,9 +789,12 @@ class SkyglowModel(nn.Module):
         return out.reshape(shape).permute(3, 0, 1, 2)
 
     def _splat_corners(self, x_m, y_m, altitude_m, observer_xy, dtype):
-        """Flat polar index of each (observer, cell) pair's first corner, the corners'
-        (offset, weight) and the storage shape (azimuth, distance, source_altitude,
-        observer); weights are zero beyond ``max_distance_m``."""
+        """Return the splat corners of every (observer, cell) pair.
+
+        That is the flat polar index of each pair's first corner, the corners' (offset,
+        weight) and the storage shape (azimuth, distance, source_altitude, observer);
+        weights are zero beyond ``max_distance_m``.
+        """
         x_m = as_tensor("x_m", x_m, dtype=dtype).reshape(-1)
         y_m = as_tensor("y_m", y_m, dtype=dtype).reshape(-1)
         altitude_m = as_tensor("altitude_m", altitude_m, dtype=dtype).reshape(-1)
@@ -827,7 +838,7 @@ class SkyglowModel(nn.Module):
 
     def splat_plan(self, x_m, y_m, altitude_m, observer_xy, *, dtype=None,
                    compact: bool = True) -> SplatPlan:
-        """The linear map from cell fluxes to polar node fluxes, for reuse across renders.
+        """Return the linear map from cell fluxes to polar node fluxes, for reuse across renders.
 
         Each cell's flux is distributed bilinearly over the four polar nodes (azimuth ×
         distance; × 2 source-altitude nodes with a terrain) around it, as seen from each
@@ -1008,7 +1019,7 @@ class SkyglowModel(nn.Module):
         return _linear_weights(grid, observer_altitude_m.to(torch.float64))
 
     def _reusable_plan(self, cells, observer_xy, dtype) -> SplatPlan | None:
-        """The cached splat plan of this geometry (built if needed), or None if too big."""
+        """Return the cached splat plan of this geometry (built if needed), or None if too big."""
         observer_xy, _ = observer_positions(observer_xy, dtype)
         n_cells = cells["flux"].numel()
         corners = 4 * (2 if self.source_altitude_m.numel() > 1 else 1)
@@ -1272,7 +1283,7 @@ class SkyglowModel(nn.Module):
 
     # ------------------------------------------------------------------------ files ---
     def to_dataset(self):
-        """The tables and every precompute parameter as a Dataset (for netCDF)."""
+        """Return the tables and every precompute parameter as a Dataset (for netCDF)."""
         from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
 
         n_k = self.basis.shape[1]

@@ -185,7 +185,7 @@ def render_naive(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
 
 
 def kernel_table_sum(model: SkyglowModel, polar: torch.Tensor, node: int = 0) -> torch.Tensor:
-    """The naive sum on the model's grid from its stored kernel table (no PCA, no FFT).
+    """Compute the naive sum on the model's grid from its stored kernel table (no PCA, no FFT).
 
     ``Σ_{i,j,k} F(θ_i, r_j, h_k) b(θ − θ_i, φ, r_j, h_k, h_o)`` with the kernel values kept
     by ``SkyglowModel.precompute(..., keep_kernel=True)`` — the same numbers

@@ -135,7 +135,7 @@ def naked_eye_limiting_magnitude(mag_arcsec2) -> torch.Tensor:
 
 
 def visible_star_count(limiting_magnitude_mag, *, hemisphere: bool = True) -> torch.Tensor:
-    """Number of catalogue stars brighter than a limiting magnitude.
+    """Count the catalogue stars brighter than a limiting magnitude.
 
     Counts Hipparcos stars (:func:`skytorch.stars.bright_stars`, V ≤ 8) brighter than the
     limit; with ``hemisphere`` half the celestial sphere's count (one observer's sky,

@@ -142,7 +142,7 @@ def propagate_space_motion(ra_rad, dec_rad, pm_ra_mas_yr, pm_dec_mas_yr, paralla
 
 
 def direction_and_tangents(ra, dec):
-    """Unit vector and the local east (p) and north (q) unit vectors, each (..., 3).
+    """Return the unit vector and the local east (p) and north (q) unit vectors, each (..., 3).
 
     ``ra``, ``dec`` [rad]; the frame of proper motion ``mu = mu_alpha* p + mu_delta q``.
     """

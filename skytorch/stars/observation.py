@@ -115,7 +115,7 @@ def refraction_table(atmosphere, altitude_m: float = 0.0, n_nodes: int = 256
 
 def _trace_refraction_table(atmosphere, altitude_m: float, n_nodes: int
                             ) -> dict[str, torch.Tensor]:
-    """The table of :func:`refraction_table`, traced (checked arguments, not cached)."""
+    """Trace the table of :func:`refraction_table` (checked arguments, not cached)."""
     with torch.no_grad():
         apparent = grid_altitudes(4 * n_nodes, 0.0, torch.float64)
         bend = atmosphere.refraction(apparent, altitude_m).to(torch.float64).reshape(-1)
@@ -226,8 +226,10 @@ def _parse_times(times) -> np.ndarray:
 
 
 def _observer_arrays(lat_deg, lon_deg, elevation_m):
-    """Observer coordinates as 1-d float arrays of one common length (ValueError naming
-    the parameters and their shapes otherwise)."""
+    """Return the observer coordinates as 1-d float arrays of one common length.
+
+    Raises ValueError naming the parameters and their shapes otherwise.
+    """
     arrays = {}
     for name, value in (("lat_deg", lat_deg), ("lon_deg", lon_deg),
                         ("elevation_m", elevation_m)):

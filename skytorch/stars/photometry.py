@@ -200,7 +200,7 @@ def check_atmosphere(name: str, atmosphere, methods=("optical_depth",)):
 
 
 def check_flag(name: str, value) -> bool:
-    """A boolean option; strings such as "no" and numbers are a ``TypeError``."""
+    """Check a boolean option; strings such as "no" and numbers are a ``TypeError``."""
     if not isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be True or False; got {value!r:.60}")
     return bool(value)
@@ -289,7 +289,7 @@ def extinction_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 256,
 
 def _extinction_table(atmosphere, altitude: float, n_nodes: int, refraction: bool,
                       method: str) -> dict[str, torch.Tensor]:
-    """The table of :func:`extinction_table` (checked arguments, not cached)."""
+    """Compute the table of :func:`extinction_table` (checked arguments, not cached)."""
     dtype = torch.float64
     heights = grid_altitudes(n_nodes, 0.0, dtype)
     wavelength = torch.linspace(*V_BAND_WAVELENGTHS_NM[:2], V_BAND_WAVELENGTHS_NM[2],
@@ -446,7 +446,7 @@ def apparent_color_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 
 
 def _apparent_color_table(atmosphere, altitude: float, n_nodes: int,
                           refraction: bool) -> dict[str, torch.Tensor]:
-    """The table of :func:`apparent_color_table` (checked arguments, not cached)."""
+    """Compute the table of :func:`apparent_color_table` (checked arguments, not cached)."""
     dtype = torch.float64
     heights = grid_altitudes(n_nodes, 0.0, dtype)
     wavelength = torch.linspace(*COLOR_WAVELENGTHS_NM[:2], COLOR_WAVELENGTHS_NM[2],

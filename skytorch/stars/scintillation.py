@@ -131,7 +131,7 @@ def scintillation_index(airmass, aperture_m: float = 0.007, exposure_s: float = 
 
 def twinkle(scintillation_index_value, n_samples: int, *, sample_interval_s: float = 0.01,
             correlation_time_s: float = 0.01, seed: int = 0) -> torch.Tensor:
-    """A seeded random sequence of relative intensities with a given scintillation index.
+    """Draw a seeded random sequence of relative intensities with a given scintillation index.
 
     Parameters
     ----------
