@@ -41,7 +41,7 @@ def mode(path) -> int:
 
 
 def render_like(size: int = 256, n_wavelength: int = 8) -> xr.Dataset:
-    """A float64 all-sky render: a smooth sky over the disc, exact zeros outside it."""
+    """Make a float64 all-sky render: a smooth sky over the disc, exact zeros outside it."""
     axis = (np.arange(size) + 0.5) / size * 2.0 - 1.0
     x, y = np.meshgrid(axis, axis[::-1])
     r = np.hypot(x, y)

@@ -120,9 +120,12 @@ RING_PHASE_TOLERANCE = 0.01 * MAG
 
 
 def test_ring_phase_dims_totality_like_the_phase_curve():
-    """Refracted light reflected at the ring's phase angle: the change at greatest eclipse
-    equals the lunar phase curve (skytorch.moon.magnitude, an independent disc
-    integration) between the Sun's and the ring's phase angles; no change outside."""
+    """Reflect the refracted light at the ring's phase angle.
+
+    The change at greatest eclipse equals the lunar phase curve (skytorch.moon.magnitude,
+    an independent disc integration) between the Sun's and the ring's phase angles; no
+    change outside.
+    """
     import math
 
     import numpy as np
@@ -153,8 +156,11 @@ BATCH_TOLERANCE = 1e-9 * MAG
 
 
 def test_batched_atmosphere_equals_member_loop():
-    """A batched atmosphere (turbidity x ozone) gives Dataset dims whose members equal
-    lunar_eclipse run member by member (reference: the unbatched code path)."""
+    """Batch an atmosphere (turbidity x ozone) into Dataset dims.
+
+    Its members equal lunar_eclipse run member by member (reference: the unbatched code
+    path).
+    """
     from skytorch.atmosphere import Atmosphere
 
     turbidity = torch.tensor([[1.5], [3.0]], dtype=torch.float64)

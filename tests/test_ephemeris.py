@@ -287,7 +287,7 @@ def test_aberration_matrix_closed_form():
 
 @pytest.mark.parametrize("speed_m_s", [SPEED_OF_LIGHT_M_S, 3e8, float("nan")])
 def test_aberration_rejects_impossible_velocity(speed_m_s):
-    """v ≥ c (or NaN) would make γ⁻¹ = √(1 − β²) NaN: a clear error instead."""
+    """Reject v ≥ c (or NaN), which would make γ⁻¹ = √(1 − β²) NaN: a clear error instead."""
     velocity = torch.tensor([0.0, speed_m_s, 0.0], dtype=torch.float64)
     with pytest.raises(ValueError, match="velocity_m_s"):
         eph.aberrate(torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64), velocity)
@@ -307,7 +307,7 @@ SEASONS_2024 = {
 
 
 def _mean_obliquity_and_nutation_deg(times: np.ndarray) -> np.ndarray:
-    """True obliquity: Meeus (1998) eq. 22.2 plus the four largest nutation terms."""
+    """Compute the true obliquity: Meeus (1998) eq. 22.2 plus the four largest nutation terms."""
     jd = times.astype("datetime64[ns]").astype(np.int64) / 86400e9 + 2440587.5 + 69.2 / 86400.0
     t = (jd - 2451545.0) / 36525.0
     eps0 = 23.0 + 26.0 / 60.0 + (21.448 - 46.8150 * t - 0.00059 * t**2 + 0.001813 * t**3) / 3600

@@ -40,7 +40,7 @@ def _labelled(valid, bad):
 
 
 def _numbers(low, high, *, hard=(), high_inclusive=True):
-    """Valid floats, ints and integer/float tensors in [low, high]; hard ends included."""
+    """Draw valid floats, ints and integer/float tensors in [low, high]; ends included."""
     floats = st.floats(low, high, allow_nan=False, exclude_max=not high_inclusive)
     ints = st.integers(math.ceil(low), math.floor(high) - (0 if high_inclusive else 1))
     return st.one_of(floats, ints, st.sampled_from(list(hard)),
@@ -208,8 +208,10 @@ def test_parse_times_contract():
 
 
 def test_rotation_and_velocity_gradients_match_finite_differences():
-    """The documented differentiability in latitude, longitude (and height for the
-    velocity), checked against central finite differences (torch.autograd.gradcheck)."""
+    """Check the documented differentiability in latitude, longitude (height: velocity).
+
+    Against central finite differences (torch.autograd.gradcheck).
+    """
     times = ["2015-09-28T02:47Z", "2024-06-20T20:51Z"]
     lat = torch.tensor([52.52, -89.9], dtype=torch.float64, requires_grad=True)
     lon = torch.tensor([13.40, 359.5], dtype=torch.float64, requires_grad=True)

@@ -47,7 +47,7 @@ def test_ks1991_hard_cases(dtype):
 
 
 def test_single_scattering_pure_rayleigh_plane_parallel():
-    """Molecules only (ϖ = 1), view at zenith: plane-parallel closed form
+    """Molecules only (ϖ = 1), view at zenith: the plane-parallel closed form.
 
     L = E P(θ)/μv e^{−τ/μv} [1 − e^{−τ(1/μm − 1/μv)}] / (1/μm − 1/μv),
     which the spherical line-of-sight integral must match to within curvature (< 1 %).

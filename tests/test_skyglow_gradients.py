@@ -44,9 +44,12 @@ def test_render_gradient_with_respect_to_the_observer_position():
 
 
 def test_render_gradient_finite_with_the_observer_on_a_lit_cell():
-    """r = 0 to the cell at (500, 0) m: sqrt and atan2 have no derivative there; the
-    gradient is finite (the other cells' contributions) and equal to the one obtained
-    with that cell switched off plus a zero subgradient for it."""
+    """Differentiate at r = 0 to the cell at (500, 0) m.
+
+    sqrt and atan2 have no derivative there; the gradient is finite (the other cells'
+    contributions) and equal to the one obtained with that cell switched off plus a zero
+    subgradient for it.
+    """
     xy = torch.tensor([500.0, 0.0], dtype=torch.float64, requires_grad=True)
     (gradient,) = torch.autograd.grad(_luminance(FLUX, xy).sum(), xy)
     assert bool(torch.isfinite(gradient).all())
@@ -70,8 +73,11 @@ def _value(elevation: float, distance: float) -> float:
 
 
 def test_kernel_gradient_on_the_horizontal_ray():
-    """φ = 0: second-order forward differences (h = 1e-10 rad) for sources 10 m and 5 km
-    away; before the table-edge fix the 5 km gradient was 36 % low."""
+    """Differentiate at φ = 0: second-order forward differences (h = 1e-10 rad).
+
+    For sources 10 m and 5 km away; before the table-edge fix the 5 km gradient was
+    36 % low.
+    """
     for distance in (10.0, 5000.0):
         elevation = torch.tensor(0.0, dtype=torch.float64, requires_grad=True)
         (gradient,) = torch.autograd.grad(_kernel(elevation, distance).sum(), elevation)
@@ -91,8 +97,10 @@ def test_kernel_gradient_matches_central_differences():
 
 
 def test_kernel_gradient_for_a_source_at_the_observer():
-    """r = 0 (the end of the range) at the zenith and on the horizon: finite gradients (they
-    were NaN), and half a metre away against central differences.
+    """Differentiate at r = 0 (the end of the range) at the zenith and on the horizon.
+
+    The gradients are finite (they were NaN), and half a metre away they match central
+    differences.
 
     On the horizon the kernel itself jumps at r = 0 (0 there, 1.6e-8 m^-2 sr^-1 for
     r → 0+: the horizontal ray lies in the source's horizon plane, where Garstang's

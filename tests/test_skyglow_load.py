@@ -41,8 +41,11 @@ def test_round_trip_is_exact(saved):
 
 
 def test_byte_corruptions_are_refused_or_harmless(saved, tmp_path):
-    """One byte changed at 24 offsets spread over the file: each load either raises
-    ValueError or gives tables identical to the original (the byte was padding)."""
+    """Change one byte at 24 offsets spread over the file.
+
+    Each load either raises ValueError or gives tables identical to the original (the
+    byte was padding).
+    """
     data = saved.read_bytes()
     reference = SkyglowModel.load(saved)
     refused = harmless = 0

@@ -31,8 +31,10 @@ def _delta_m(table, altitude: float, bv: float = 0.65) -> float:
 
 
 def test_extinction_gradient_at_the_horizon_is_the_one_sided_derivative(table):
-    """At h = 0 (the first table node; below it the horizon value is held) the gradient
-    is the slope from above: a second-order forward difference, h = 1e-9 rad."""
+    """Differentiate at h = 0, the first table node (below it the horizon value is held).
+
+    The gradient is the slope from above: a second-order forward difference, h = 1e-9 rad.
+    """
     altitude = torch.zeros(1, 1, dtype=torch.float64, requires_grad=True)
     dm, _ = extinction(torch.tensor([0.65], dtype=torch.float64), altitude, table)
     (gradient,) = torch.autograd.grad(dm.sum(), altitude)

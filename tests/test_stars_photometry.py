@@ -195,7 +195,7 @@ def colour_observation(atm):
 
 
 def test_apparent_colour_against_direct_integration(atm, colour_observation):
-    """observe's colour (time, star, channel) equals a direct spectral integral per star."""
+    """The colour of observe (time, star, channel) equals a direct spectral integral per star."""
     ds = colour_observation
     assert ds.color.dims == ("time", "star", "channel")
     assert ds.color_exoatmospheric.dims == ("star", "channel")

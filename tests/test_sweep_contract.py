@@ -19,7 +19,7 @@ PARAMETERS = ("fn", "backend", "chunk_size", "memory_budget_bytes", "store", "ke
 
 
 def model(a, b):
-    """A closed form: every valid point gives a finite value."""
+    """Evaluate a closed form: every valid point gives a finite value."""
     return torch.tensor([a * 2.0 + b, a - b], dtype=torch.float64)
 
 
