@@ -407,6 +407,45 @@ _SPECS = {
 }
 
 
+def _site_atmosphere_tables(atmosphere, elevation: float, refraction: bool):
+    """Return the refraction and extinction tables of a site (``None`` where not used)."""
+    if atmosphere is None:
+        return None, None
+    return (refraction_table(atmosphere, elevation) if refraction else None,
+            extinction_table(atmosphere, elevation, refraction=refraction))
+
+
+def _star_colours(bv: torch.Tensor, altitude: torch.Tensor, atmosphere, elevation: float,
+                  refraction: bool) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return the apparent (time, star, 3) and exo-atmospheric (star, 3) colours.
+
+    Without an ``atmosphere`` (none, or no reddening asked) the apparent colour repeats the
+    exo-atmospheric one over time.
+    """
+    color_exo = bv_to_srgb(bv).to(altitude.dtype)
+    if atmosphere is None:
+        return color_exo.expand(altitude.shape[0], *color_exo.shape), color_exo
+    table = apparent_color_table(atmosphere, elevation, refraction=refraction)
+    return apparent_color(bv, altitude, table), color_exo
+
+
+def _day_night_factor(times: np.ndarray, lat: float, lon: float, elevation: float,
+                      dtype: torch.dtype) -> torch.Tensor:
+    """Compute Müller et al.'s day-night factor (time,) from the Sun's altitude."""
+    sun = sun_moon(times, lat, lon, elevation)
+    return muller_day_night_factor(torch.deg2rad(
+        torch.as_tensor(sun["sun_altitude"].values, dtype=dtype)))
+
+
+def _twinkle(scint: torch.Tensor, samples: int, interval_s: float, seed: int):
+    """Return the ``twinkle`` variable (time, star, sample) and its ``sample`` coordinate."""
+    sequence = twinkle(scint, samples, sample_interval_s=interval_s, seed=seed)
+    return (variable(("time", "star", "sample"), sequence, _SPECS["twinkle"]),
+            coordinate("sample", interval_s * np.arange(samples),
+                       VariableSpec("s", "time within the twinkle sequence",
+                                    "Seconds from its start.")))
+
+
 def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
             elevation_m: float = 0.0, atmosphere=None, refraction: bool = True, *,
             sky_brightness_mag_arcsec2=22.0, control_magnitude: float = 6.0,
@@ -537,19 +576,14 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     operators, velocity = time_operators(values, lat, lon, elevation,
                                          epoch_jyear=float(catalog.attrs.get("epoch_jyear",
                                                                              2000.0)))
-    refraction_tab = (refraction_table(atmosphere, elevation)
-                      if has_atmosphere and refraction else None)
-    extinction_tab = (extinction_table(atmosphere, elevation, refraction=refraction)
-                      if has_atmosphere else None)
+    refraction_tab, extinction_tab = _site_atmosphere_tables(
+        atmosphere if has_atmosphere else None, elevation, refraction)
     result = observe_tensors(stars, vmag, bv, operators, velocity, refraction_tab,
                              extinction_tab)
     sky = sky_values.reshape(-1).expand(values.size).to(dtype)
     limit = limiting_magnitude(sky)
-    factor = None
-    if visibility == "muller2012":
-        sun = sun_moon(values, lat, lon, elevation)
-        factor = muller_day_night_factor(torch.deg2rad(
-            torch.as_tensor(sun["sun_altitude"].values, dtype=dtype)))
+    factor = (_day_night_factor(values, lat, lon, elevation, dtype)
+              if visibility == "muller2012" else None)
     visible, count = count_visible(result["magnitude"], result["above_horizon"], limit,
                                    visibility, factor)
     brightness = relative_brightness(result["magnitude"], control_magnitude)
@@ -558,13 +592,9 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         brightness = brightness * factor[:, None]
     scint = scintillation_index(result["airmass"].clamp_min(1.0), aperture_m, exposure_s,
                                 elevation)
-    color_exo = bv_to_srgb(bv).to(dtype)
-    if has_atmosphere and reddening:
-        color = apparent_color(bv, result["altitude"],
-                               apparent_color_table(atmosphere, elevation,
-                                                    refraction=refraction))
-    else:
-        color = color_exo.expand(values.size, *color_exo.shape)
+    color, color_exo = _star_colours(bv, result["altitude"],
+                                     atmosphere if has_atmosphere and reddening else None,
+                                     elevation, refraction)
 
     ts = ("time", "star")
     data_vars = {
@@ -588,15 +618,10 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         data_vars["day_night_factor"] = variable("time", factor, _SPECS["day_night_factor"])
     coords_extra = {}
     if twinkle_samples > 0:
-        sequence = twinkle(scint, twinkle_samples, sample_interval_s=twinkle_interval_s,
-                           seed=seed)
-        data_vars["twinkle"] = variable(("time", "star", "sample"), sequence, _SPECS["twinkle"])
-        coords_extra["sample"] = coordinate(
-            "sample", twinkle_interval_s * np.arange(twinkle_samples),
-            VariableSpec("s", "time within the twinkle sequence", "Seconds from its start."))
-    for name in ("hip", "hr", "name"):
-        if name in catalog:
-            data_vars[name] = catalog[name].variable.copy()
+        data_vars["twinkle"], coords_extra["sample"] = _twinkle(
+            scint, twinkle_samples, twinkle_interval_s, seed)
+    data_vars.update({name: catalog[name].variable.copy() for name in ("hip", "hr", "name")
+                      if name in catalog})
     coords = {
         "time": time_coordinate(values),
         "star": catalog["star"].variable.copy() if "star" in catalog.coords else coordinate(
