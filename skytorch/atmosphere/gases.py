@@ -90,6 +90,7 @@ tensor([4.5204e-03, 3.3386e-06, 6.7420e-01])
 
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 
 import numpy as np
@@ -448,10 +449,11 @@ def _air_shape(atm) -> str:
     return atm.molecule_profile
 
 
-def water_vapour_profile(atm, dtype: torch.dtype):
+def water_vapour_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXPONENT):
     """:class:`~skytorch.atmosphere.constituents.Profile` of ``"h2o"``: the water vapour
-    density times :math:`(p/p_s)^m` (:data:`PRESSURE_EXPONENT`), relative to the ground."""
-    m = PRESSURE_EXPONENT
+    density times :math:`(p/p_s)^m` (``exponent``, default :data:`PRESSURE_EXPONENT`),
+    relative to the ground."""
+    m = float(exponent)
     height_w = torch.tensor(WATER_VAPOUR_SCALE_HEIGHT_M, dtype=dtype)
     if _air_shape(atm) == "us1976":
         column = _us1976_column_height("h2o", m, atm.top_altitude_m)
@@ -487,9 +489,9 @@ def _air_profile(atm, dtype: torch.dtype, exponent: float, power: float):
                    * torch.tensor(_LEVELS, dtype=dtype), truncate=True)
 
 
-def oxygen_profile(atm, dtype: torch.dtype):
+def oxygen_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXPONENT):
     """Profile of ``"o2"``: the air density times :math:`(p/p_s)^m`."""
-    return _air_profile(atm, dtype, PRESSURE_EXPONENT, 1.0)
+    return _air_profile(atm, dtype, float(exponent), 1.0)
 
 
 def o2o2_profile(atm, dtype: torch.dtype):
@@ -501,7 +503,8 @@ def _pressure_factor(atm, dtype, exponent: float) -> torch.Tensor:
     return (atm.surface_pressure_pa.to(dtype) / 101325.0) ** exponent
 
 
-def water_vapour_species(atm, wavelength_nm, dtype, profile):
+def water_vapour_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSURE_EXPONENT,
+                         name: str = "h2o"):
     """Species ``"h2o"``: the curve of growth of eq. 2-8 of the scaled water amount
     :math:`u_w = W (p_s/p_0)^m \\int\\rho\\,ds / \\int\\rho\\,dz` [cm]."""
     water = atm.precipitable_water_cm.to(dtype)
@@ -509,16 +512,17 @@ def water_vapour_species(atm, wavelength_nm, dtype, profile):
         a_w = torch.zeros_like(wavelength_nm)
     else:
         a_w, _ = bird_coefficients(wavelength_nm)
-    per_m = water * _pressure_factor(atm, dtype, PRESSURE_EXPONENT) / profile.column_height_m
+    per_m = water * _pressure_factor(atm, dtype, float(exponent)) / profile.column_height_m
 
     def law(column, extra):
         amount = column * insert_dims(per_m, extra, 0)
         return curve_of_growth(a_w, amount[..., None], curve=WATER_CURVE)
 
-    return Species("h2o", profile, torch.zeros_like(per_m[..., None] * a_w), law=law)
+    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_w), law=law)
 
 
-def oxygen_species(atm, wavelength_nm, dtype, profile):
+def oxygen_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSURE_EXPONENT,
+                   name: str = "o2"):
     """Species ``"o2"``: the curve of growth of eq. 2-9 of the scaled air amount
     :math:`u_m = (N/N_0)(p_s/p_0)^m \\int\\rho\\,ds / \\int\\rho\\,dz` [standard columns]."""
     if _oxygen_absent(atm):
@@ -526,13 +530,13 @@ def oxygen_species(atm, wavelength_nm, dtype, profile):
     else:
         _, a_u = bird_coefficients(wavelength_nm)
     columns = atm.molecular_column_m2(torch.float64).to(dtype) / STANDARD_AIR_COLUMN_M2
-    per_m = columns * _pressure_factor(atm, dtype, PRESSURE_EXPONENT) / profile.column_height_m
+    per_m = columns * _pressure_factor(atm, dtype, float(exponent)) / profile.column_height_m
 
     def law(column, extra):
         amount = column * insert_dims(per_m, extra, 0)
         return curve_of_growth(a_u, amount[..., None], curve=MIXED_GAS_CURVE)
 
-    return Species("o2", profile, torch.zeros_like(per_m[..., None] * a_u), law=law)
+    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_u), law=law)
 
 
 def o2o2_species(atm, wavelength_nm, dtype, profile):
@@ -558,10 +562,34 @@ def _oxygen_absent(atm) -> bool:
     return atm.gas != "air"
 
 
-def species_builders() -> tuple:
+def species_builders(exponent: float = PRESSURE_EXPONENT, suffix: str = "") -> tuple:
     """The :class:`~skytorch.atmosphere.constituents.SpeciesBuilder` of each species of
-    :data:`GAS_SPECIES`, in order."""
-    return (SpeciesBuilder("h2o", water_vapour_profile, water_vapour_species,
+    :data:`GAS_SPECIES`, in order.
+
+    Parameters
+    ----------
+    exponent : float
+        Pressure-scaling exponent :math:`m` of the h2o and o2 amounts (default
+        :data:`PRESSURE_EXPONENT`; other values for sensitivity studies, as
+        ``extra_species``).
+    suffix : str
+        Appended to the species names (``extra_species`` need names of their own).
+    """
+    m = float(exponent)
+
+    def profile_of(function):
+        return lambda atm, dtype: function(atm, dtype, m)
+
+    def species_of(function, name):
+        return lambda atm, wavelength, dtype, profile: function(atm, wavelength, dtype, profile,
+                                                                m, name)
+
+    return (SpeciesBuilder("h2o" + suffix, profile_of(water_vapour_profile),
+                           species_of(water_vapour_species, "h2o" + suffix),
                            absent=_water_absent),
-            SpeciesBuilder("o2", oxygen_profile, oxygen_species, absent=_oxygen_absent),
-            SpeciesBuilder("o2o2", o2o2_profile, o2o2_species, absent=_oxygen_absent))
+            SpeciesBuilder("o2" + suffix, profile_of(oxygen_profile),
+                           species_of(oxygen_species, "o2" + suffix), absent=_oxygen_absent),
+            SpeciesBuilder("o2o2" + suffix, o2o2_profile,
+                           lambda atm, wavelength, dtype, profile: dataclasses.replace(
+                               o2o2_species(atm, wavelength, dtype, profile),
+                               name="o2o2" + suffix), absent=_oxygen_absent))
