@@ -20,14 +20,15 @@ BENNETT = {"surface_pressure_pa": 101_000.0, "surface_temperature_k": 283.15}
 
 
 def test_refractivity_follows_its_own_profile():
-    mixed = Atmosphere.earth(refractivity_profile="us1976")
+    mixed = Atmosphere.earth(molecule_profile="exponential", refractivity_profile="us1976")
     standard = Atmosphere.earth(molecule_profile="us1976")
-    exponential = Atmosphere.earth(refractivity_profile="exponential")
+    # the refractivity follows the molecules unless given
+    exponential = Atmosphere.earth(molecule_profile="exponential")
     assert exponential.refractivity_profile == "exponential"
     assert standard.refractivity_profile == "us1976"
-    # the Earth default: US 1976 refractivity, 8 km exponential molecules
+    # the Earth default: one vertical structure, US 1976 for refractivity and molecules
     default = Atmosphere.earth()
-    assert (default.refractivity_profile, default.molecule_profile) == ("us1976", "exponential")
+    assert (default.refractivity_profile, default.molecule_profile) == ("us1976", "us1976")
     assert torch.equal(default.refractivity(ALTITUDE), mixed.refractivity(ALTITUDE))
     # refractivity from the US 1976 density, optical depths from the 8 km exponential
     assert torch.equal(mixed.refractivity(ALTITUDE), standard.refractivity(ALTITUDE))

@@ -52,8 +52,10 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import hashlib
 import json
 from functools import lru_cache
+from types import MappingProxyType
 
 import torch
 from torch import nn
@@ -191,6 +193,7 @@ def _check_parameter(name: str, value, *, low=None, high=None, low_inclusive=Non
 #: keywords of the constructor (checked by the presets before forwarding)
 _CONSTRUCTOR_KEYWORDS = (
     "planet_radius_m", "top_altitude_m", "gas", "molecule_profile", "refractivity_profile",
+    "profile",
     "aerosol_phase_model", "name", *_PARAMETERS,
 )
 
@@ -228,15 +231,18 @@ class Atmosphere(nn.Module):
     ----------
     planet_radius_m, top_altitude_m : float
         Planet radius and altitude of the top of the atmosphere [m].
-    surface_pressure_pa, surface_temperature_k : float or Tensor
+    surface_pressure_pa, surface_temperature_k : float or Tensor, optional
         Surface pressure [Pa] (sets the column of molecules) and temperature [K] (with
-        the pressure, sets the surface density used for the refractivity).
+        the pressure, sets the surface density used for the refractivity); default
+        1013.25 hPa and 288.15 K, or the sounding's values at 0 m.
     gravity_m_s2, molar_mass_kg_mol : float or Tensor
         Gravity [m s^-2] and mean molar mass [kg/mol] for the hydrostatic column.
     gas : {"air", "co2"}
         Rayleigh model (:data:`skytorch.atmosphere.rayleigh.RAYLEIGH_GASES`).
-    molecule_profile : {"exponential", "us1976"}
-        Shape of the molecular density (optical depths, scattering).
+    molecule_profile : {"exponential", "us1976", "sounding"}, optional
+        Shape of the molecular density (optical depths, scattering and, by default,
+        refraction); default ``"exponential"`` (:meth:`earth`: ``"us1976"``), or
+        ``"sounding"`` with a ``profile``.
     refractivity_profile : {"exponential", "us1976"}, optional
         Shape of the refractivity :math:`n - 1` with altitude (refraction); default: the
         ``molecule_profile`` (:meth:`earth`: ``"us1976"``). The refraction near the
@@ -254,10 +260,13 @@ class Atmosphere(nn.Module):
         Aerosol single-scattering albedo and phase-function asymmetry [1].
     aerosol_phase_model : {"cornetteshanks1992", "henyeygreenstein1941"}
         Aerosol phase function.
-    ozone_du : float or Tensor
-        Ozone column [DU].
+    ozone_du : float or Tensor, optional
+        Ozone column [DU]; default 0, or the column of the sounding's
+        ``ozone_number_density``. Given with a sounding that has ozone, it scales the
+        sounding's ozone shape to this column (the knob of a sweep).
     ozone_peak_altitude_m, ozone_half_width_m : float or Tensor
-        Altitude of the ozone peak and half width of the tent [m].
+        Altitude of the ozone peak and half width of the tent [m] (unused when the
+        sounding gives the ozone).
     ozone_temperature_k : float or Tensor, optional
         Temperature of the ozone cross-sections [K], in [203, 293] K; default: the
         tent-weighted mean U.S. Standard Atmosphere 1976 temperature over the layer
@@ -280,6 +289,17 @@ class Atmosphere(nn.Module):
         (O2 follows the molecules, volume mixing ratio 0.2095, only with ``gas="air"``):
         band model with a curve of growth of the pressure-scaled path amount and O2-O2
         collision-induced absorption, 242-1100 nm (:mod:`skytorch.atmosphere.gases`).
+    profile : xarray.Dataset, optional
+        A user sounding (:func:`skytorch.atmosphere.profiles.check_sounding`):
+        ``altitude`` [m], ``pressure`` [Pa], ``temperature`` [K], optionally
+        ``ozone_number_density`` [m-3] and ``h2o_vmr`` [1]. The molecular shape is the
+        number density :math:`p/(kT)` relative to its value at 0 m, interpolated
+        log-linearly between levels (exact for isothermal layers) and continued above
+        the top level with the scale height of the top layer; the column of molecules
+        stays :math:`p_s N_A/(m g)` (hydrostatic, so that the Rayleigh optical depth
+        scales with surface pressure as in Bodhaine et al. 1999). Ozone and water vapour
+        are interpolated linearly and are zero above the top level. Refraction follows
+        the same profile.
     name : str
         Label stored in Datasets.
 
@@ -301,11 +321,11 @@ class Atmosphere(nn.Module):
     """
 
     def __init__(self, *, planet_radius_m: float, top_altitude_m: float,
-                 surface_pressure_pa=STANDARD_PRESSURE_PA,
-                 surface_temperature_k=STANDARD_TEMPERATURE_K,
+                 surface_pressure_pa=None,
+                 surface_temperature_k=None,
                  gravity_m_s2=EARTH_GRAVITY_M_S2,
                  molar_mass_kg_mol=None, gas: str = "air",
-                 molecule_profile: str = "exponential",
+                 molecule_profile: str | None = None,
                  refractivity_profile: str | None = None,
                  rayleigh_scale_height_m=EARTH_RAYLEIGH_SCALE_HEIGHT_M,
                  angstrom_beta=0.0, angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA,
@@ -313,7 +333,7 @@ class Atmosphere(nn.Module):
                  aerosol_single_scattering_albedo=EARTH_AEROSOL_SINGLE_SCATTERING_ALBEDO,
                  aerosol_asymmetry=EARTH_AEROSOL_ASYMMETRY,
                  aerosol_phase_model: str = "cornetteshanks1992",
-                 ozone_du=0.0, ozone_peak_altitude_m=25_000.0, ozone_half_width_m=15_000.0,
+                 ozone_du=None, ozone_peak_altitude_m=25_000.0, ozone_half_width_m=15_000.0,
                  ozone_temperature_k=None,
                  reference_refractivity: float = EARTH_REFRACTIVITY_SEA_LEVEL,
                  reference_pressure_pa: float = STANDARD_PRESSURE_PA,
@@ -322,11 +342,22 @@ class Atmosphere(nn.Module):
                  stratospheric_aerosol_altitude_m=20e3,
                  stratospheric_aerosol_width_m=3e3,
                  precipitable_water_cm=0.0,
+                 profile=None,
                  name: str = "custom"):
         super().__init__()
         self.gas = check_choice("gas", gas, _rayleigh.RAYLEIGH_GASES)
+        # a user sounding (read-only float64 tensors per level; None without one)
+        self.sounding = (None if profile is None
+                         else MappingProxyType(_profiles.check_sounding(profile)))
+        if molecule_profile is None:
+            molecule_profile = "exponential" if profile is None else "sounding"
         self.molecule_profile = check_choice("molecule_profile", molecule_profile,
                                              _profiles.PROFILES)
+        if (self.molecule_profile == "sounding") != (profile is not None):
+            raise ValueError("molecule_profile='sounding' goes with a profile (an "
+                             "xarray.Dataset) and a profile with molecule_profile='sounding' "
+                             f"or None; got molecule_profile={molecule_profile!r} and "
+                             f"profile {'given' if profile is not None else 'None'}")
         self.refractivity_profile = check_choice(
             "refractivity_profile",
             self.molecule_profile if refractivity_profile is None else refractivity_profile,
@@ -342,6 +373,15 @@ class Atmosphere(nn.Module):
             # (checked above; kept explicit: both radii must be > 0)
             raise ValueError("planet_radius_m and top_altitude_m must be > 0")
         self.top_radius_m = self.planet_radius_m + self.top_altitude_m
+        if self.refractivity_profile == "sounding" and self.sounding is None:
+            raise ValueError("refractivity_profile='sounding' needs a profile (an "
+                             "xarray.Dataset)")
+        surface = _sounding_surface(self.sounding)
+        surface_pressure_pa = surface[0] if surface_pressure_pa is None else surface_pressure_pa
+        surface_temperature_k = (surface[1] if surface_temperature_k is None
+                                 else surface_temperature_k)
+        if ozone_du is None:
+            ozone_du = _sounding_ozone_du(self.sounding, self.top_altitude_m)
         if molar_mass_kg_mol is None:
             molar_mass_kg_mol = (_rayleigh.air_molar_mass() if gas == "air"
                                  else _rayleigh.MARS_MOLAR_MASS_KG_MOL)
@@ -365,7 +405,8 @@ class Atmosphere(nn.Module):
             "precipitable_water_cm": precipitable_water_cm,
         }
         values = {key: _check_parameter(key, value) for key, value in given.items()}
-        values["ozone_temperature_k"] = self._ozone_temperature(ozone_temperature_k, values)
+        values["ozone_temperature_k"] = self._ozone_temperature(ozone_temperature_k, values,
+                                                                self.sounding)
         for key, value in values.items():
             # not detached: parameters given as tensors with requires_grad stay
             # differentiable (e.g. fitting turbidity to observed extinction)
@@ -374,15 +415,17 @@ class Atmosphere(nn.Module):
 
     # ------------------------------------------------------------------ presets
     @classmethod
-    def earth(cls, turbidity=None, ozone_du=300.0, *, aerosol_optical_depth=None,
+    def earth(cls, turbidity=None, ozone_du=None, *, aerosol_optical_depth=None,
               angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA, **options) -> Atmosphere:
-        """Earth: air, 8 km exponential molecules, US 1976 refractivity, Preetham aerosols,
-        ozone tent.
+        """Earth: air, U.S. Standard Atmosphere 1976 molecules, Preetham aerosols, ozone
+        tent.
 
-        The refractive index follows the U.S. Standard Atmosphere 1976 density
-        (``refractivity_profile="us1976"``; horizon refraction 32.9' at 1013.25 hPa,
-        15 degC, Bennett 1982: 34.0'); pass ``refractivity_profile="exponential"`` for the
-        isothermal 8 km profile of the optical depths (37.3').
+        One vertical structure: optical depths, scattering and the refractive index all
+        follow the U.S. Standard Atmosphere 1976 density (``molecule_profile="us1976"``;
+        horizon refraction 32.9' at 1013.25 hPa, 15 degC, Bennett 1982: 34.0'). Pass
+        ``molecule_profile="exponential"`` for the isothermal 8 km exponential (closed
+        forms; the refractivity follows it, horizon refraction 37.3', unless
+        ``refractivity_profile`` is given too).
 
         Parameters
         ----------
@@ -429,9 +472,14 @@ class Atmosphere(nn.Module):
             alpha = angstrom_alpha
         settings = {"planet_radius_m": EARTH_MEAN_RADIUS_M,
                     "top_altitude_m": EARTH_TOP_OF_ATMOSPHERE_M, "name": "earth",
-                    "refractivity_profile": "us1976",
+                    "molecule_profile": "us1976" if options.get("profile") is None
+                    else "sounding",
                     "precipitable_water_cm": _gases.DEFAULT_PRECIPITABLE_WATER_CM}
         settings.update(options)
+        sounding_ozone = "ozone_number_density" in getattr(options.get("profile"),
+                                                           "variables", ())
+        if ozone_du is None and not sounding_ozone:
+            ozone_du = 300.0
         return cls(angstrom_beta=beta, angstrom_alpha=alpha, ozone_du=ozone_du, **settings)
 
     @classmethod
@@ -476,6 +524,7 @@ class Atmosphere(nn.Module):
     def parameters_dict(self) -> dict:
         """All parameters (lists for batched ones), e.g. for Dataset attributes and hashes."""
         result = {"name": self.name, "gas": self.gas, "molecule_profile": self.molecule_profile,
+                  "sounding_sha256": _sounding_digest(self.sounding),
                   "refractivity_profile": self.refractivity_profile,
                   "aerosol_phase_model": self.aerosol_phase_model,
                   "planet_radius_m": self.planet_radius_m,
@@ -589,20 +638,29 @@ class Atmosphere(nn.Module):
                    * self._p("gravity_m_s2", dtype, extra)))
 
     def _shape_profile(self, kind: str, dtype: torch.dtype):
-        """The molecular density shape ``kind`` ("exponential", "us1976") as a function of
-        altitude with a trailing sample dim (refractivity)."""
+        """The molecular density shape ``kind`` ("exponential", "us1976", "sounding") as a
+        function of altitude with a trailing sample dim (refractivity)."""
+        if kind == "sounding":
+            return _sounding_molecules(self, dtype)[0]
         if kind == "us1976":
             return _profiles.us1976
         height = self._p("rayleigh_scale_height_m", dtype, 1)
         return lambda h: _profiles.exponential(h, height)
 
     @staticmethod
-    def _ozone_temperature(given, values: dict) -> torch.Tensor:
-        """``ozone_temperature_k`` checked, or by default the US 1976 tent average [K]."""
+    def _ozone_temperature(given, values: dict, sounding=None) -> torch.Tensor:
+        """``ozone_temperature_k`` checked, or by default the US 1976 tent average [K]
+        (with a sounding that gives ozone: its ozone-weighted temperature)."""
         if given is not None:
             return _check_parameter("ozone_temperature_k", given)
-        temperature = _ozone.ozone_effective_temperature(values["ozone_peak_altitude_m"],
-                                                         values["ozone_half_width_m"])
+        if sounding is not None and "ozone_number_density_m3" in sounding:
+            weight = sounding["ozone_number_density_m3"]
+            temperature = torch.trapezoid(weight * sounding["temperature_k"],
+                                          sounding["altitude_m"]) / torch.trapezoid(
+                weight, sounding["altitude_m"])
+        else:
+            temperature = _ozone.ozone_effective_temperature(values["ozone_peak_altitude_m"],
+                                                             values["ozone_half_width_m"])
         low, high = _ozone.OZONE_TEMPERATURE_RANGE_K
         with torch.no_grad():
             bad = (temperature < low) | (temperature > high)
@@ -648,7 +706,8 @@ class Atmosphere(nn.Module):
 
         Notes
         -----
-        Rayleigh: :math:`N_{col}\\,\\sigma_R(\\lambda)/\\int\\rho\\,dh`; aerosol:
+        Rayleigh: :math:`N_{col}\\,\\sigma_R(\\lambda)/\\int\\rho\\,dh` (the profile's
+        ``column_height_m``); aerosol:
         :math:`\\beta\\,(\\lambda/1000\\,\\mathrm{nm})^{-\\alpha}/H_a`; ozone:
         :math:`\\mathrm{DU}\\,N_{DU}\\,\\sigma_{O_3}(\\lambda)/w` (tent half width
         :math:`w`).
@@ -658,8 +717,9 @@ class Atmosphere(nn.Module):
         >>> import torch
         >>> atm = Atmosphere.earth(turbidity=1.0, ozone_du=0.0)
         >>> k = atm.reference_extinction(torch.tensor([550.0], dtype=torch.float64))
-        >>> round(float(k["rayleigh"][0]) * 8000.0, 3)   # vertical Rayleigh optical depth
-        0.097
+        >>> height = atm.profiles()["rayleigh"].column_height_m   # US 1976: 8.43 km
+        >>> round(float(k["rayleigh"][0] * height), 4)   # vertical; Bodhaine 1999: 0.0971
+        0.0969
         """
         constituents = self.constituents(wavelength_nm)
         return {species.name: species.extinction for species in constituents.species}
@@ -782,6 +842,8 @@ class Atmosphere(nn.Module):
         the US 1976 profile, levels at 1, 2, 4 and 8 km (panels of the Gauss–Legendre
         rules along the ray); empty for the exponential profile.
         """
+        if self.refractivity_profile == "sounding":
+            return self.refractivity_kinks_m
         return _US1976_BREAKS_M if self.refractivity_profile == "us1976" else ()
 
     @property
@@ -794,9 +856,75 @@ class Atmosphere(nn.Module):
         impact parameter place nodes there (e.g.
         :meth:`skytorch.eclipse.shadow.Shadow.ring_profile`).
         """
+        if self.refractivity_profile == "sounding":
+            # the levels of the sounding (its log-density slope changes there)
+            return tuple(float(h) for h in self.sounding["altitude_m"]
+                         if 0.0 < float(h) < self.top_altitude_m)
         if self.refractivity_profile != "us1976":
             return ()
         return tuple(h for h in _profiles.US1976_KINK_ALTITUDES_M if h < self.top_altitude_m)
+
+    # ------------------------------------------------------------------ state of the gas
+    def temperature_k(self, altitude_m) -> torch.Tensor:
+        """Temperature of the gas [K] at ``altitude_m`` (...) [m], shape broadcast with the
+        parameters.
+
+        ``"us1976"``: the standard's temperature times ``surface_temperature_k / 288.15``;
+        ``"exponential"``: isothermal at ``surface_temperature_k``; ``"sounding"``: the
+        sounding's temperature interpolated linearly (held above its top), scaled to
+        ``surface_temperature_k`` at 0 m. With :meth:`pressure_pa` it gives the molecular
+        number density shape, :math:`p/(kT) \\propto \\rho(h)`.
+        """
+        dtype = common_dtype(altitude_m)
+        altitude = altitude_tensor(altitude_m, dtype)
+        self._check_shapes(altitude_m=altitude)
+        surface = self._p("surface_temperature_k", dtype)
+        if self.molecule_profile == "exponential":
+            return surface + 0.0 * altitude
+        if self.molecule_profile == "us1976":
+            return surface / STANDARD_TEMPERATURE_K * _profiles.us1976_temperature(altitude)
+        nodes, values = self.sounding["altitude_m"], self.sounding["temperature_k"]
+        zero = _profiles.piecewise_linear(torch.zeros((), dtype=torch.float64), nodes, values)
+        return surface / zero.to(dtype) * _profiles.piecewise_linear(altitude, nodes, values,
+                                                                     above=None)
+
+    def pressure_pa(self, altitude_m) -> torch.Tensor:
+        """Pressure of the gas [Pa] at ``altitude_m`` (...) [m], shape broadcast with the
+        parameters.
+
+        ``surface_pressure_pa`` times the profile's pressure ratio: U.S. Standard
+        Atmosphere 1976, :math:`e^{-h/H}` (exponential), or the sounding's pressure
+        interpolated log-linearly (continued above its top with the top layer's scale
+        height).
+        """
+        dtype = common_dtype(altitude_m)
+        altitude = altitude_tensor(altitude_m, dtype)
+        self._check_shapes(altitude_m=altitude)
+        surface = self._p("surface_pressure_pa", dtype)
+        if self.molecule_profile == "exponential":
+            return surface * _profiles.exponential(altitude,
+                                                   self._p("rayleigh_scale_height_m", dtype))
+        if self.molecule_profile == "us1976":
+            return surface * _profiles.us1976_pressure_ratio(altitude)
+        nodes = self.sounding["altitude_m"]
+        log_p = torch.log(self.sounding["pressure_pa"])
+        zero = _profiles.log_linear(torch.zeros((), dtype=torch.float64), nodes, log_p)
+        return surface / zero.to(dtype) * _profiles.log_linear(altitude, nodes, log_p)
+
+    def water_vapour_profile(self, dtype: torch.dtype = torch.float64) -> Profile | None:
+        """The sounding's water-vapour number density relative to its maximum, or None.
+
+        ``h2o_vmr`` times :math:`p/(kT)` at the levels, interpolated linearly, zero above
+        the top level; breakpoints at the levels; ``column_height_m`` its integral from
+        0 m to the top [m]. None without a sounding or without ``h2o_vmr`` in it.
+        """
+        if self.sounding is None or "h2o_vmr" not in self.sounding:
+            return None
+        sounding = dict(self.sounding)
+        sounding["ozone_number_density_m3"] = sounding["h2o_vmr"] * sounding["number_density_m3"]
+        nodes, relative, _ = _sounding_ozone(sounding, self.top_altitude_m, dtype)
+        return Profile(lambda h: _profiles.piecewise_linear(h, nodes, relative), {},
+                       torch.trapezoid(relative, nodes), breakpoints_m=nodes, support=True)
 
     def refractivity(self, altitude_m, wavelength_nm=None) -> torch.Tensor:
         """Refractivity :math:`n - 1` of the gas at ``altitude_m``.
@@ -1116,7 +1244,73 @@ def _floating_dtype(dtype, *tensors) -> torch.dtype:
 # Spectral coefficients are formed in float64 and cast: p N_A / (m g) alone overflows
 # float32 at the edge of PARAMETER_RANGES (the coefficients are far inside its range).
 
+def _sounding_surface(sounding) -> tuple[float, float]:
+    """Surface pressure [Pa] and temperature [K]: standard, or the sounding's at 0 m."""
+    if sounding is None:
+        return STANDARD_PRESSURE_PA, STANDARD_TEMPERATURE_K
+    zero = torch.zeros((), dtype=torch.float64)
+    pressure = _profiles.log_linear(zero, sounding["altitude_m"],
+                                    torch.log(sounding["pressure_pa"]))
+    temperature = _profiles.piecewise_linear(zero, sounding["altitude_m"],
+                                             sounding["temperature_k"])
+    return float(pressure), float(temperature)
+
+
+def _sounding_ozone_du(sounding, top_m: float) -> float:
+    """The ozone column of the sounding from 0 m to the top [DU] (0 without ozone)."""
+    if sounding is None or "ozone_number_density_m3" not in sounding:
+        return 0.0
+    nodes, relative, peak = _sounding_ozone(sounding, top_m, torch.float64)
+    return float(torch.trapezoid(relative, nodes) * peak / DOBSON_UNIT_PER_M2)
+
+
+def _sounding_ozone(sounding, top_m: float, dtype):
+    """Ozone levels clipped to [0, top] [m], density relative to its maximum there, and
+    that maximum [m^-3]."""
+    altitude = sounding["altitude_m"]
+    density = sounding["ozone_number_density_m3"]
+    inside = altitude[(altitude > 0.0) & (altitude < top_m)]
+    ends = [torch.zeros(1, dtype=torch.float64)]
+    if float(altitude[-1]) >= top_m:
+        ends.append(torch.tensor([top_m], dtype=torch.float64))
+    nodes = torch.cat([ends[0], inside, *ends[1:]])
+    values = _profiles.piecewise_linear(nodes, altitude, density)
+    peak = values.max()
+    return nodes.to(dtype), (values / peak).to(dtype), peak
+
+
+def _sounding_digest(sounding) -> str | None:
+    if sounding is None:
+        return None
+    digest = hashlib.sha256()
+    for key in sorted(sounding):
+        digest.update(key.encode())
+        digest.update(sounding[key].numpy().tobytes())
+    return digest.hexdigest()
+
+
+def _sounding_molecules(atm, dtype):
+    """The sounding's molecular shape p/(kT) relative to 0 m: (function, breakpoints,
+    column height)."""
+    sounding = atm.sounding
+    nodes = sounding["altitude_m"]
+    log_density = torch.log(sounding["number_density_m3"])
+    log_density = log_density - torch.log(_profiles.log_linear(
+        torch.zeros((), dtype=torch.float64), nodes, log_density))
+    height = _profiles.log_linear_column(nodes, log_density)
+    nodes_d, log_d = nodes.to(dtype), log_density.to(dtype)
+    levels = nodes_d[(nodes > 0.0) & (nodes < atm.top_altitude_m)]
+
+    def density(altitude_m):
+        return _profiles.log_linear(altitude_m, nodes_d, log_d)
+
+    return density, levels, height.to(dtype)
+
+
 def _rayleigh_profile(atm: Atmosphere, dtype: torch.dtype) -> Profile:
+    if atm.molecule_profile == "sounding":
+        density, levels, height = _sounding_molecules(atm, dtype)
+        return Profile(density, {}, height, breakpoints_m=levels)
     if atm.molecule_profile == "us1976":
         return Profile(_profiles.us1976, {}, torch.tensor(_us1976_column_height_m(),
                                                           dtype=dtype),
@@ -1161,6 +1355,10 @@ def _aerosol_species(atm, wavelength, dtype, profile) -> Species:
 
 
 def _ozone_profile(atm, dtype) -> Profile:
+    if atm.sounding is not None and "ozone_number_density_m3" in atm.sounding:
+        nodes, relative, _ = _sounding_ozone(atm.sounding, atm.top_altitude_m, dtype)
+        return Profile(lambda h: _profiles.piecewise_linear(h, nodes, relative), {},
+                       torch.trapezoid(relative, nodes), breakpoints_m=nodes, support=True)
     center = atm._p("ozone_peak_altitude_m", dtype)
     width = atm._p("ozone_half_width_m", dtype)
     levels = torch.stack(torch.broadcast_tensors(torch.clamp(center - width, min=0.0), center,
@@ -1172,7 +1370,7 @@ def _ozone_profile(atm, dtype) -> Profile:
 def _ozone_species(atm, wavelength, dtype, profile) -> Species:
     wide = wavelength.to(torch.float64)
     column = (atm._p("ozone_du", torch.float64, 1) * DOBSON_UNIT_PER_M2
-              / atm._p("ozone_half_width_m", torch.float64, 1))
+              / profile.column_height_m.to(torch.float64)[..., None])
     if atm._ozone_absent():
         # a zero column needing no gradient: exactly zero at every wavelength, so the
         # cross-section table (214-1100 nm) is not needed

@@ -42,11 +42,13 @@ import torch
 
 from skytorch._validate import as_tensor
 
-__all__ = ["PROFILES", "US1976_KINK_ALTITUDES_M", "US1976_SCALE_HEIGHT_M", "exponential",
-           "tent", "us1976"]
+__all__ = ["PROFILES", "SOUNDING_UNITS", "US1976_KINK_ALTITUDES_M", "US1976_SCALE_HEIGHT_M",
+           "check_sounding", "exponential", "log_linear", "piecewise_linear", "tent", "us1976",
+           "us1976_pressure_ratio", "us1976_temperature"]
 
-#: model keywords for the molecular profile
-PROFILES = ("exponential", "us1976")
+#: model keywords for the molecular profile ("sounding": a user's profile, see
+#: :func:`check_sounding`)
+PROFILES = ("exponential", "us1976", "sounding")
 
 # --- U.S. Standard Atmosphere 1976 defining layers (ref. 1, Table 4) -------------------------
 _US1976_EARTH_RADIUS_M = 6_356_766.0  #: radius used for geopotential altitude
@@ -155,7 +157,24 @@ def us1976(altitude_m) -> torch.Tensor:
     :math:`p/p_b = \\exp(-g_0 M (H - H_b)/(R T_b))`. Density ratio
     :math:`(p/p_0)(T_0/T)`. Geopotential altitude :math:`H = r_0 z/(r_0 + z)`.
     """
-    z = as_tensor("altitude_m", altitude_m)
+    log_p, temperature = _us1976_state(as_tensor("altitude_m", altitude_m))
+    return torch.exp(log_p - torch.log(temperature / _US1976_T0))
+
+
+def us1976_temperature(altitude_m) -> torch.Tensor:
+    """Temperature of the U.S. Standard Atmosphere 1976 [K] at geometric altitude [m]
+    (same layers and continuations as :func:`us1976`)."""
+    return _us1976_state(as_tensor("altitude_m", altitude_m))[1]
+
+
+def us1976_pressure_ratio(altitude_m) -> torch.Tensor:
+    """Pressure of the U.S. Standard Atmosphere 1976 relative to sea level [1] at
+    geometric altitude [m] (same layers and continuations as :func:`us1976`)."""
+    return torch.exp(_us1976_state(as_tensor("altitude_m", altitude_m))[0])
+
+
+def _us1976_state(z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Log pressure ratio and temperature [K] of the standard at geometric altitude z."""
     geopotential = _US1976_EARTH_RADIUS_M * z / (_US1976_EARTH_RADIUS_M + z)
     g_over_r = _US1976_G0 * _US1976_MOLAR_MASS / _US1976_GAS_CONSTANT
     # the constants of each point's layer, gathered once (the lowest layer is continued
@@ -171,7 +190,7 @@ def us1976(altitude_m) -> torch.Tensor:
     temperature = torch.clamp(t_base + lapse * dh, min=1.0)
     log_p = log_p_base - g_over_r * torch.where(
         isothermal, dh / t_base, torch.log(temperature / t_base) / safe_lapse)
-    return torch.exp(log_p - torch.log(temperature / _US1976_T0))
+    return log_p, temperature
 
 
 @functools.lru_cache(maxsize=8)
@@ -181,3 +200,189 @@ def _us1976_tables(dtype: torch.dtype, device: torch.device) -> dict[str, torch.
               "temperature": _US1976_TEMPERATURE, "log_pressure": _US1976_LOG_PRESSURE}
     return {key: torch.tensor(value, dtype=dtype, device=device)
             for key, value in values.items()}
+
+
+# --- user soundings ----------------------------------------------------------------------
+#: accepted ``units`` attributes of the sounding's variables (checked when present)
+SOUNDING_UNITS = {
+    "altitude": ("m", "meter", "meters", "metre", "metres"),
+    "pressure": ("Pa", "pascal", "pascals"),
+    "temperature": ("K", "kelvin"),
+    "ozone_number_density": ("m-3", "m^-3", "m**-3", "1/m3", "1/m^3", "m-3 (molecules)"),
+    "h2o_vmr": ("1", "", "mol/mol", "mol mol-1", "mol mol^-1", "m3/m3"),
+}
+#: Boltzmann constant [J/K] (exact, SI 2019)
+_BOLTZMANN = 1.380649e-23
+
+
+def check_sounding(profile) -> dict[str, torch.Tensor]:
+    """A user sounding as checked float64 tensors.
+
+    Parameters
+    ----------
+    profile : xarray.Dataset
+        One-dimensional variables (or coordinates) of equal length >= 2: ``altitude``
+        [m] above the planet's surface, strictly increasing, the first at or below 0 m;
+        ``pressure`` [Pa], positive and strictly decreasing; ``temperature`` [K],
+        positive; optionally ``ozone_number_density`` [m-3] (>= 0, not all zero) and
+        ``h2o_vmr`` [1] (volume mixing ratio in [0, 1)). A ``units`` attribute, where
+        present, must be one of :data:`SOUNDING_UNITS`.
+
+    Returns
+    -------
+    dict of Tensor (level,)
+        ``altitude_m``, ``pressure_pa``, ``temperature_k``, ``number_density_m3``
+        (:math:`p/(kT)`) and, when given, ``ozone_number_density_m3`` and ``h2o_vmr``.
+
+    Raises
+    ------
+    TypeError
+        ``profile`` is not an xarray.Dataset.
+    ValueError
+        A variable missing, not 1-D, of another length, not finite, out of range, not
+        monotonic, or with other units; the message names it.
+    """
+    import numpy as np
+    import xarray as xr
+
+    if not isinstance(profile, xr.Dataset):
+        raise TypeError("profile must be an xarray.Dataset with altitude [m], pressure [Pa] "
+                        f"and temperature [K]; got {type(profile).__name__}")
+    values = {}
+    for name in ("altitude", "pressure", "temperature", "ozone_number_density", "h2o_vmr"):
+        if name not in profile.variables:
+            if name in ("altitude", "pressure", "temperature"):
+                raise ValueError(f"profile lacks the variable {name!r} (needs altitude [m], "
+                                 "pressure [Pa], temperature [K]; optional "
+                                 "ozone_number_density [m-3], h2o_vmr [1])")
+            continue
+        variable = profile.variables[name]
+        units = variable.attrs.get("units")
+        if units is not None and str(units).strip() not in SOUNDING_UNITS[name]:
+            raise ValueError(f"profile variable {name!r} has units {units!r}; expected one "
+                             f"of {SOUNDING_UNITS[name]}")
+        array = np.asarray(variable.values, dtype=np.float64)
+        if array.ndim != 1:
+            raise ValueError(f"profile variable {name!r} must be 1-D (one value per level); "
+                             f"got shape {array.shape}")
+        if not np.isfinite(array).all():
+            raise ValueError(f"profile variable {name!r} holds NaN or inf at level(s) "
+                             f"{np.flatnonzero(~np.isfinite(array)).tolist()}")
+        values[name] = array
+    n_level = values["altitude"].size
+    for name, array in values.items():
+        if array.size != n_level:
+            raise ValueError(f"profile variable {name!r} has {array.size} levels, altitude "
+                             f"{n_level}")
+    if n_level < 2:
+        raise ValueError(f"profile needs at least 2 levels; got {n_level}")
+    altitude, pressure, temperature = (values[k] for k in ("altitude", "pressure",
+                                                            "temperature"))
+
+    def first(mask):
+        return int(np.flatnonzero(mask)[0])
+
+    if not (np.diff(altitude) > 0).all():
+        i = first(np.diff(altitude) <= 0)
+        raise ValueError("profile altitude must increase strictly; got "
+                         f"{altitude[i]} m then {altitude[i + 1]} m at levels {i}, {i + 1}")
+    if altitude[0] > 0.0:
+        raise ValueError(f"profile altitude must start at or below the ground (0 m); got "
+                         f"{altitude[0]} m")
+    for name, array in (("pressure", pressure), ("temperature", temperature)):
+        if not (array > 0).all():
+            i = first(array <= 0)
+            raise ValueError(f"profile {name} must be > 0; got {array[i]} at level {i}")
+    if not (np.diff(pressure) < 0).all():
+        i = first(np.diff(pressure) >= 0)
+        raise ValueError("profile pressure must decrease strictly with altitude; got "
+                         f"{pressure[i]} Pa then {pressure[i + 1]} Pa at levels {i}, {i + 1}")
+    result = {"altitude_m": altitude, "pressure_pa": pressure, "temperature_k": temperature,
+              "number_density_m3": pressure / (_BOLTZMANN * temperature)}
+    if "ozone_number_density" in values:
+        ozone = values["ozone_number_density"]
+        if (ozone < 0).any() or not (ozone > 0).any():
+            raise ValueError("profile ozone_number_density must be >= 0 and not all zero; "
+                             f"got min {ozone.min()}, max {ozone.max()} m-3")
+        result["ozone_number_density_m3"] = ozone
+    if "h2o_vmr" in values:
+        vmr = values["h2o_vmr"]
+        if (vmr < 0).any() or (vmr >= 1).any():
+            raise ValueError("profile h2o_vmr must be in [0, 1); got min "
+                             f"{vmr.min()}, max {vmr.max()}")
+        result["h2o_vmr"] = vmr
+    return {key: torch.tensor(value, dtype=torch.float64) for key, value in result.items()}
+
+
+def _segment(altitude_m, nodes_m):
+    """Index of the node interval holding each altitude (the end intervals continue)."""
+    return torch.bucketize(altitude_m.detach(), nodes_m[1:-1].contiguous(), right=True)
+
+
+def log_linear(altitude_m, nodes_m, log_values) -> torch.Tensor:
+    """:math:`\\exp` of the linear interpolation of ``log_values`` at ``altitude_m``.
+
+    Piecewise exponential between the nodes (exact for isothermal layers); below the
+    first and above the last node the end intervals continue (above the top: the
+    exponential decay of the top layer, i.e. its scale height).
+
+    Parameters
+    ----------
+    altitude_m : Tensor (...)
+        Altitude [m].
+    nodes_m : Tensor (level,)
+        Increasing node altitudes [m].
+    log_values : Tensor (level,)
+        Natural logarithm of the values at the nodes.
+
+    Returns
+    -------
+    Tensor (...)
+    """
+    altitude_m = as_tensor("altitude_m", altitude_m)
+    nodes_m = nodes_m.to(altitude_m.dtype)
+    log_values = log_values.to(altitude_m.dtype)
+    i = _segment(altitude_m, nodes_m)
+    h0, h1 = nodes_m[i], nodes_m[i + 1]
+    v0, v1 = log_values[i], log_values[i + 1]
+    return torch.exp(v0 + (v1 - v0) / (h1 - h0) * (altitude_m - h0))
+
+
+def piecewise_linear(altitude_m, nodes_m, values, above: float | None = 0.0) -> torch.Tensor:
+    """Linear interpolation of ``values`` at ``altitude_m`` between increasing nodes.
+
+    Below the first node the first interval continues; above the last node the value is
+    ``above`` (``None``: the last value is held).
+    """
+    altitude_m = as_tensor("altitude_m", altitude_m)
+    nodes_m = nodes_m.to(altitude_m.dtype)
+    values = values.to(altitude_m.dtype)
+    i = _segment(altitude_m, nodes_m)
+    h0, h1 = nodes_m[i], nodes_m[i + 1]
+    v0, v1 = values[i], values[i + 1]
+    inside = v0 + (v1 - v0) * torch.clamp((altitude_m - h0) / (h1 - h0), max=1.0)
+    if above is None:
+        return inside
+    return torch.where(altitude_m > nodes_m[-1], torch.full_like(inside, above), inside)
+
+
+def log_linear_column(nodes_m, log_values, start_m: float = 0.0) -> torch.Tensor:
+    """:math:`\\int_{start}^{\\infty}` of :func:`log_linear` [m x value] in closed form.
+
+    The top interval's exponential continues to infinity (it must decay).
+    """
+    h = nodes_m
+    v = log_values
+    lo = torch.clamp(h[:-1], min=start_m)
+    hi = torch.clamp(h[1:], min=start_m)
+    slope = (v[1:] - v[:-1]) / (h[1:] - h[:-1])
+    a = v[:-1] + slope * (lo - h[:-1])
+    b = v[:-1] + slope * (hi - h[:-1])
+    flat = slope.abs() < 1e-15
+    safe = torch.where(flat, torch.ones_like(slope), slope)
+    pieces = torch.where(flat, torch.exp(a) * (hi - lo), (torch.exp(b) - torch.exp(a)) / safe)
+    last = slope[-1]
+    if not bool(last < 0):
+        raise ValueError("profile: the number density must decrease in the top layer (it is "
+                         "continued above the top with that layer's scale height)")
+    return pieces.sum() + torch.exp(v[-1]) / (-last)

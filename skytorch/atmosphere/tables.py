@@ -76,6 +76,7 @@ from skytorch._validate import (
     check_zenith,
     common_dtype,
 )
+from skytorch.atmosphere import profiles as _profiles
 from skytorch.atmosphere.geometry import (
     _distance_to_ground,
     _ray_hits_ground,
@@ -105,7 +106,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: bump when the layout or the numerics of the table change (invalidates caches)
-TABLE_FORMAT_VERSION = 4
+TABLE_FORMAT_VERSION = 5
 
 _REFERENCES = [
     "Bruneton, E. 2017, Precomputed Atmospheric Scattering: a New Implementation, "
@@ -140,6 +141,8 @@ def radius_nodes(atmosphere, n_r: int) -> torch.Tensor:
     planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
     horizon = math.sqrt(top ** 2 - planet ** 2)
     kinks = atmosphere.profiles(torch.float64)["ozone"].breakpoints_m.reshape(-1).tolist()
+    if atmosphere.molecule_profile == "us1976":
+        kinks += list(_profiles.US1976_KINK_ALTITUDES_M)
     cuts = sorted({math.sqrt(h * (2.0 * planet + h)) / horizon for h in kinks
                    if 0.0 < h < atmosphere.top_altitude_m})
     edges = [0.0, *cuts, 1.0]
@@ -242,6 +245,10 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
     mu = torch.where(x_mu[None, :] == 1.0, mu * (1.0 - 1e-12), mu)
     tau = atmosphere.optical_depth(wavelength, torch.acos(mu), altitude, method=method,
                                    n_steps=n_steps)
+    columns = atmosphere.column_integrals(torch.acos(mu), altitude, method=method,
+                                          n_steps=n_steps)
+    species = list(columns)
+    column = torch.stack([columns[name] for name in species], dim=-1)
     key = table_key(atmosphere, wavelength, n_mu, n_r, method, n_steps)
     data_vars = {
         "optical_depth": variable(("x_r", "x_mu", "wavelength"), tau, VariableSpec(
@@ -251,6 +258,11 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
         "transmittance": variable(("x_r", "x_mu", "wavelength"), torch.exp(-tau), VariableSpec(
             "1", "transmittance to the top of the atmosphere",
             "exp(-optical_depth).", "atmosphere_transmittance")),
+        "column": variable(("x_r", "x_mu", "species"), column, VariableSpec(
+            "m", "path column of each species to the top of the atmosphere",
+            "Integral of the species' relative density along the straight ray from (r, mu) "
+            "to the top [m]: additive along a path, so that rays meeting the ground and "
+            "species with a nonlinear law of their column are looked up exactly.")),
         "altitude": variable(("x_r",), altitude[:, 0], VariableSpec(
             "m", "altitude of the ray origin", "r - planet radius.", "altitude")),
         "zenith_angle": variable(("x_r", "x_mu"), torch.rad2deg(torch.acos(mu)), VariableSpec(
@@ -267,6 +279,8 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
             "(d - d_min) / (d_max - d_min), d the distance to the top")),
         "wavelength": coordinate("wavelength", wavelength, VariableSpec(
             "nm", "wavelength", "Vacuum wavelength.", "radiation_wavelength")),
+        "species": coordinate("species", species, VariableSpec(
+            "1", "species", "Constituent of the atmosphere (skytorch.atmosphere.SPECIES).")),
     }
     parameters = dict(atmosphere.parameters_dict())
     parameters.update({"n_mu": n_mu, "n_r": n_r, "method": method,
@@ -366,10 +380,21 @@ class TransmittanceTable(nn.Module):
         :func:`atmosphere_hash` of the atmosphere the table was computed for (set by
         :meth:`build` and :meth:`from_dataset`); without it only the wavelengths and
         the radii can be checked.
+    columns : Tensor (x_r, x_mu, species), optional
+        Path columns of each species to the top [m], with ``constituents`` (at the
+        table's wavelengths, species in the same order): look-ups then interpolate the
+        columns and form the optical depth with
+        :meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`, exact for
+        rays meeting the ground and for species with a nonlinear law of their column
+        (band models). Without them the optical depths are interpolated (exact only for
+        linear species on rays that miss the ground).
+    constituents : Constituents, optional
+        See ``columns``.
     """
 
     def __init__(self, optical_depth, wavelength_nm, planet_radius_m: float,
-                 top_radius_m: float, x_r=None, *, atmosphere_sha256: str | None = None):
+                 top_radius_m: float, x_r=None, *, atmosphere_sha256: str | None = None,
+                 columns=None, constituents=None):
         super().__init__()
         table = check_finite("optical_depth", torch.as_tensor(
             np.array(optical_depth, dtype=np.float64)))
@@ -402,6 +427,22 @@ class TransmittanceTable(nn.Module):
         if atmosphere_sha256 is not None and not isinstance(atmosphere_sha256, str):
             raise TypeError(f"atmosphere_sha256 must be a string; got {atmosphere_sha256!r}")
         self.atmosphere_sha256 = atmosphere_sha256
+        if (columns is None) != (constituents is None):
+            raise ValueError("columns and constituents go together (both or neither)")
+        self.constituents = constituents
+        if columns is not None:
+            column = check_finite("columns", torch.as_tensor(
+                np.array(columns, dtype=np.float64)))
+            names = tuple(constituents.names)
+            if column.shape != (*table.shape[:2], len(names)):
+                raise ValueError(f"columns must have shape {(*table.shape[:2], len(names))} "
+                                 f"(x_r, x_mu, one per species {names}); got "
+                                 f"{tuple(column.shape)}")
+            if tuple(constituents.batch_shape) != ():
+                raise ValueError("constituents of a table must be unbatched")
+            self.register_buffer("columns", column.clone())
+        else:
+            self.columns = None
 
     @property
     def n_mu(self) -> int:
@@ -414,13 +455,25 @@ class TransmittanceTable(nn.Module):
         return self.top_radius_m - self.planet_radius_m
 
     @classmethod
-    def from_dataset(cls, dataset) -> TransmittanceTable:
-        """From a Dataset of :func:`transmittance_table` (or the cache)."""
+    def from_dataset(cls, dataset, constituents=None) -> TransmittanceTable:
+        """From a Dataset of :func:`transmittance_table` (or the cache).
+
+        With ``constituents`` (of the table's atmosphere at its wavelengths) the look-ups
+        use the Dataset's per-species ``column`` (see the class parameters).
+        """
         parameters = json.loads(dataset.attrs["parameters"])
         planet = parameters["planet_radius_m"]
+        columns = None
+        if constituents is not None:
+            species = [str(name) for name in dataset["species"].values]
+            if species != list(constituents.names):
+                raise ValueError(f"the table's species {species} are not those of the "
+                                 f"constituents {list(constituents.names)}")
+            columns = dataset["column"].values
         return cls(dataset["optical_depth"].values, dataset["wavelength"].values, planet,
                    planet + parameters["top_altitude_m"], dataset["x_r"].values,
-                   atmosphere_sha256=dataset.attrs.get("atmosphere_sha256"))
+                   atmosphere_sha256=dataset.attrs.get("atmosphere_sha256"),
+                   columns=columns, constituents=constituents)
 
     @classmethod
     def build(cls, atmosphere, wavelength_nm, *, cache: bool = False, n_mu: int = 256,
@@ -442,7 +495,8 @@ class TransmittanceTable(nn.Module):
             if cache_dir is not None:
                 raise TypeError("cache_dir applies with cache=True only")
             dataset = transmittance_table(atmosphere, wavelength_nm, **options)
-        return cls.from_dataset(dataset)
+        return cls.from_dataset(dataset, atmosphere.constituents(
+            torch.tensor(np.array(dataset["wavelength"].values, dtype=np.float64))))
 
     def check_compatible(self, atmosphere=None, wavelength_nm=None) -> None:
         """Refuse (ValueError naming ``table``) a use the table was not built for.
@@ -480,13 +534,13 @@ class TransmittanceTable(nn.Module):
                         f"{self.atmosphere_sha256[:12]}..., this one "
                         f"{atmosphere_hash(atmosphere)[:12]}...): build a table for it")
 
-    def _lookup(self, altitude, mu):
-        """Bilinear interpolation at (altitude, mu) (rays missing the ground) -> (...,
-        wavelength)."""
+    def _lookup(self, altitude, mu, table=None):
+        """Bilinear interpolation of ``table`` (default: the optical depths) at (altitude,
+        mu) (rays missing the ground) -> (..., last dim of the table)."""
         x_r, x_mu = _texture_coordinates(altitude, mu, self.planet_radius_m,
                                          self.top_radius_m)
         x_r, x_mu = torch.clamp(x_r, 0.0, 1.0), torch.clamp(x_mu, 0.0, 1.0)
-        table = self.table.to(x_r.dtype)
+        table = (self.table if table is None else table).to(x_r.dtype)
         n_r, n_mu, n_wl = table.shape
         nodes = self.x_r.to(x_r.dtype)
         i = torch.clamp(torch.searchsorted(nodes, x_r.detach().contiguous(), right=True) - 1,
@@ -544,14 +598,20 @@ class TransmittanceTable(nn.Module):
         mu = torch.cos(zenith)
         r, mu = torch.broadcast_tensors(r, mu)
         hits = _ray_hits_ground(r, mu, self.planet_radius_m)
-        up = self._lookup(r - self.planet_radius_m, torch.where(hits, -mu, mu))
+        table = self.columns
+        up = self._lookup(r - self.planet_radius_m, torch.where(hits, -mu, mu), table)
         d = _distance_to_ground(r, mu, self.planet_radius_m)
         planet = self.planet_radius_m
         # mu at the ground point (looking down) from r mu + d = R mu_g
         mu_ground = torch.clamp((r * mu + d) / planet, -1.0, 0.0)
-        from_ground = self._lookup(torch.zeros_like(r), -mu_ground)
+        from_ground = self._lookup(torch.zeros_like(r), -mu_ground, table)
+        # (additive columns: exact; optical depths: exact for linear species only)
         down = torch.clamp(from_ground - up, min=0.0)
-        return torch.where(hits[..., None], down, up)
+        value = torch.where(hits[..., None], down, up)
+        if table is None:
+            return value
+        columns = dict(zip(self.constituents.names, value.unbind(-1), strict=True))
+        return self.constituents.optical_depth(columns)
 
     def transmittance(self, zenith_rad, altitude_m=0.0, *, wavelength_nm=None
                       ) -> torch.Tensor:
