@@ -233,6 +233,21 @@ def _check_tables(model) -> None:
     sizes = {name: getattr(model, name).numel() for name in (
         "azimuth_rad", "elevation_rad", "distance_m", "distance_edges_m",
         "source_altitude_m", "observer_altitude_m", "wavelength_nm")}
+    problems = _shape_problems(model, sizes)
+    for name in ("azimuth_rad", "elevation_rad", "distance_m", "distance_edges_m",
+                 "source_altitude_m", "observer_altitude_m", "wavelength_nm", "basis",
+                 "coefficients", "explained_variance_ratio"):
+        if not bool(torch.isfinite(getattr(model, name)).all()):
+            problems.append(f"{name} holds NaN or infinite values")
+    if not problems:
+        problems = _grid_problems(model)
+    if problems:
+        raise ValueError("the skyglow model's tables are inconsistent (a corrupted or "
+                         "truncated file?): " + "; ".join(problems))
+
+
+def _shape_problems(model, sizes: dict[str, int]) -> list[str]:
+    """List how the shapes of the model's tables disagree with its grids."""
     n_t, n_p, n_r = sizes["azimuth_rad"], sizes["elevation_rad"], sizes["distance_m"]
     n_hc, n_ho, n_wl = (sizes["source_altitude_m"], sizes["observer_altitude_m"],
                         sizes["wavelength_nm"])
@@ -249,24 +264,23 @@ def _check_tables(model) -> None:
         problems.append(f"{sizes['distance_edges_m']} distance edges for {n_r} distances")
     if min(n_t, n_p, n_r, n_hc, n_ho, n_wl) < 1 or n_t < 2:
         problems.append(f"empty grid (sizes {sizes})")
-    for name in ("azimuth_rad", "elevation_rad", "distance_m", "distance_edges_m",
-                 "source_altitude_m", "observer_altitude_m", "wavelength_nm", "basis",
-                 "coefficients", "explained_variance_ratio"):
-        if not bool(torch.isfinite(getattr(model, name)).all()):
-            problems.append(f"{name} holds NaN or infinite values")
-    if not problems:
-        steps = torch.diff(model.azimuth_rad)
-        uniform = bool(torch.allclose(steps, torch.full_like(steps, 2 * math.pi / n_t),
-                                      rtol=1e-9, atol=1e-12))
-        if not uniform or abs(float(model.azimuth_rad[0])) > 1e-12:
-            problems.append("azimuth_rad is not the uniform grid i 2π/N from 0")
-        for name in ("distance_edges_m", "source_altitude_m", "observer_altitude_m"):
-            values = getattr(model, name)
-            if values.numel() > 1 and not bool((torch.diff(values) > 0).all()):
-                problems.append(f"{name} is not increasing")
-    if problems:
-        raise ValueError("the skyglow model's tables are inconsistent (a corrupted or "
-                         "truncated file?): " + "; ".join(problems))
+    return problems
+
+
+def _grid_problems(model) -> list[str]:
+    """List how the model's grids depart from uniform azimuths and increasing nodes."""
+    problems = []
+    n_t = model.azimuth_rad.numel()
+    steps = torch.diff(model.azimuth_rad)
+    uniform = bool(torch.allclose(steps, torch.full_like(steps, 2 * math.pi / n_t),
+                                  rtol=1e-9, atol=1e-12))
+    if not uniform or abs(float(model.azimuth_rad[0])) > 1e-12:
+        problems.append("azimuth_rad is not the uniform grid i 2π/N from 0")
+    for name in ("distance_edges_m", "source_altitude_m", "observer_altitude_m"):
+        values = getattr(model, name)
+        if values.numel() > 1 and not bool((torch.diff(values) > 0).all()):
+            problems.append(f"{name} is not increasing")
+    return problems
 
 
 def polar_offsets(dx: torch.Tensor, dy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -285,6 +299,26 @@ def polar_offsets(dx: torch.Tensor, dy: torch.Tensor) -> tuple[torch.Tensor, tor
     r = torch.where(at_observer, torch.zeros_like(r), r)
     azimuth = torch.remainder(torch.atan2(safe_dx, dy), 2 * math.pi)
     return r, torch.where(at_observer, torch.zeros_like(azimuth), azimuth)
+
+
+def _dataset_light_map(light_map):
+    """Return flux (y, x), x (x,), y (y,) and altitude (y, x) or None of a Dataset map [m]."""
+    missing = [k for k in ("flux", "x", "y") if k not in light_map]
+    if missing:
+        raise ValueError(f"light_map must have a variable 'flux' on (y, x) with "
+                         f"coordinates 'x' and 'y' [m]; missing {missing}")
+    if set(light_map["flux"].dims) != {"y", "x"}:
+        raise ValueError(f"light_map flux must have the dimensions (y, x); got "
+                         f"{light_map['flux'].dims}")
+    da = light_map["flux"].transpose("y", "x")
+    flux = torch.tensor(np.array(da.values, dtype=np.float64))
+    x_m = torch.tensor(np.array(light_map["x"].values, dtype=np.float64))
+    y_m = torch.tensor(np.array(light_map["y"].values, dtype=np.float64))
+    altitude_m = None
+    if "altitude" in light_map:
+        altitude_m = torch.tensor(np.array(
+            light_map["altitude"].transpose("y", "x").values, dtype=np.float64))
+    return flux, x_m, y_m, altitude_m
 
 
 def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
@@ -315,20 +349,8 @@ def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
         For a light map that is neither a Dataset nor numeric.
     """
     if not isinstance(light_map, torch.Tensor) and hasattr(light_map, "data_vars"):
-        missing = [k for k in ("flux", "x", "y") if k not in light_map]
-        if missing:
-            raise ValueError(f"light_map must have a variable 'flux' on (y, x) with "
-                             f"coordinates 'x' and 'y' [m]; missing {missing}")
-        if set(light_map["flux"].dims) != {"y", "x"}:
-            raise ValueError(f"light_map flux must have the dimensions (y, x); got "
-                             f"{light_map['flux'].dims}")
-        da = light_map["flux"].transpose("y", "x")
-        flux = torch.tensor(np.array(da.values, dtype=np.float64))
-        x_m = torch.tensor(np.array(light_map["x"].values, dtype=np.float64))
-        y_m = torch.tensor(np.array(light_map["y"].values, dtype=np.float64))
-        if "altitude" in light_map:
-            altitude_m = torch.tensor(np.array(
-                light_map["altitude"].transpose("y", "x").values, dtype=np.float64))
+        flux, x_m, y_m, dataset_altitude = _dataset_light_map(light_map)
+        altitude_m = altitude_m if dataset_altitude is None else dataset_altitude
     else:
         flux = as_tensor("light_map", light_map)
         if x_m is None or y_m is None:
@@ -1128,22 +1150,33 @@ class SkyglowModel(nn.Module):
                 polar = self.polar_flux(x, y, flux, altitude, observer_xy[start:stop])
             if self.observer_altitude_m.numel() == 1:
                 pieces.append(self.convolve(polar, 0))
-                continue
-            result = torch.zeros(stop - start, n_p, n_t, n_wl, dtype=dtype)
-            jj, ww = j[start:stop], w[start:stop].to(dtype)
-            for node in torch.unique(torch.cat([jj, jj + 1])).tolist():
-                if node >= self.observer_altitude_m.numel():
-                    continue
-                weight = torch.where(jj == node, 1 - ww, torch.zeros_like(ww)) + torch.where(
-                    jj + 1 == node, ww, torch.zeros_like(ww))
-                use = weight > 0
-                if not bool(use.any()):
-                    continue
-                part = self.convolve(polar[use], node)
-                result = result.index_add(0, torch.nonzero(use)[:, 0],
-                                          part * weight[use][:, None, None, None])
-            pieces.append(result)
+            else:
+                pieces.append(self._convolve_between_altitudes(
+                    polar, j[start:stop], w[start:stop].to(dtype), (n_p, n_t, n_wl)))
         return pieces[0] if len(pieces) == 1 else torch.cat(pieces)
+
+    def _convolve_between_altitudes(self, polar: torch.Tensor, jj: torch.Tensor,
+                                    ww: torch.Tensor, shape: tuple[int, int, int]
+                                    ) -> torch.Tensor:
+        """Convolve polar fluxes with the kernels of the two observer-altitude nodes.
+
+        Each observer's image is the linear blend ``(1 - w) K_j + w K_{j+1}`` of the
+        convolutions at the nodes ``jj`` and ``jj + 1`` around its altitude; ``shape`` is
+        (elevation, azimuth, wavelength) of one image.
+        """
+        result = torch.zeros(polar.shape[0], *shape, dtype=ww.dtype)
+        for node in torch.unique(torch.cat([jj, jj + 1])).tolist():
+            if node >= self.observer_altitude_m.numel():
+                continue
+            weight = torch.where(jj == node, 1 - ww, torch.zeros_like(ww)) + torch.where(
+                jj + 1 == node, ww, torch.zeros_like(ww))
+            use = weight > 0
+            if not bool(use.any()):
+                continue
+            part = self.convolve(polar[use], node)
+            result = result.index_add(0, torch.nonzero(use)[:, 0],
+                                      part * weight[use][:, None, None, None])
+        return result
 
     def render(self, light_map, observer_xy=(0.0, 0.0), observer_altitude_m=0.0, *,
                lamp="white", x_m=None, y_m=None, altitude_m=None,
