@@ -1,5 +1,5 @@
-"""Aerosol optical properties: Ångström law, Preetham turbidity, Mars dust, and the
-stratospheric sulfate layer.
+"""Aerosol optical properties: Ångström law, Preetham turbidity, Mars dust, the
+stratospheric sulfate layer and named aerosol types with Mie optics.
 
 The aerosol optical depth follows the Ångström law
 :math:`\\tau_a(\\lambda) = \\beta (\\lambda / 1\\,\\mu m)^{-\\alpha}` (ref. 1). From
@@ -25,6 +25,12 @@ References
    to the clouds of Venus?", Appl. Opt. 14, 208, doi:10.1364/AO.14.000208.
 7. Henyey, L. G. & Greenstein, J. L. 1941, "Diffuse radiation in the Galaxy", ApJ 93,
    70, doi:10.1086/144246.
+8. Hess, M., Koepke, P. & Schult, I. 1998, "Optical Properties of Aerosols and Clouds:
+   The Software Package OPAC", Bull. Am. Meteorol. Soc. 79, 831,
+   doi:10.1175/1520-0477(1998)079<0831:OPOAAC>2.0.CO;2.
+9. Wolff, M. J. et al. 2009, "Wavelength dependence of dust aerosol single scattering
+   albedo as observed by the Compact Reconnaissance Imaging Spectrometer", J. Geophys.
+   Res. 114, E00D04, doi:10.1029/2009JE003350.
 
 Stratospheric sulfate layer
 ---------------------------
@@ -36,6 +42,23 @@ come from Mie theory, tabulated 230–1690 nm in ``data/aerosol_mie_sulfate.csv`
 function is Henyey–Greenstein (ref. 7) with the tabulated asymmetry. The vertical profile
 is a Gaussian in altitude, :func:`gaussian_layer`, whose integral from the ground to the
 top of the atmosphere is :func:`gaussian_layer_column` (closed form with erf).
+
+Aerosol types
+-------------
+:func:`aerosol_type_properties` gives, for a name of :data:`AEROSOL_TYPES` (aliases
+``continental``, ``maritime``, ``mineral_dust``), the extinction relative to 550 nm, the
+single-scattering albedo and the asymmetry from Mie theory: ``sulfate`` is the table
+above, the others the OPAC types (ref. 8): continental clean / average / polluted,
+urban, desert, maritime clean / polluted / tropical, arctic, antarctic — external
+mixtures of OPAC's lognormal components at 80 % relative humidity with OPAC's refractive
+indices, tabulated 250–2000 nm every 10 nm. The phase function to use with them is
+Henyey–Greenstein with the tabulated g. The 550 nm optical depth is not part of a type.
+
+Mars dust
+---------
+:func:`mars_dust_properties`: the single-scattering albedo of Martian dust falls from
+0.97 in the red to 0.75 at 400 nm and 0.63 at 263 nm (spheres of the Wolff et al. 2009
+refractive index, r_eff = 1.5 um, v_eff = 0.3; ref. 9).
 
 Examples
 --------
@@ -59,13 +82,21 @@ from skytorch._data import data_path
 from skytorch._validate import as_tensor, check_range
 
 __all__ = [
+    "AEROSOL_TYPES",
+    "AEROSOL_TYPE_ALIASES",
     "MARS_DUST",
+    "MARS_DUST_RANGE_NM",
+    "OPAC_RANGE_NM",
     "PREETHAM_ANGSTROM_ALPHA",
     "SULFATE_RANGE_NM",
+    "aerosol_type_properties",
+    "aerosol_type_range_nm",
     "angstrom_optical_depth",
     "gaussian_layer",
     "gaussian_layer_column",
+    "mars_dust_properties",
     "preetham_angstrom_beta",
+    "resolve_aerosol_type",
     "sulfate_mie_properties",
 ]
 
@@ -73,6 +104,23 @@ __all__ = [
 SULFATE_TABLE = "aerosol_mie_sulfate.csv"
 #: wavelengths the sulfate table covers [nm]
 SULFATE_RANGE_NM = (230.0, 1690.0)
+#: named aerosol types with a shipped Mie table: the stratospheric sulfate droplets and
+#: the ten OPAC types of Hess et al. 1998 (ref. 8, Table 4)
+AEROSOL_TYPES = (
+    "sulfate", "continental_clean", "continental_average", "continental_polluted", "urban",
+    "desert", "maritime_clean", "maritime_polluted", "maritime_tropical", "arctic",
+    "antarctic",
+)
+#: short names accepted for the OPAC types
+AEROSOL_TYPE_ALIASES = {
+    "continental": "continental_average", "maritime": "maritime_clean",
+    "mineral_dust": "desert",
+}
+#: wavelengths the OPAC type tables cover [nm]
+OPAC_RANGE_NM = (250.0, 2000.0)
+#: shipped Mie table of Martian dust (``data/``) and the wavelengths it covers [nm]
+MARS_DUST_TABLE = "aerosol_mie_mars_dust.csv"
+MARS_DUST_RANGE_NM = (263.0, 1717.372)
 
 #: Ångström exponent of Preetham's turbidity model (ref. 2)
 PREETHAM_ANGSTROM_ALPHA = 1.3
@@ -82,6 +130,7 @@ ANGSTROM_REFERENCE_NM = 1000.0
 #: background Martian dust: optical depth 0.5 at 880 nm (ref. 3, non-dusty season
 #: typical), nearly grey in the visible (alpha ~ 0), single-scattering albedo 0.93 and
 #: Henyey-Greenstein asymmetry 0.63 (ref. 4), mixed with the gas (scale height 11.1 km).
+#: The wavelength-dependent albedo is :func:`mars_dust_properties` (ref. 9).
 MARS_DUST = {
     "optical_depth": 0.5,
     "reference_wavelength_nm": 880.0,
@@ -130,21 +179,40 @@ def angstrom_optical_depth(wavelength_nm, beta, alpha) -> torch.Tensor:
     return beta[..., None] * (wavelength_nm / ANGSTROM_REFERENCE_NM) ** (-alpha[..., None])
 
 
-@lru_cache(maxsize=1)
-def _sulfate_table() -> np.ndarray:
-    """Rows (wavelength_nm, extinction_550, single_scattering_albedo, asymmetry)."""
-    path = data_path(SULFATE_TABLE)
-    table = np.loadtxt(path, delimiter=",", comments="#", skiprows=5)
+@lru_cache(maxsize=16)
+def _table(filename: str, low: float, high: float) -> np.ndarray:
+    """Rows (wavelength_nm, extinction ratio, single_scattering_albedo, asymmetry) of a
+    shipped Mie table, checked to span [low, high] nm in increasing order."""
+    path = data_path(filename)
+    with open(path, encoding="utf-8") as handle:
+        header = 1 + sum(1 for line in handle if line.startswith("#"))  # + column names
+    table = np.loadtxt(path, delimiter=",", comments="#", skiprows=header)
     grid = table[:, 0]
-    if not (np.all(np.diff(grid) > 0.0) and grid[0] == SULFATE_RANGE_NM[0]
-            and grid[-1] == SULFATE_RANGE_NM[1]):
-        raise ValueError(f"{SULFATE_TABLE} does not span {SULFATE_RANGE_NM} nm in order")
+    if not (np.all(np.diff(grid) > 0.0) and abs(grid[0] - low) < 1e-6
+            and abs(grid[-1] - high) < 1e-6):
+        raise ValueError(f"{filename} does not span ({low}, {high}) nm in order")
     return table
 
 
-@lru_cache(maxsize=4)
-def _sulfate_tensors(dtype: torch.dtype) -> torch.Tensor:
-    return torch.as_tensor(np.ascontiguousarray(_sulfate_table().T), dtype=dtype)
+@lru_cache(maxsize=64)
+def _table_tensors(filename: str, low: float, high: float,
+                   dtype: torch.dtype) -> torch.Tensor:
+    return torch.as_tensor(np.ascontiguousarray(_table(filename, low, high).T), dtype=dtype)
+
+
+def _interpolate_table(filename: str, wavelength_range, wavelength_nm, name: str):
+    """Linear interpolation of the three columns of a Mie table; ValueError outside."""
+    low, high = wavelength_range
+    wavelength = check_range(name, wavelength_nm, low, high, unit=" nm")
+    if not wavelength.is_floating_point():
+        wavelength = wavelength.to(torch.get_default_dtype())
+    table = _table_tensors(filename, float(low), float(high), wavelength.dtype)
+    grid = table[0]
+    index = torch.clamp(torch.searchsorted(grid, wavelength.detach().contiguous(),
+                                           right=True) - 1, 0, grid.numel() - 2)
+    weight = (wavelength - grid[index]) / (grid[index + 1] - grid[index])
+    return tuple(table[c, index] + weight * (table[c, index + 1] - table[c, index])
+                 for c in (1, 2, 3))
 
 
 def sulfate_mie_properties(wavelength_nm):
@@ -165,17 +233,102 @@ def sulfate_mie_properties(wavelength_nm):
         Extinction relative to 550 nm [1], single-scattering albedo [1] and asymmetry
         parameter g [1].
     """
-    low, high = SULFATE_RANGE_NM
-    wavelength = check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm")
-    if not wavelength.is_floating_point():
-        wavelength = wavelength.to(torch.get_default_dtype())
-    table = _sulfate_tensors(wavelength.dtype)
-    grid = table[0]
-    index = torch.clamp(torch.searchsorted(grid, wavelength.detach().contiguous(),
-                                           right=True) - 1, 0, grid.numel() - 2)
-    weight = (wavelength - grid[index]) / (grid[index + 1] - grid[index])
-    return tuple(table[c, index] + weight * (table[c, index + 1] - table[c, index])
-                 for c in (1, 2, 3))
+    return _interpolate_table(SULFATE_TABLE, SULFATE_RANGE_NM, wavelength_nm,
+                              "wavelength_nm")
+
+
+def resolve_aerosol_type(aerosol_type: str) -> str:
+    """Canonical name of an aerosol type (:data:`AEROSOL_TYPES`, or an alias of
+    :data:`AEROSOL_TYPE_ALIASES`); ValueError naming the valid names otherwise.
+
+    Examples
+    --------
+    >>> resolve_aerosol_type("maritime")
+    'maritime_clean'
+    """
+    if not isinstance(aerosol_type, str):
+        raise TypeError(f"aerosol_type must be a str, got {type(aerosol_type).__name__}")
+    name = AEROSOL_TYPE_ALIASES.get(aerosol_type, aerosol_type)
+    if name not in AEROSOL_TYPES:
+        raise ValueError(f"aerosol_type={aerosol_type!r} is not one of "
+                         f"{sorted(AEROSOL_TYPES) + sorted(AEROSOL_TYPE_ALIASES)}")
+    return name
+
+
+def aerosol_type_range_nm(aerosol_type: str) -> tuple[float, float]:
+    """Wavelengths [nm] the table of ``aerosol_type`` covers."""
+    name = resolve_aerosol_type(aerosol_type)
+    return SULFATE_RANGE_NM if name == "sulfate" else OPAC_RANGE_NM
+
+
+def aerosol_type_properties(aerosol_type: str, wavelength_nm):
+    """Mie optical properties of a named aerosol type.
+
+    ``"sulfate"`` is the 75 % H2SO4 droplet layer of :func:`sulfate_mie_properties`; the
+    others are the OPAC types of Hess et al. (1998, ref. 8): external mixtures of
+    lognormal components (water-soluble, insoluble, soot, sea salt, mineral, sulfate) at
+    80 % relative humidity, Mie theory per component (``data/aerosol_mie_<type>.csv``,
+    generator ``data/make_aerosol_tables.py``), interpolated linearly in wavelength.
+    The phase function the kernels use with these tables is Henyey–Greenstein (ref. 7)
+    with the tabulated Mie asymmetry g.
+
+    Parameters
+    ----------
+    aerosol_type : str
+        One of :data:`AEROSOL_TYPES` or an alias of :data:`AEROSOL_TYPE_ALIASES`.
+    wavelength_nm : Tensor (...)
+        Wavelength [nm], within :func:`aerosol_type_range_nm` (sulfate 230-1690 nm, OPAC
+        types 250-2000 nm; ValueError outside).
+
+    Returns
+    -------
+    tuple of Tensor (...)
+        Extinction relative to 550 nm [1], single-scattering albedo [1] and asymmetry
+        parameter g [1].
+
+    Examples
+    --------
+    >>> ratio, albedo, g = aerosol_type_properties("urban", torch.tensor([550.0]))
+    >>> float(ratio[0]), round(float(albedo[0]), 2), round(float(g[0]), 2)
+    (1.0, 0.82, 0.69)
+    """
+    name = resolve_aerosol_type(aerosol_type)
+    if name == "sulfate":
+        return sulfate_mie_properties(wavelength_nm)
+    return _interpolate_table(f"aerosol_mie_{name}.csv", OPAC_RANGE_NM, wavelength_nm,
+                              "wavelength_nm")
+
+
+def mars_dust_properties(wavelength_nm):
+    """Mie optical properties of Martian dust, wavelength-dependent (ref. 9).
+
+    Linear interpolation of ``data/aerosol_mie_mars_dust.csv``: spheres with the Wolff et
+    al. (2009) refractive index, lognormal with effective radius 1.5 um and effective
+    variance 0.3; the single-scattering albedo falls from 0.97 in the red to 0.75 at
+    400 nm (absorption by ferric oxides in the blue).
+
+    Parameters
+    ----------
+    wavelength_nm : Tensor (...)
+        Wavelength [nm] in :data:`MARS_DUST_RANGE_NM` = [263, 1717.4] nm (ValueError
+        outside).
+
+    Returns
+    -------
+    tuple of Tensor (...)
+        Extinction relative to 880 nm [1], single-scattering albedo [1] and asymmetry g of
+        the spheres [1] (:class:`~skytorch.atmosphere.model.Atmosphere.mars` keeps the
+        Henyey–Greenstein asymmetry of :data:`MARS_DUST`, fitted to the non-spherical
+        grains, ref. 4).
+
+    Examples
+    --------
+    >>> _, albedo, _ = mars_dust_properties(torch.tensor([450.0, 700.0]))
+    >>> bool(albedo[0] < albedo[1])
+    True
+    """
+    return _interpolate_table(MARS_DUST_TABLE, MARS_DUST_RANGE_NM, wavelength_nm,
+                              "wavelength_nm")
 
 
 def gaussian_layer(altitude_m, center_m, width_m) -> torch.Tensor:

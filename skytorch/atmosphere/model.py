@@ -162,6 +162,8 @@ PARAMETER_RANGES = {
 #: Preetham turbidity accepted by :meth:`Atmosphere.earth`: 1 (aerosol-free) to 64
 #: (beta = 2.9, a vertical aerosol optical depth of 6.3 at 550 nm: thick fog)
 TURBIDITY_RANGE = (1.0, 64.0)
+#: wavelength-dependent aerosol albedos (``aerosol_albedo_spectrum``)
+AEROSOL_ALBEDO_SPECTRA = ("mars_dust",)
 #: vertical aerosol optical depth at 550 nm accepted by :meth:`Atmosphere.earth`
 AEROSOL_OPTICAL_DEPTH_RANGE = (0.0, 100.0)
 #: wavelengths the molecular model covers [nm]: the range of the Peck & Reeder (1972)
@@ -194,8 +196,23 @@ def _check_parameter(name: str, value, *, low=None, high=None, low_inclusive=Non
 _CONSTRUCTOR_KEYWORDS = (
     "planet_radius_m", "top_altitude_m", "gas", "molecule_profile", "refractivity_profile",
     "profile",
-    "aerosol_phase_model", "name", *_PARAMETERS,
+    "aerosol_phase_model", "aerosol_type", "aerosol_albedo_spectrum", "name", *_PARAMETERS,
 )
+
+
+def _check_type_options(where: str, options: dict) -> None:
+    """ValueError for scalar aerosol optics that a named type or albedo spectrum replaces."""
+    replaced = ()
+    if options.get("aerosol_type") is not None:
+        replaced = ("aerosol_single_scattering_albedo", "aerosol_asymmetry")
+    elif options.get("aerosol_albedo_spectrum") is not None:
+        replaced = ("aerosol_single_scattering_albedo",)
+    unused = [key for key in replaced if key in options]
+    if unused:
+        raise ValueError(f"{where}(): {unused} would not be used with aerosol_type="
+                         f"{options.get('aerosol_type')!r}, aerosol_albedo_spectrum="
+                         f"{options.get('aerosol_albedo_spectrum')!r} (the Mie tables give "
+                         "them)")
 
 
 def _check_options(where: str, options: dict, exclude: tuple[str, ...] = ()) -> None:
@@ -258,8 +275,28 @@ class Atmosphere(nn.Module):
         Aerosol scale height [m].
     aerosol_single_scattering_albedo, aerosol_asymmetry : float or Tensor
         Aerosol single-scattering albedo and phase-function asymmetry [1].
-    aerosol_phase_model : {"cornetteshanks1992", "henyeygreenstein1941"}
-        Aerosol phase function.
+    aerosol_phase_model : {"cornetteshanks1992", "henyeygreenstein1941"}, optional
+        Aerosol phase function; default Cornette-Shanks, or Henyey-Greenstein with an
+        ``aerosol_type``.
+    aerosol_type : str, optional
+        A named tropospheric aerosol type with Mie optics
+        (:data:`skytorch.atmosphere.aerosol.AEROSOL_TYPES`: ``"sulfate"`` and the OPAC
+        types ``"continental_average"`` (alias ``"continental"``), ``"maritime_clean"``
+        (``"maritime"``), ``"urban"``, ``"desert"`` (``"mineral_dust"``), ...). The
+        optical depth at 550 nm stays that of the Ångström law (``angstrom_beta``,
+        ``angstrom_alpha``: turbidity or ``aerosol_optical_depth`` in :meth:`earth`); the
+        spectrum relative to 550 nm, the single-scattering albedo and the asymmetry g per
+        wavelength come from the type's Mie table
+        (:func:`skytorch.atmosphere.aerosol.aerosol_type_properties`, 250-2000 nm; 230-1690
+        nm for ``"sulfate"``), and ``aerosol_phase_model`` is used with that g (default
+        Henyey-Greenstein); ``aerosol_single_scattering_albedo`` and ``aerosol_asymmetry``
+        are then not used. Default None: Ångström spectrum, scalar albedo and asymmetry
+        (the behaviour without types).
+    aerosol_albedo_spectrum : {"mars_dust"}, optional
+        Wavelength-dependent single-scattering albedo of the aerosol, replacing
+        ``aerosol_single_scattering_albedo``: ``"mars_dust"``
+        (:func:`skytorch.atmosphere.aerosol.mars_dust_properties`, 263-1717 nm; the
+        default of :meth:`mars`). Not with ``aerosol_type``.
     ozone_du : float or Tensor, optional
         Ozone column [DU]; default 0, or the column of the sounding's
         ``ozone_number_density``. Given with a sounding that has ozone, it scales the
@@ -332,7 +369,9 @@ class Atmosphere(nn.Module):
                  aerosol_scale_height_m=EARTH_AEROSOL_SCALE_HEIGHT_M,
                  aerosol_single_scattering_albedo=EARTH_AEROSOL_SINGLE_SCATTERING_ALBEDO,
                  aerosol_asymmetry=EARTH_AEROSOL_ASYMMETRY,
-                 aerosol_phase_model: str = "cornetteshanks1992",
+                 aerosol_phase_model: str | None = None,
+                 aerosol_type: str | None = None,
+                 aerosol_albedo_spectrum: str | None = None,
                  ozone_du=None, ozone_peak_altitude_m=25_000.0, ozone_half_width_m=15_000.0,
                  ozone_temperature_k=None,
                  reference_refractivity: float = EARTH_REFRACTIVITY_SEA_LEVEL,
@@ -362,6 +401,19 @@ class Atmosphere(nn.Module):
             "refractivity_profile",
             self.molecule_profile if refractivity_profile is None else refractivity_profile,
             _profiles.PROFILES)
+        # named aerosol type (Mie tables) and wavelength-dependent albedo: None = scalars
+        self.aerosol_type = (None if aerosol_type is None
+                             else _aerosol.resolve_aerosol_type(aerosol_type))
+        self.aerosol_albedo_spectrum = (
+            None if aerosol_albedo_spectrum is None
+            else check_choice("aerosol_albedo_spectrum", aerosol_albedo_spectrum,
+                              AEROSOL_ALBEDO_SPECTRA))
+        if self.aerosol_type is not None and self.aerosol_albedo_spectrum is not None:
+            raise ValueError("give aerosol_type or aerosol_albedo_spectrum, not both; got "
+                             f"{aerosol_type!r} and {aerosol_albedo_spectrum!r}")
+        if aerosol_phase_model is None:
+            aerosol_phase_model = ("cornetteshanks1992" if self.aerosol_type is None
+                                   else "henyeygreenstein1941")
         self.aerosol_phase_model = check_choice("aerosol_phase_model", aerosol_phase_model,
                                                 PHASE_FUNCTIONS)
         if not isinstance(name, str):
@@ -454,6 +506,7 @@ class Atmosphere(nn.Module):
             A turbidity that is not a number (a string, None inside a list, a bool).
         """
         _check_options("Atmosphere.earth", options, exclude=("angstrom_beta", "ozone_du"))
+        _check_type_options("Atmosphere.earth", options)
         if aerosol_optical_depth is not None:
             if turbidity is not None:
                 raise ValueError("give turbidity or aerosol_optical_depth, not both; got "
@@ -496,6 +549,7 @@ class Atmosphere(nn.Module):
             raises TypeError.
         """
         _check_options("Atmosphere.mars", options)
+        _check_type_options("Atmosphere.mars", options)
         dust = _aerosol.MARS_DUST
         tau = _check_parameter("dust_optical_depth", dust_optical_depth,
                                low=AEROSOL_OPTICAL_DEPTH_RANGE[0],
@@ -513,6 +567,11 @@ class Atmosphere(nn.Module):
             "aerosol_single_scattering_albedo": dust["single_scattering_albedo"],
             "aerosol_asymmetry": dust["asymmetry"],
             "aerosol_phase_model": "henyeygreenstein1941", "ozone_du": 0.0,
+            # wavelength-dependent dust albedo (Wolff et al. 2009 index), unless a type or
+            # a scalar albedo is given
+            "aerosol_albedo_spectrum": None if {"aerosol_type",
+                                                "aerosol_single_scattering_albedo"} & set(options)
+            else "mars_dust",
             "reference_refractivity": MARS_REFRACTIVITY_SURFACE,
             "reference_pressure_pa": MARS_SURFACE_PRESSURE_PA,
             "reference_temperature_k": MARS_SURFACE_TEMPERATURE_K, "name": "mars",
@@ -527,6 +586,10 @@ class Atmosphere(nn.Module):
                   "sounding_sha256": _sounding_digest(self.sounding),
                   "refractivity_profile": self.refractivity_profile,
                   "aerosol_phase_model": self.aerosol_phase_model,
+                  # listed only when set (the parameters of untyped atmospheres unchanged)
+                  **({"aerosol_type": self.aerosol_type} if self.aerosol_type else {}),
+                  **({"aerosol_albedo_spectrum": self.aerosol_albedo_spectrum}
+                     if self.aerosol_albedo_spectrum else {}),
                   "planet_radius_m": self.planet_radius_m,
                   "top_altitude_m": self.top_altitude_m}
         for key in _PARAMETERS:
@@ -821,7 +884,15 @@ class Atmosphere(nn.Module):
         return phase_function(cos_theta.to(dtype)[..., None], g, "henyeygreenstein1941")
 
     def aerosol_phase(self, cos_theta) -> torch.Tensor:
-        """Aerosol phase function [1/sr], normalised over 4π; shape broadcast(cos, batch)."""
+        """Aerosol phase function [1/sr], normalised over 4π; shape broadcast(cos, batch).
+
+        Without wavelength: ValueError for an ``aerosol_type`` (its asymmetry depends on
+        the wavelength; use ``constituents(wavelength_nm)["aerosol"].phase``).
+        """
+        if self.aerosol_type is not None:
+            raise ValueError(f"aerosol_type={self.aerosol_type!r}: the aerosol phase "
+                             "function depends on the wavelength; use "
+                             "constituents(wavelength_nm)['aerosol'].phase")
         cos_theta = check_range("cos_theta", cos_theta, -1.0, 1.0)
         self._check_shapes(cos_theta=cos_theta)
         return phase_function(cos_theta, self._p("aerosol_asymmetry", cos_theta.dtype),
@@ -1343,7 +1414,13 @@ def _aerosol_species(atm, wavelength, dtype, profile) -> Species:
                   * (wide / _aerosol.ANGSTROM_REFERENCE_NM)
                   ** (-atm._p("angstrom_alpha", torch.float64, 1))
                   / atm._p("aerosol_scale_height_m", torch.float64, 1))
-    scattering = atm._p("aerosol_single_scattering_albedo", torch.float64, 1) * extinction
+    if atm.aerosol_type is not None:
+        return _typed_aerosol_species(atm, wide, dtype, profile)
+    if atm.aerosol_albedo_spectrum == "mars_dust":
+        albedo = _aerosol.mars_dust_properties(wide)[1]
+    else:
+        albedo = atm._p("aerosol_single_scattering_albedo", torch.float64, 1)
+    scattering = albedo * extinction
     asymmetry = atm._p("aerosol_asymmetry", dtype)
     model = atm.aerosol_phase_model
 
@@ -1352,6 +1429,26 @@ def _aerosol_species(atm, wavelength, dtype, profile) -> Species:
                               model)[..., None]
 
     return Species("aerosol", profile, extinction.to(dtype), scattering.to(dtype), phase)
+
+
+def _typed_aerosol_species(atm, wide, dtype, profile) -> Species:
+    """The aerosol of a named type: the Ångström law's extinction at 550 nm times the
+    type's Mie spectrum relative to 550 nm; Mie albedo; phase with the Mie g(λ)."""
+    ratio, albedo, asymmetry = _aerosol.aerosol_type_properties(atm.aerosol_type, wide)
+    at_550 = (atm._p("angstrom_beta", torch.float64, 1)
+              * (550.0 / _aerosol.ANGSTROM_REFERENCE_NM)
+              ** (-atm._p("angstrom_alpha", torch.float64, 1))
+              / atm._p("aerosol_scale_height_m", torch.float64, 1))
+    extinction = at_550 * ratio  # (*batch, wavelength)
+    g = asymmetry.to(dtype)
+    model = atm.aerosol_phase_model
+
+    def phase(cos_theta, extra=0):
+        # per wavelength: the Mie table's asymmetry in the chosen analytic phase function
+        return phase_function(cos_theta[..., None], g, model)
+
+    return Species("aerosol", profile, extinction.to(dtype), (albedo * extinction).to(dtype),
+                   phase)
 
 
 def _ozone_profile(atm, dtype) -> Profile:
