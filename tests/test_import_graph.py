@@ -41,6 +41,9 @@ ALLOWED_CYCLE_EDGES = {
         "isinstance(atmosphere, Atmosphere) in single_scattering (model.py imports scattering)",
     ("skytorch.atmosphere.tables", "skytorch.atmosphere.model"):
         "isinstance(atmosphere, Atmosphere) in _check_build (model.py -> scattering -> tables)",
+    ("skytorch.atmosphere.refraction", "skytorch.atmosphere.model"):
+        "wavelength_tensor, the Atmosphere's wavelength check, in bent_optical_depth and "
+        "trace_grazing_rays (Atmosphere.refraction/optical_depth call refraction)",
 }
 
 

@@ -15,6 +15,19 @@ References
    all zenith angles", Astron. J. 119, 2472, doi:10.1086/301325.
 2. Born, M. & Wolf, E. 1999, *Principles of Optics*, 7th ed., Cambridge University Press,
    §3.2 (Bouguer's formula), doi:10.1017/CBO9781139644181.
+
+Examples
+--------
+>>> import torch
+>>> class Air:  # any object with these attributes, e.g. Atmosphere.earth()
+...     planet_radius_m, top_altitude_m = 6.371e6, 1e5
+...     def refractivity(self, altitude_m, wavelength_nm=None):
+...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+>>> from skytorch.atmosphere.bouguer import _observer_bending
+>>> zero = torch.zeros(1, dtype=torch.float64)
+>>> bending, rays, t0 = _observer_bending(Air(), zero, zero, torch.float64, 64)
+>>> round(float(bending[0]) * 180 / torch.pi * 60)  # horizon refraction [arcmin]
+37
 """
 
 from __future__ import annotations
@@ -25,7 +38,6 @@ from skytorch._quadrature import unit_nodes
 from skytorch._validate import check_range
 from skytorch.atmosphere.ray_geometry import (
     _check_elevation,
-    _extinction,
     _Geometry,
     _map_parameters,
     _per_ray,
@@ -118,8 +130,9 @@ class _Rays:
         return result
 
 
-def _observer_rays(atm, apparent_altitude_rad, altitude_m, dtype):
-    """Geometry, rays and the signed start parameter t_0 for observer rays."""
+def _observer_rays(atm, apparent_altitude_rad, altitude_m, dtype, levels=()):
+    """Geometry, rays and the signed start parameter t_0 for observer rays (``levels``:
+    further altitudes where the quadrature is split [m])."""
     elevation = _check_elevation("apparent_altitude_rad", apparent_altitude_rad, dtype)
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
     # the rays carry the atmosphere's batch dims: quadrature nodes lead, so every ray
@@ -127,6 +140,8 @@ def _observer_rays(atm, apparent_altitude_rad, altitude_m, dtype):
     shape = _ray_shape(atm, apparent_altitude_rad=elevation, altitude_m=height)
     elevation, height = elevation.expand(shape), height.expand(shape)
     geometry = _Geometry(atm, dtype)
+    if levels:
+        geometry = geometry.with_levels(levels)
     radius = geometry.radius
     nu0 = geometry.refractivity(height)
     u0 = (radius + height) * (1.0 + nu0)
@@ -194,12 +209,14 @@ def _integrate_where(rays, mask, t_low, t_high, n_nodes, *, bending=True, coeffi
     return output
 
 
-def _observer_optical_depth(atm, elevation, height, dtype, n_nodes, coefficient_of):
+def _observer_optical_depth(atm, elevation, height, dtype, n_nodes, coefficient_of,
+                            levels=()):
     """Optical depth (..., n) from observers to space (to the ground for rays that hit it)
-    along the bent rays; ``coefficient_of(atm)`` gives the extinction as a function of
-    altitude (see :func:`_integrate_where`)."""
+    along the bent rays; ``coefficient_of(atm)`` gives the extinction (or the species'
+    densities) as a function of altitude (see :func:`_integrate_where`); the quadrature
+    is also split at ``levels`` [m]."""
     coefficient = coefficient_of(atm)
-    geometry, rays, elevation, _, t0 = _observer_rays(atm, elevation, height, dtype)
+    geometry, rays, elevation, _, t0 = _observer_rays(atm, elevation, height, dtype, levels)
     down = t0 < 0.0
     down_hit = down & rays.hits
     # up to the top: [t0, 1] (even integrand, through the periapsis t = 0), split into
@@ -219,11 +236,14 @@ def _observer_optical_depth(atm, elevation, height, dtype, n_nodes, coefficient_
     return tau
 
 
-def _trace_grazing_bouguer(atm, wavelength, dtype, n_nodes, *, impact_altitude_m,
-                           periapsis_altitude_m):
+def _trace_grazing_bouguer(atm, coefficient_of, dtype, n_nodes, *, impact_altitude_m,
+                           periapsis_altitude_m, levels=()):
     """Rays from space through the limb (the outputs of
     :func:`skytorch.atmosphere.refraction.trace_grazing_rays`): one of
-    ``impact_altitude_m`` and ``periapsis_altitude_m`` is given (the other None)."""
+    ``impact_altitude_m`` and ``periapsis_altitude_m`` is given (the other None);
+    ``optical_depth`` is the path integral of ``coefficient_of(atm)`` (None: none), its
+    quadrature also split at ``levels`` [m] (the bending keeps the refractivity's
+    panels)."""
     radius = float(atm.planet_radius_m)
     geometry = _Geometry(atm, dtype)
     if periapsis_altitude_m is not None:
@@ -237,9 +257,19 @@ def _trace_grazing_bouguer(atm, wavelength, dtype, n_nodes, *, impact_altitude_m
         # Bouguer invariant b = n_top * b_geo (the index is continued above the top)
         h_p = geometry.periapsis_altitude(beta_geo + geometry.nu_top * (radius + beta_geo))
     rays = _Rays(geometry, h_p)
-    extinction = None if wavelength is None else _extinction(atm, wavelength)
-    result = rays.integrate(rays.t_ground, torch.ones_like(h_p), n_nodes,
-                            coefficient=extinction)
+    extinction = None if coefficient_of is None else coefficient_of(atm)
+    column_geometry = geometry.with_levels(levels) if levels else geometry
+    same_panels = (column_geometry.breakpoints is None) == (geometry.breakpoints is None) and (
+        geometry.breakpoints is None
+        or torch.equal(column_geometry.breakpoints, geometry.breakpoints))
+    if extinction is None or same_panels:
+        result = rays.integrate(rays.t_ground, torch.ones_like(h_p), n_nodes,
+                                coefficient=extinction)
+    else:  # the columns on their own panels
+        result = rays.integrate(rays.t_ground, torch.ones_like(h_p), n_nodes)
+        column_rays = _Rays(column_geometry, h_p)
+        result.update(column_rays.integrate(column_rays.t_ground, torch.ones_like(h_p),
+                                            n_nodes, bending=False, coefficient=extinction))
     zero = torch.zeros_like(h_p)
     output = {
         "deviation_rad": torch.where(rays.misses, zero, 2.0 * result["bending"]),

@@ -13,6 +13,20 @@ altitude. The Bouguer integrals (:mod:`skytorch.atmosphere.bouguer`), the RK4 tr
 (:mod:`skytorch.atmosphere.ray_tracer`) and the deviation tables
 (:mod:`skytorch.atmosphere.deviation_tables`) build on it; the public functions are in
 :mod:`skytorch.atmosphere.refraction`.
+
+Examples
+--------
+>>> import torch
+>>> class Air:  # any object with these attributes, e.g. Atmosphere.earth()
+...     planet_radius_m, top_altitude_m = 6.371e6, 1e5
+...     def refractivity(self, altitude_m, wavelength_nm=None):
+...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+>>> from skytorch.atmosphere.ray_geometry import _Geometry
+>>> geometry = _Geometry(Air(), torch.float64)
+>>> h = torch.tensor(10e3, dtype=torch.float64)
+>>> beta = h + geometry.refractivity(h) * (geometry.radius + h)  # b - R of the ray
+>>> round(float(geometry.periapsis_altitude(beta)), 6)  # its lowest point [m]
+10000.0
 """
 
 from __future__ import annotations
@@ -162,6 +176,14 @@ class _Geometry:
         clone.atm = atm
         return clone
 
+    def with_levels(self, levels) -> _Geometry:
+        """The same geometry with the Bouguer quadrature also split at ``levels`` [m]
+        (e.g. the breakpoints of the species' profiles, for their path columns)."""
+        own = [] if self.breakpoints is None else self.breakpoints.tolist()
+        clone = copy.copy(self)
+        clone.breakpoints = _inside(sorted(set(own) | set(levels)), self.top, self.dtype)
+        return clone
+
     def refractivity(self, altitude_m: torch.Tensor) -> torch.Tensor:
         """:math:`\\nu(h)` with the constant continuation outside [0, top]."""
         return self.atm.refractivity(torch.clamp(altitude_m, 0.0, self.top)).to(self.dtype)
@@ -278,20 +300,67 @@ def _extinction(atm, wavelength):
     return lambda altitude: atm.extinction_coefficient(altitude, wavelength)
 
 
-def _species_densities(atm, species):
-    """Relative densities of ``species`` stacked on a trailing dimension (..., n_species)."""
-    return lambda altitude: torch.stack([atm.relative_density(s, altitude) for s in species],
-                                        dim=-1)
-
-
 def _extinction_of(wavelength):
     """:func:`_extinction` as a function of the atmosphere (RK4: per-ray views)."""
     return lambda atm: _extinction(atm, wavelength)
 
 
-def _species_densities_of(species):
-    """:func:`_species_densities` as a function of the atmosphere."""
-    return lambda atm: _species_densities(atm, species)
+def _constituents(atm, wavelength, dtype):
+    """``atm.constituents(wavelength, dtype)`` (an
+    :class:`~skytorch.atmosphere.Atmosphere`: every species, with its optical-depth law),
+    or None for an object without constituents (its ``extinction_coefficient`` is then
+    integrated along the path)."""
+    if not hasattr(atm, "constituents"):
+        return None
+    return atm.constituents(wavelength, dtype)
+
+
+def _species_levels(constituents) -> tuple[float, ...]:
+    """Absolute breakpoints of the species' profiles [m] (kinks, layer edges and peaks;
+    every member of a batched atmosphere), where the quadrature of their path columns is
+    split; profiles with breakpoints relative to the path (smooth exponentials) add none."""
+    levels = set()
+    for profile in constituents.profiles.values():
+        if profile.breakpoints_m is not None:
+            levels.update(profile.breakpoints_m.detach().reshape(-1).tolist())
+    return tuple(sorted(levels))
+
+
+def _integrated_species(constituents) -> tuple[str, ...]:
+    """Names of the species whose path columns are integrated (the absent ones,
+    ``vanishes``, have zero columns)."""
+    return tuple(s.name for s in constituents.species if not s.vanishes)
+
+
+def _profile_densities(atm, names, dtype):
+    """Relative densities of the species ``names`` (``atm.profiles(dtype)``) stacked on a
+    trailing dimension, (..., n_species), as a function of altitude."""
+    profiles = atm.profiles(dtype)
+    chosen = [profiles[name] for name in names]
+
+    def densities(altitude):
+        if not chosen:
+            return altitude.new_zeros(altitude.shape + (0,))
+        # a profile takes its samples on a trailing dim (after the batch dims)
+        return torch.stack([profile(altitude[..., None])[..., 0] for profile in chosen],
+                           dim=-1)
+
+    return densities
+
+
+def _profile_densities_of(names, dtype):
+    """:func:`_profile_densities` as a function of the atmosphere (per-ray views)."""
+    return lambda atm: _profile_densities(atm, names, dtype)
+
+
+def _columns_optical_depth(constituents, names, columns, per_species: bool):
+    """Optical depth from the path columns (..., len(names)) [m] of the species ``names``
+    (the others' columns are zero) through :meth:`Constituents.optical_depth`, the one
+    place where columns become optical depths (nonlinear laws included)."""
+    zero = columns.new_zeros(columns.shape[:-1])
+    by_name = {name: columns[..., names.index(name)] if name in names else zero
+               for name in constituents.names}
+    return constituents.optical_depth(by_name, per_species=per_species)
 
 
 

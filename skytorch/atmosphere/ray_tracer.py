@@ -17,6 +17,19 @@ References
    Appl. Opt. 47, 153, doi:10.1364/AO.47.000153.
 3. Schneegans, S., Gilg, J., Ahlers, V., Zachmann, G. & Gerndt, A. 2025, "Physically Based
    Real-Time Rendering of Eclipses", Computer Graphics Forum, doi:10.1111/cgf.70220.
+
+Examples
+--------
+>>> import torch
+>>> class Air:  # any object with these attributes, e.g. Atmosphere.earth()
+...     planet_radius_m, top_altitude_m = 6.371e6, 1e5
+...     def refractivity(self, altitude_m, wavelength_nm=None):
+...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+>>> from skytorch.atmosphere.ray_tracer import _trace_observer_rk4
+>>> zero = torch.zeros(1, dtype=torch.float64)
+>>> out = _trace_observer_rk4(Air(), zero, zero, torch.float64, 10e3, 1e3)
+>>> round(float(out["deviation_rad"][0]) * 180 / torch.pi * 60)  # the Bouguer value
+37
 """
 
 from __future__ import annotations
@@ -28,7 +41,6 @@ import torch
 from skytorch._validate import check_range
 from skytorch.atmosphere.ray_geometry import (
     _check_elevation,
-    _extinction_of,
     _Geometry,
     _map_parameters,
     _per_ray,
@@ -295,7 +307,9 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coe
             "contact_radius_m": r_min.reshape(shape)}
 
 
-def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
+def _trace_grazing_rk4(atm, beta_geo, coefficient_of, dtype, step_m, max_dh_m):
+    """RK4 rays from space through the limb; ``optical_depth`` is the path integral of
+    ``coefficient_of(atm)`` (None: none)."""
     step_m, max_dh_m = _rk4_resolution(step_m, max_dh_m)
     shape = _ray_shape(atm, impact_altitude_m=beta_geo)
     beta_geo = beta_geo.expand(shape)
@@ -306,7 +320,7 @@ def _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m):
     chord = torch.sqrt(torch.clamp((r_top - b) * (r_top + b), min=0.0))
     position = torch.stack([-chord, b], dim=-1)
     direction = torch.stack([torch.ones_like(b), torch.zeros_like(b)], dim=-1)
-    extinction = None if wavelength is None else _extinction_of(wavelength)
+    extinction = coefficient_of
     max_length = _rk4_max_length(geometry)
     final, r_min, tau = _rk4_trace(geometry, position, direction, extinction, step_m,
                                    max_dh_m, max_length, per_ray=_per_ray(atm, shape))

@@ -117,17 +117,22 @@ from skytorch.atmosphere.deviation_tables import (
     deviation_table,
     lookup_deviation,
 )
+from skytorch.atmosphere.model import Atmosphere, wavelength_tensor
 from skytorch.atmosphere.optical_depth import check_rtol
 from skytorch.atmosphere.ray_geometry import (
     METHODS,
     _check_atmosphere,
     _check_elevation,
     _check_method,
+    _columns_optical_depth,
+    _constituents,
     _Dispersive,
     _extinction_of,
+    _integrated_species,
     _needs_grad,
+    _profile_densities_of,
     _ray_shape,
-    _species_densities_of,
+    _species_levels,
     _wavelengths,
 )
 from skytorch.atmosphere.ray_tracer import (
@@ -349,7 +354,12 @@ def bent_optical_depth(
     Parameters
     ----------
     atm : Atmosphere or compatible
-        Also needs ``extinction_coefficient(altitude_m, wavelength_nm)`` [1/m].
+        An :class:`~skytorch.atmosphere.Atmosphere` (its ``constituents`` and
+        ``profiles``: the path column of every species is integrated and turned into
+        optical depths by :meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`,
+        nonlinear band laws included), or any object with
+        ``extinction_coefficient(altitude_m, wavelength_nm)`` [1/m] (integrated along
+        the path).
     wavelength_nm : float or Tensor (n_wavelength,)
         Wavelengths [nm].
     zenith_rad : float or Tensor (...)
@@ -362,10 +372,9 @@ def bent_optical_depth(
     n_steps : int, optional
         Alias of ``n_nodes`` (the straight-ray integrators' name for their resolution).
     per_species : bool
-        Return ``{"rayleigh", "aerosol", "ozone", "stratospheric_aerosol"}`` optical
-        depths separately; needs an
-        :class:`~skytorch.atmosphere.Atmosphere` (``relative_density`` and
-        ``reference_extinction``).
+        Return the optical depth of every species of the atmosphere's constituents by
+        name (``rayleigh``, ``aerosol``, ``ozone``, ...); needs an
+        :class:`~skytorch.atmosphere.Atmosphere`.
     rtol : float
         Tolerance of the straight-ray ``"adaptive"`` integrator: checked (in (0, 1]) and
         otherwise unused here (the Gauss–Legendre rule has a fixed number of nodes).
@@ -379,7 +388,9 @@ def bent_optical_depth(
     Notes
     -----
     :math:`\tau = \int k(h)\,\mathrm{d}s` with :math:`\mathrm{d}s = u\,|\mathrm{d}r| /
-    \sqrt{u^2-b^2}`, integrated over :math:`t` like :func:`refraction_angle`. The
+    \sqrt{u^2-b^2}`, integrated over :math:`t` like :func:`refraction_angle`; for an
+    Atmosphere the columns :math:`\int\rho_s\,\mathrm{d}s` of its species are integrated
+    that way and :math:`\tau = \sum_s \tau_s(\text{column}_s)`. The
     relative air mass along refracted rays is the ratio of the Rayleigh optical depth to
     its zenith value (compared with Kasten & Young 1989 in the tests).
 
@@ -401,32 +412,36 @@ def bent_optical_depth(
     check_rtol(rtol)
     if not isinstance(per_species, bool):
         raise TypeError(f"per_species must be True or False; got {per_species!r}")
-    _check_atmosphere(atm, "extinction_coefficient",
-                      *(("relative_density", "reference_extinction") if per_species else ()))
+    if per_species and not hasattr(atm, "constituents"):
+        raise TypeError("per_species=True needs an Atmosphere (its constituents); got "
+                        f"{type(atm).__name__}")
+    _check_atmosphere(atm, *(("profiles",) if hasattr(atm, "constituents")
+                             else ("extinction_coefficient",)))
     dtype = common_dtype(zenith_rad, altitude_m)
     limit = math.pi * (1.0 + 4.0 * torch.finfo(dtype).eps)
     zenith = check_range("zenith_rad", zenith_rad, 0.0, limit, unit=" rad", dtype=dtype)
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
     _ray_shape(atm, zenith_rad=zenith, altitude_m=height)
     wavelength = _wavelengths(wavelength_nm, dtype)
-    if hasattr(atm, "_wavelength"):  # an Atmosphere: its spectral range
-        wavelength = atm._wavelength(wavelength, dtype)
+    if isinstance(atm, Atmosphere):  # its spectral range
+        wavelength = wavelength_tensor(wavelength, dtype)
     elevation = torch.clamp(0.5 * math.pi - zenith, -0.5 * math.pi, 0.5 * math.pi)
-    if per_species:
-        species = ("rayleigh", "aerosol", "ozone", "stratospheric_aerosol")
-        coefficient_of = _species_densities_of(species)
-    else:
+    constituents = _constituents(atm, wavelength, dtype)
+    if constituents is None:
         coefficient_of = _extinction_of(wavelength)
+    else:  # path columns of the species
+        names = _integrated_species(constituents)
+        coefficient_of = _profile_densities_of(names, dtype)
+    levels = () if constituents is None else _species_levels(constituents)
     if method == "rk4":
         tau = _trace_observer_rk4(atm, elevation, height, dtype, step_m, max_dh_m,
                                   coefficient=coefficient_of)["optical_depth"]
     else:
-        tau = _observer_optical_depth(atm, elevation, height, dtype, n_nodes, coefficient_of)
-    if not per_species:
+        tau = _observer_optical_depth(atm, elevation, height, dtype, n_nodes, coefficient_of,
+                                      levels)
+    if constituents is None:
         return tau
-    # columns of relative density times the model's reference-level coefficients
-    reference = atm.reference_extinction(wavelength)
-    return {s: tau[..., i, None] * reference[s].to(dtype) for i, s in enumerate(species)}
+    return _columns_optical_depth(constituents, names, tau, per_species)
 
 
 
@@ -456,7 +471,9 @@ def trace_grazing_rays(
     ----------
     atm : Atmosphere or compatible
         Needs ``planet_radius_m``, ``top_altitude_m``, ``refractivity`` and, for the
-        optical depth, ``extinction_coefficient``.
+        optical depth, ``constituents`` and ``profiles`` (an
+        :class:`~skytorch.atmosphere.Atmosphere`: path columns of its species, see
+        :func:`bent_optical_depth`) or ``extinction_coefficient``.
     impact_parameter_m : float or Tensor (...), optional
         Impact parameter [m].
     wavelength_nm : float or Tensor (n_wavelength,), optional
@@ -516,7 +533,9 @@ def trace_grazing_rays(
     if len(given) != 1:
         raise ValueError("give exactly one of impact_parameter_m, impact_altitude_m and "
                          f"periapsis_altitude_m; got {given or 'none'}")
-    _check_atmosphere(atm, *(() if wavelength_nm is None else ("extinction_coefficient",)))
+    optical = (() if wavelength_nm is None else ("profiles",) if hasattr(atm, "constituents")
+               else ("extinction_coefficient",))
+    _check_atmosphere(atm, *optical)
     dtype = common_dtype(impact_parameter_m, impact_altitude_m, periapsis_altitude_m)
     radius = float(atm.planet_radius_m)
     if impact_parameter_m is not None:
@@ -524,14 +543,27 @@ def trace_grazing_rays(
                             dtype=dtype)
         impact_altitude_m = b_geo - radius
     wavelength = None if wavelength_nm is None else _wavelengths(wavelength_nm, dtype)
-    if wavelength is not None and hasattr(atm, "_wavelength"):
-        wavelength = atm._wavelength(wavelength, dtype)
+    if wavelength is not None and isinstance(atm, Atmosphere):
+        wavelength = wavelength_tensor(wavelength, dtype)
+    constituents = None if wavelength is None else _constituents(atm, wavelength, dtype)
+    if constituents is not None:  # path columns of the species
+        names = _integrated_species(constituents)
+        coefficient_of = _profile_densities_of(names, dtype)
+    else:
+        coefficient_of = None if wavelength is None else _extinction_of(wavelength)
     if method == "rk4":
         if periapsis_altitude_m is not None:
             raise ValueError("method='rk4' needs impact_parameter_m or impact_altitude_m")
         beta_geo = check_range("impact_altitude_m", impact_altitude_m, low=-radius,
                                unit=" m", dtype=dtype)
-        return _trace_grazing_rk4(atm, beta_geo, wavelength, dtype, step_m, max_dh_m)
-    return _trace_grazing_bouguer(atm, wavelength, dtype, n_nodes,
-                                  impact_altitude_m=impact_altitude_m,
-                                  periapsis_altitude_m=periapsis_altitude_m)
+        output = _trace_grazing_rk4(atm, beta_geo, coefficient_of, dtype, step_m, max_dh_m)
+    else:
+        levels = () if constituents is None else _species_levels(constituents)
+        output = _trace_grazing_bouguer(atm, coefficient_of, dtype, n_nodes,
+                                        impact_altitude_m=impact_altitude_m,
+                                        periapsis_altitude_m=periapsis_altitude_m,
+                                        levels=levels)
+    if constituents is not None:
+        output["optical_depth"] = _columns_optical_depth(constituents, names,
+                                                         output["optical_depth"], False)
+    return output
