@@ -150,6 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rays", type=int, default=1_000_000)
     parser.add_argument("--reference-label", default="reference")
     parser.add_argument("--current-label", default="current")
+    parser.add_argument("--note", default="", help="a paragraph added under the heading")
     parser.add_argument("--only", choices=[w[0] for w in WORKLOADS], action="append",
                         help="measure only this workload (repeatable)")
     args = parser.parse_args(argv)
@@ -160,6 +161,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--repeat must be >= 1; got {args.repeat}")
     threads = args.threads or 1
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    load_start = os.getloadavg()
     trees = [_Tree(args.reference_label, args.reference.resolve(), threads, args.rays),
              _Tree(args.current_label, args.current.resolve(), threads, args.rays)]
     rows = []
@@ -203,8 +205,11 @@ def main(argv: list[str] | None = None) -> int:
         f"{info['threads']} intra-op threads each), workloads alternated between the trees "
         f"(A B B A ...), {args.repeat} timed runs each (after one warm-up run, except the "
         f"shadow table); {os.cpu_count()} "
-        f"logical CPUs, load average at the end {load[0]:.1f} / {load[1]:.1f} / "
-        f"{load[2]:.1f} (1 / 5 / 15 min).\n\n{markdown_table(rows)}\n")
+        f"logical CPUs, load average (1 / 5 / 15 min) {load_start[0]:.1f} / "
+        f"{load_start[1]:.1f} / {load_start[2]:.1f} at the start, {load[0]:.1f} / "
+        f"{load[1]:.1f} / {load[2]:.1f} at the end ({time.strftime('%H:%M UTC', time.gmtime())})"
+        f".\n\n"
+        + (f"{args.note}\n\n" if args.note else "") + f"{markdown_table(rows)}\n")
     report(text, args.append)
     return 0
 
