@@ -21,7 +21,8 @@ per-pair ratios (the more robust number on a loaded machine).
 Run: ``python benchmarks/bench_constituents.py --reference /path/to/old/tree
 [--current /path/to/tree] [--repeat 5] [--threads 2] [--rays 1000000] [--append]``.
 ``--current`` defaults to the tree holding this script; without ``--reference`` (as from
-``benchmarks/run.py``) nothing is measured.
+``benchmarks/run.py``) nothing is measured. A tree exported with ``git archive`` may name
+its commit in a file ``COMMIT`` at its root (quoted in the table's header).
 """
 
 from __future__ import annotations
@@ -132,6 +133,10 @@ def _describe(path: Path) -> str:
 
     commit = git("rev-parse", "--short", "HEAD")
     if not commit:
+        # an exported tree (git archive) may carry its commit in a file COMMIT
+        marker = path / "COMMIT"
+        if marker.is_file():
+            return f"`{path}`, an export of commit {marker.read_text().strip()}"
         return f"`{path}` (not a git work tree)"
     dirty = git("status", "--porcelain", "--untracked-files=no")
     return f"`{path}` at {commit}" + (" (with uncommitted changes)" if dirty else "")
