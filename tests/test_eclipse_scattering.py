@@ -34,6 +34,10 @@ CLOSED_FORM_TOLERANCE = 1 * PERCENT
 
 
 def _earth(pressure_factor=1.0, aerosol_optical_depth=0.0, **kwargs):
+    # the references integrate exponential profiles (molecule_profile="exponential") and
+    # Rayleigh + aerosol extinction only (no water vapour; O2 bands lie outside 450/650 nm)
+    kwargs.setdefault("molecule_profile", "exponential")
+    kwargs.setdefault("precipitable_water_cm", 0.0)
     return Atmosphere.earth(ozone_du=0.0, surface_pressure_pa=101325.0 * pressure_factor,
                             aerosol_optical_depth=aerosol_optical_depth, **kwargs)
 

@@ -613,6 +613,11 @@ class Atmosphere(nn.Module):
             return value
         return value.reshape(tuple(value.shape) + (1,) * trailing)
 
+    def with_parameters(self, transform) -> Atmosphere:
+        """A shallow copy whose parameter buffers are ``transform(buffer)`` (e.g. laid out
+        like a flat list of rays; the transformed buffers keep their autograd graph)."""
+        return self._with_parameters(transform)
+
     def _with_parameters(self, transform) -> Atmosphere:
         """A shallow copy whose parameter buffers are ``transform(buffer)``.
 

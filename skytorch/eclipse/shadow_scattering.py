@@ -160,6 +160,19 @@ def _members(value: torch.Tensor, batch_shape: tuple[int, ...], leading: int) ->
     return value.expand(*lead, *batch_shape).reshape(*lead, -1)
 
 
+def _optical_depth(constituents, columns: dict, batch: tuple[int, ...]) -> torch.Tensor:
+    """Optical depth (*lead, n_batch, n_wl) of path columns (*lead, n_batch) of every
+    species (:meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`, with the
+    members moved to the constituents' leading batch dims and back)."""
+    lead = next(iter(columns.values())).shape[:-1]
+    order = (len(lead), *range(len(lead)))
+    aligned = {name: value.permute(order).reshape(*batch, *lead)
+               for name, value in columns.items()}
+    tau = constituents.optical_depth(aligned, extra=len(lead))
+    tau = tau.expand(*batch, *lead, tau.shape[-1]).reshape(-1, *lead, tau.shape[-1])
+    return tau.permute(*range(1, len(lead) + 1), 0, len(lead) + 1)
+
+
 def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
                       n_path: int = _BASE_NODES["n_path"], blocking_radius_m=None
                       ) -> dict[str, torch.Tensor]:
@@ -208,11 +221,12 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
     radius = torch.sqrt(b[:, None] ** 2 + x * x)
     altitude = torch.clamp(radius - planet, min=0.0)
     n_wl = wavelength.shape[0]
-    coefficients = atmosphere.reference_extinction(wavelength)
-    # reference-level coefficients per member and wavelength (n_batch, n_wl) [1/m]
-    k = {s: c.expand(*batch, n_wl).reshape(-1, n_wl) for s, c in coefficients.items()}
-    albedo = atmosphere.aerosol_single_scattering_albedo.to(torch.float64)
-    albedo = albedo.expand(batch).reshape(-1, 1)
+    # every species' optical depth from its path columns (nonlinear laws included)
+    constituents = atmosphere.constituents(wavelength)
+    # reference-level scattering coefficients per member and wavelength (n_batch, n_wl)
+    # [1/m] (the species' own albedo, wavelength-dependent for Mie aerosol types)
+    k = {s: constituents[s].scattering.expand(*batch, n_wl).reshape(-1, n_wl)
+         for s in ("rayleigh", "aerosol")}
     with torch.no_grad():
         # view leg from S towards P (direction -v): independent of epsilon
         mu_view = torch.clamp(-x / radius, -1.0, 1.0)
@@ -245,13 +259,11 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
                 value = _members(value, batch, 1)  # (n_lit, nb)
                 full = value.new_zeros((math.prod(shape), value.shape[-1]))
                 sun[name] = full.index_copy(0, lit, value).reshape(*shape, -1)
-            tau = sum((view[s][:, None, :, :, None] + sun[s][..., None]) * k[s]
-                      for s in ("rayleigh", "aerosol", "ozone"))  # (n_b, n_e, n_x, nb, n_wl)
+            tau = _optical_depth(constituents, {s: view[s][:, None] + sun[s] for s in sun},
+                                 batch)  # (n_b, n_e, n_x, nb, n_wl)
             transmittance = torch.where(blocked[..., None, None], 0.0, torch.exp(-tau))
             for s in ("rayleigh", "aerosol"):
                 beta = density[s][..., None] * k[s]  # (n_b, n_x, nb, n_wl)
-                if s == "aerosol":
-                    beta = beta * albedo
                 weight = (beta * dx[..., None, None])[:, None]  # (n_b, 1, n_x, nb, n_wl)
                 out[s][:, start:start + per_angle] = (weight * transmittance).sum(2)
     return out

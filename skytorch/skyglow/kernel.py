@@ -243,10 +243,15 @@ class Medium:
             self.extinction_table = _scalar_parameters(
                 atmosphere.extinction_coefficient(altitude, wavelength), altitude, wavelength)
             self.optical_depth_table = self._optical_depth_table(
-                n_table_radius, n_table_mu, n_table_steps)
+                n_table_radius, n_table_mu, n_table_steps,
+                getattr(atmosphere, "constituents", None))
 
     # --- optical depth to the top of the atmosphere --------------------------------------
-    def _optical_depth_table(self, n_r, n_mu, n_steps):
+    def _optical_depth_table(self, n_r, n_mu, n_steps, constituents=None):
+        """log optical depth to the top (r, mu, wavelength); with ``constituents`` (the
+        Atmosphere's method) from the per-species path columns of each table ray
+        (every species, nonlinear laws included), otherwise by quadrature of the
+        extinction table along the ray."""
         big_h = math.sqrt(self.top_radius_m**2 - self.planet_radius_m**2)
         x_r = torch.linspace(0.0, 1.0, n_r, dtype=torch.float64)
         x_mu = torch.linspace(0.0, 1.0, n_mu, dtype=torch.float64)
@@ -271,6 +276,11 @@ class Medium:
         r_node = torch.sqrt(radius[:, None, None] ** 2 + s**2
                             + 2.0 * radius[:, None, None] * mu[..., None] * s)
         h_node = (r_node - self.planet_radius_m).clamp(0.0, self.top_altitude_m)
+        if constituents is not None:
+            species = constituents(self.wavelength_nm)
+            columns = species.column_integrals(radius[:, None].expand_as(mu), mu)
+            tau = species.optical_depth(columns).reshape(n_r, n_mu, -1)
+            return torch.log(tau.clamp_min(_TINY_OPTICAL_DEPTH))
         tau = torch.zeros(n_r, n_mu, self.wavelength_nm.numel(), dtype=torch.float64)
         for i in range(n_r):
             k = _interpolate_altitude(self.extinction_table, h_node[i], self.altitude_step_m)
