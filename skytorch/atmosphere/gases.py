@@ -14,32 +14,32 @@ Herzberg continuum; both coefficients are zero in 242–300 nm, below the table,
 neither gas has bands, to the O2–O2 table's upper end); outside, ``ValueError`` naming
 ``wavelength_nm`` (no clamp).
 
-Curve of growth (ref. 1, eqs. 2-8 and 2-9), with the absorber amount along the actual
-path and a Curtis–Godson pressure correction of the saturation term (refs. 3, 4):
+Curve of growth (ref. 1, eqs. 2-8 and 2-9) of the absorber amount along the actual path:
 
 .. math::
 
-    \\tau_w = \\frac{0.2385\\, a_w u_w}{(1 + 20.07\\, a_w u_w/\\tilde p_w)^{0.45}},
+    \\tau_w = \\frac{0.2385\\, a_w u_w}{(1 + 20.07\\, a_w u_w/\\tilde p)^{0.45}},
     \\qquad
-    \\tau_u = \\frac{1.41\\, a_u u_m}{(1 + 118.93\\, a_u u_m/\\tilde p_m)^{0.45}}
+    \\tau_u = \\frac{1.41\\, a_u u_m}{(1 + 118.93\\, a_u u_m/\\tilde p)^{0.45}}
 
-* :math:`u_w = \\int n_w\\,ds` in cm of precipitable water (:math:`W M` in ref. 1),
-  :math:`u_m = \\int n_{air}\\,ds / N_0` in standard vertical columns
-  (:math:`N_0 = p_0 N_A/(m g)`, :math:`p_0` = 101325 Pa: :math:`M p/p_0` in ref. 1);
-  both integrals along the path the light takes (straight or refracted, limb paths
-  included).
-* :math:`\\tilde p = \\bar p / \\bar p_{ref}`: :math:`\\bar p = \\int n\\,(p/p_0)\\,ds /
-  \\int n\\,ds` is the absorber-weighted mean pressure of the path (the Curtis–Godson
-  pressure, refs. 3, 4) and :math:`\\bar p_{ref}` that of the vertical path from sea
-  level in the same profile, the geometry Leckner's fits refer to. In the weak-line
-  (linear) limit the optical depth is :math:`k u` with the unscaled amount (scaling
-  exponent :math:`m = 0`); in the saturated limit it goes as
-  :math:`(k u)^{0.55}\\,\\tilde p^{0.45}`, i.e. with the pressure-scaled amount
-  :math:`\\int n\\,(p/p_0)\\,ds` (:math:`m = 1`, Lorentz width proportional to pressure,
-  ref. 4, §6.4) at Bird's empirical exponent. Along a sea-level path
-  :math:`\\tilde p \\approx 1` and the law is ref. 1's; along a limb path grazing at
-  10 km (:math:`\\tilde p \\approx 0.3`) the bands saturate less. The temperature
-  dependence of the line widths and strengths is not modelled.
+* In an :class:`~skytorch.atmosphere.Atmosphere` (species ``"h2o"``, ``"o2"``) the amounts
+  are **pressure-scaled** path columns, :math:`u = \\int n\\,(p/p_0)^m\\,ds / u_{ref}`
+  with :math:`m` = :data:`PRESSURE_EXPONENT` = 0.5 and :math:`\\tilde p = 1`;
+  :math:`u_{ref}` makes the vertical path from sea level give ref. 1's amounts:
+  :math:`u_w = W M` in cm of precipitable water and :math:`u_m = M p/p_0` in standard
+  vertical columns (:data:`STANDARD_AIR_COLUMN_M2`). Both are integrals along the path
+  the light takes (straight, slant or limb). Why 0.5: in the scaling approximation (refs.
+  3, 4, ch. 6) the weak-line (linear) limit needs the unscaled amount (:math:`m = 0`) and
+  the strong-Lorentz-line limit :math:`m = 1` (line width proportional to pressure); one
+  column per species allows one exponent, and 0.5 is the midpoint (its effect on limb
+  paths is measured in ``experiments/gas_resolution_accuracy_cost.py``: up to 3e-3 mag in
+  V grazing at 5 km). Along sea-level paths :math:`m` hardly matters (the normalisation
+  absorbs it).
+* :func:`curve_of_growth` also takes :math:`\\tilde p = \\bar p / \\bar p_{ref}`, the
+  absorber-weighted (Curtis–Godson) mean pressure of the path over that of the reference
+  path, refs. 3, 4, for use with unscaled amounts: linear in :math:`k u` in the weak
+  limit, :math:`(k u)^{0.55}\\,\\tilde p^{0.45}` when saturated.
+* The temperature dependence of the line widths and strengths is not modelled.
 * 118.93 is the published constant of ref. 1; pvlib and NREL's ``spectrl2_2.c`` use
   118.3 (0.25 % in :math:`\\tau_u` at 5 air masses in the A band).
 
@@ -51,10 +51,9 @@ measured at 287–296 K; no temperature dependence is applied), zero below 336 n
 where the HITRAN files end. Resolution: 1 nm.
 
 Water vapour profile: :func:`water_vapour_density`, an exponential with scale height
-:data:`WATER_VAPOUR_SCALE_HEIGHT_M` = 2 km (the customary value for the lower
-troposphere, ref. 6), normalised so that the vertical column from the ground is the
-precipitable water. Oxygen: uniformly mixed, volume mixing ratio
-:data:`O2_VOLUME_MIXING_RATIO` (ref. 7).
+:data:`WATER_VAPOUR_SCALE_HEIGHT_M` = 2 km (the standard water vapour profile of ref. 6),
+normalised so that the vertical column from the ground is the precipitable water.
+Oxygen: uniformly mixed, volume mixing ratio :data:`O2_VOLUME_MIXING_RATIO` (ref. 7).
 
 References
 ----------
@@ -71,8 +70,8 @@ References
    ed., Oxford University Press (ch. 6, inhomogeneous paths, scaling approximations).
 5. Karman, T. et al. 2019, "Update of the HITRAN collision-induced absorption section",
    Icarus 328, 160, doi:10.1016/j.icarus.2019.02.034.
-6. Iqbal, M. 1983, "An Introduction to Solar Radiation", Academic Press (water vapour
-   scale height of about 2 km).
+6. ITU-R Recommendation P.835, "Reference standard atmospheres" (standard water vapour
+   density profile, exponential with a 2 km scale height).
 7. NOAA/NASA/USAF 1976, "U.S. Standard Atmosphere, 1976", NOAA-S/T 76-1562 (O2 volume
    fraction 0.20946).
 
