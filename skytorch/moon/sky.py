@@ -306,17 +306,47 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
     # local zenith angle of the Moon at each point (finite gradient with the Moon overhead)
     zenith_moon = angle_between(position, moon_dir.unsqueeze(-2).expand_as(position))
 
-    scattering = atmosphere.scattering_coefficients(altitude, wl)  # (..., n_steps, n_wl)
-    extinction = atmosphere.extinction_coefficient(altitude, wl)
     ds = torch.diff(s, dim=-1).unsqueeze(-1)
-    segment = 0.5 * (extinction[..., 1:, :] + extinction[..., :-1, :]) * ds
-    tau_view = torch.cat([torch.zeros_like(segment[..., :1, :]), segment.cumsum(-2)], dim=-2)
     tau_moon = atmosphere.optical_depth(wl, zenith_rad=zenith_moon, altitude_m=altitude)
-    phase_r = rayleigh_phase(cos_theta)[..., None, None]
-    phase_a = atmosphere.aerosol_phase(cos_theta)[..., None, None]
-    integrand = ((scattering["rayleigh"] * phase_r + scattering["aerosol"] * phase_a)
-                 * torch.exp(-(tau_view + tau_moon)))
+    if callable(getattr(atmosphere, "constituents", None)):
+        source, tau_view = _constituent_source(atmosphere.constituents(wl), altitude, s,
+                                               cos_theta)
+    else:  # an object with the coefficient methods only (Rayleigh + aerosol)
+        scattering = atmosphere.scattering_coefficients(altitude, wl)  # (..., n, n_wl)
+        extinction = atmosphere.extinction_coefficient(altitude, wl)
+        segment = 0.5 * (extinction[..., 1:, :] + extinction[..., :-1, :]) * ds
+        tau_view = torch.cat([torch.zeros_like(segment[..., :1, :]), segment.cumsum(-2)],
+                             dim=-2)
+        phase_r = rayleigh_phase(cos_theta)[..., None, None]
+        phase_a = atmosphere.aerosol_phase(cos_theta)[..., None, None]
+        source = scattering["rayleigh"] * phase_r + scattering["aerosol"] * phase_a
+    integrand = source * torch.exp(-(tau_view + tau_moon))
     integral = (0.5 * (integrand[..., 1:, :] + integrand[..., :-1, :]) * ds).sum(-2)
     irradiance = lunar_irradiance(phase_angle_rad, wl, distance_m=distance_m,
                                   n_quadrature=n_quadrature)
     return irradiance * integral
+
+
+def _constituent_source(constituents, altitude, s, cos_theta):
+    """Scattering source (..., n_steps, n_wl) [m^-1 sr^-1] of every scattering species
+    and the view-path optical depth from cumulative per-species path columns (through
+    :meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`, so that the gas
+    bands' laws apply)."""
+    from skytorch.atmosphere.constituents import insert_dims
+
+    densities = constituents.densities(altitude)  # (..., n_steps)
+    step = s[..., 1:] - s[..., :-1]
+    columns = {}
+    for name, density in densities.items():
+        increments = 0.5 * step * (density[..., 1:] + density[..., :-1])
+        columns[name] = torch.cat([torch.zeros_like(increments[..., :1]),
+                                   increments.cumsum(-1)], dim=-1)
+    tau_view = constituents.optical_depth(columns, extra=1)
+    source = torch.zeros_like(tau_view)
+    for species in constituents.scatterers():
+        if species.vanishes:
+            continue
+        source = source + (densities[species.name][..., None]
+                           * insert_dims(species.scattering, 1, 1)
+                           * species.phase(cos_theta)[..., None, :])
+    return source, tau_view
