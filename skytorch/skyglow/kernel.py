@@ -251,7 +251,9 @@ class Medium:
         """log optical depth to the top (r, mu, wavelength); with ``constituents`` (the
         Atmosphere's method) from the per-species path columns of each table ray
         (every species, nonlinear laws included), otherwise by quadrature of the
-        extinction table along the ray."""
+        extinction table along the ray. The kernel forms partial paths as differences of
+        two look-ups: exact for linear species, an approximation for band absorbers with
+        a curve of growth (O2, H2O), whose optical depth is not additive along a path."""
         big_h = math.sqrt(self.top_radius_m**2 - self.planet_radius_m**2)
         x_r = torch.linspace(0.0, 1.0, n_r, dtype=torch.float64)
         x_mu = torch.linspace(0.0, 1.0, n_mu, dtype=torch.float64)
