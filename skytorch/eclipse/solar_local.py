@@ -1,0 +1,248 @@
+"""Local circumstances of a solar eclipse for a batch of observers (topocentric geometry).
+
+Method
+------
+For each observer (WGS84 geodetic position, Earth-fixed), the topocentric angular radii
+of the Sun ``s`` and Moon ``m`` and their separation ``sigma`` follow from the Chebyshev
+interpolated DE421 vectors of :mod:`skytorch.eclipse.solar` (apparent geocentric
+positions minus the observer's position). Maximum eclipse is the minimum of ``sigma``
+(grid every 6 min over +-5 h around greatest eclipse, then golden section); the contacts
+are the roots of ``sigma = s + m`` (C1, C4, penumbral ``k``) and ``sigma = |m - s|`` (C2,
+C3, umbral ``k``) on each side of maximum, by batched bisection. Contacts are geometric:
+they are reported whatever the Sun's altitude (the altitudes say whether they are
+visible). Obscuration is the fraction of the Sun's disc area covered at maximum, from the
+exact lens area of :func:`skytorch.eclipse.sun_visible_fraction` (uniform disc).
+Refraction of the contact altitudes (optional) uses Saemundsson's formula (Meeus 1998,
+eq. 16.4, 1010 hPa and 10 degC).
+
+References
+----------
+1. Espenak, F., Meeus, J. 2006, NASA/TP-2006-214141 (definitions, k values).
+2. Meeus, J. 1998, "Astronomical Algorithms", 2nd ed., ch. 16 (refraction), ch. 54.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+import xarray as xr
+
+from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
+from skytorch.eclipse.circumstances import _bisect, _golden_minimum
+from skytorch.eclipse.solar import (
+    _N_NARROW_NODES,
+    _NARROW_HALF_S,
+    _SPAN_S,
+    MOON_RADIUS_PENUMBRAL,
+    MOON_RADIUS_UMBRAL,
+    _SunMoon,
+    _to_times,
+    _topocentric,
+    _up,
+)
+
+__all__ = ["LOCAL_CONTACTS", "solar_eclipse_local"]
+
+#: contact names, in time order
+LOCAL_CONTACTS = ("c1", "c2", "c3", "c4")
+_GRID_STEP_S = 360.0
+
+
+def _observer_itrs(lat_deg, lon_deg, elevation_m):
+    from skytorch.ephemeris import geodetic_to_itrs
+
+    return geodetic_to_itrs(torch.deg2rad(lat_deg), torch.deg2rad(lon_deg), elevation_m)
+
+
+def _state(geometry: _SunMoon, seconds: torch.Tensor, points: torch.Tensor):
+    """Topocentric radii, separation and the Sun's direction at ``seconds`` (n, m)."""
+    sun, moon = geometry.itrs(seconds)
+    s, m_pen, sigma, to_sun = _topocentric(sun, moon, points, MOON_RADIUS_PENUMBRAL)
+    m_umb = m_pen * (MOON_RADIUS_UMBRAL / MOON_RADIUS_PENUMBRAL)
+    return s, m_pen, m_umb, sigma, to_sun
+
+
+def _local_maximum_and_contacts(geometry: _SunMoon, centre_s: torch.Tensor,
+                                points: torch.Tensor) -> dict:
+    """Maximum and contacts [s from the window centre] for observers ``points`` (n, m, 3).
+
+    ``centre_s`` (n, m) is the time around which to search (greatest eclipse).
+    """
+    n, m = centre_s.shape
+    offsets = torch.arange(-_SPAN_S, _SPAN_S + 0.5, _GRID_STEP_S, dtype=torch.float64)
+    grid = centre_s[..., None] + offsets  # (n, m, g)
+    g = len(offsets)
+    sigma = _state(geometry, grid.reshape(n, m * g),
+                   points[:, :, None].expand(n, m, g, 3).reshape(n, m * g, 3))[3]
+    best = torch.gather(grid, 2, sigma.reshape(n, m, g).argmin(-1, keepdim=True))[..., 0]
+
+    def separation(seconds):  # (n * m, 2)
+        values = _state(geometry, seconds.reshape(n, m * 2),
+                        points[:, :, None].expand(n, m, 2, 3).reshape(n, m * 2, 3))[3]
+        return values.reshape(n * m, 2)
+
+    maximum = _golden_minimum(separation, (best - _GRID_STEP_S).reshape(-1),
+                              (best + _GRID_STEP_S).reshape(-1)).reshape(n, m)
+    expanded = points[:, :, None].expand(n, m, 4, 3).reshape(n, m * 4, 3)
+    umbral = torch.tensor([False, True, True, False])
+    sides = torch.tensor([-1.0, -1.0, 1.0, 1.0], dtype=torch.float64)
+
+    def excess(seconds):  # (n, m, 4)
+        s, m_pen, m_umb, sigma, _ = _state(geometry, seconds.reshape(n, m * 4), expanded)
+        level = torch.where(umbral.reshape(1, 1, 4), torch.abs(m_umb - s).reshape(n, m, 4),
+                            (s + m_pen).reshape(n, m, 4))
+        return sigma.reshape(n, m, 4) - level
+
+    start = maximum[..., None].expand(n, m, 4)
+    reached = excess(start) < 0
+    roots = _bisect(excess, start.clone(), start + sides * _SPAN_S, iterations=42)
+    roots = torch.where(reached, roots, torch.nan)
+    result = {name: roots[..., i] for i, name in enumerate(LOCAL_CONTACTS)}
+    result["maximum"] = maximum
+    return result
+
+
+def _refracted(altitude_deg: torch.Tensor) -> torch.Tensor:
+    """Apparent altitude [deg] from the true one (Saemundsson, Meeus eq. 16.4)."""
+    bend = 1.02 / torch.tan(torch.deg2rad(altitude_deg + 10.3 / (altitude_deg + 5.11))) / 60.0
+    usable = altitude_deg > -1.9
+    return torch.where(usable, altitude_deg + torch.where(usable, bend, 0.0), altitude_deg)
+
+
+_SPECS = {
+    "maximum_time": VariableSpec("", "time of maximum eclipse (UTC)",
+                                 "Instant of minimum topocentric Sun-Moon separation."),
+    "magnitude": VariableSpec("1", "eclipse magnitude at maximum",
+                              "(s + m - sigma) / (2 s): fraction of the Sun's diameter "
+                              "covered (penumbral k; negative when the discs do not "
+                              "touch)."),
+    "obscuration": VariableSpec("1", "obscuration at maximum",
+                                "Fraction of the Sun's disc area covered by the Moon "
+                                "(uniform disc, penumbral k)."),
+    "kind": VariableSpec("1", "local kind", "none, partial, annular or total."),
+    "central_duration": VariableSpec("s", "duration of totality or annularity",
+                                     "C3 - C2; NaN where the phase does not occur."),
+    "moon_sun_ratio": VariableSpec("1", "Moon/Sun apparent diameter ratio at maximum",
+                                   "m / s with the umbral k."),
+}
+_CONTACT_TEXT = {"c1": "first contact (partial phase begins)",
+                 "c2": "second contact (totality or annularity begins)",
+                 "c3": "third contact (totality or annularity ends)",
+                 "c4": "fourth contact (partial phase ends)"}
+for _name, _text in _CONTACT_TEXT.items():
+    _SPECS[_name] = VariableSpec("", f"contact {_name.upper()} (UTC)",
+                                 f"Time of {_text}, UTC; NaT when it does not occur.")
+for _name in (*LOCAL_CONTACTS, "maximum"):
+    _SPECS[f"sun_altitude_{_name}"] = VariableSpec(
+        "degree", f"Sun altitude at {_name}",
+        f"Topocentric altitude of the Sun's centre at {_name} (refracted when refraction "
+        "is requested); NaN when the contact does not occur.")
+
+
+def _find_eclipse(time_or_date) -> np.datetime64:
+    """Greatest eclipse (UTC) of the solar eclipse nearest ``time_or_date`` within 2 days."""
+    from skytorch.eclipse.circumstances import _parse_one
+    from skytorch.eclipse.solar import solar_eclipses
+    from skytorch.ephemeris import parse_times
+
+    when = _parse_one("time_or_date", time_or_date, parse_times)
+    window = np.timedelta64(2, "D")
+    try:
+        found = solar_eclipses(when - window, when + window)
+    except ValueError as error:
+        raise ValueError(f"time_or_date: {error}") from None
+    if found.sizes["eclipse"] == 0:
+        raise ValueError(f"time_or_date: no solar eclipse within 2 days of {when}")
+    times = found.time.values
+    return times[np.argmin(np.abs(times - when))]
+
+
+def solar_eclipse_local(time_or_date, lat_deg, lon_deg, elevation_m=0.0,
+                        refraction: bool = False) -> xr.Dataset:
+    """Local circumstances of the solar eclipse nearest ``time_or_date``, batched.
+
+    Parameters
+    ----------
+    time_or_date : str, datetime or datetime64
+        A UTC time or date within 2 days of the eclipse's greatest eclipse.
+    lat_deg, lon_deg : float or array_like (*obs)
+        Geodetic (WGS84) latitude in [-90, 90] and east longitude in [-180, 360) [degree].
+    elevation_m : float or array_like (*obs)
+        Height above the ellipsoid [m], in [-500, 1e5].
+    refraction : bool
+        Refract the Sun altitudes (Saemundsson's formula; the contacts stay geometric).
+
+    Returns
+    -------
+    xarray.Dataset
+        Over dimensions ``obs_0 ...`` of the observers' broadcast shape: ``c1`` .. ``c4``,
+        ``maximum_time`` (UTC, NaT when absent), ``magnitude``, ``obscuration``,
+        ``moon_sun_ratio``, ``kind``, ``central_duration`` [s], ``sun_altitude_<contact>``
+        [degree]; attribute ``greatest_eclipse``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Bad time, no eclipse within 2 days, or observer coordinates out of range.
+
+    Examples
+    --------
+    >>> ds = solar_eclipse_local("2024-04-08", 32.7767, -96.797)  # Dallas
+    >>> str(ds.kind.values), int(ds.central_duration)
+    ('total', 231)
+    """
+    from skytorch.eclipse.occlusion import sun_visible_fraction
+    from skytorch.ephemeris import check_observer
+
+    if not isinstance(refraction, bool):
+        raise TypeError(f"refraction must be a bool; got {type(refraction).__name__}")
+    lat, lon, height = check_observer(lat_deg, lon_deg, elevation_m)
+    shape = lat.shape
+    greatest = _find_eclipse(time_or_date)
+    geometry = _SunMoon(np.array([greatest]), _NARROW_HALF_S, _N_NARROW_NODES)
+    points = _observer_itrs(lat, lon, height).reshape(1, -1, 3).to(torch.float64)
+    centre = torch.zeros(points.shape[:2], dtype=torch.float64)
+    found = _local_maximum_and_contacts(geometry, centre, points)
+    s, m_pen, m_umb, sigma, to_sun = _state(geometry, found["maximum"], points)
+    magnitude = (s + m_pen - sigma) / (2.0 * s)
+    obscuration = 1.0 - sun_visible_fraction(s, m_pen, sigma, limb_darkening=0.0)
+    up = _up(torch.deg2rad(lat), torch.deg2rad(lon)).reshape(1, -1, 3).to(torch.float64)
+    altitudes = {}
+    for name in (*LOCAL_CONTACTS, "maximum"):
+        seconds = found[name]
+        sun_dir = _state(geometry, torch.nan_to_num(seconds), points)[4]
+        alt = torch.rad2deg(torch.asin((up * sun_dir).sum(-1) / torch.linalg.vector_norm(
+            sun_dir, dim=-1)))
+        alt = _refracted(alt) if refraction else alt
+        altitudes[f"sun_altitude_{name}"] = torch.where(torch.isnan(seconds), torch.nan, alt)
+    central = ~torch.isnan(found["c2"])
+    kind = np.where(central.numpy(), np.where((m_umb > s).numpy(), "total", "annular"),
+                    np.where(~torch.isnan(found["c1"]).numpy(), "partial", "none"))
+    dims = tuple(f"obs_{i}" for i in range(len(shape)))
+
+    def out(value):
+        if isinstance(value, torch.Tensor):
+            value = value.detach()
+            return value.reshape(shape)
+        return np.asarray(value).reshape(shape)
+
+    values = {name: _to_times(geometry.centres, found[name]) for name in LOCAL_CONTACTS}
+    values["maximum_time"] = _to_times(geometry.centres, found["maximum"])
+    values.update(magnitude=magnitude, obscuration=torch.where(
+        torch.isnan(found["c1"]), 0.0, obscuration), moon_sun_ratio=m_umb / s,
+        kind=kind.astype(str), central_duration=found["c3"] - found["c2"], **altitudes)
+    data_vars = {name: variable(dims, out(value), _SPECS[name]) for name, value in values.items()}
+    coords = {dim: coordinate(dim, np.arange(size), VariableSpec(
+        "1", f"observer index {i}", "Index of the observer along this dimension."))
+        for i, (dim, size) in enumerate(zip(dims, shape, strict=False))}
+    return build_dataset(
+        data_vars, coords, title="Solar eclipse local circumstances",
+        references=["Espenak, F., Meeus, J. 2006, Five Millennium Canon of Solar Eclipses, "
+                    "NASA/TP-2006-214141",
+                    "Meeus, J. 1998, Astronomical Algorithms, 2nd ed., ch. 16, 54"],
+        parameters={"greatest_eclipse": str(greatest), "refraction": refraction,
+                    "moon_radius_umbral": MOON_RADIUS_UMBRAL,
+                    "moon_radius_penumbral": MOON_RADIUS_PENUMBRAL,
+                    "grid_step_s": _GRID_STEP_S, "search_half_width_s": _SPAN_S},
+        greatest_eclipse=str(greatest),
+    )
