@@ -328,10 +328,13 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
 
 
 def _constituent_source(constituents, altitude, s, cos_theta):
-    """Scattering source (..., n_steps, n_wl) [m^-1 sr^-1] of every scattering species
-    and the view-path optical depth from cumulative per-species path columns (through
+    """Return the scattering source and the view-path optical depth of the constituents.
+
+    The source (..., n_steps, n_wl) [m^-1 sr^-1] sums every scattering species; the optical
+    depth comes from cumulative per-species path columns (through
     :meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`, so that the gas
-    bands' laws apply)."""
+    bands' laws apply).
+    """
     from skytorch.atmosphere.constituents import insert_dims
 
     densities = constituents.densities(altitude)  # (..., n_steps)
