@@ -174,9 +174,10 @@ class Medium:
     wavelength_nm : Tensor (wavelength,)
         Wavelengths of the kernel [nm].
     phase_functions : mapping of str to callable, optional
-        Phase function [sr^-1] of each scattering species, called with ``cos_theta``;
-        default Rayleigh from :mod:`skytorch.atmosphere.scattering` and the atmosphere's
-        ``aerosol_phase``.
+        Phase function [sr^-1] of each scattering species, called with ``cos_theta``
+        (...), returning (...) or (..., wavelength); default: the phase handle of every
+        scattering species of the atmosphere's constituents (an object without
+        ``constituents``: Rayleigh and its ``aerosol_phase``).
     n_altitude : int
         Nodes of the altitude tables (scattering coefficients) [default 4001].
     n_table_radius, n_table_mu : int
@@ -223,7 +224,11 @@ class Medium:
         self.top_altitude_m = float(check_positive("top_altitude_m",
                                                    atmosphere.top_altitude_m, unit=" m"))
         self.top_radius_m = self.planet_radius_m + self.top_altitude_m
-        if phase_functions is None:
+        if phase_functions is None and callable(getattr(atmosphere, "constituents", None)):
+            # every scattering species with its own phase handle (per wavelength)
+            species = atmosphere.constituents(wavelength).scatterers()
+            phase_functions = {s.name: s.phase for s in species if not s.vanishes}
+        elif phase_functions is None:
             from skytorch.atmosphere.scattering import rayleigh_phase
 
             phase_functions = {"rayleigh": rayleigh_phase, "aerosol": atmosphere.aerosol_phase}
@@ -602,8 +607,10 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     beta = medium.scattering(hp)  # (n, nodes, species, wl)
     scatter = None  # Σ_s β_s p_s, (n, nodes, wl): explicit sum over the few species
     for i, species in enumerate(medium.species):
-        term = beta[..., i, :] * medium.phase_functions[species](cos_scatter).to(
-            beta.dtype)[..., None]
+        phase = medium.phase_functions[species](cos_scatter).to(beta.dtype)
+        if phase.shape == cos_scatter.shape:  # one value for every wavelength
+            phase = phase[..., None]
+        term = beta[..., i, :] * phase
         scatter = term if scatter is None else scatter + term
     geometric = intensity * du / (s2 + a * a)
     # Σ over the nodes as a batched matrix-vector product
