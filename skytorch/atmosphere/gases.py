@@ -528,7 +528,9 @@ def oxygen_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSUR
         a_u = torch.zeros_like(wavelength_nm)
     else:
         _, a_u = bird_coefficients(wavelength_nm)
-    columns = atm.molecular_column_m2(torch.float64).to(dtype) / STANDARD_AIR_COLUMN_M2
+    # formed in float64 and cast: p N_A / (M g) alone overflows float32 at the edge of the
+    # parameter ranges (the ratio does not)
+    columns = (atm.molecular_column_m2(torch.float64) / STANDARD_AIR_COLUMN_M2).to(dtype)
     per_m = columns * _pressure_factor(atm, dtype, float(exponent)) / profile.column_height_m
 
     def law(column, extra):
