@@ -217,3 +217,39 @@ def test_coefficients_zero_below_the_table_and_the_cia_data():
     a_w, a_u = gases.bird_coefficients(torch.tensor([242.0, 280.0, 300.0]))
     assert float(a_w.abs().max()) == 0.0 and float(a_u.abs().max()) == 0.0
     assert float(gases.o2o2_coefficient(torch.tensor([250.0, 335.0])).abs().max()) == 0.0
+
+
+def _us1976_sounding(water):
+    """US 1976 sampled every 500 m (pressure, temperature), optionally with an h2o_vmr that
+    makes the water density exp(-h / 2 km) (vmr times the air density p/kT)."""
+    import xarray as xr
+
+    from skytorch.atmosphere.profiles import us1976, us1976_pressure_ratio, us1976_temperature
+
+    altitude = np.arange(0.0, 100e3 + 250.0, 500.0)
+    h = torch.tensor(altitude, dtype=torch.float64)
+    variables = {
+        "pressure": ("altitude", 101325.0 * us1976_pressure_ratio(h).numpy(), {"units": "Pa"}),
+        "temperature": ("altitude", us1976_temperature(h).numpy(), {"units": "K"}),
+    }
+    if water:
+        vmr = 0.01 * np.exp(-altitude / H_WATER) / us1976(h).numpy()
+        variables["h2o_vmr"] = ("altitude", vmr, {"units": "1"})
+    return xr.Dataset(variables, coords={"altitude": ("altitude", altitude, {"units": "m"})})
+
+
+@pytest.mark.parametrize("water_in_sounding", [False, True])
+def test_sounding_gives_the_us1976_gas_optical_depths(water_in_sounding):
+    """A sounding sampled from US 1976 (with or without an h2o_vmr that reproduces the 2 km
+    water profile) gives the built-in US 1976 gas optical depths, slant and near the
+    horizon, within 1 % (the sounding is interpolated log-linearly between 500 m levels)."""
+    wavelength = torch.tensor([690.0, 762.5, 937.0, 1065.0], dtype=torch.float64)
+    zenith = torch.tensor([0.0, 1.2, 1.5], dtype=torch.float64)
+    built_in = Atmosphere.earth(precipitable_water_cm=2.0).optical_depth(
+        wavelength, zenith, per_species=True)
+    sounding = Atmosphere.earth(precipitable_water_cm=2.0,
+                                profile=_us1976_sounding(water_in_sounding))
+    assert sounding.molecule_profile == "sounding"
+    tau = sounding.optical_depth(wavelength, zenith, per_species=True)
+    for name in gases.GAS_SPECIES:
+        torch.testing.assert_close(tau[name], built_in[name], rtol=1e-2, atol=1e-6)

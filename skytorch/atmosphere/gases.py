@@ -445,7 +445,73 @@ def _us1976_column_height(kind: str, exponent: float, top_m: float) -> float:
 
 
 def _air_shape(atm) -> str:
-    return atm.molecule_profile
+    shape = atm.molecule_profile
+    if shape not in ("exponential", "us1976", "sounding"):
+        raise ValueError(f"the gas species support the molecule profiles 'exponential', "
+                         f"'us1976' and 'sounding'; got {shape!r}")
+    return shape
+
+
+def _sounding_air(atm, dtype):
+    """The sounding's air density and pressure relative to 0 m, as functions of altitude
+    (log-linear between its levels, continued above with the top layer's scale height),
+    and its levels inside the atmosphere."""
+    sounding = atm.sounding
+    nodes = sounding["altitude_m"].to(torch.float64)
+    zero = torch.zeros((), dtype=torch.float64)
+    logs = []
+    for key in ("number_density_m3", "pressure_pa"):
+        log_value = torch.log(sounding[key].to(torch.float64))
+        logs.append((log_value - torch.log(_profiles.log_linear(zero, nodes, log_value))
+                     ).to(dtype))
+    nodes_d = nodes.to(dtype)
+    levels = nodes_d[(nodes > 0.0) & (nodes < atm.top_altitude_m)]
+
+    def density(altitude_m):
+        return _profiles.log_linear(altitude_m, nodes_d, logs[0])
+
+    def pressure(altitude_m):
+        return _profiles.log_linear(altitude_m, nodes_d, logs[1])
+
+    return density, pressure, levels
+
+
+def _vertical_integral(function, top_m: float, dtype) -> torch.Tensor:
+    """:math:`\\int_0^{top} f(h)\\,dh` [m] by the trapezoid rule (1 m steps below 20 km,
+    10 m above), in float64, cast to ``dtype``."""
+    low = torch.arange(0.0, min(top_m, 20e3) + 0.5, 1.0, dtype=torch.float64)
+    pieces = [low]
+    if top_m > 20e3:
+        pieces.append(torch.linspace(20e3, top_m, int((top_m - 20e3) / 10.0) + 1,
+                                     dtype=torch.float64))
+    return sum(torch.trapezoid(function(h), h) for h in pieces).to(dtype)
+
+
+def _sounding_water_profile(atm, dtype, m: float):
+    """h2o with a sounding: its h2o_vmr shape (or the 2 km exponential without one) times
+    (p/p_s)^m."""
+    _, pressure, levels = _sounding_air(atm, torch.float64)
+    given = atm.water_vapour_profile(torch.float64)
+    if given is None:
+        def shape(h):
+            return torch.exp(-h / WATER_VAPOUR_SCALE_HEIGHT_M)
+        breaks = torch.cat([levels, WATER_VAPOUR_SCALE_HEIGHT_M * torch.tensor(
+            _LEVELS, dtype=torch.float64)]).sort().values
+        support = False
+    else:
+        shape = given.function
+        breaks = given.breakpoints_m.to(torch.float64)
+        support = given.support
+
+    def wide(h):
+        return shape(h) * pressure(h) ** m
+
+    column = _vertical_integral(wide, atm.top_altitude_m, dtype)
+
+    def density(altitude_m):
+        return wide(altitude_m.to(torch.float64)).to(altitude_m.dtype)
+
+    return Profile(density, {}, column, breakpoints_m=breaks.to(dtype), support=support)
 
 
 def water_vapour_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXPONENT):
@@ -454,6 +520,8 @@ def water_vapour_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXP
     relative to the ground."""
     m = float(exponent)
     height_w = torch.tensor(WATER_VAPOUR_SCALE_HEIGHT_M, dtype=dtype)
+    if _air_shape(atm) == "sounding":
+        return _sounding_water_profile(atm, dtype, m)
     if _air_shape(atm) == "us1976":
         column = _us1976_column_height("h2o", m, atm.top_altitude_m)
         scale = 1.0 / (1.0 / WATER_VAPOUR_SCALE_HEIGHT_M + m / 8000.0)
@@ -472,6 +540,17 @@ def water_vapour_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXP
 
 
 def _air_profile(atm, dtype: torch.dtype, exponent: float, power: float):
+    if _air_shape(atm) == "sounding":
+        density, pressure, levels = _sounding_air(atm, dtype)
+
+        def function(altitude_m):
+            return density(altitude_m) ** power * pressure(altitude_m) ** exponent
+
+        wide_density, wide_pressure, _ = _sounding_air(atm, torch.float64)
+        column = _vertical_integral(
+            lambda h: wide_density(h) ** power * wide_pressure(h) ** exponent,
+            atm.top_altitude_m, dtype)
+        return Profile(function, {}, column, breakpoints_m=levels)
     if _air_shape(atm) == "us1976":
         kind = "o2" if power == 1.0 else "o2o2"
         column = _us1976_column_height(kind, exponent, atm.top_altitude_m)
@@ -545,9 +624,14 @@ def o2o2_species(atm, wavelength_nm, dtype, profile):
     the squared relative density [1/m]."""
     wide = wavelength_nm.to(torch.float64)
     column = atm.molecular_column_m2(torch.float64)
-    height = (torch.tensor(_us1976_column_height("o2", 0.0, atm.top_altitude_m),
-                           dtype=torch.float64) if _air_shape(atm) == "us1976"
-              else atm.rayleigh_scale_height_m.to(torch.float64))
+    shape = _air_shape(atm)
+    if shape == "sounding":
+        height = _air_profile(atm, torch.float64, 0.0, 1.0).column_height_m
+    elif shape == "us1976":
+        height = torch.tensor(_us1976_column_height("o2", 0.0, atm.top_altitude_m),
+                              dtype=torch.float64)
+    else:
+        height = atm.rayleigh_scale_height_m.to(torch.float64)
     ground = O2_VOLUME_MIXING_RATIO * column / height / LOSCHMIDT_PER_M3  # [amagat]
     k = torch.zeros_like(wide) if _oxygen_absent(atm) else o2o2_coefficient(wide)
     return Species("o2o2", profile, ((ground ** 2)[..., None] * k).to(dtype))
