@@ -204,17 +204,17 @@ def _axis(sun: torch.Tensor, moon: torch.Tensor):
 _SCALE = torch.tensor([1.0, 1.0, 1.0 / (1.0 - _WGS84_F)], dtype=torch.float64)
 
 
-def _axis_surface_point(sun: torch.Tensor, moon: torch.Tensor):
-    """Where the axis meets the ellipsoid (near side), else the nearest outline point.
+def _line_surface_point(origin: torch.Tensor, direction: torch.Tensor):
+    """First point where the line ``origin + t direction`` (t > 0) meets the ellipsoid.
 
-    Returns the point [m] (..., 3) and the scaled discriminant (> 0: the axis meets the
-    ellipsoid). In coordinates with z stretched by ``1 / (1 - f)`` the ellipsoid is a
-    sphere of radius ``a``; the outline point nearest the axis is taken on the stretched
+    Returns the point [m] (..., 3) and the scaled discriminant (> 0: the line meets the
+    ellipsoid). Where it misses, the point of the ellipsoid's outline (seen along
+    ``direction``) nearest the line: in coordinates with z stretched by ``1 / (1 - f)``
+    the ellipsoid is a sphere of radius ``a`` and that point lies on the stretched
     perpendicular (the exact nearest point differs by a distance of order ``f**2 a``).
     """
-    direction, _ = _axis(sun, moon)
-    scale = _SCALE.to(sun.dtype)
-    origin, step = moon * scale, direction * scale
+    scale = _SCALE.to(origin.dtype)
+    origin, step = origin * scale, direction * scale
     a = EARTH_EQUATORIAL_RADIUS_M
     qa = (step * step).sum(-1)
     qb = (origin * step).sum(-1)
@@ -226,6 +226,15 @@ def _axis_surface_point(sun: torch.Tensor, moon: torch.Tensor):
     outline = a * foot / _norm(foot)[..., None]
     point = torch.where((discriminant >= 0)[..., None], meet, outline) / scale
     return point, discriminant
+
+
+def _axis_surface_point(sun: torch.Tensor, moon: torch.Tensor):
+    """Where the shadow axis meets the ellipsoid (near side), else the nearest outline point.
+
+    See :func:`_line_surface_point`; the axis runs from the Moon's centre away from the Sun.
+    """
+    direction, _ = _axis(sun, moon)
+    return _line_surface_point(moon, direction)
 
 
 def _geodetic(point: torch.Tensor):
