@@ -172,6 +172,18 @@ AEROSOL_OPTICAL_DEPTH_RANGE = (0.0, 100.0)
 WAVELENGTH_RANGE_NM = _rayleigh.WAVELENGTH_RANGE_NM
 
 
+class _FromProfile:
+    """Default of a keyword taken from the sounding when one is given (otherwise the
+    documented standard value); ``None`` stays an invalid value."""
+
+    def __repr__(self) -> str:
+        return "<standard value, or the sounding's>"
+
+
+#: default of surface_pressure_pa, surface_temperature_k and ozone_du
+FROM_PROFILE = _FromProfile()
+
+
 def _check_parameter(name: str, value, *, low=None, high=None, low_inclusive=None,
                      unit=None) -> torch.Tensor:
     """A constructor parameter as a float64 tensor, within :data:`PARAMETER_RANGES`.
@@ -358,8 +370,8 @@ class Atmosphere(nn.Module):
     """
 
     def __init__(self, *, planet_radius_m: float, top_altitude_m: float,
-                 surface_pressure_pa=None,
-                 surface_temperature_k=None,
+                 surface_pressure_pa=FROM_PROFILE,
+                 surface_temperature_k=FROM_PROFILE,
                  gravity_m_s2=EARTH_GRAVITY_M_S2,
                  molar_mass_kg_mol=None, gas: str = "air",
                  molecule_profile: str | None = None,
@@ -372,7 +384,7 @@ class Atmosphere(nn.Module):
                  aerosol_phase_model: str | None = None,
                  aerosol_type: str | None = None,
                  aerosol_albedo_spectrum: str | None = None,
-                 ozone_du=None, ozone_peak_altitude_m=25_000.0, ozone_half_width_m=15_000.0,
+                 ozone_du=FROM_PROFILE, ozone_peak_altitude_m=25_000.0, ozone_half_width_m=15_000.0,
                  ozone_temperature_k=None,
                  reference_refractivity: float = EARTH_REFRACTIVITY_SEA_LEVEL,
                  reference_pressure_pa: float = STANDARD_PRESSURE_PA,
@@ -429,10 +441,11 @@ class Atmosphere(nn.Module):
             raise ValueError("refractivity_profile='sounding' needs a profile (an "
                              "xarray.Dataset)")
         surface = _sounding_surface(self.sounding)
-        surface_pressure_pa = surface[0] if surface_pressure_pa is None else surface_pressure_pa
-        surface_temperature_k = (surface[1] if surface_temperature_k is None
+        surface_pressure_pa = (surface[0] if surface_pressure_pa is FROM_PROFILE
+                               else surface_pressure_pa)
+        surface_temperature_k = (surface[1] if surface_temperature_k is FROM_PROFILE
                                  else surface_temperature_k)
-        if ozone_du is None:
+        if ozone_du is FROM_PROFILE:
             ozone_du = _sounding_ozone_du(self.sounding, self.top_altitude_m)
         if molar_mass_kg_mol is None:
             molar_mass_kg_mol = (_rayleigh.air_molar_mass() if gas == "air"
@@ -467,7 +480,7 @@ class Atmosphere(nn.Module):
 
     # ------------------------------------------------------------------ presets
     @classmethod
-    def earth(cls, turbidity=None, ozone_du=None, *, aerosol_optical_depth=None,
+    def earth(cls, turbidity=None, ozone_du=FROM_PROFILE, *, aerosol_optical_depth=None,
               angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA, **options) -> Atmosphere:
         """Earth: air, U.S. Standard Atmosphere 1976 molecules, Preetham aerosols, ozone
         tent.
@@ -486,8 +499,10 @@ class Atmosphere(nn.Module):
             practically no aerosols, 10: hazy); :math:`\\beta = 0.04608 T - 0.04586`,
             :math:`\\alpha = 1.3` (ref. 3). Default 2 unless ``aerosol_optical_depth`` is
             given.
-        ozone_du : float or Tensor
-            Ozone column [DU].
+        ozone_du : float or Tensor, optional
+            Ozone column [DU]; default 300, or the column of the sounding's
+            ``ozone_number_density`` (given with such a sounding: its shape scaled to
+            this column).
         aerosol_optical_depth : float or Tensor, optional
             Vertical aerosol optical depth at 550 nm, in [0, 100]; replaces
             ``turbidity`` (giving both raises ValueError).
@@ -531,7 +546,7 @@ class Atmosphere(nn.Module):
         settings.update(options)
         sounding_ozone = "ozone_number_density" in getattr(options.get("profile"),
                                                            "variables", ())
-        if ozone_du is None and not sounding_ozone:
+        if ozone_du is FROM_PROFILE and not sounding_ozone:
             ozone_du = 300.0
         return cls(angstrom_beta=beta, angstrom_alpha=alpha, ozone_du=ozone_du, **settings)
 
