@@ -120,9 +120,9 @@ def _map_parameters(atm, transform):
         factor = atm.factor
         clone.factor = factor if factor.ndim == 0 else transform(factor)
         return clone
-    if not hasattr(atm, "_with_parameters") or _batch_shape(atm) == ():
+    if not hasattr(atm, "with_parameters") or _batch_shape(atm) == ():
         return atm
-    return atm._with_parameters(transform)
+    return atm.with_parameters(transform)
 
 
 def _per_ray(atm, shape: tuple[int, ...]):
