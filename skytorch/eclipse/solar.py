@@ -100,9 +100,10 @@ _UNIX_EPOCH_JD = 2440587.5
 _NODE_LIMIT = 0.40
 _WIDE_HALF_S = 0.8 * 86400.0  # window around a mean new moon [s]
 _NARROW_HALF_S = 6.0 * 3600.0  # window around greatest eclipse [s]
-_N_NODES = 9
+_N_NODES = 7  # first search only: the narrow window refines the result
 _N_NARROW_NODES = 11
 _N_GRID = 97
+_GAMMA_LIMIT = 1.7  # beyond, the penumbra misses Earth (partial eclipses reach ~1.57)
 _SPAN_S = 5.0 * 3600.0  # every contact and central-line end lies within 5 h of greatest
 _SAROS_K0, _SAROS_S0 = 218, 145  # 2017 Aug 21, Saros 145
 _INEX_INVERSE = pow(358 % 223, -1, 223)
@@ -174,19 +175,27 @@ class _SunMoon:
         self.centres = centres
         self.half_window_s = half_window_s
 
+    def subset(self, rows: torch.Tensor) -> _SunMoon:
+        """The same series for the windows ``rows`` only."""
+        new = object.__new__(_SunMoon)
+        new.sun, new.moon = self.sun[rows], self.moon[rows]
+        new.npb, new.gast = self.npb[rows], self.gast[rows]
+        new.centres = self.centres[rows.numpy()]
+        new.half_window_s = self.half_window_s
+        return new
+
     def itrs(self, seconds: torch.Tensor, rows: torch.Tensor | None = None):
         """Sun and Moon vectors [m] in Earth-fixed axes at ``seconds`` (n, m) -> (n, m, 3)."""
         pick = (lambda value: value) if rows is None else (lambda value: value[rows])
         tau = seconds / self.half_window_s
-        npb = pick(self.npb)[:, None]
-        theta = pick(self.gast)[:, None] + EARTH_ROTATION_RATE_RAD_S * seconds
+        both = torch.cat((pick(self.sun), pick(self.moon)), dim=-1)  # one series, (n, k, 6)
+        values = _chebyshev_values(both, tau).unflatten(-1, (2, 3))
+        tod = values @ pick(self.npb)[:, None].transpose(-1, -2)  # rows: N P B v
+        theta = (pick(self.gast)[:, None] + EARTH_ROTATION_RATE_RAD_S * seconds)[..., None]
         cos, sin = torch.cos(theta), torch.sin(theta)
-        result = []
-        for series in (pick(self.sun), pick(self.moon)):
-            tod = (npb @ _chebyshev_values(series, tau)[..., None])[..., 0]
-            x, y, z = tod.unbind(-1)
-            result.append(torch.stack((cos * x + sin * y, -sin * x + cos * y, z), dim=-1))
-        return result[0], result[1]
+        x, y, z = tod.unbind(-1)
+        itrs = torch.stack((cos * x + sin * y, -sin * x + cos * y, z), dim=-1)
+        return itrs[..., 0, :], itrs[..., 1, :]
 
 
 def _norm(vector: torch.Tensor) -> torch.Tensor:
@@ -404,13 +413,16 @@ def solar_eclipses(start, end) -> xr.Dataset:
     best = grid[_norm(_axis(sun, moon)[1]).argmin(dim=1)]
     step = float(grid[1] - grid[0])
     first = _greatest(wide, best - step, best + step)
-    first_times = centres + (first.numpy() * 1e9).astype("timedelta64[ns]")
+    sun, moon = (v[:, 0] for v in wide.itrs(first[:, None]))
+    near = (_norm(_axis(sun, moon)[1]) < _GAMMA_LIMIT * EARTH_EQUATORIAL_RADIUS_M).numpy()
+    first_times = (centres + (first.numpy() * 1e9).astype("timedelta64[ns]"))[near]
+    lunations = lunations[near]
 
     # refine in a narrow window centred on the first estimate; eclipses need the penumbra
     # to reach the outline: sigma < s + m at the nearest outline point
     geometry = _SunMoon(first_times, _NARROW_HALF_S, _N_NARROW_NODES)
-    zero = torch.zeros(n, dtype=torch.float64)
-    greatest = _greatest(geometry, zero - 60.0, zero + 60.0)
+    zero = torch.zeros(len(first_times), dtype=torch.float64)
+    greatest = _greatest(geometry, zero - 120.0, zero + 120.0)
     sun, moon = (v[:, 0] for v in geometry.itrs(greatest[:, None]))
     point, discriminant = _axis_surface_point(sun, moon)
     s, m_pen, sigma, to_sun = _topocentric(sun, moon, point, MOON_RADIUS_PENUMBRAL)
@@ -418,7 +430,7 @@ def solar_eclipses(start, end) -> xr.Dataset:
     times = first_times + (greatest.numpy() * 1e9).astype("timedelta64[ns]")
     keep = ((sigma < s + m_pen).numpy() & (times >= start_time) & (times < end_time))
     rows = torch.as_tensor(np.nonzero(keep)[0], dtype=torch.long)
-    geometry = _SunMoon(first_times[keep], _NARROW_HALF_S, _N_NARROW_NODES)
+    geometry = geometry.subset(rows)
     greatest, point, discriminant = greatest[rows], point[rows], discriminant[rows]
     s, m_pen, m_umb, sigma, to_sun = s[rows], m_pen[rows], m_umb[rows], sigma[rows], to_sun[rows]
     sun, moon = sun[rows], moon[rows]
@@ -441,7 +453,7 @@ def solar_eclipses(start, end) -> xr.Dataset:
     altitude = torch.asin(torch.clamp((_up(lat, lon) * to_sun).sum(-1) / _norm(to_sun),
                                       -1.0, 1.0))
     altitude = torch.where(central, altitude, torch.zeros_like(altitude))
-    local = _local_maximum_and_contacts(geometry, greatest[:, None], point[:, None])
+    local = _local_maximum_and_contacts(geometry, greatest, point[:, None])
     duration = (local["c3"] - local["c2"])[:, 0]
     duration = torch.where(central | umbral_touch, duration, torch.nan)
     _, closest = _axis(sun, moon)
