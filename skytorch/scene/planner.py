@@ -8,7 +8,8 @@ with cheap estimates, and an effect whose share is below ``scene.tolerance`` is 
 with the reason recorded. Omitting it then changes the image by at most that share.
 
 The Sun and Moon come from one ephemeris evaluation per instant
-(:mod:`skytorch.scene.geometry`), cached per time and site and handed to the render
+(:mod:`skytorch.scene.geometry`), kept per time and site by the scene's
+:class:`~skytorch.scene.resources.SceneResources` and handed to the render
 with the plan, so planning and rendering share it.
 
 Vocabulary (:data:`EFFECTS`): ``sky`` (scattered sunlight and twilight), ``sun`` (the
@@ -28,7 +29,7 @@ Estimates
   and interpolated;
 * sun, moon: their V magnitudes above the atmosphere (the Moon's interpolated in a
   table of :func:`skytorch.moon.magnitude` over phase angle and distance, built once per
-  process) when their apparent upper limb is above the horizon;
+  resources object) when their apparent upper limb is above the horizon;
 * earthshine: the Moon's magnitude with minus without earthshine;
 * eclipse: zero outside the penumbra (:func:`skytorch.eclipse.shadow_radii`, Danjon
   enlargement; a test of the Moon's offset from the anti-Sun axis) — an exact

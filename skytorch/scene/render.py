@@ -627,7 +627,8 @@ def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tens
 
 def stars_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
     """Catalogue stars at their apparent places with extincted magnitudes (tensor layer of
-    :func:`skytorch.stars.observe`: positions, refraction and extinction tables cached);
+    :func:`skytorch.stars.observe`: positions, refraction and extinction tables from the
+    resources);
     stars behind the Moon's disc (:func:`occulted`) are left out."""
     from skytorch.ephemeris import parse_times
     from skytorch.stars import observe_tensors, time_operators

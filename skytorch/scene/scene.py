@@ -490,8 +490,9 @@ class Scene:
     Notes
     -----
     Gradients: a Scene is not differentiable. Its parameters are read as numbers and key
-    cached tables (atmosphere, transmittance, refraction and extinction tables, sky and
-    moonlit-sky look-up tables, the skyglow model), the Sun and Moon come from skyfield,
+    the tables of its :class:`~skytorch.scene.resources.SceneResources` (atmosphere,
+    transmittance, refraction and extinction tables, the skyglow model) and its sky and
+    moonlit-sky look-up tables, the Sun and Moon come from skyfield,
     and the result is a Dataset of numpy arrays; a tensor parameter that requires grad is
     refused rather than silently detached. The tensor functions the components are built
     from carry gradients (e.g. :meth:`skytorch.atmosphere.Atmosphere.sky_radiance`,
