@@ -2,16 +2,21 @@
 
 Each run starts a new interpreter (``python -c``) that imports skytorch, renders a day
 scene (Paris, 2015-06-21 12:00 UTC, 128 × 128 fisheye, RGB, default fidelity, float64)
-and then renders it again twice: the same :class:`~skytorch.scene.Scene` (its resources
-kept), and a new Scene of the same parameters (``new scene``; in a tree with
+and then renders it again three times: the same :class:`~skytorch.scene.Scene` (its
+resources kept), a new Scene of the same parameters (``new scene``; in a tree with
 ``Scene.resources`` the new scene is given the first one's resources, as a time series
-does). The disk cache (``SKYTORCH_CACHE_DIR``, a private folder) is filled by one
-untimed run first, so the numbers are those of a user's second session: the transmittance
-table is read from disk, the rest is built in the process.
+does) and another new Scene left to its own resources (``new scene, own resources``: in
+a tree with module caches it finds them warm; with ``SceneResources`` it builds its
+tables again, the transmittance table from disk). The disk cache
+(``SKYTORCH_CACHE_DIR``, a private folder) is filled by one untimed run first, so the
+numbers are those of a user's second session: the transmittance table is read from disk,
+the rest is built in the process.
 
 Timed, per run: the whole process from its start to its exit (``process``, interpreter
 start-up included), ``import skytorch`` alone, the first render (construction of the
-Scene, planning and rendering) and the warm renders. Several source trees can be timed
+Scene, planning and rendering), the CPU time of the import and first render together
+(one thread: less disturbed by other processes on a shared machine) and the warm
+renders. Several source trees can be timed
 side by side (``--tree``), interleaved run by run so that the load of a shared machine
 falls on all of them alike; medians over ``--repeat`` runs.
 
@@ -38,14 +43,14 @@ from benchmarks._harness import machine_description, markdown_table  # noqa: E40
 #: the child process: prints the timings [s] as JSON
 CHILD = """
 import time
-start = time.perf_counter()
+start, start_cpu = time.perf_counter(), time.process_time()
 import skytorch as st
 imported = time.perf_counter()
 options = dict(time="2015-06-21T12:00", lat_deg=48.85, lon_deg=2.35, size={size},
                outputs=("xyz", "srgb"))
 scene = st.Scene(**options)
 scene.render()
-first = time.perf_counter()
+first, first_cpu = time.perf_counter(), time.process_time()
 scene.render()
 warm = time.perf_counter()
 other = st.Scene(**options)
@@ -54,12 +59,17 @@ if hasattr(other, "resources"):
 else:
     other.render()
 new = time.perf_counter()
+st.Scene(**options).render()
+bare = time.perf_counter()
 import json
 print(json.dumps({{"import": imported - start, "first render": first - imported,
-                  "warm render": warm - first, "new scene": new - warm}}))
+                  "import + first CPU": first_cpu - start_cpu,
+                  "warm render": warm - first, "new scene": new - warm,
+                  "new scene, own resources": bare - new}}))
 """
 
-COLUMNS = ("process", "import", "first render", "warm render", "new scene")
+COLUMNS = ("process", "import", "first render", "import + first CPU", "warm render",
+           "new scene", "new scene, own resources")
 
 
 def run_once(tree: str, size: int, cache: str) -> dict[str, float]:

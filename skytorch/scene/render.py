@@ -506,7 +506,7 @@ def natural_extinction(resources, view, knobs) -> torch.Tensor:
     """
     from skytorch.stars import extinction
 
-    _, table = resources.star_site_tables(knobs.elevation_m, knobs.refraction)
+    table = resources.extinction_table(knobs.elevation_m, knobs.refraction)
     altitude = (0.5 * math.pi - view.zenith_rad.to(torch.float64)).reshape(1, -1)
     bv = torch.tensor([NATURAL_BACKGROUND_BV], dtype=torch.float64)
     delta, _ = extinction(bv, torch.cat([altitude.new_full((1, 1), 0.5 * math.pi), altitude],

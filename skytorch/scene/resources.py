@@ -9,7 +9,8 @@ each built on first use and kept on the instance,
 * transmittance tables (:class:`skytorch.atmosphere.tables.TransmittanceTable`, also
   cached on disk), per table resolution;
 * the star-site tables (refraction and extinction at an observer height,
-  :func:`skytorch.stars.refraction_table`, :func:`skytorch.stars.extinction_table`) and
+  :func:`skytorch.stars.refraction_table`, :func:`skytorch.stars.extinction_table`, each
+  built only when asked for: the planner's refraction test needs no extinction table) and
   the planner's sky-flux table, per observer height;
 * the planner's table of the Moon's flux, the star catalogue and its spectra and
   vectors, per faintest magnitude;
@@ -216,27 +217,42 @@ class SceneResources:
         return self._get(("transmittance", int(n_mu), int(n_r)), build)
 
     # ------------------------------------------------------------------ site tables
-    def star_site_tables(self, elevation_m: float, refraction: bool):
-        """Refraction table (``None`` without refraction) and extinction table of the
-        atmosphere at an observer height [m] (:func:`skytorch.stars.refraction_table`,
-        :func:`skytorch.stars.extinction_table`)."""
+    def refraction_table(self, elevation_m: float):
+        """Ray-traced refraction of the atmosphere at an observer height [m]
+        (:func:`skytorch.stars.refraction_table`)."""
+        elevation_m = float(elevation_m)
+
+        def build():
+            from skytorch.stars import refraction_table
+
+            return refraction_table(self.atmosphere, elevation_m)
+
+        return self._get(("refraction", elevation_m), build)
+
+    def extinction_table(self, elevation_m: float, refraction: bool):
+        """V-band extinction of the atmosphere at an observer height [m], along refracted
+        paths when ``refraction`` (:func:`skytorch.stars.extinction_table`)."""
         elevation_m, refraction = float(elevation_m), bool(refraction)
 
         def build():
-            from skytorch.stars import extinction_table, refraction_table
+            from skytorch.stars import extinction_table
 
-            atm = self.atmosphere
-            return (refraction_table(atm, elevation_m) if refraction else None,
-                    extinction_table(atm, elevation_m, refraction=refraction))
+            return extinction_table(self.atmosphere, elevation_m, refraction=refraction)
 
-        return self._get(("star_site", elevation_m, refraction), build)
+        return self._get(("extinction", elevation_m, refraction), build)
+
+    def star_site_tables(self, elevation_m: float, refraction: bool):
+        """Refraction table (``None`` without refraction) and extinction table at an
+        observer height [m] (:meth:`refraction_table`, :meth:`extinction_table`)."""
+        return (self.refraction_table(elevation_m) if refraction else None,
+                self.extinction_table(elevation_m, refraction))
 
     def refracted_altitude(self, elevation_m: float, true_altitude_rad: float) -> float:
         """Apparent altitude [rad] of a true altitude [rad] (below −1° taken at −1°) at an
         observer height [m], from the refraction table (ray-traced refraction)."""
         from skytorch.stars import refract
 
-        table, _ = self.star_site_tables(elevation_m, True)
+        table = self.refraction_table(elevation_m)
         true = torch.tensor([max(true_altitude_rad, math.radians(-1.0))], dtype=torch.float64)
         return float(refract(true, table)[0])
 
