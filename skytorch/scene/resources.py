@@ -16,6 +16,7 @@ each built on first use and kept on the instance,
   vectors, per faintest magnitude;
 * skyglow models (:class:`skytorch.skyglow.SkyglowModel`, also cached on disk with
   :mod:`skytorch._cache`), per model setting;
+* the fisheye and panorama views (pixel directions and solid angles) per size and dtype;
 * the Sun and Moon per (instant, site) (:func:`skytorch.scene.geometry.site_geometries`,
   the last :data:`SceneResources.GEOMETRIES_KEPT`), so that planning and rendering, and
   the observers of one instant, share one ephemeris evaluation.
@@ -469,6 +470,13 @@ class SceneResources:
             return model
 
         return self._get(("skyglow", json.dumps(settings, sort_keys=True)), build)
+
+    # ------------------------------------------------------------------ views
+    def view(self, kind: str, size: int, dtype, build: Callable):
+        """A fisheye or panorama :class:`~skytorch.scene.scene.View` of ``size`` pixels,
+        ``build()`` on first use and kept (shared by the renders: do not modify its
+        tensors)."""
+        return self._get(("view", kind, int(size), str(dtype)), build)
 
     # ------------------------------------------------------------------ geometry
     def geometries(self, time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:

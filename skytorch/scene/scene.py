@@ -667,12 +667,13 @@ class Scene:
         return torch.as_tensor(np.asarray(self.wavelengths, dtype=float), dtype=self.dtype)
 
     def make_view(self, resources: SceneResources | None = None) -> View:
-        """The :class:`View` of the scene (a camera aimed at the Sun or Moon reads their
-        places from ``resources``, default :meth:`resources`)."""
-        if self.view == "fisheye":
-            return fisheye_view(self.size, self.dtype)
-        if self.view == "panorama":
-            return panorama_view(self.size, self.dtype)
+        """The :class:`View` of the scene (``resources``, default :meth:`resources`, keep the
+        fisheye and panorama views, shared by renders: do not modify their tensors; a camera
+        aimed at the Sun or Moon reads their places from them)."""
+        if self.view in ("fisheye", "panorama"):
+            make = fisheye_view if self.view == "fisheye" else panorama_view
+            return self._checked(resources).view(self.view, self.size, self.dtype,
+                                                 lambda: make(self.size, self.dtype))
         if self.view == "camera":
             return camera_view(*self.camera_centre(resources), self.camera["fov_deg"],
                                self.size, self.dtype)
