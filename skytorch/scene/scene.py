@@ -524,6 +524,9 @@ class Scene:
     airglow_fraction: float = 0.6
     airglow_height_m: float = 90_000.0
     dtype: torch.dtype = torch.float64
+    #: the resources of the scene this one was copied from (``dataclasses.replace`` passes
+    #: them on); kept when their spec is this scene's, else new ones are made
+    _resources: SceneResources | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         from skytorch.ephemeris import parse_times
@@ -546,7 +549,12 @@ class Scene:
         self.turbidity = _scalar("turbidity", self.turbidity)
         self.ozone_du = _scalar("ozone_du", self.ozone_du)
         self.wavelengths = _wavelengths(self.wavelengths)
-        self._resources = SceneResources(SceneSpec.of(self))
+        spec = SceneSpec.of(self)
+        if not (isinstance(self._resources, SceneResources) and self._resources.spec == spec):
+            if self._resources is not None and not isinstance(self._resources, SceneResources):
+                raise TypeError("_resources must be a SceneResources or None; got "
+                                f"{type(self._resources).__name__}")
+            self._resources = SceneResources(spec)
         atmosphere = self._resources.atmosphere
         self.tolerance = _scalar("tolerance", self.tolerance, 0.0, 1.0)
         self.star_limit_mag = _scalar("star_limit_mag", self.star_limit_mag,
@@ -715,15 +723,14 @@ class Scene:
     def replace(self, **changes) -> Scene:
         """A copy with some fields changed; it shares this scene's resources when its
         spec (turbidity, ozone, wavelengths) is the same."""
-        copy = replace(self, **changes)
-        if copy._resources.spec == self._resources.spec:
-            copy._resources = self._resources
-        return copy
+        return replace(self, **changes)
 
     def parameters(self) -> dict:
         """The scene's parameters as netCDF-safe values (Dataset attributes)."""
         out = {}
         for f in fields(self):
+            if f.name == "_resources":
+                continue
             value = getattr(self, f.name)
             if f.name == "light_map":
                 value = "none" if value is None else "given"
@@ -836,7 +843,7 @@ class Scene:
             kwargs["dtype"] = {"float64": torch.float64, "float32": torch.float32}[
                 check_choice("dtype", config.pop("dtype"), ("float64", "float32"))]
         kwargs.update(config)
-        names = {f.name for f in fields(cls)}
+        names = {f.name for f in fields(cls)} - {"_resources"}
         unknown = sorted(set(kwargs) - names)
         if unknown:
             raise ValueError(f"scene: unknown keys {unknown}; valid: {sorted(names)}")
