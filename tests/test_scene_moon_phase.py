@@ -338,7 +338,8 @@ def test_moon_at_the_zenith_and_extreme_phases(phase_deg):
                  sun_horizontal_m=sun, moon_horizontal_m=moon)
     scene = st.Scene(time=INSTANTS[0], **SITE)
     wavelength = torch.tensor([550.0], dtype=torch.float64)
-    disc = MoonDisc(scene, g, wavelength, 0.5 * math.pi, earthshine=False, eclipse=False)
+    disc = MoonDisc(scene.resources(), g, wavelength, 0.5 * math.pi, earthshine=False,
+                    eclipse=False)
     assert float(disc.phase_angle_rad) == pytest.approx(alpha, abs=1e-9)
     offsets = torch.linspace(-0.95, 0.95, 21, dtype=torch.float64) * g.moon_radius_rad
     north, east = torch.meshgrid(offsets, offsets, indexing="ij")

@@ -113,6 +113,19 @@ def _spy(monkeypatch, names):
     return calls
 
 
+def _spy_method(monkeypatch, calls, name):
+    """Record the calls of a SceneResources method in ``calls``."""
+    from skytorch.scene.resources import SceneResources
+
+    original = getattr(SceneResources, name)
+
+    def wrapper(self, *args, **kwargs):
+        calls.append(name)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(SceneResources, name, wrapper)
+
+
 COMPONENT_FUNCTIONS = {"sky": "sky_component", "sun": "sun_component",
                        "moon": "moon_component", "stars": "stars_component",
                        "skyglow": "skyglow_component"}
@@ -121,11 +134,11 @@ COMPONENT_FUNCTIONS = {"sky": "sky_component", "sun": "sun_component",
 @pytest.mark.parametrize("name", ["day", "dark", "eclipse"])
 def test_skipped_effects_are_never_called(monkeypatch, name):
     sc = scene(name)
-    from skytorch.scene import planner
 
-    planner.clear_cache()
+    sc.resources().clear()
     calls = _spy(monkeypatch, [*COMPONENT_FUNCTIONS.values(), "eclipse_factor",
-                               "shadow_illuminance", "refracted_altitude"])
+                               "shadow_illuminance"])
+    _spy_method(monkeypatch, calls, "refracted_altitude")
     plan = sc.plan()
     # the planner decides the eclipse from geometry and bounds, without the shadow model
     assert "shadow_illuminance" not in calls and "eclipse_factor" not in calls

@@ -25,7 +25,7 @@ def _eclipse_night():
 
 def test_cold_and_warm_plans_are_identical():
     scene = _eclipse_night()
-    planner.clear_cache()
+    scene.resources().clear()
     cold = scene.plan()
     warm = scene.plan()
     assert cold.computed == warm.computed
@@ -84,7 +84,7 @@ def test_moon_flux_table_matches_the_magnitude():
 
     for alpha, distance in ((0.05, 3.6e8), (1.3, 3.9e8), (2.9, 4.05e8)):
         g = Geometry(0.0, 0.0, 0.0, 0.0, distance, 1.0e11 * 1.5, alpha, 0.0, 0.0, 0.0, 0.0)
-        total, earthshine = planner._moon_fluxes(g)
+        total, earthshine = _eclipse_night().resources().moon_fluxes(g)
         options = {"distance_m": distance, "sun_distance_m": g.sun_distance_m,
                    "n_quadrature": planner.PLANNER_MOON_QUADRATURE}
         a = torch.tensor(alpha, dtype=torch.float64)
@@ -119,8 +119,8 @@ def test_sky_flux_table_matches_direct_estimate(altitude):
     scene = _eclipse_night()
     g = Geometry(altitude, 0.0, 0.0, 0.0, 3.8e8, 1.5e11, 0.0, 0.0, 0.0, 0.0, 0.0)
     # log-linear interpolation between 0.25-degree nodes: within 1 %
-    assert planner._sky_flux(scene, g) == pytest.approx(_direct_sky_flux(scene, altitude),
-                                                        rel=0.01)
+    assert planner._sky_flux(scene.resources(), 0.0, g) == pytest.approx(
+        _direct_sky_flux(scene, altitude), rel=0.01)
 
 
 @pytest.mark.parametrize("offset_km", [0.0, 2_000.0, 4_400.0, 5_000.0, 6_000.0, 8_000.0])

@@ -19,6 +19,7 @@ import torch
 import skytorch as st
 from skytorch import _cache
 from skytorch.scene.planner import FIDELITY
+from skytorch.scene.resources import SceneResources
 from skytorch.skyglow import SkyglowModel
 from skytorch.skyglow.citymap import synthetic_city
 
@@ -34,7 +35,6 @@ SAME_BRIGHTNESS_MAG = 1e-9
 def cache(tmp_path, monkeypatch):
     """A private cache folder, an empty in-memory cache and a count of the builds."""
     monkeypatch.setenv("SKYTORCH_CACHE_DIR", str(tmp_path))
-    monkeypatch.setattr(render, "_skyglow_models", {})
     # a coarser model than the "fast" preset: every corruption below costs a rebuild
     monkeypatch.setitem(FIDELITY["fast"], "skyglow", {
         "n_azimuth": 16, "n_elevation": 4, "n_distance": 8, "n_components": 3,
@@ -59,19 +59,19 @@ def _scene(turbidity=2.0):
 
 def _zenith_mag(scene) -> float:
     """V surface brightness of the skyglow alone at the zenith [mag arcsec^-2], through the
-    cache (the in-memory copies are forgotten first, so the disk file is read)."""
+    cache (fresh resources hold no model in memory, so the disk file is read)."""
     from skytorch.moon.sky import radiance_to_mag_arcsec2
 
-    render._skyglow_models.clear()
+    resources = SceneResources.for_scene(scene)
     wavelength = scene.wavelength_nm()
-    radiance = render.skyglow_component(scene, scene.make_view(), wavelength,
-                                        FIDELITY[scene.fidelity])
+    radiance = render.skyglow_component(resources, scene.make_view(), None, wavelength,
+                                        render.Knobs.of(scene))
     return float(radiance_to_mag_arcsec2(radiance.to(torch.float64), wavelength)[0])
 
 
 def _paths(scene):
-    return render.skyglow_cache_path(scene, scene.wavelength_nm(),
-                                     FIDELITY[scene.fidelity]["skyglow"])
+    return SceneResources.for_scene(scene).skyglow_cache_path(
+        FIDELITY[scene.fidelity]["skyglow"])
 
 
 def test_corrupted_bytes_are_detected_and_rebuilt(cache):

@@ -1,6 +1,7 @@
 """Sun and Moon at the observers of a scene, from one ephemeris evaluation per instant.
 
-The planner and the render share these numbers: :func:`site_geometries` reads the
+The planner and the render share these numbers (kept per instant and site by
+:meth:`skytorch.scene.resources.SceneResources.geometries`): :func:`site_geometries` reads the
 barycentric positions and velocities of the Earth, the Sun and the Moon from DE421 once
 per instant (three ``at()`` calls of skyfield's SPICE kernel), applies light time and
 annual aberration, and rotates the apparent geocentric vectors to the horizontal frame
@@ -31,9 +32,7 @@ References
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
-from dataclasses import dataclass, replace
-from functools import lru_cache
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -125,9 +124,8 @@ def apparent_geocentric(time) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]
     return vectors[0], vectors[1], earth_rotation(t)[0]
 
 
-@lru_cache(maxsize=1)
 def _bodies():
-    """The Earth, Sun and Moon of DE421 (skyfield vector sums, built once)."""
+    """The Earth, Sun and Moon of DE421 (skyfield vector sums of the loaded kernel)."""
     from skytorch.ephemeris import load_ephemeris
 
     kernel = load_ephemeris()
@@ -189,44 +187,3 @@ def site_geometries(time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
                      moon_horizontal_m=tuple(moon_h[i].tolist()),
                      observer_horizontal_m=tuple(observer[i].tolist()), **shared)
             for i in range(len(observer))]
-
-
-#: geometries kept per (time, latitude, longitude, height)
-_CACHE_SIZE = 256
-_cache: OrderedDict = OrderedDict()
-
-
-def _key(values) -> list[float]:
-    return [float(v) for v in np.asarray(values, float).reshape(-1)]
-
-
-def geometries(time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
-    """:func:`site_geometries` cached per (time, site): observers already seen at this
-    instant are not recomputed; the others share one ephemeris evaluation. Fresh copies.
-    """
-    time = np.datetime64(time, "ns")
-    keys = [(time, a, b, c) for a, b, c in zip(_key(lat_deg), _key(lon_deg),
-                                               _key(elevation_m), strict=True)]
-    missing = [k for k in keys if k not in _cache]
-    if missing:
-        computed = site_geometries(time, [k[1] for k in missing], [k[2] for k in missing],
-                                   [k[3] for k in missing])
-        for key, value in zip(missing, computed, strict=True):
-            _cache[key] = value
-    result = []
-    for key in keys:
-        _cache.move_to_end(key)
-        result.append(replace(_cache[key]))
-    while len(_cache) > _CACHE_SIZE:
-        _cache.popitem(last=False)
-    return result
-
-
-def scene_geometry(scene) -> Geometry:
-    """Geometry of a one-observer scene (cached per time and site, a fresh copy)."""
-    return geometries(scene.time, scene.lat_deg, scene.lon_deg, scene.elevation_m)[0]
-
-
-def clear_cache() -> None:
-    """Forget the cached geometries."""
-    _cache.clear()

@@ -8,7 +8,8 @@ with cheap estimates, and an effect whose share is below ``scene.tolerance`` is 
 with the reason recorded. Omitting it then changes the image by at most that share.
 
 The Sun and Moon come from one ephemeris evaluation per instant
-(:mod:`skytorch.scene.geometry`), cached per time and site and handed to the render
+(:mod:`skytorch.scene.geometry`), kept per time and site by the scene's
+:class:`~skytorch.scene.resources.SceneResources` and handed to the render
 with the plan, so planning and rendering share it.
 
 Vocabulary (:data:`EFFECTS`): ``sky`` (scattered sunlight and twilight), ``sun`` (the
@@ -28,7 +29,7 @@ Estimates
   and interpolated;
 * sun, moon: their V magnitudes above the atmosphere (the Moon's interpolated in a
   table of :func:`skytorch.moon.magnitude` over phase angle and distance, built once per
-  process) when their apparent upper limb is above the horizon;
+  resources object) when their apparent upper limb is above the horizon;
 * earthshine: the Moon's magnitude with minus without earthshine;
 * eclipse: zero outside the penumbra (:func:`skytorch.eclipse.shadow_radii`, Danjon
   enlargement; a test of the Moon's offset from the anti-Sun axis) — an exact
@@ -64,76 +65,35 @@ import logging
 import math
 import time as _time
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 import torch
 
 from skytorch.constants import (
-    ASTRONOMICAL_UNIT_M,
     EARTH_MEAN_RADIUS_M,
     EARTH_TOP_OF_ATMOSPHERE_M,
     MOON_RADIUS_M,
     SUN_RADIUS_M,
 )
-from skytorch.scene.geometry import Geometry, scene_geometry
-from skytorch.scene.geometry import clear_cache as clear_geometry
-from skytorch.scene.resources import cached_atmosphere, refracted_altitude
+from skytorch.scene.geometry import Geometry
+from skytorch.scene.presets import (  # noqa: F401 (the planner's constants, re-exported)
+    BRIGHTEST_SKYGLOW_MAG_ARCSEC2,
+    EFFECTS,
+    FIDELITY,
+    HEMISPHERE_ARCSEC2,
+    HORIZON_REFRACTION_RAD,
+    MOON_TABLE_DISTANCE_RANGE_M,
+    MOON_TABLE_DISTANCES,
+    MOON_TABLE_PHASES,
+    PLANNER_MOON_QUADRATURE,
+    SEMI_DIAMETER_RAD,
+    SKY_TABLE_SEGMENT_DEG,
+    SKY_TABLE_STEP_DEG,
+    SUN_V_MAG,
+)
+from skytorch.scene.resources import SceneResources
 
 logger = logging.getLogger(__name__)
-
-#: the planner's vocabulary of effects, in composition order
-EFFECTS = ("sky", "sun", "moon", "earthshine", "eclipse", "stars", "scintillation",
-           "skyglow", "refraction")
-
-#: V magnitude of the Sun above the atmosphere (Willmer 2018, ApJS 236, 47,
-#: doi:10.3847/1538-4365/aabfdf)
-SUN_V_MAG = -26.76
-#: brightest artificial sky in the world atlas [V mag arcsec^-2] (Falchi et al. 2016)
-BRIGHTEST_SKYGLOW_MAG_ARCSEC2 = 14.0
-#: apparent semi-diameter of the Sun and Moon used for "above the horizon" [rad]
-SEMI_DIAMETER_RAD = math.radians(0.27)
-#: refraction at the horizon (standard atmosphere) bounding the upper-limb test [rad]
-HORIZON_REFRACTION_RAD = math.radians(0.6)
-#: Sun-altitude step of the planner's sky-flux table [degree] (0.5 gives 4 % error in
-#: deep twilight, 0.25 below 0.3 %)
-SKY_TABLE_STEP_DEG = 0.25
-#: ... computed in segments of this many degrees when first needed
-SKY_TABLE_SEGMENT_DEG = 5.0
-#: hemisphere [arcsec^2]
-HEMISPHERE_ARCSEC2 = 2.0 * math.pi * (180.0 * 3600.0 / math.pi) ** 2
-
-#: quadrature nodes of the planner's estimate of the Moon's magnitude (an estimate only)
-PLANNER_MOON_QUADRATURE = 8
-#: nodes of the planner's table of the Moon's flux over phase angle (2° apart) ...
-MOON_TABLE_PHASES = 91
-#: ... and over the observer–Moon distance
-MOON_TABLE_DISTANCES = 8
-#: distances of that table [m]: perigee 356 400 km less the Earth's radius to apogee
-#: 406 700 km plus it, rounded outwards
-MOON_TABLE_DISTANCE_RANGE_M = (3.45e8, 4.15e8)
-
-#: module knobs per fidelity preset (measured error and cost in docs/scene.md)
-FIDELITY = {
-    "fast": {
-        "sky_lut": (12, 13), "sky_samples": 24, "transmittance": (64, 16),
-        "moon_lut": (8, 9), "moon_steps": 16, "moon_quadrature": 8,
-        "moon_disc_quadrature": 12,
-        "skyglow": {"n_azimuth": 32, "n_elevation": 8, "n_distance": 16, "n_components": 4,
-                    "max_distance_m": 30_000.0}},
-    "default": {
-        "sky_lut": (24, 25), "sky_samples": 48, "transmittance": (128, 32),
-        "moon_lut": (12, 13), "moon_steps": 32, "moon_quadrature": 16,
-        "moon_disc_quadrature": 24,
-        "skyglow": {"n_azimuth": 64, "n_elevation": 16, "n_distance": 32, "n_components": 8,
-                    "max_distance_m": 40_000.0}},
-    "reference": {
-        "sky_lut": (48, 49), "sky_samples": 128, "transmittance": (256, 64),
-        "moon_lut": (24, 25), "moon_steps": 64, "moon_quadrature": 32,
-        "moon_disc_quadrature": 48,
-        "skyglow": {"n_azimuth": 128, "n_elevation": 32, "n_distance": 64,
-                    "n_components": 16, "max_distance_m": 40_000.0}},
-}
 
 
 def _flux(magnitude: float) -> float:
@@ -143,20 +103,6 @@ def _flux(magnitude: float) -> float:
 
 def _surface_flux(mag_arcsec2: float, area_arcsec2: float = HEMISPHERE_ARCSEC2) -> float:
     return _flux(mag_arcsec2) * area_arcsec2
-
-
-@lru_cache(maxsize=4)
-def catalogue(limit_magnitude: float):
-    """The star catalogue to a V limit (cached)."""
-    from skytorch.stars import bright_stars
-
-    return bright_stars(limit_magnitude)
-
-
-@lru_cache(maxsize=4)
-def integrated_starlight(limit_magnitude: float) -> float:
-    """Total V flux of the catalogue's stars (relative to magnitude 0), whole sky."""
-    return float(np.sum(10.0 ** (-0.4 * catalogue(limit_magnitude)["vmag"].values)))
 
 
 @dataclass
@@ -192,115 +138,17 @@ class Plan:
                 "effects_skipped": "; ".join(f"{k}: {v}" for k, v in self.skipped.items())}
 
 
-def _sky_flux(scene, geometry: Geometry) -> float:
+def _sky_flux(resources: SceneResources, elevation_m: float, geometry: Geometry) -> float:
     """Hemisphere V flux of single-scattered sunlight (relative to V = 0), interpolated
-    log-linearly in the Sun's altitude in :func:`sky_flux_table`."""
-    key = (float(scene.turbidity), float(scene.ozone_du), float(scene.elevation_m),
-           tuple(scene.wavelength_nm().tolist()))
-    deepest = _deepest_sunlit_deg(*key[:2])
+    log-linearly in the Sun's altitude in
+    :meth:`~skytorch.scene.resources.SceneResources.sky_flux_table`."""
+    deepest = resources.deepest_sunlit_deg
     if geometry.sun_altitude_deg <= -deepest:
         return 0.0
     segment = min(int((geometry.sun_altitude_deg + deepest) / SKY_TABLE_SEGMENT_DEG),
                   int((90.0 + deepest) / SKY_TABLE_SEGMENT_DEG))
-    altitude, log_flux = sky_flux_table(*key, segment)
+    altitude, log_flux = resources.sky_flux_table(elevation_m, segment)
     return float(np.exp(np.interp(geometry.sun_altitude_deg, altitude, log_flux)))
-
-
-@lru_cache(maxsize=8)
-def _deepest_sunlit_deg(turbidity: float, ozone_du: float) -> float:
-    """Sun depression [degree] beyond which all the air an observer sees is in shadow.
-
-    Every point of the atmosphere the observer can see lies within ``acos(R / R_top)`` of
-    the observer's zenith (seen from the planet's centre); with the Sun deeper than
-    twice that angle below the horizon all of it is in the Earth's shadow.
-    """
-    atm = cached_atmosphere(turbidity, ozone_du)
-    return 2.0 * math.degrees(math.acos(atm.planet_radius_m / atm.top_radius_m))
-
-
-@lru_cache(maxsize=256)
-def sky_flux_table(turbidity: float, ozone_du: float, elevation_m: float,
-                   wavelengths: tuple, segment: int) -> tuple[np.ndarray, np.ndarray]:
-    """The planner's estimate of the sunlit sky's V flux against the Sun's altitude.
-
-    Single-scattering radiance (:meth:`Atmosphere.sky_radiance`) at 9 directions (the
-    zenith and 60° and 85° from it at 0°, 90°, 180°, 270° from the Sun's azimuth),
-    averaged and spread over the hemisphere. It depends on the Sun's altitude only, so it
-    is tabulated per atmosphere, observer height and wavelength grid every
-    :data:`SKY_TABLE_STEP_DEG`, in segments of :data:`SKY_TABLE_SEGMENT_DEG` computed when
-    first needed, from the depression where the whole visible atmosphere is in the
-    Earth's shadow (:func:`_deepest_sunlit_deg`, flux zero) up to the zenith.
-
-    Returns
-    -------
-    altitude_deg : ndarray (n,)
-        Sun altitudes of the segment's nodes [degree].
-    log_flux : ndarray (n,)
-        Natural logarithm of the flux relative to V = 0 (the smallest positive float
-        where the flux is zero).
-    """
-    from skytorch.moon.sky import radiance_to_mag_arcsec2
-
-    atm = cached_atmosphere(turbidity, ozone_du)
-    low = -_deepest_sunlit_deg(turbidity, ozone_du) + segment * SKY_TABLE_SEGMENT_DEG
-    n = round(SKY_TABLE_SEGMENT_DEG / SKY_TABLE_STEP_DEG) + 1
-    altitude = np.minimum(low + SKY_TABLE_STEP_DEG * np.arange(n), 90.0)
-    wl = torch.tensor(wavelengths, dtype=torch.float64)
-    zenith = torch.tensor([0.0] + [math.radians(60.0)] * 4 + [math.radians(85.0)] * 4,
-                          dtype=torch.float64)
-    azimuth = torch.tensor([0.0] + [k * math.pi / 2 for k in range(4)] * 2,
-                           dtype=torch.float64)
-    sun_zenith = torch.deg2rad(90.0 - torch.as_tensor(altitude))[:, None].expand(-1, 9)
-    radiance = atm.sky_radiance(wl, zenith.expand_as(sun_zenith), azimuth.expand_as(sun_zenith),
-                                sun_zenith, torch.zeros_like(sun_zenith), elevation_m,
-                                solar_irradiance=True, n_samples=24)
-    mags = radiance_to_mag_arcsec2(radiance.clamp(min=1e-300), wl)
-    flux = torch.mean(10.0 ** (-0.4 * mags), dim=-1) * HEMISPHERE_ARCSEC2
-    if segment == 0:
-        flux[0] = 0.0
-    return altitude, np.log(flux.clamp(min=np.finfo(np.float64).tiny).numpy())
-
-
-def _moon_fluxes(geometry: Geometry) -> tuple[float, float]:
-    """V flux of the Moon with earthshine and of its earthshine alone (relative to V = 0),
-    interpolated in a table of :func:`skytorch.moon.magnitude` over phase angle and
-    distance (:func:`moon_flux_table`)."""
-    alpha, distance, table = moon_flux_table()
-    u = min(max(geometry.phase_angle_rad, 0.0), math.pi) / math.pi * (alpha.size - 1)
-    v = (min(max(geometry.moon_distance_m, distance[0]), distance[-1]) - distance[0]) / (
-        distance[1] - distance[0])
-    i, j = min(int(u), alpha.size - 2), min(int(v), distance.size - 2)
-    fu, fv = u - i, v - j
-    values = ((1 - fu) * (1 - fv) * table[i, j] + fu * (1 - fv) * table[i + 1, j]
-              + (1 - fu) * fv * table[i, j + 1] + fu * fv * table[i + 1, j + 1])
-    scale = (ASTRONOMICAL_UNIT_M / geometry.moon_sun_distance_m) ** 2
-    total, sunlit = float(values[0]) * scale, float(values[1]) * scale
-    return total, total - sunlit
-
-
-@lru_cache(maxsize=1)
-def moon_flux_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The Moon's V flux with and without earthshine over phase angle and distance.
-
-    Returns
-    -------
-    alpha_rad : ndarray (MOON_TABLE_PHASES,)
-        Phase angles, uniform in [0, π].
-    distance_m : ndarray (MOON_TABLE_DISTANCES,)
-        Observer–Moon distances, uniform over :data:`MOON_TABLE_DISTANCE_RANGE_M`.
-    flux : ndarray (phase, distance, 2)
-        Flux relative to V = 0 at 1 AU from the Sun, with earthshine and without
-        (:func:`skytorch.moon.magnitude`, :data:`PLANNER_MOON_QUADRATURE` nodes).
-    """
-    from skytorch.moon import magnitude
-
-    alpha = torch.linspace(0.0, math.pi, MOON_TABLE_PHASES, dtype=torch.float64)
-    distance = torch.linspace(*MOON_TABLE_DISTANCE_RANGE_M, MOON_TABLE_DISTANCES,
-                              dtype=torch.float64)
-    options = {"distance_m": distance[None, :], "n_quadrature": PLANNER_MOON_QUADRATURE}
-    fluxes = [10.0 ** (-0.4 * magnitude(alpha[:, None], earthshine=earthshine, **options))
-              for earthshine in (True, False)]
-    return alpha.numpy(), distance.numpy(), torch.stack(fluxes, -1).numpy()
 
 
 def _eclipse_bounds(geometry: Geometry) -> float:
@@ -334,10 +182,12 @@ def _above_horizon(altitude_deg: float) -> bool:
     return math.radians(altitude_deg) + SEMI_DIAMETER_RAD + HORIZON_REFRACTION_RAD > 0.0
 
 
-def _pixel_moves(scene, view, altitude_deg: float, azimuth_deg: float) -> tuple[bool, float]:
+def _pixel_moves(resources: SceneResources, elevation_m: float, view, altitude_deg: float,
+                 azimuth_deg: float) -> tuple[bool, float]:
     """Whether refraction moves a point to another pixel, and the shift [rad]."""
     true = torch.tensor([math.radians(altitude_deg)], dtype=torch.float64)
-    apparent = torch.tensor([refracted_altitude(scene, math.radians(altitude_deg))],
+    apparent = torch.tensor([resources.refracted_altitude(elevation_m,
+                                                          math.radians(altitude_deg))],
                             dtype=torch.float64)
     azimuth = torch.tensor([math.radians(azimuth_deg)], dtype=torch.float64)
     before = view.pixel_index(true, azimuth)
@@ -345,14 +195,21 @@ def _pixel_moves(scene, view, altitude_deg: float, azimuth_deg: float) -> tuple[
     return bool((before != after).any()), float((apparent - true).abs().max())
 
 
-def plan(scene, view=None) -> Plan:
+def plan(scene, view=None, resources: SceneResources | None = None,
+         geometry: Geometry | None = None) -> Plan:
     """Decide which effects of ``scene`` to compute.
 
     Parameters
     ----------
     scene : skytorch.scene.Scene
+        One observer.
     view : skytorch.scene.scene.View, optional
         The scene's view (built when not given).
+    resources : SceneResources, optional
+        Tables of the scene's spec (default: ``scene.resources()``).
+    geometry : Geometry, optional
+        The Sun and Moon at the scene's observer and instant (default: from
+        ``resources``).
 
     Returns
     -------
@@ -360,21 +217,24 @@ def plan(scene, view=None) -> Plan:
         ``computed`` and ``skipped`` (with reasons), estimated flux shares, geometry.
     """
     start = _time.perf_counter()
-    view = scene.make_view() if view is None else view
-    g = scene_geometry(scene)
+    resources = scene.resources() if resources is None else resources
+    resources.check(scene)
+    view = scene.make_view(resources) if view is None else view
+    g = resources.geometry(scene) if geometry is None else geometry
+    elevation = float(scene.elevation_m)
     tol = scene.tolerance
     decided: dict[str, tuple[bool, str]] = {}
     shares: dict[str, float] = {}
     points = view.kind != "directions"
 
     natural = _surface_flux(scene.natural_mag_arcsec2)
-    sky = _sky_flux(scene, g)
+    sky = _sky_flux(resources, elevation, g)
     sun_up = _above_horizon(g.sun_altitude_deg)
     moon_up = _above_horizon(g.moon_altitude_deg)
     sun = _flux(SUN_V_MAG) if sun_up and points else 0.0
-    moon_total, earthshine = _moon_fluxes(g)
+    moon_total, earthshine = resources.moon_fluxes(g)
     moon = moon_total if moon_up else 0.0
-    star_flux = 0.5 * integrated_starlight(float(scene.star_limit_mag)) if points else 0.0
+    star_flux = 0.5 * resources.integrated_starlight(scene.star_limit_mag) if points else 0.0
     total = natural + sky + sun + moon + star_flux
 
     def share(name, value):
@@ -438,10 +298,12 @@ def plan(scene, view=None) -> Plan:
     moved = []
     if points:
         if decided["sun"][0] or "sun" in scene.force:
-            moves, shift = _pixel_moves(scene, view, g.sun_altitude_deg, g.sun_azimuth_deg)
+            moves, shift = _pixel_moves(resources, elevation, view,
+                                         g.sun_altitude_deg, g.sun_azimuth_deg)
             moved.append(("Sun", moves, shift))
         if moon_on:
-            moves, shift = _pixel_moves(scene, view, g.moon_altitude_deg, g.moon_azimuth_deg)
+            moves, shift = _pixel_moves(resources, elevation, view,
+                                         g.moon_altitude_deg, g.moon_azimuth_deg)
             moved.append(("Moon", moves, shift))
     if stars_on:
         decided["refraction"] = (True, "stars near the horizon move by more than a pixel")
@@ -475,11 +337,6 @@ def plan(scene, view=None) -> Plan:
     result = Plan(tuple(computed), skipped, shares, g, _time.perf_counter() - start)
     logger.info("plan: computed %s; skipped %s", result.computed, result.skipped)
     return result
-
-
-def clear_cache() -> None:
-    """Forget the geometry cached per time and site (a planner meeting a new instant)."""
-    clear_geometry()
 
 
 def _moon_radius() -> float:

@@ -34,42 +34,92 @@ occulted):
 
 from __future__ import annotations
 
-import hashlib
-import json
 import logging
 import math
 import time as _time
-from functools import lru_cache
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from skytorch._validate import as_tensor
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MOON_RADIUS_M, SUN_RADIUS_M
-from skytorch.scene.planner import EFFECTS, FIDELITY, HORIZON_REFRACTION_RAD, Plan, catalogue
+from skytorch.dataset import VariableSpec, coordinate, time_coordinate, variable
+from skytorch.scene.dataset import scene_dataset, stack_frames
+from skytorch.scene.planner import Plan
 from skytorch.scene.planner import plan as make_plan
-from skytorch.scene.resources import _star_site_tables, cached_atmosphere, refracted_altitude
+from skytorch.scene.presets import FIDELITY, HORIZON_REFRACTION_RAD, RESOLVED_DISC_PIXELS
+from skytorch.scene.resources import SceneResources
 from skytorch.scene.scene import Scene
-from skytorch.scene.tonemap import tonemap
 
 logger = logging.getLogger(__name__)
 
 #: components of an image, in composition order
 COMPONENTS = ("natural", "sky", "skyglow", "stars", "moon", "sun")
-#: pixels a disc must cover to be shaded pixel by pixel (fewer: the disc-averaged factor)
-RESOLVED_DISC_PIXELS = 16
 #: largest view zenith angle of the moonlit-sky table [rad] (its valid range is < 90°)
 _MAX_MOONLIT_ZENITH = math.radians(89.9)
 
 
-@lru_cache(maxsize=8)
-def _transmittance_table(turbidity: float, ozone_du: float, wavelengths: tuple, n_mu: int,
-                         n_r: int):
-    from skytorch.atmosphere.tables import TransmittanceTable
+@dataclass(frozen=True, eq=False)
+class Knobs:
+    """What a renderer reads besides its resources, view, geometry and wavelengths.
 
-    return TransmittanceTable.build(cached_atmosphere(turbidity, ozone_du),
-                                    torch.tensor(wavelengths, dtype=torch.float64),
-                                    cache=True, n_mu=n_mu, n_r=n_r)
+    ``knobs[name]`` reads the fidelity preset (:data:`skytorch.scene.presets.FIDELITY`);
+    the attributes are the scene's settings of one observer and instant and the planner's
+    decisions that change how a component is drawn.
+
+    Attributes
+    ----------
+    fidelity : mapping
+        The modules' knobs of the scene's fidelity preset.
+    dtype : torch.dtype
+        Floating type of the images.
+    time : numpy.datetime64
+        UTC instant.
+    lat_deg, lon_deg, elevation_m : float
+        The observer [degree, degree, m].
+    refraction, earthshine, eclipse : bool
+        Effects the planner computes.
+    star_limit_mag, natural_mag_arcsec2, natural_model, airglow_fraction, airglow_height_m
+        The scene's settings of the stars and the natural background.
+    light_map, observer_xy, lamp
+        The scene's city lights.
+    """
+
+    fidelity: Mapping
+    dtype: torch.dtype
+    time: object
+    lat_deg: float
+    lon_deg: float
+    elevation_m: float
+    refraction: bool = False
+    earthshine: bool = False
+    eclipse: bool = False
+    star_limit_mag: float = 6.5
+    natural_mag_arcsec2: float = 22.0
+    natural_model: str = "garstang1989"
+    airglow_fraction: float = 0.6
+    airglow_height_m: float = 90_000.0
+    light_map: object = None
+    observer_xy: tuple = (0.0, 0.0)
+    lamp: str = "white"
+
+    def __getitem__(self, name: str):
+        return self.fidelity[name]
+
+    @classmethod
+    def of(cls, scene, plan: Plan | None = None) -> Knobs:
+        """The knobs of a one-observer scene and its plan (no effect flags without one)."""
+        computed = () if plan is None else plan.computed
+        return cls(FIDELITY[scene.fidelity], scene.dtype, scene.time, float(scene.lat_deg),
+                   float(scene.lon_deg), float(scene.elevation_m),
+                   refraction="refraction" in computed, earthshine="earthshine" in computed,
+                   eclipse="eclipse" in computed, star_limit_mag=scene.star_limit_mag,
+                   natural_mag_arcsec2=scene.natural_mag_arcsec2,
+                   natural_model=scene.natural_model, airglow_fraction=scene.airglow_fraction,
+                   airglow_height_m=scene.airglow_height_m, light_map=scene.light_map,
+                   observer_xy=tuple(scene.observer_xy), lamp=scene.lamp)
 
 
 def _zenith_nodes(n: int, dtype) -> torch.Tensor:
@@ -101,22 +151,21 @@ def _lookup(table: torch.Tensor, zenith: torch.Tensor, relative_azimuth: torch.T
     return out[0, :, 0, :].T.reshape(*zenith.shape, n_wl)
 
 
-def sky_table(scene, geometry, knobs, wavelength):
+def sky_table(resources, geometry, knobs, wavelength):
     """Sunlit-sky spectral radiance on the (zenith, relative azimuth) grid (z, a, wl)."""
-    atm = scene.atmosphere()
+    atm = resources.atmosphere
     n_z, n_a = knobs["sky_lut"]
     zenith = _zenith_nodes(n_z, torch.float64)
     azimuth = _azimuth_nodes(n_a, torch.float64)
     z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
     sun_zenith = torch.full_like(z, math.radians(90.0 - geometry.sun_altitude_deg))
-    table = _transmittance_table(float(scene.turbidity), float(scene.ozone_du),
-                                 tuple(wavelength.tolist()), *knobs["transmittance"])
+    table = resources.transmittance_table(*knobs["transmittance"])
     return atm.sky_radiance(wavelength.to(torch.float64), z, a, sun_zenith,
-                            torch.zeros_like(z), scene.elevation_m, solar_irradiance=True,
+                            torch.zeros_like(z), knobs.elevation_m, solar_irradiance=True,
                             n_samples=knobs["sky_samples"], table=table)
 
 
-def moon_table(scene, geometry, knobs, wavelength):
+def moon_table(resources, geometry, knobs, wavelength):
     """Moonlit-sky spectral radiance on the (zenith, relative azimuth) grid (z, a, wl)."""
     from skytorch.moon.sky import moonlit_sky_single_scattering
 
@@ -126,23 +175,14 @@ def moon_table(scene, geometry, knobs, wavelength):
     z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
     moon_zenith = min(math.radians(90.0 - geometry.moon_altitude_deg), _MAX_MOONLIT_ZENITH)
     return moonlit_sky_single_scattering(
-        scene.atmosphere(), torch.tensor(geometry.phase_angle_rad, dtype=torch.float64),
+        resources.atmosphere, torch.tensor(geometry.phase_angle_rad, dtype=torch.float64),
         torch.tensor(moon_zenith, dtype=torch.float64), z, a,
         wavelength_nm=wavelength.to(torch.float64), distance_m=geometry.moon_distance_m,
-        altitude_m=scene.elevation_m, n_steps=knobs["moon_steps"],
+        altitude_m=knobs.elevation_m, n_steps=knobs["moon_steps"],
         n_quadrature=knobs["moon_quadrature"])
 
 
-@lru_cache(maxsize=8)
-def cached_shadow(turbidity: float, ozone_du: float):
-    """The Earth's shadow (:meth:`skytorch.eclipse.Shadow.earth`) for the scene's atmosphere;
-    shared, so its ring table is traced once per atmosphere and wavelength grid."""
-    from skytorch.eclipse import Shadow
-
-    return Shadow.earth(cached_atmosphere(turbidity, ozone_du))
-
-
-def shadow_illuminance(scene, geometry, points_m: torch.Tensor, wavelength) -> torch.Tensor:
+def shadow_illuminance(resources, geometry, points_m: torch.Tensor, wavelength) -> torch.Tensor:
     """Relative illuminance of the Earth's shadow (n, wl) at points (n, 3) [m].
 
     The points are given from the observer in the horizontal frame (north, east, up);
@@ -156,8 +196,7 @@ def shadow_illuminance(scene, geometry, points_m: torch.Tensor, wavelength) -> t
     geocentric = points_m.to(torch.float64) + observer
     along = -(geocentric @ axis)
     offset = torch.linalg.vector_norm(geocentric + along[..., None] * axis, dim=-1)
-    shadow = cached_shadow(float(scene.turbidity), float(scene.ozone_du))
-    return shadow.relative_illuminance(along, offset, wavelength.to(torch.float64),
+    return resources.shadow.relative_illuminance(along, offset, wavelength.to(torch.float64),
                                        sun_distance_m=sun_distance)
 
 
@@ -198,7 +237,8 @@ class MoonDisc:
 
     Parameters
     ----------
-    scene : Scene
+    resources : SceneResources
+        The scene's tables (its shadow).
     geometry : Geometry
         Sun and Moon at the observer (:mod:`skytorch.scene.geometry`).
     wavelength : Tensor (wavelength,)
@@ -222,9 +262,9 @@ class MoonDisc:
     distances Moon–Sun and Moon–observer of the scene's geometry.
     """
 
-    def __init__(self, scene, geometry, wavelength, apparent_altitude_rad: float, *,
+    def __init__(self, resources, geometry, wavelength, apparent_altitude_rad: float, *,
                  earthshine: bool, eclipse: bool):
-        self.scene, self.geometry, self.wavelength = scene, geometry, wavelength
+        self.resources, self.geometry, self.wavelength = resources, geometry, wavelength
         self.earthshine, self.eclipse = earthshine, eclipse
         self.centre = torch.tensor(geometry.moon_horizontal_m, dtype=torch.float64)
         line = self.centre / torch.linalg.vector_norm(self.centre)
@@ -243,7 +283,7 @@ class MoonDisc:
         s = self.axes @ (to_sun / torch.linalg.vector_norm(to_sun))
         self.phase_angle_rad = torch.atan2(torch.linalg.vector_norm(s[:2]), s[2])
         self.bright_limb_rad = torch.atan2(-s[0], s[1])
-        self.mean_shadow = eclipse_factor(scene, geometry, wavelength, disc=self) \
+        self.mean_shadow = eclipse_factor(resources, geometry, wavelength, disc=self) \
             if eclipse else None
 
     def normals(self, directions: torch.Tensor) -> torch.Tensor:
@@ -276,7 +316,7 @@ class MoonDisc:
         if directions is None:
             return self.mean_shadow
         normals = self.normals(directions)
-        shadow = (shadow_illuminance(self.scene, self.geometry, self.points(normals),
+        shadow = (shadow_illuminance(self.resources, self.geometry, self.points(normals),
                                      self.wavelength) if self.eclipse else None)
         return self.radiance(normals), shadow
 
@@ -294,7 +334,7 @@ class MoonDisc:
         return math.asin(float(point[2])), math.atan2(float(point[1]), float(point[0]))
 
 
-def eclipse_factor(scene, geometry, wavelength, n_disc: int = 8, disc=None) -> torch.Tensor:
+def eclipse_factor(resources, geometry, wavelength, n_disc: int = 8, disc=None) -> torch.Tensor:
     """Relative illuminance of the Earth's shadow averaged over the Moon's visible disc
     (n_wavelength,), weighted by the uneclipsed radiance of the disc (the flux-weighted
     mean over :func:`skytorch.moon.disc_grid` points, 8 × 16 polar nodes by default).
@@ -306,12 +346,13 @@ def eclipse_factor(scene, geometry, wavelength, n_disc: int = 8, disc=None) -> t
 
     grid = disc_grid(n_disc, dtype=torch.float64)
     if disc is None:
-        disc = MoonDisc(scene, geometry, wavelength, math.radians(geometry.moon_altitude_deg),
+        disc = MoonDisc(resources, geometry, wavelength,
+                        math.radians(geometry.moon_altitude_deg),
                         earthshine=False, eclipse=False)
         weight = grid["weight"][:, None]
     else:
         weight = grid["weight"][:, None] * disc.radiance(grid["normal"])
-    factor = shadow_illuminance(scene, geometry, disc.points(grid["normal"]), wavelength)
+    factor = shadow_illuminance(resources, geometry, disc.points(grid["normal"]), wavelength)
     total = weight.sum(0)
     return torch.where(total > 0, (weight * factor).sum(0) / total.clamp(min=1e-300),
                        factor.mean(0))
@@ -376,16 +417,17 @@ def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux
     return image.to(dtype)
 
 
-def _apparent(scene, altitude_deg: float, refraction: bool) -> float:
+def _apparent(resources, knobs, altitude_deg: float) -> float:
     true = math.radians(altitude_deg)
-    return refracted_altitude(scene, true) if refraction else true
+    return (resources.refracted_altitude(knobs.elevation_m, true) if knobs.refraction
+            else true)
 
 
-def _point_transmittance(scene, altitude_rad: float, wavelength) -> torch.Tensor:
+def _point_transmittance(resources, knobs, altitude_rad: float, wavelength) -> torch.Tensor:
     zenith = min(0.5 * math.pi - altitude_rad, 0.5 * math.pi)
-    return scene.atmosphere().transmittance(wavelength.to(torch.float64),
-                                            torch.tensor(zenith, dtype=torch.float64),
-                                            scene.elevation_m)
+    return resources.atmosphere.transmittance(wavelength.to(torch.float64),
+                                              torch.tensor(zenith, dtype=torch.float64),
+                                              knobs.elevation_m)
 
 
 def natural_gradient(zenith_rad, airglow_fraction: float = 0.6,
@@ -450,22 +492,21 @@ def natural_gradient(zenith_rad, airglow_fraction: float = 0.6,
 NATURAL_BACKGROUND_BV = 0.65
 
 
-def natural_extinction(scene, view, refraction: bool) -> torch.Tensor:
+def natural_extinction(resources, view, knobs) -> torch.Tensor:
     r"""Extinction of the natural background relative to the zenith (*view) [1].
 
     :math:`10^{-0.4\,[\Delta m(h) - \Delta m(90°)]}`, with :math:`\Delta m(h)` the V-band
     extinction of a source of solar colour (B−V = :data:`NATURAL_BACKGROUND_BV`) seen at
     apparent altitude :math:`h` through the scene's atmosphere
     (:func:`skytorch.stars.extinction_table`: the V-band optical depth along the path,
-    refracted when ``refraction``; the zenith extinction coefficient :math:`k` times the
+    refracted when ``knobs.refraction``; the zenith extinction coefficient :math:`k` times the
     air mass :math:`X`, with the curvature of the band at large air mass). Relative to the
-    zenith because the zenith value ``scene.natural_mag_arcsec2`` is an observed one,
+    zenith because the zenith value ``knobs.natural_mag_arcsec2`` is an observed one,
     extinction included.
     """
     from skytorch.stars import extinction
 
-    _, table = _star_site_tables(float(scene.turbidity), float(scene.ozone_du),
-                                 float(scene.elevation_m), bool(refraction))
+    table = resources.extinction_table(knobs.elevation_m, knobs.refraction)
     altitude = (0.5 * math.pi - view.zenith_rad.to(torch.float64)).reshape(1, -1)
     bv = torch.tensor([NATURAL_BACKGROUND_BV], dtype=torch.float64)
     delta, _ = extinction(bv, torch.cat([altitude.new_full((1, 1), 0.5 * math.pi), altitude],
@@ -473,13 +514,14 @@ def natural_extinction(scene, view, refraction: bool) -> torch.Tensor:
     return (10.0 ** (-0.4 * (delta[0, 1:] - delta[0, 0]))).reshape(view.zenith_rad.shape)
 
 
-def natural_component(scene, view, wavelength, refraction: bool = False) -> torch.Tensor:
-    r"""Natural background (*view, wl) [W m^-2 sr^-1 nm^-1]: ``scene.natural_mag_arcsec2``
+def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
+    r"""Natural background (*view, wl) [W m^-2 sr^-1 nm^-1]: ``knobs.natural_mag_arcsec2``
     at the zenith with the solar spectral shape (zodiacal light is scattered sunlight).
 
-    By ``scene.natural_model``: ``"garstang1989"`` multiplies it by
+    By ``knobs.natural_model``: ``"garstang1989"`` multiplies it by
     :func:`natural_gradient` and :func:`natural_extinction` (refracted paths when
-    ``refraction``), ``"vanrhijn1921"`` by the gradient alone, ``"constant"`` by 1.
+    ``knobs.refraction``), ``"vanrhijn1921"`` by the gradient alone, ``"constant"`` by 1
+    (``geometry`` is not used: the background does not depend on the Sun and Moon).
 
     Notes
     -----
@@ -506,70 +548,70 @@ def natural_component(scene, view, wavelength, refraction: bool = False) -> torc
 
     shape = solar_irradiance(wavelength.to(torch.float64))
     mag = float(radiance_to_mag_arcsec2(shape, wavelength.to(torch.float64)))
-    spectrum = shape * 10.0 ** (-0.4 * (scene.natural_mag_arcsec2 - mag))
-    valid = view.valid[..., None].to(scene.dtype)
-    image = valid * spectrum.to(scene.dtype)
-    if scene.natural_model == "constant":
+    spectrum = shape * 10.0 ** (-0.4 * (knobs.natural_mag_arcsec2 - mag))
+    valid = view.valid[..., None].to(knobs.dtype)
+    image = valid * spectrum.to(knobs.dtype)
+    if knobs.natural_model == "constant":
         return image
-    factor = natural_gradient(view.zenith_rad.to(torch.float64), scene.airglow_fraction,
-                              scene.airglow_height_m, scene.atmosphere().planet_radius_m,
-                              float(scene.elevation_m))
-    if scene.natural_model == "garstang1989":
-        factor = factor * natural_extinction(scene, view, refraction)
-    return image * factor[..., None].to(scene.dtype)
+    factor = natural_gradient(view.zenith_rad.to(torch.float64), knobs.airglow_fraction,
+                              knobs.airglow_height_m, resources.atmosphere.planet_radius_m,
+                              float(knobs.elevation_m))
+    if knobs.natural_model == "garstang1989":
+        factor = factor * natural_extinction(resources, view, knobs)
+    return image * factor[..., None].to(knobs.dtype)
 
 
-def sun_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
+def sun_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
     """The solar disc (*view, wl) [W m^-2 sr^-1 nm^-1]: extraterrestrial irradiance times
     the transmittance at its (refracted) altitude, spread over its pixels."""
     from skytorch.spectrum import solar_irradiance
 
-    altitude = _apparent(scene, geometry.sun_altitude_deg, refraction)
+    altitude = _apparent(resources, knobs, geometry.sun_altitude_deg)
     flux = (solar_irradiance(wavelength.to(torch.float64))
-            * _point_transmittance(scene, max(altitude, 0.0), wavelength))
+            * _point_transmittance(resources, knobs, max(altitude, 0.0), wavelength))
     flux = flux * (ASTRONOMICAL_UNIT_M / geometry.sun_distance_m) ** 2
     radius = math.asin(SUN_RADIUS_M / geometry.sun_distance_m)
     return _disc(view, altitude, math.radians(geometry.sun_azimuth_deg), radius, flux,
-                 scene.dtype)
+                 knobs.dtype)
 
 
-def moon_component(scene, view, geometry, wavelength, knobs, *, earthshine: bool,
-                   eclipse: bool, refraction: bool) -> torch.Tensor:
+def moon_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
     """The Moon (*view, wl) [W m^-2 sr^-1 nm^-1]: its disc (irradiance times transmittance,
     shaded pixel by pixel by the lunar reflectance law for the topocentric Sun–Moon–observer
-    geometry and, with ``eclipse``, by the Earth's shadow at the lunar surface each pixel
+    geometry and, with ``knobs.eclipse``, by the Earth's shadow at the lunar surface each pixel
     sees: :class:`MoonDisc`) plus the moonlit sky (times the disc-averaged shadow)."""
     from skytorch.moon import lunar_irradiance
 
     wl = wavelength.to(torch.float64)
-    altitude = _apparent(scene, geometry.moon_altitude_deg, refraction)
+    earthshine, eclipse = knobs.earthshine, knobs.eclipse
+    altitude = _apparent(resources, knobs, geometry.moon_altitude_deg)
     irradiance = lunar_irradiance(torch.tensor(geometry.phase_angle_rad, dtype=torch.float64),
                                   wl, distance_m=geometry.moon_distance_m,
                                   sun_distance_m=geometry.moon_sun_distance_m,
                                   earthshine=earthshine,
                                   n_quadrature=knobs["moon_disc_quadrature"])
-    flux = irradiance * _point_transmittance(scene, max(altitude, 0.0), wavelength)
-    pattern = MoonDisc(scene, geometry, wavelength, altitude, earthshine=earthshine,
+    flux = irradiance * _point_transmittance(resources, knobs, max(altitude, 0.0), wavelength)
+    pattern = MoonDisc(resources, geometry, wavelength, altitude, earthshine=earthshine,
                        eclipse=eclipse)
     disc = _disc(view, altitude, math.radians(geometry.moon_azimuth_deg),
-                 geometry.moon_radius_rad, flux, scene.dtype, pattern)
+                 geometry.moon_radius_rad, flux, knobs.dtype, pattern)
     if altitude < 0.0:  # below the horizon: single scattering of a set Moon is omitted
         return disc
-    table = moon_table(scene, geometry, knobs, wavelength)
+    table = moon_table(resources, geometry, knobs, wavelength)
     if eclipse:
         table = table * pattern.mean_shadow
     relative = view.azimuth_rad.to(torch.float64) - math.radians(geometry.moon_azimuth_deg)
     sky = _lookup(table, view.zenith_rad.to(torch.float64).clamp(max=_MAX_MOONLIT_ZENITH),
                   relative)
-    return disc + sky.to(scene.dtype) * view.valid[..., None].to(scene.dtype)
+    return disc + sky.to(knobs.dtype) * view.valid[..., None].to(knobs.dtype)
 
 
-def sky_component(scene, view, geometry, wavelength, knobs) -> torch.Tensor:
+def sky_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
     """Single-scattered sunlight (*view, wl) [W m^-2 sr^-1 nm^-1] from the sky table."""
-    table = sky_table(scene, geometry, knobs, wavelength)
+    table = sky_table(resources, geometry, knobs, wavelength)
     relative = view.azimuth_rad.to(torch.float64) - math.radians(geometry.sun_azimuth_deg)
     sky = _lookup(table, view.zenith_rad.to(torch.float64), relative)
-    return sky.to(scene.dtype) * view.valid[..., None].to(scene.dtype)
+    return sky.to(knobs.dtype) * view.valid[..., None].to(knobs.dtype)
 
 
 def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tensor:
@@ -583,63 +625,42 @@ def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tens
     return shape * (10.0 ** (-0.4 * (vmag - mag)))[:, None]
 
 
-@lru_cache(maxsize=4)
-def _catalogue_spectra(limit_magnitude: float, wavelengths: tuple) -> torch.Tensor:
-    """Spectra of V = 0 for every catalogue star (star, wl), cached."""
-    bv = torch.as_tensor(catalogue(limit_magnitude)["bv"].values, dtype=torch.float64)
-    bv = torch.nan_to_num(bv, nan=0.65)  # stars without B-V: solar colour
-    return star_spectra(torch.zeros_like(bv), bv, torch.tensor(wavelengths,
-                                                               dtype=torch.float64))
-
-
-@lru_cache(maxsize=4)
-def _star_vectors(limit_magnitude: float):
-    from skytorch.stars import star_vectors
-
-    cat = catalogue(limit_magnitude)
-    vectors = star_vectors(cat["ra"].values, cat["dec"].values, cat["pm_ra"].values,
-                           cat["pm_dec"].values, cat["parallax"].values, dtype=torch.float64)
-    return (vectors, torch.as_tensor(cat["vmag"].values, dtype=torch.float64),
-            torch.as_tensor(cat["bv"].values, dtype=torch.float64),
-            float(cat.attrs.get("epoch_jyear", 2000.0)))
-
-
-def stars_component(scene, view, geometry, wavelength, refraction) -> torch.Tensor:
+def stars_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
     """Catalogue stars at their apparent places with extincted magnitudes (tensor layer of
-    :func:`skytorch.stars.observe`: positions, refraction and extinction tables cached);
+    :func:`skytorch.stars.observe`: positions, refraction and extinction tables from the
+    resources);
     stars behind the Moon's disc (:func:`occulted`) are left out."""
     from skytorch.ephemeris import parse_times
     from skytorch.stars import observe_tensors, time_operators
 
-    vectors, vmag, bv, epoch = _star_vectors(float(scene.star_limit_mag))
-    operators, velocity = time_operators(parse_times([scene.time]), float(scene.lat_deg),
-                                         float(scene.lon_deg), float(scene.elevation_m),
+    vectors, vmag, bv, epoch = resources.star_vectors(knobs.star_limit_mag)
+    operators, velocity = time_operators(parse_times([knobs.time]), float(knobs.lat_deg),
+                                         float(knobs.lon_deg), float(knobs.elevation_m),
                                          epoch_jyear=epoch)
-    refraction_tab, extinction_tab = _star_site_tables(
-        float(scene.turbidity), float(scene.ozone_du), float(scene.elevation_m),
-        bool(refraction))
+    refraction_tab, extinction_tab = resources.star_site_tables(knobs.elevation_m,
+                                                                knobs.refraction)
     result = observe_tensors(vectors, vmag, bv, operators, velocity, refraction_tab,
                              extinction_tab)
     altitude, azimuth = result["altitude"][0], result["azimuth"][0]
-    up = (altitude > 0) & ~occulted(scene, geometry, altitude, azimuth, refraction)
+    up = (altitude > 0) & ~occulted(resources, geometry, altitude, azimuth, knobs)
     mag = result["magnitude"][0][up]
-    unit = _catalogue_spectra(float(scene.star_limit_mag), tuple(wavelength.tolist()))[up]
+    unit = resources.catalogue_spectra(knobs.star_limit_mag, star_spectra)[up]
     flux = unit * (10.0 ** (-0.4 * mag))[:, None]
-    return _splat(view, altitude[up], azimuth[up], flux, wavelength.numel(), scene.dtype)
+    return _splat(view, altitude[up], azimuth[up], flux, wavelength.numel(), knobs.dtype)
 
 
-def occulted(scene, geometry, altitude_rad, azimuth_rad, refraction: bool) -> torch.Tensor:
+def occulted(resources, geometry, altitude_rad, azimuth_rad, knobs) -> torch.Tensor:
     """Whether points (star,) at apparent altitude and azimuth [rad] lie behind the Moon.
 
     A point is occulted when its angular distance from the Moon's apparent (refracted when
-    ``refraction``) centre is less than the Moon's topocentric angular radius. Both places
+    ``knobs.refraction``) centre is less than the Moon's topocentric angular radius. Both places
     are refracted alike, so the small flattening of the disc by differential refraction
     (under 1 % of its radius above 10° altitude) is neglected.
     """
     if (math.radians(geometry.moon_altitude_deg) + geometry.moon_radius_rad
             + HORIZON_REFRACTION_RAD < 0.0):  # below the horizon even when refracted
         return torch.zeros(altitude_rad.shape, dtype=torch.bool)
-    moon = _apparent(scene, geometry.moon_altitude_deg, refraction)
+    moon = _apparent(resources, knobs, geometry.moon_altitude_deg)
     moon_azimuth = math.radians(geometry.moon_azimuth_deg)
     altitude = altitude_rad.to(torch.float64)
     azimuth = azimuth_rad.to(torch.float64)
@@ -648,78 +669,13 @@ def occulted(scene, geometry, altitude_rad, azimuth_rad, refraction: bool) -> to
     return cosine > math.cos(geometry.moon_radius_rad)
 
 
-@lru_cache(maxsize=1)
-def _skyglow_code_hash() -> str:
-    """Hash of the skyglow and atmosphere sources: a changed model rebuilds cached tables."""
-    from pathlib import Path
-
-    import skytorch.atmosphere
-    import skytorch.skyglow
-
-    digest = hashlib.sha256()
-    for package in (skytorch.skyglow, skytorch.atmosphere):
-        for path in sorted(Path(package.__file__).parent.glob("*.py")):
-            digest.update(path.read_bytes())
-    return digest.hexdigest()
-
-
-def _skyglow_key(scene, wavelength, settings) -> str:
-    """SHA-256 (hex) of everything a scene's skyglow model depends on: the atmosphere,
-    the wavelengths, the fidelity's settings and the skyglow and atmosphere sources."""
-    text = json.dumps({"turbidity": float(scene.turbidity), "ozone_du": float(scene.ozone_du),
-                       "wavelength": [float(v) for v in wavelength.tolist()],
-                       "settings": settings, "code": _skyglow_code_hash(), "format": 1},
-                      sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-#: skyglow models kept in memory (besides the disk cache)
-_SKYGLOW_MODELS_IN_MEMORY = 4
-_skyglow_models: dict = {}
-
-
-def skyglow_cache_path(scene, wavelength, settings):
-    """Cache file of the scene's skyglow model, and the parameter hash it must carry."""
-    from skytorch.atmosphere.tables import cache_directory
-
-    key = _skyglow_key(scene, wavelength, settings)
-    return cache_directory() / f"skyglow_{key[:16]}.nc", key
-
-
-def skyglow_model(scene, wavelength, settings):
-    """The skyglow model for the scene's atmosphere and fidelity (cached on disk, and the
-    last few in memory).
-
-    The file is written with :func:`skytorch._cache.write_verified` (a record of its SHA-256
-    and of the parameter hash beside it) and read with
-    :func:`skytorch._cache.read_verified`: a corrupted, truncated or swapped file, or one
-    built for other parameters, is deleted and rebuilt, never served.
-    """
-    from skytorch._cache import read_verified, write_verified
-    from skytorch.skyglow import SkyglowModel
-
-    path, key = skyglow_cache_path(scene, wavelength, settings)
-    if key in _skyglow_models:
-        return _skyglow_models[key]
-    model = read_verified(path, key, SkyglowModel.load)
-    if model is None:
-        model = SkyglowModel.precompute(scene.atmosphere(), wavelength_nm=wavelength.to(
-            torch.float64), progress=False, **settings)
-        try:
-            write_verified(path, key, model.save)
-        except OSError as error:
-            logger.warning("could not cache the skyglow model at %s: %s", path, error)
-    while len(_skyglow_models) >= _SKYGLOW_MODELS_IN_MEMORY:
-        _skyglow_models.pop(next(iter(_skyglow_models)))
-    _skyglow_models[key] = model
-    return model
-
-
-def skyglow_component(scene, view, wavelength, knobs) -> torch.Tensor:
-    """City skyglow (*view, wl) [W m^-2 sr^-1 nm^-1] from the cached skyglow model."""
-    model = skyglow_model(scene, wavelength, knobs["skyglow"])
-    out = model.render(scene.light_map, observer_xy=tuple(scene.observer_xy),
-                       lamp=scene.lamp, as_dataset=False)
+def skyglow_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
+    """City skyglow (*view, wl) [W m^-2 sr^-1 nm^-1] from the resources' skyglow model
+    (:meth:`~skytorch.scene.resources.SceneResources.skyglow_model`, cached on disk;
+    ``geometry`` is not used)."""
+    model = resources.skyglow_model(knobs["skyglow"])
+    out = model.render(knobs.light_map, observer_xy=tuple(knobs.observer_xy),
+                       lamp=knobs.lamp, as_dataset=False)
     panorama = out["radiance"].to(torch.float64)  # (elevation, azimuth, wl)
     elevation = model.elevation_rad.to(torch.float64)
     azimuth = model.azimuth_rad.to(torch.float64)
@@ -736,7 +692,7 @@ def skyglow_component(scene, view, wavelength, knobs) -> torch.Tensor:
     sampled = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
                                               padding_mode="border", align_corners=True)
     sampled = sampled[0, :, 0, :].T.reshape(*view.shape, -1)
-    return sampled.to(scene.dtype) * view.valid[..., None].to(scene.dtype)
+    return sampled.to(knobs.dtype) * view.valid[..., None].to(knobs.dtype)
 
 
 def _fractional(nodes: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
@@ -748,12 +704,14 @@ def _fractional(nodes: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
     return position / (nodes.numel() - 1) * 2.0 - 1.0
 
 
-def render_components(scene, plan, view) -> tuple[dict, dict]:
-    """Spectral radiance of each component (*view, wl) and the seconds each took."""
-    knobs = FIDELITY[scene.fidelity]
-    wavelength = scene.wavelength_nm()
+def render_components(resources: SceneResources, plan: Plan, view, wavelength,
+                      knobs: Knobs) -> tuple[dict, dict]:
+    """Spectral radiance of each component (*view, wl) and the seconds each took.
+
+    Every component renderer takes ``(resources, view, geometry, wavelength, knobs)``; the
+    planner's decisions arrive as ``plan.computed`` and the flags of ``knobs``.
+    """
     g = plan.geometry
-    refraction = "refraction" in plan.computed
     components, seconds = {}, {}
 
     def timed(name, fn):
@@ -761,19 +719,17 @@ def render_components(scene, plan, view) -> tuple[dict, dict]:
         components[name] = fn()
         seconds[name] = _time.perf_counter() - start
 
-    timed("natural", lambda: natural_component(scene, view, wavelength, refraction))
+    timed("natural", lambda: natural_component(resources, view, g, wavelength, knobs))
     if "sky" in plan.computed:
-        timed("sky", lambda: sky_component(scene, view, g, wavelength, knobs))
+        timed("sky", lambda: sky_component(resources, view, g, wavelength, knobs))
     if "skyglow" in plan.computed:
-        timed("skyglow", lambda: skyglow_component(scene, view, wavelength, knobs))
+        timed("skyglow", lambda: skyglow_component(resources, view, g, wavelength, knobs))
     if "stars" in plan.computed:
-        timed("stars", lambda: stars_component(scene, view, g, wavelength, refraction))
+        timed("stars", lambda: stars_component(resources, view, g, wavelength, knobs))
     if "moon" in plan.computed:
-        timed("moon", lambda: moon_component(
-            scene, view, g, wavelength, knobs, earthshine="earthshine" in plan.computed,
-            eclipse="eclipse" in plan.computed, refraction=refraction))
+        timed("moon", lambda: moon_component(resources, view, g, wavelength, knobs))
     if "sun" in plan.computed:
-        timed("sun", lambda: sun_component(scene, view, g, wavelength, refraction))
+        timed("sun", lambda: sun_component(resources, view, g, wavelength, knobs))
     return components, seconds
 
 
@@ -782,40 +738,59 @@ def _check_scene(scene) -> None:
         raise TypeError(f"scene must be a skytorch.Scene; got {type(scene).__name__}")
 
 
-def render(scene, plan=None):
-    """Render ``scene`` to a Dataset (see :func:`scene_dataset`); a scene with several
-    observers goes to :func:`render_observers`.
+def _resources(scene, resources) -> SceneResources:
+    """The resources of a render: the scene's own, or the given ones (checked)."""
+    if resources is None:
+        return scene.resources()
+    if not isinstance(resources, SceneResources):
+        raise TypeError("resources must be a skytorch.scene.SceneResources (Scene.resources()) "
+                        f"or None; got {type(resources).__name__}")
+    resources.check(scene)
+    return resources
+
+
+def render(scene, plan=None, resources=None):
+    """Render ``scene`` to a Dataset (see :func:`skytorch.scene.dataset.scene_dataset`); a
+    scene with several observers goes to :func:`render_observers`.
 
     Parameters
     ----------
     scene : Scene
     plan : Plan, optional
         The planner's decision (:meth:`Scene.plan`; a list of them for several observers).
+    resources : SceneResources, optional
+        Tables of the scene's spec (default: ``scene.resources()``); a time series keeps
+        one and passes it to every render. ``ValueError`` when its spec is not the
+        scene's.
     """
     _check_scene(scene)
+    resources = _resources(scene, resources)
     if scene.several_observers:
-        return render_observers(scene, plan)
+        return render_observers(scene, plan, resources=resources)
     if plan is not None and not isinstance(plan, Plan):
         raise TypeError(f"plan must be a skytorch.scene.Plan (Scene.plan()) or None; got "
                         f"{type(plan).__name__}")
-    view = scene.make_view()
-    plan = make_plan(scene, view) if plan is None else plan
+    view = scene.make_view(resources)
+    plan = make_plan(scene, view, resources) if plan is None else plan
     start = _time.perf_counter()
-    components, seconds = render_components(scene, plan, view)
+    wavelength = scene.wavelength_nm()
+    components, seconds = render_components(resources, plan, view, wavelength,
+                                            Knobs.of(scene, plan))
     total = sum(components.values())
     seconds["total"] = _time.perf_counter() - start
     return scene_dataset(scene, view, plan, components, total, seconds)
 
 
-def render_observers(scene, plans=None):
+def render_observers(scene, plans=None, resources=None):
     """Render a scene with several observers, stacked along a dimension ``observer``.
 
     The Sun and Moon of all observers come from one ephemeris evaluation
-    (:func:`skytorch.scene.geometry.geometries`); each observer is planned on its own (the
-    Moon may be up for one and set for another) and its decisions are kept as the string
-    variables ``effects_computed`` and ``effects_skipped`` over ``observer``; the
-    Dataset attributes list the union of the computed effects. Coordinates ``latitude``,
-    ``longitude`` and ``elevation`` over ``observer`` give the sites.
+    (:meth:`skytorch.scene.resources.SceneResources.geometries`); each observer is planned
+    on its own (the Moon may be up for one and set for another) and its decisions are kept
+    as the string variables ``effects_computed`` and ``effects_skipped`` over
+    ``observer``; the Dataset attributes list the union of the computed effects.
+    Coordinates ``latitude``, ``longitude`` and ``elevation`` over ``observer`` give the
+    sites.
 
     Parameters
     ----------
@@ -823,16 +798,17 @@ def render_observers(scene, plans=None):
         With sequences ``lat_deg``, ``lon_deg``, ``elevation_m`` (``n_observers``).
     plans : list of Plan, optional
         One per observer (:meth:`Scene.plan`).
+    resources : SceneResources, optional
+        Shared by all the observers (default: ``scene.resources()``).
 
     Returns
     -------
     xarray.Dataset
     """
-    from skytorch.dataset import VariableSpec, coordinate, variable
-
     _check_scene(scene)
+    resources = _resources(scene, resources)
     singles = scene.observers()
-    plans = scene.plan() if plans is None else plans
+    plans = scene.plan(resources=resources) if plans is None else plans
     if isinstance(plans, Plan) and len(singles) == 1:
         plans = [plans]
     if not isinstance(plans, (list, tuple)) or not all(isinstance(p, Plan) for p in plans):
@@ -840,10 +816,12 @@ def render_observers(scene, plans=None):
                         f"{type(plans).__name__}")
     if len(plans) != len(singles):
         raise ValueError(f"plans: one per observer ({len(singles)}); got {len(plans)}")
-    frames = [render(single, plan) for single, plan in zip(singles, plans, strict=True)]
+    frames = [render(single, plan, resources)
+              for single, plan in zip(singles, plans, strict=True)]
     index = coordinate("observer", np.arange(len(singles)), VariableSpec(
         "1", "observer index", "Index of the observer."))
-    stacked = _stack(frames, "observer", index, f"Sky scene at {len(singles)} observers")
+    stacked = stack_frames(frames, "observer", index,
+                           f"Sky scene at {len(singles)} observers")
     for name, values, spec in (
             ("latitude", scene.lat_deg, VariableSpec(
                 "degree_north", "latitude", "WGS84 geodetic latitude of the observer.",
@@ -858,126 +836,13 @@ def render_observers(scene, plans=None):
     return stacked
 
 
-def scene_dataset(scene, view, plan, components, total, seconds):
-    """Dataset of a rendered scene: per-component and total radiance, XYZ, sRGB, V mag."""
-    from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
-    from skytorch.moon.sky import radiance_to_mag_arcsec2
-    from skytorch.spectrum import spectrum_to_xyz
-
-    wavelength = scene.wavelength_nm()
-    dims = view.dims
-    coords = {name: coordinate(name, values, _COORD_SPECS[name])
-              for name, values in view.coords.items()}
-    coords["wavelength"] = coordinate("wavelength", wavelength, VariableSpec(
-        "nm", "wavelength", "Vacuum wavelength.", "radiation_wavelength"))
-    coords["component"] = coordinate("component", np.array(list(components)), VariableSpec(
-        "1", "image component", "Light source of the component (see docs/scene.md)."))
-    data = {
-        "altitude": variable(dims, 90.0 - torch.rad2deg(view.zenith_rad), VariableSpec(
-            "degree", "altitude of the view direction", "Above the horizon.")),
-        "azimuth_of_view": variable(dims, torch.rad2deg(view.azimuth_rad), VariableSpec(
-            "degree", "azimuth of the view direction", "From north through east.")),
-        "solid_angle": variable(dims, view.solid_angle_sr, VariableSpec(
-            "sr", "pixel solid angle", "Solid angle of each pixel (0 off the sky).")),
-    }
-    outputs = scene.outputs
-    if "spectral" in outputs:
-        data["radiance"] = variable((*dims, "wavelength"), total, VariableSpec(
-            "W m-2 sr-1 nm-1", "sky spectral radiance", "Sum of the components."))
-        data["component_radiance"] = variable(
-            ("component", *dims, "wavelength"), torch.stack(list(components.values())),
-            VariableSpec("W m-2 sr-1 nm-1", "spectral radiance of each component",
-                         "Radiance of each light source; the sum is radiance."))
-    xyz = spectrum_to_xyz(total, wavelength, luminous=True)
-    if "xyz" in outputs:
-        coords["tristimulus"] = coordinate("tristimulus", np.array(["X", "Y", "Z"]), VariableSpec(
-            "1", "CIE 1931 tristimulus", "X, Y, Z"))
-        data["xyz"] = variable((*dims, "tristimulus"), xyz, VariableSpec(
-            "cd m-2", "CIE 1931 XYZ", "Tristimulus values with K_m = 683 lm/W (Y is "
-            "luminance)."))
-        data["luminance"] = variable(dims, xyz[..., 1], VariableSpec(
-            "cd m-2", "luminance", "Photopic luminance of the sky.",
-            "surface_photopic_radiance"))
-    if "srgb" in outputs:
-        coords["channel"] = coordinate("channel", np.array(["R", "G", "B"]), VariableSpec(
-            "1", "sRGB channel", "R, G, B"))
-        rgb, exposure = tonemap(xyz, view.valid)
-        data["srgb"] = variable((*dims, "channel"), rgb, VariableSpec(
-            "1", "tone-mapped sRGB", "Display sRGB in [0, 1] (exposure and Reinhard "
-            "operator, skytorch.scene.tonemap)."))
-    if "v_mag" in outputs:
-        mags = radiance_to_mag_arcsec2(total.to(torch.float64).clamp(min=1e-300),
-                                       wavelength.to(torch.float64))
-        mags = torch.where(view.valid, mags, torch.full_like(mags, float("nan")))
-        data["v_mag_arcsec2"] = variable(dims, mags, VariableSpec(
-            "mag arcsec-2", "V surface brightness", "Johnson V surface brightness of the "
-            "sky (NaN off the sky)."))
-        stack = torch.stack(list(components.values())).to(torch.float64)
-        lit = (stack > 0).any(-1) & view.valid
-        component_mags = radiance_to_mag_arcsec2(stack.clamp(min=1e-300),
-                                                 wavelength.to(torch.float64))
-        component_mags = torch.where(lit, component_mags,
-                                     torch.full_like(component_mags, float("nan")))
-        data["component_v_mag_arcsec2"] = variable(
-            ("component", *dims), component_mags, VariableSpec(
-                "mag arcsec-2", "V surface brightness of each component",
-                "Johnson V surface brightness of each light source alone (NaN where it "
-                "adds no light or off the sky)."))
-    g = plan.geometry
-    parameters = scene.parameters()
-    parameters.update({f"seconds_{k}": round(v, 4) for k, v in seconds.items()})
-    parameters["seconds_plan"] = round(plan.seconds, 4)
-    parameters.update({
-        "sun_altitude_deg": g.sun_altitude_deg, "sun_azimuth_deg": g.sun_azimuth_deg,
-        "moon_altitude_deg": g.moon_altitude_deg, "moon_azimuth_deg": g.moon_azimuth_deg,
-        "moon_phase_angle_deg": math.degrees(g.phase_angle_rad),
-        "moon_shadow_offset_km": g.shadow_offset_m / 1e3,
-        "penumbra_radius_km": g.penumbra_radius_m / 1e3,
-    })
-    if "srgb" in outputs:
-        parameters["exposure"] = exposure
-    ds = build_dataset(data, coords, title=f"Sky scene at {str(scene.time)[:19]} UTC",
-                       references=list(REFERENCES), parameters=parameters)
-    ds.attrs.update(plan.attrs())
-    return ds
-
-
-REFERENCES = (
-    "Müller, Engel & Döllner 2012, Single-Pass Rendering of Day and Night Sky Phenomena, "
-    "VMV 2012, doi:10.2312/PE/VMV/VMV12/055-062",
-    "Falchi et al. 2016, The new world atlas of artificial night sky brightness, "
-    "Sci. Adv. 2, e1600377, doi:10.1126/sciadv.1600377",
-    "Reinhard et al. 2002, Photographic tone reproduction for digital images, "
-    "ACM TOG 21, 267, doi:10.1145/566654.566575",
-)
-
-
-def _coord_spec(units, name, description):
-    from skytorch.dataset import VariableSpec
-
-    return VariableSpec(units, name, description)
-
-
-_COORD_SPECS = {
-    "x": _coord_spec("1", "fisheye x", "Image x in units of the horizon radius (west +)."),
-    "y": _coord_spec("1", "fisheye y", "Image y in units of the horizon radius (north +)."),
-    "elevation": _coord_spec("degree", "elevation", "Elevation of the pixel centre."),
-    "azimuth": _coord_spec("degree", "azimuth", "Azimuth of the pixel centre from north "
-                                                "through east."),
-    "direction": _coord_spec("1", "direction index", "Index of the view direction."),
-    "camera_x": _coord_spec("degree", "camera x angle", "Angle from the image centre along "
-                                                        "the image's horizontal axis (right +)."),
-    "camera_y": _coord_spec("degree", "camera y angle", "Angle from the image centre along "
-                                                        "the image's vertical axis (zenith +)."),
-}
-
-
-def render_times(scene, times):
+def render_times(scene, times, resources=None):
     """Render ``scene`` at several instants, stacked along a ``time`` dimension.
 
     Each instant is planned on its own (the Sun and Moon move); the per-instant decisions
     are kept as the string variables ``effects_computed`` and ``effects_skipped`` over
-    ``time``, and the Dataset attributes list the union of the computed effects.
+    ``time``, and the Dataset attributes list the union of the computed effects. All the
+    instants share one :class:`~skytorch.scene.resources.SceneResources`.
 
     Parameters
     ----------
@@ -985,56 +850,18 @@ def render_times(scene, times):
         The scene; its ``time`` is replaced by each of ``times``.
     times : sequence of str, datetime or datetime64
         UTC instants (dimension ``time``).
+    resources : SceneResources, optional
+        Default: ``scene.resources()``.
 
     Returns
     -------
     xarray.Dataset
     """
-    from skytorch.dataset import time_coordinate
     from skytorch.ephemeris import parse_times
 
     _check_scene(scene)
+    resources = _resources(scene, resources)
     values = parse_times(times)
-    frames = [scene.replace(time=str(t)).render() for t in values]
-    return _stack(frames, "time", time_coordinate(values),
-                  f"Sky scene at {len(values)} times")
-
-
-def _stack(frames, dim: str, coordinate, title: str):
-    """Stack rendered scenes along ``dim``: the changing variables get the dimension,
-    the planner's decisions become string variables over it, the attributes that differ
-    between frames are dropped and ``effects_computed`` lists the union."""
-    import xarray as xr
-
-    from skytorch.dataset import VariableSpec, variable
-
-    computed = [f.attrs["effects_computed"] for f in frames]
-    skipped = [f.attrs["effects_skipped"] for f in frames]
-    varying = [k for k in frames[0].attrs if any(f.attrs.get(k) != frames[0].attrs[k]
-                                                  for f in frames[1:])]
-    static = ("altitude", "azimuth_of_view", "solid_angle")
-    changing = [name for name in frames[0].data_vars
-                if name not in static or any(not f[name].equals(frames[0][name])
-                                             for f in frames[1:])]
-    fill = {name: (np.nan if "mag" in name else 0.0) for name in changing}
-    stacked = xr.concat([_no_attrs(f) for f in frames], dim=dim, data_vars=changing,
-                        coords="minimal", compat="override", join="outer", fill_value=fill)
-    stacked = stacked.assign_coords({dim: coordinate})
-    # fixed-width unicode (numpy "<U"), the dtype netCDF gives back: an exact round trip
-    stacked["effects_computed"] = variable((dim,), np.array(computed, dtype=np.str_),
-                                           VariableSpec("1", "effects computed",
-                                                        f"Planner decision per {dim}."))
-    stacked["effects_skipped"] = variable((dim,), np.array(skipped, dtype=np.str_),
-                                          VariableSpec("1", "effects skipped",
-                                                       "Skipped effects and reasons."))
-    stacked.attrs = {k: v for k, v in frames[0].attrs.items() if k not in varying}
-    union = {e for c in computed for e in c.split(",") if e}
-    stacked.attrs["effects_computed"] = ",".join(e for e in EFFECTS if e in union)
-    stacked.attrs["title"] = title
-    return stacked
-
-
-def _no_attrs(dataset):
-    out = dataset.copy()
-    out.attrs = {}
-    return out
+    frames = [render(scene.replace(time=str(t)), resources=resources) for t in values]
+    return stack_frames(frames, "time", time_coordinate(values),
+                        f"Sky scene at {len(values)} times")

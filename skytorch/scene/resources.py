@@ -1,48 +1,516 @@
-"""Physical resources shared by the scenes with the same parameters.
+"""Physical resources of a scene: one explicit object that the planner and renderers share.
 
-The scene's atmosphere and the star-site tables (refraction and extinction at the
-observer) are built once per set of physical parameters and reused by the planner, the
-renderer and :class:`~skytorch.scene.Scene`; they sit here, below all three, so that
-none of them imports another to reach them.
+A :class:`SceneResources` is built from a frozen :class:`SceneSpec` (the physical
+parameters its tables depend on: turbidity, ozone column and wavelength grid) and holds,
+each built on first use and kept on the instance,
 
-The physics packages (:mod:`skytorch.atmosphere`, :mod:`skytorch.stars`) are imported
-when a resource is first built, not when :mod:`skytorch.scene` is imported.
+* the atmosphere (:meth:`skytorch.atmosphere.Atmosphere.earth`) and the Earth's shadow
+  (:meth:`skytorch.eclipse.Shadow.earth`);
+* transmittance tables (:class:`skytorch.atmosphere.tables.TransmittanceTable`, also
+  cached on disk), per table resolution;
+* the star-site tables (refraction and extinction at an observer height,
+  :func:`skytorch.stars.refraction_table`, :func:`skytorch.stars.extinction_table`, each
+  built only when asked for: the planner's refraction test needs no extinction table) and
+  the planner's sky-flux table, per observer height;
+* the planner's table of the Moon's flux, the star catalogue and its spectra and
+  vectors, per faintest magnitude;
+* skyglow models (:class:`skytorch.skyglow.SkyglowModel`, also cached on disk with
+  :mod:`skytorch._cache`), per model setting;
+* the fisheye and panorama views (pixel directions and solid angles) per size and dtype;
+* the Sun and Moon per (instant, site) (:func:`skytorch.scene.geometry.site_geometries`,
+  the last :data:`SceneResources.GEOMETRIES_KEPT`), so that planning and rendering, and
+  the observers of one instant, share one ephemeris evaluation.
+
+Nothing is held in module globals: two resources objects share nothing, and a render is
+a function of its scene and the spec of its resources only (tested: renders with fresh
+and with reused resources are bit-identical). A user who renders a time series keeps one
+object (``Scene.resources()``, passed as ``render(..., resources=r)``); a scene whose
+parameters do not match the spec is refused with ``ValueError``.
+
+Threads: every build runs under a lock of the instance (re-entrant, since tables build on
+the atmosphere), so threads rendering with one shared object build each table once and
+then read it concurrently; the tables are never modified after they are built.
+
+The physics packages (:mod:`skytorch.atmosphere`, :mod:`skytorch.stars`, ...) are
+imported when a resource is first built, not when :mod:`skytorch.scene` is imported
+(measured start-up cost; see ``tests/test_import_graph.py``).
+
+Examples
+--------
+>>> from skytorch.scene.resources import SceneResources, SceneSpec
+>>> resources = SceneResources(SceneSpec(turbidity=2.0, ozone_du=300.0,
+...                                      wavelengths=(450.0, 550.0, 650.0)))
+>>> resources.built()
+()
+>>> round(resources.atmosphere.top_altitude_m)
+100000
+>>> resources.built()
+('atmosphere',)
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+import logging
 import math
-from functools import lru_cache
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, fields, replace
 
+import numpy as np
 import torch
 
-__all__ = ["cached_atmosphere", "refracted_altitude"]
+from skytorch.constants import ASTRONOMICAL_UNIT_M
+from skytorch.scene.geometry import Geometry, site_geometries
+from skytorch.scene.presets import (
+    HEMISPHERE_ARCSEC2,
+    MOON_TABLE_DISTANCE_RANGE_M,
+    MOON_TABLE_DISTANCES,
+    MOON_TABLE_PHASES,
+    PLANNER_MOON_QUADRATURE,
+    SKY_TABLE_SEGMENT_DEG,
+    SKY_TABLE_STEP_DEG,
+)
+
+__all__ = ["SceneResources", "SceneSpec"]
+
+logger = logging.getLogger(__name__)
 
 
-@lru_cache(maxsize=8)
-def cached_atmosphere(turbidity: float, ozone_du: float):
-    """``Atmosphere.earth(turbidity, ozone_du)``, shared by scenes with those parameters."""
-    from skytorch.atmosphere import Atmosphere
+@dataclass(frozen=True)
+class SceneSpec:
+    """The physical parameters a scene's tables depend on (frozen, hashable).
 
-    return Atmosphere.earth(turbidity=turbidity, ozone_du=ozone_du)
+    Parameters
+    ----------
+    turbidity, ozone_du : float
+        Atmosphere parameters (:meth:`skytorch.atmosphere.Atmosphere.earth` checks them
+        when the atmosphere is built).
+    wavelengths : tuple of float
+        The wavelength grid [nm] of the renders (the values of
+        :meth:`skytorch.scene.Scene.wavelength_nm`).
+    """
+
+    turbidity: float
+    ozone_du: float
+    wavelengths: tuple[float, ...]
+
+    def __post_init__(self):
+        for name in ("turbidity", "ozone_du"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError(f"SceneSpec.{name} must be a number; got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if (not isinstance(self.wavelengths, tuple) or not self.wavelengths
+                or not all(isinstance(v, (int, float)) for v in self.wavelengths)):
+            raise TypeError("SceneSpec.wavelengths must be a non-empty tuple of numbers [nm]; "
+                            f"got {self.wavelengths!r}")
+        object.__setattr__(self, "wavelengths", tuple(float(v) for v in self.wavelengths))
+
+    @classmethod
+    def of(cls, scene) -> SceneSpec:
+        """The spec of a :class:`skytorch.scene.Scene`."""
+        return cls(float(scene.turbidity), float(scene.ozone_du),
+                   tuple(scene.wavelength_nm().tolist()))
 
 
-@lru_cache(maxsize=8)
-def _star_site_tables(turbidity: float, ozone_du: float, elevation_m: float,
-                      refraction: bool):
-    from skytorch.stars import extinction_table, refraction_table
+class SceneResources:
+    """Tables shared by the planner and renderers of scenes with one :class:`SceneSpec`.
 
-    atm = cached_atmosphere(turbidity, ozone_du)
-    return (refraction_table(atm, elevation_m) if refraction else None,
-            extinction_table(atm, elevation_m, refraction=refraction))
+    Parameters
+    ----------
+    spec : SceneSpec
+
+    Notes
+    -----
+    Every resource is built on first use under the instance's lock and kept;
+    :meth:`built` lists what has been built. Resources depending on more than the spec
+    (observer height, table resolution, faintest star, skyglow settings) are kept per
+    value of those arguments.
+    """
+
+    #: (instant, site) geometries kept (the oldest are forgotten first)
+    GEOMETRIES_KEPT = 256
+
+    def __init__(self, spec: SceneSpec):
+        if not isinstance(spec, SceneSpec):
+            raise TypeError(f"spec must be a skytorch.scene.resources.SceneSpec; got "
+                            f"{type(spec).__name__}")
+        self.spec = spec
+        self._lock = threading.RLock()
+        self._built: dict = {}
+        self._geometries: OrderedDict = OrderedDict()
+
+    @classmethod
+    def for_scene(cls, scene) -> SceneResources:
+        """New (empty) resources for the spec of ``scene``."""
+        return cls(SceneSpec.of(scene))
+
+    def __repr__(self) -> str:
+        return f"SceneResources({self.spec!r}, built={list(self.built())})"
+
+    # pickling (process pools) and copies: the spec travels, the tables are rebuilt
+    def __getstate__(self) -> dict:
+        return {"spec": self.spec}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["spec"])
+
+    def check(self, scene) -> None:
+        """Raise ``ValueError`` unless ``scene`` has this object's spec."""
+        theirs = SceneSpec.of(scene)
+        if theirs != self.spec:
+            differ = [f"{f.name} {getattr(theirs, f.name)!r} (resources: "
+                      f"{getattr(self.spec, f.name)!r})" for f in fields(SceneSpec)
+                      if getattr(theirs, f.name) != getattr(self.spec, f.name)]
+            raise ValueError("resources: built for another scene spec; the scene has "
+                             + "; ".join(differ))
+
+    def _get(self, key, build: Callable):
+        with self._lock:
+            if key not in self._built:
+                self._built[key] = build()
+            return self._built[key]
+
+    def built(self) -> tuple:
+        """Keys of the resources built so far, in the order they were built."""
+        with self._lock:
+            return tuple(self._built)
+
+    # ------------------------------------------------------------------ atmosphere
+    @property
+    def wavelength_nm(self) -> torch.Tensor:
+        """The spec's wavelengths (n_wavelength,) [nm], float64."""
+        return torch.tensor(self.spec.wavelengths, dtype=torch.float64)
+
+    @property
+    def atmosphere(self):
+        """``Atmosphere.earth(turbidity, ozone_du)`` of the spec."""
+        def build():
+            from skytorch.atmosphere import Atmosphere
+
+            return Atmosphere.earth(turbidity=self.spec.turbidity, ozone_du=self.spec.ozone_du)
+
+        return self._get("atmosphere", build)
+
+    @property
+    def shadow(self):
+        """The Earth's shadow (:meth:`skytorch.eclipse.Shadow.earth`) of the atmosphere; its
+        ring table is traced once per wavelength grid and kept on it."""
+        def build():
+            from skytorch.eclipse import Shadow
+
+            return Shadow.earth(self.atmosphere)
+
+        return self._get("shadow", build)
+
+    def transmittance_table(self, n_mu: int, n_r: int):
+        """Transmittance table of the atmosphere at the spec's wavelengths (``n_mu × n_r``
+        nodes; :class:`skytorch.atmosphere.tables.TransmittanceTable`, disk cache)."""
+        def build():
+            from skytorch.atmosphere.tables import TransmittanceTable
+
+            return TransmittanceTable.build(self.atmosphere, self.wavelength_nm, cache=True,
+                                            n_mu=n_mu, n_r=n_r)
+
+        return self._get(("transmittance", int(n_mu), int(n_r)), build)
+
+    # ------------------------------------------------------------------ site tables
+    def refraction_table(self, elevation_m: float):
+        """Ray-traced refraction of the atmosphere at an observer height [m]
+        (:func:`skytorch.stars.refraction_table`)."""
+        elevation_m = float(elevation_m)
+
+        def build():
+            from skytorch.stars import refraction_table
+
+            return refraction_table(self.atmosphere, elevation_m)
+
+        return self._get(("refraction", elevation_m), build)
+
+    def extinction_table(self, elevation_m: float, refraction: bool):
+        """V-band extinction of the atmosphere at an observer height [m], along refracted
+        paths when ``refraction`` (:func:`skytorch.stars.extinction_table`)."""
+        elevation_m, refraction = float(elevation_m), bool(refraction)
+
+        def build():
+            from skytorch.stars import extinction_table
+
+            return extinction_table(self.atmosphere, elevation_m, refraction=refraction)
+
+        return self._get(("extinction", elevation_m, refraction), build)
+
+    def star_site_tables(self, elevation_m: float, refraction: bool):
+        """Refraction table (``None`` without refraction) and extinction table at an
+        observer height [m] (:meth:`refraction_table`, :meth:`extinction_table`)."""
+        return (self.refraction_table(elevation_m) if refraction else None,
+                self.extinction_table(elevation_m, refraction))
+
+    def refracted_altitude(self, elevation_m: float, true_altitude_rad: float) -> float:
+        """Apparent altitude [rad] of a true altitude [rad] (below −1° taken at −1°) at an
+        observer height [m], from the refraction table (ray-traced refraction)."""
+        from skytorch.stars import refract
+
+        table = self.refraction_table(elevation_m)
+        true = torch.tensor([max(true_altitude_rad, math.radians(-1.0))], dtype=torch.float64)
+        return float(refract(true, table)[0])
+
+    @property
+    def deepest_sunlit_deg(self) -> float:
+        """Sun depression [degree] beyond which all the air an observer sees is in shadow.
+
+        Every point of the atmosphere the observer can see lies within ``acos(R / R_top)``
+        of the observer's zenith (seen from the planet's centre); with the Sun deeper than
+        twice that angle below the horizon all of it is in the Earth's shadow.
+        """
+        def build():
+            atm = self.atmosphere
+            return 2.0 * math.degrees(math.acos(atm.planet_radius_m / atm.top_radius_m))
+
+        return self._get("deepest_sunlit_deg", build)
+
+    def sky_flux_table(self, elevation_m: float, segment: int
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """The planner's estimate of the sunlit sky's V flux against the Sun's altitude.
+
+        Single-scattering radiance (:meth:`Atmosphere.sky_radiance`) at 9 directions (the
+        zenith and 60° and 85° from it at 0°, 90°, 180°, 270° from the Sun's azimuth),
+        averaged and spread over the hemisphere. It depends on the Sun's altitude only, so
+        it is tabulated per observer height every :data:`SKY_TABLE_STEP_DEG`, in segments
+        of :data:`SKY_TABLE_SEGMENT_DEG` computed when first needed, from the depression
+        where the whole visible atmosphere is in the Earth's shadow
+        (:attr:`deepest_sunlit_deg`, flux zero) up to the zenith.
+
+        Returns
+        -------
+        altitude_deg : ndarray (n,)
+            Sun altitudes of the segment's nodes [degree].
+        log_flux : ndarray (n,)
+            Natural logarithm of the flux relative to V = 0 (the smallest positive float
+            where the flux is zero).
+        """
+        elevation_m, segment = float(elevation_m), int(segment)
+
+        def build():
+            from skytorch.moon.sky import radiance_to_mag_arcsec2
+
+            atm = self.atmosphere
+            low = -self.deepest_sunlit_deg + segment * SKY_TABLE_SEGMENT_DEG
+            n = round(SKY_TABLE_SEGMENT_DEG / SKY_TABLE_STEP_DEG) + 1
+            altitude = np.minimum(low + SKY_TABLE_STEP_DEG * np.arange(n), 90.0)
+            wl = self.wavelength_nm
+            zenith = torch.tensor([0.0] + [math.radians(60.0)] * 4 + [math.radians(85.0)] * 4,
+                                  dtype=torch.float64)
+            azimuth = torch.tensor([0.0] + [k * math.pi / 2 for k in range(4)] * 2,
+                                   dtype=torch.float64)
+            sun_zenith = torch.deg2rad(90.0 - torch.as_tensor(altitude))[:, None].expand(-1, 9)
+            radiance = atm.sky_radiance(wl, zenith.expand_as(sun_zenith),
+                                        azimuth.expand_as(sun_zenith), sun_zenith,
+                                        torch.zeros_like(sun_zenith), elevation_m,
+                                        solar_irradiance=True, n_samples=24)
+            mags = radiance_to_mag_arcsec2(radiance.clamp(min=1e-300), wl)
+            flux = torch.mean(10.0 ** (-0.4 * mags), dim=-1) * HEMISPHERE_ARCSEC2
+            if segment == 0:
+                flux[0] = 0.0
+            return altitude, np.log(flux.clamp(min=np.finfo(np.float64).tiny).numpy())
+
+        return self._get(("sky_flux", elevation_m, segment), build)
+
+    # ------------------------------------------------------------------ Moon and stars
+    def moon_flux_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The Moon's V flux with and without earthshine over phase angle and distance.
+
+        Returns
+        -------
+        alpha_rad : ndarray (MOON_TABLE_PHASES,)
+            Phase angles, uniform in [0, π].
+        distance_m : ndarray (MOON_TABLE_DISTANCES,)
+            Observer–Moon distances, uniform over :data:`MOON_TABLE_DISTANCE_RANGE_M`.
+        flux : ndarray (phase, distance, 2)
+            Flux relative to V = 0 at 1 AU from the Sun, with earthshine and without
+            (:func:`skytorch.moon.magnitude`, :data:`PLANNER_MOON_QUADRATURE` nodes).
+        """
+        def build():
+            from skytorch.moon import magnitude
+
+            alpha = torch.linspace(0.0, math.pi, MOON_TABLE_PHASES, dtype=torch.float64)
+            distance = torch.linspace(*MOON_TABLE_DISTANCE_RANGE_M, MOON_TABLE_DISTANCES,
+                                      dtype=torch.float64)
+            options = {"distance_m": distance[None, :], "n_quadrature": PLANNER_MOON_QUADRATURE}
+            fluxes = [10.0 ** (-0.4 * magnitude(alpha[:, None], earthshine=earthshine,
+                                                **options))
+                      for earthshine in (True, False)]
+            return alpha.numpy(), distance.numpy(), torch.stack(fluxes, -1).numpy()
+
+        return self._get("moon_flux", build)
+
+    def moon_fluxes(self, geometry: Geometry) -> tuple[float, float]:
+        """V flux of the Moon with earthshine and of its earthshine alone (relative to
+        V = 0), interpolated bilinearly in :meth:`moon_flux_table`."""
+        alpha, distance, table = self.moon_flux_table()
+        u = min(max(geometry.phase_angle_rad, 0.0), math.pi) / math.pi * (alpha.size - 1)
+        v = (min(max(geometry.moon_distance_m, distance[0]), distance[-1]) - distance[0]) / (
+            distance[1] - distance[0])
+        i, j = min(int(u), alpha.size - 2), min(int(v), distance.size - 2)
+        fu, fv = u - i, v - j
+        values = ((1 - fu) * (1 - fv) * table[i, j] + fu * (1 - fv) * table[i + 1, j]
+                  + (1 - fu) * fv * table[i, j + 1] + fu * fv * table[i + 1, j + 1])
+        scale = (ASTRONOMICAL_UNIT_M / geometry.moon_sun_distance_m) ** 2
+        total, sunlit = float(values[0]) * scale, float(values[1]) * scale
+        return total, total - sunlit
+
+    def catalogue(self, limit_magnitude: float):
+        """The star catalogue to a V limit (:func:`skytorch.stars.bright_stars`)."""
+        limit_magnitude = float(limit_magnitude)
+
+        def build():
+            from skytorch.stars import bright_stars
+
+            return bright_stars(limit_magnitude)
+
+        return self._get(("catalogue", limit_magnitude), build)
+
+    def integrated_starlight(self, limit_magnitude: float) -> float:
+        """Total V flux of the catalogue's stars (relative to magnitude 0), whole sky."""
+        limit_magnitude = float(limit_magnitude)
+        return self._get(("integrated_starlight", limit_magnitude), lambda: float(np.sum(
+            10.0 ** (-0.4 * self.catalogue(limit_magnitude)["vmag"].values))))
+
+    def star_vectors(self, limit_magnitude: float):
+        """Catalogue vectors (:func:`skytorch.stars.star_vectors`), V, B−V and the epoch
+        [Julian year] of the catalogue to a V limit."""
+        limit_magnitude = float(limit_magnitude)
+
+        def build():
+            from skytorch.stars import star_vectors
+
+            cat = self.catalogue(limit_magnitude)
+            vectors = star_vectors(cat["ra"].values, cat["dec"].values, cat["pm_ra"].values,
+                                   cat["pm_dec"].values, cat["parallax"].values,
+                                   dtype=torch.float64)
+            return (vectors, torch.as_tensor(cat["vmag"].values, dtype=torch.float64),
+                    torch.as_tensor(cat["bv"].values, dtype=torch.float64),
+                    float(cat.attrs.get("epoch_jyear", 2000.0)))
+
+        return self._get(("star_vectors", limit_magnitude), build)
+
+    def catalogue_spectra(self, limit_magnitude: float, spectra: Callable) -> torch.Tensor:
+        """Spectra of V = 0 (star, wl) for every catalogue star to a V limit at the spec's
+        wavelengths: ``spectra(vmag, bv, wavelength)`` (the renderer's black bodies), B−V
+        missing taken as the solar 0.65."""
+        limit_magnitude = float(limit_magnitude)
+
+        def build():
+            bv = torch.as_tensor(self.catalogue(limit_magnitude)["bv"].values,
+                                 dtype=torch.float64)
+            bv = torch.nan_to_num(bv, nan=0.65)  # stars without B-V: solar colour
+            return spectra(torch.zeros_like(bv), bv, self.wavelength_nm)
+
+        return self._get(("catalogue_spectra", limit_magnitude), build)
+
+    # ------------------------------------------------------------------ skyglow
+    def _skyglow_code_hash(self) -> str:
+        """Hash of the skyglow and atmosphere sources: a changed model rebuilds cached
+        tables."""
+        def build():
+            from pathlib import Path
+
+            import skytorch.atmosphere
+            import skytorch.skyglow
+
+            digest = hashlib.sha256()
+            for package in (skytorch.skyglow, skytorch.atmosphere):
+                for path in sorted(Path(package.__file__).parent.glob("*.py")):
+                    digest.update(path.read_bytes())
+            return digest.hexdigest()
+
+        return self._get("skyglow_code_hash", build)
+
+    def skyglow_key(self, settings: dict) -> str:
+        """SHA-256 (hex) of everything a skyglow model depends on: the atmosphere, the
+        wavelengths, the model's settings and the skyglow and atmosphere sources."""
+        text = json.dumps({"turbidity": self.spec.turbidity, "ozone_du": self.spec.ozone_du,
+                           "wavelength": list(self.spec.wavelengths),
+                           "settings": settings, "code": self._skyglow_code_hash(),
+                           "format": 1}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def skyglow_cache_path(self, settings: dict):
+        """Cache file of the skyglow model with ``settings``, and the parameter hash it must
+        carry."""
+        from skytorch.atmosphere.tables import cache_directory
+
+        key = self.skyglow_key(settings)
+        return cache_directory() / f"skyglow_{key[:16]}.nc", key
+
+    def skyglow_model(self, settings: dict):
+        """The skyglow model of the atmosphere with ``settings`` (keywords of
+        :meth:`skytorch.skyglow.SkyglowModel.precompute`), cached on disk and kept here.
+
+        The file is written with :func:`skytorch._cache.write_verified` (a record of its
+        SHA-256 and of the parameter hash beside it) and read with
+        :func:`skytorch._cache.read_verified`: a corrupted, truncated or swapped file, or one
+        built for other parameters, is deleted and rebuilt, never served.
+        """
+        def build():
+            from skytorch._cache import read_verified, write_verified
+            from skytorch.skyglow import SkyglowModel
+
+            path, key = self.skyglow_cache_path(settings)
+            model = read_verified(path, key, SkyglowModel.load)
+            if model is None:
+                model = SkyglowModel.precompute(self.atmosphere, wavelength_nm=self.wavelength_nm,
+                                                progress=False, **settings)
+                try:
+                    write_verified(path, key, model.save)
+                except OSError as error:
+                    logger.warning("could not cache the skyglow model at %s: %s", path, error)
+            return model
+
+        return self._get(("skyglow", json.dumps(settings, sort_keys=True)), build)
+
+    # ------------------------------------------------------------------ views
+    def view(self, kind: str, size: int, dtype, build: Callable):
+        """A fisheye or panorama :class:`~skytorch.scene.scene.View` of ``size`` pixels,
+        ``build()`` on first use and kept (shared by the renders: do not modify its
+        tensors)."""
+        return self._get(("view", kind, int(size), str(dtype)), build)
+
+    # ------------------------------------------------------------------ geometry
+    def geometries(self, time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
+        """:func:`skytorch.scene.geometry.site_geometries` kept per (time, site): observers
+        already seen at this instant are not recomputed; the others share one ephemeris
+        evaluation. Fresh copies (the caller may modify them)."""
+        time = np.datetime64(time, "ns")
+        keys = [(time, a, b, c) for a, b, c in zip(_floats(lat_deg), _floats(lon_deg),
+                                                   _floats(elevation_m), strict=True)]
+        with self._lock:
+            missing = [k for k in keys if k not in self._geometries]
+            if missing:
+                computed = site_geometries(time, [k[1] for k in missing],
+                                           [k[2] for k in missing], [k[3] for k in missing])
+                for key, value in zip(missing, computed, strict=True):
+                    self._geometries[key] = value
+            result = []
+            for key in keys:
+                self._geometries.move_to_end(key)
+                result.append(replace(self._geometries[key]))
+            while len(self._geometries) > self.GEOMETRIES_KEPT:
+                self._geometries.popitem(last=False)
+        return result
+
+    def geometry(self, scene) -> Geometry:
+        """Geometry of a one-observer scene (a fresh copy)."""
+        return self.geometries(scene.time, scene.lat_deg, scene.lon_deg, scene.elevation_m)[0]
+
+    def clear(self) -> None:
+        """Forget everything built (the next use rebuilds it)."""
+        with self._lock:
+            self._built.clear()
+            self._geometries.clear()
 
 
-def refracted_altitude(scene, true_altitude_rad: float) -> float:
-    """Apparent altitude [rad] from a cached refraction table of the scene's site
-    (:func:`skytorch.stars.refraction_table`, ray-traced refraction of the atmosphere)."""
-    from skytorch.stars import refract
-
-    table, _ = _star_site_tables(float(scene.turbidity), float(scene.ozone_du),
-                                 float(scene.elevation_m), True)
-    true = torch.tensor([max(true_altitude_rad, math.radians(-1.0))], dtype=torch.float64)
-    return float(refract(true, table)[0])
+def _floats(values) -> list[float]:
+    return [float(v) for v in np.asarray(values, float).reshape(-1)]

@@ -40,7 +40,6 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -48,10 +47,10 @@ import torch
 
 from skytorch._toml import loads as toml_loads
 from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
-from skytorch.scene.geometry import geometries, scene_geometry
-from skytorch.scene.planner import EFFECTS
+from skytorch.dataset import open_dataset
 from skytorch.scene.planner import plan as make_plan
-from skytorch.scene.resources import cached_atmosphere, refracted_altitude
+from skytorch.scene.presets import EFFECTS, FIDELITY_PRESETS
+from skytorch.scene.resources import SceneResources, SceneSpec
 
 #: view kinds of a scene
 VIEWS = ("fisheye", "panorama", "directions", "camera")
@@ -61,8 +60,6 @@ CAMERA_TARGETS = ("moon", "sun")
 OUTPUTS = ("spectral", "xyz", "srgb", "v_mag")
 #: gradients of the natural background (see :func:`skytorch.scene.render.natural_gradient`)
 NATURAL_MODELS = ("garstang1989", "vanrhijn1921", "constant")
-#: fidelity presets (see :data:`skytorch.scene.planner.FIDELITY`)
-FIDELITY_PRESETS = ("fast", "default", "reference")
 #: keys of the ``directions`` mapping of a directions view
 DIRECTION_KEYS = ("altitude_deg", "azimuth_deg")
 #: keys of the ``camera`` mapping of a camera view
@@ -227,7 +224,6 @@ def camera_view(altitude_deg: float, azimuth_deg: float, fov_deg: float, size: i
     return view
 
 
-@lru_cache(maxsize=8)
 def fisheye_view(size: int, dtype=torch.float64) -> View:
     """All-sky azimuthal-equidistant view of ``size × size`` pixels (north up, east left).
 
@@ -249,7 +245,6 @@ def fisheye_view(size: int, dtype=torch.float64) -> View:
                 solid_angle, valid, math.pi / size)
 
 
-@lru_cache(maxsize=8)
 def panorama_view(size: int, dtype=torch.float64) -> View:
     """Equirectangular view: ``size`` elevations (0–90°) by ``2 size`` azimuths."""
     size = check_int("size", size, 2)
@@ -495,8 +490,9 @@ class Scene:
     Notes
     -----
     Gradients: a Scene is not differentiable. Its parameters are read as numbers and key
-    cached tables (atmosphere, transmittance, refraction and extinction tables, sky and
-    moonlit-sky look-up tables, the skyglow model), the Sun and Moon come from skyfield,
+    the tables of its :class:`~skytorch.scene.resources.SceneResources` (atmosphere,
+    transmittance, refraction and extinction tables, the skyglow model) and its sky and
+    moonlit-sky look-up tables, the Sun and Moon come from skyfield,
     and the result is a Dataset of numpy arrays; a tensor parameter that requires grad is
     refused rather than silently detached. The tensor functions the components are built
     from carry gradients (e.g. :meth:`skytorch.atmosphere.Atmosphere.sky_radiance`,
@@ -528,6 +524,9 @@ class Scene:
     airglow_fraction: float = 0.6
     airglow_height_m: float = 90_000.0
     dtype: torch.dtype = torch.float64
+    #: the resources of the scene this one was copied from (``dataclasses.replace`` passes
+    #: them on); kept when their spec is this scene's, else new ones are made
+    _resources: SceneResources | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         from skytorch.ephemeris import parse_times
@@ -537,6 +536,9 @@ class Scene:
             raise ValueError(f"time: one instant per scene; got {self.time.size}")
         self.time = self.time[0]
         check_choice("view", self.view, VIEWS)
+        if isinstance(self.size, (torch.Tensor, np.ndarray)) and np.size(self.size) != 1:
+            raise ValueError(f"size must be one number per scene; got shape "
+                             f"{tuple(np.shape(self.size))}")
         self.size = check_int("size", self.size, 2, MAX_SIZE)
         check_choice("fidelity", self.fidelity, FIDELITY_PRESETS)
         check_choice("natural_model", self.natural_model, NATURAL_MODELS)
@@ -546,7 +548,14 @@ class Scene:
         # the atmosphere's own checks (Atmosphere.earth): one definition of its ranges
         self.turbidity = _scalar("turbidity", self.turbidity)
         self.ozone_du = _scalar("ozone_du", self.ozone_du)
-        atmosphere = cached_atmosphere(self.turbidity, self.ozone_du)
+        self.wavelengths = _wavelengths(self.wavelengths)
+        spec = SceneSpec.of(self)
+        if not (isinstance(self._resources, SceneResources) and self._resources.spec == spec):
+            if self._resources is not None and not isinstance(self._resources, SceneResources):
+                raise TypeError("_resources must be a SceneResources or None; got "
+                                f"{type(self._resources).__name__}")
+            self._resources = SceneResources(spec)
+        atmosphere = self._resources.atmosphere
         self.tolerance = _scalar("tolerance", self.tolerance, 0.0, 1.0)
         self.star_limit_mag = _scalar("star_limit_mag", self.star_limit_mag,
                                       *STAR_LIMIT_RANGE_MAG, unit=" mag")
@@ -556,7 +565,6 @@ class Scene:
         self.airglow_height_m = _scalar("airglow_height_m", self.airglow_height_m,
                                         *AIRGLOW_HEIGHT_RANGE_M, unit=" m")
         self._observers(atmosphere)
-        self.wavelengths = _wavelengths(self.wavelengths)
         self.force = _effects("force", self.force, EFFECTS)
         self.exclude = _effects("exclude", self.exclude, EFFECTS)
         self.outputs = _effects("outputs", self.outputs, OUTPUTS)
@@ -651,8 +659,9 @@ class Scene:
         if not isinstance(self.lat_deg, tuple):
             return [self]
         pairs = np.asarray(self.observer_xy, dtype=float)
-        return [replace(self, lat_deg=lat, lon_deg=lon, elevation_m=height,
-                        observer_xy=tuple(pairs[i]) if pairs.ndim == 2 else self.observer_xy)
+        return [self.replace(lat_deg=lat, lon_deg=lon, elevation_m=height,
+                             observer_xy=tuple(pairs[i]) if pairs.ndim == 2
+                             else self.observer_xy)
                 for i, (lat, lon, height) in enumerate(zip(self.lat_deg, self.lon_deg,
                                                            self.elevation_m, strict=True))]
 
@@ -665,42 +674,63 @@ class Scene:
             return wavelength_grid(self.wavelengths, dtype=self.dtype)
         return torch.as_tensor(np.asarray(self.wavelengths, dtype=float), dtype=self.dtype)
 
-    def make_view(self) -> View:
-        """The :class:`View` of the scene (fisheye and panorama views are cached and shared;
-        do not modify their tensors)."""
-        if self.view == "fisheye":
-            return fisheye_view(self.size, self.dtype)
-        if self.view == "panorama":
-            return panorama_view(self.size, self.dtype)
+    def make_view(self, resources: SceneResources | None = None) -> View:
+        """The :class:`View` of the scene (``resources``, default :meth:`resources`, keep the
+        fisheye and panorama views, shared by renders: do not modify their tensors; a camera
+        aimed at the Sun or Moon reads their places from them)."""
+        if self.view in ("fisheye", "panorama"):
+            make = fisheye_view if self.view == "fisheye" else panorama_view
+            return self._checked(resources).view(self.view, self.size, self.dtype,
+                                                 lambda: make(self.size, self.dtype))
         if self.view == "camera":
-            return camera_view(*self.camera_centre(), self.camera["fov_deg"], self.size,
-                               self.dtype)
+            return camera_view(*self.camera_centre(resources), self.camera["fov_deg"],
+                               self.size, self.dtype)
         return directions_view(self.directions["altitude_deg"], self.directions["azimuth_deg"],
                                self.dtype)
 
-    def camera_centre(self) -> tuple[float, float]:
+    def camera_centre(self, resources: SceneResources | None = None) -> tuple[float, float]:
         """Altitude and azimuth [degree] of a camera view's centre: given, or the apparent
-        (refracted) place of its target."""
+        (refracted) place of its target (from ``resources``, default :meth:`resources`)."""
         if "target" not in self.camera:
             return float(self.camera["altitude_deg"]), float(self.camera["azimuth_deg"])
-        g = scene_geometry(self)
+        resources = self._checked(resources)
+        g = resources.geometry(self)
         body = self.camera["target"]
         altitude = getattr(g, f"{body}_altitude_deg")
-        apparent = math.degrees(refracted_altitude(self, math.radians(altitude)))
+        apparent = math.degrees(resources.refracted_altitude(float(self.elevation_m),
+                                                             math.radians(altitude)))
         return apparent, getattr(g, f"{body}_azimuth_deg")
 
+    def resources(self) -> SceneResources:
+        """The scene's :class:`~skytorch.scene.resources.SceneResources`: built with the scene,
+        filled by its plans and renders, and shared with the copies of :meth:`replace` and
+        :meth:`observers` that keep its spec (keep it to render a time series)."""
+        return self._resources
+
+    def _checked(self, resources: SceneResources | None) -> SceneResources:
+        if resources is None:
+            return self._resources
+        if not isinstance(resources, SceneResources):
+            raise TypeError("resources must be a skytorch.scene.SceneResources "
+                            f"(Scene.resources()) or None; got {type(resources).__name__}")
+        resources.check(self)
+        return resources
+
     def atmosphere(self):
-        """The scene's :class:`skytorch.atmosphere.Atmosphere` (cached per parameters)."""
-        return cached_atmosphere(float(self.turbidity), float(self.ozone_du))
+        """The scene's :class:`skytorch.atmosphere.Atmosphere` (held by its resources)."""
+        return self._resources.atmosphere
 
     def replace(self, **changes) -> Scene:
-        """A copy with some fields changed."""
+        """A copy with some fields changed; it shares this scene's resources when its
+        spec (turbidity, ozone, wavelengths) is the same."""
         return replace(self, **changes)
 
     def parameters(self) -> dict:
         """The scene's parameters as netCDF-safe values (Dataset attributes)."""
         out = {}
         for f in fields(self):
+            if f.name == "_resources":
+                continue
             value = getattr(self, f.name)
             if f.name == "light_map":
                 value = "none" if value is None else "given"
@@ -724,19 +754,24 @@ class Scene:
         return out
 
     # ------------------------------------------------------------------ actions
-    def plan(self):
+    def plan(self, resources: SceneResources | None = None):
         """Decide the effects to compute (:func:`skytorch.scene.planner.plan`); a list of
-        plans, one per observer, for several observers."""
+        plans, one per observer, for several observers (their Sun and Moon from one
+        ephemeris evaluation). ``resources`` default to :meth:`resources`."""
+        resources = self._checked(resources)
         if not self.several_observers:
-            return make_plan(self)
-        geometries(self.time, self.lat_deg, self.lon_deg, self.elevation_m)  # one call
-        return [make_plan(scene) for scene in self.observers()]
+            return make_plan(self, resources=resources)
+        geometries = resources.geometries(self.time, self.lat_deg, self.lon_deg,
+                                          self.elevation_m)
+        return [make_plan(scene, resources=resources, geometry=g)
+                for scene, g in zip(self.observers(), geometries, strict=True)]
 
-    def render(self, plan=None):
-        """Render the scene to a Dataset (:func:`skytorch.scene.render.render`)."""
+    def render(self, plan=None, resources: SceneResources | None = None):
+        """Render the scene to a Dataset (:func:`skytorch.scene.render.render`), with its
+        own resources or the given ones (``ValueError`` when their spec differs)."""
         from skytorch.scene.render import render
 
-        return render(self, plan)
+        return render(self, plan, resources)
 
     # ------------------------------------------------------------------ TOML
     @classmethod
@@ -782,8 +817,6 @@ class Scene:
         kwargs.update(table("planner"))
         lights = table("lights")
         if "file" in lights:
-            from skytorch.dataset import open_dataset
-
             path = Path(lights.pop("file"))
             if base_dir is not None and not path.is_absolute():
                 path = base_dir / path
@@ -810,7 +843,7 @@ class Scene:
             kwargs["dtype"] = {"float64": torch.float64, "float32": torch.float32}[
                 check_choice("dtype", config.pop("dtype"), ("float64", "float32"))]
         kwargs.update(config)
-        names = {f.name for f in fields(cls)}
+        names = {f.name for f in fields(cls)} - {"_resources"}
         unknown = sorted(set(kwargs) - names)
         if unknown:
             raise ValueError(f"scene: unknown keys {unknown}; valid: {sorted(names)}")

@@ -1,0 +1,84 @@
+"""The scene's vocabulary of effects, its fidelity presets and the planner's thresholds.
+
+Everything here is a constant: :data:`EFFECTS` (what the planner decides and the renderer
+draws, in composition order), :data:`FIDELITY` (the knobs of the modules per preset,
+their measured error and cost in ``docs/scene.md``) and the numbers the planner's bounds
+use. The planner (:mod:`skytorch.scene.planner`), the resources
+(:mod:`skytorch.scene.resources`) and the renderer (:mod:`skytorch.scene.render`) read
+them from here; none of them owns them.
+
+References
+----------
+1. Willmer, C. N. A. 2018, ApJS 236, 47, doi:10.3847/1538-4365/aabfdf (the Sun's V).
+2. Falchi, F. et al. 2016, "The new world atlas of artificial night sky brightness",
+   Science Advances 2, e1600377, doi:10.1126/sciadv.1600377.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["BRIGHTEST_SKYGLOW_MAG_ARCSEC2", "EFFECTS", "FIDELITY", "FIDELITY_PRESETS",
+           "HEMISPHERE_ARCSEC2", "HORIZON_REFRACTION_RAD", "MOON_TABLE_DISTANCES",
+           "MOON_TABLE_DISTANCE_RANGE_M", "MOON_TABLE_PHASES", "PLANNER_MOON_QUADRATURE",
+           "RESOLVED_DISC_PIXELS", "SEMI_DIAMETER_RAD", "SKY_TABLE_SEGMENT_DEG",
+           "SKY_TABLE_STEP_DEG", "SUN_V_MAG"]
+
+#: the planner's vocabulary of effects, in composition order
+EFFECTS = ("sky", "sun", "moon", "earthshine", "eclipse", "stars", "scintillation",
+           "skyglow", "refraction")
+
+#: V magnitude of the Sun above the atmosphere (Willmer 2018, ApJS 236, 47,
+#: doi:10.3847/1538-4365/aabfdf)
+SUN_V_MAG = -26.76
+#: brightest artificial sky in the world atlas [V mag arcsec^-2] (Falchi et al. 2016)
+BRIGHTEST_SKYGLOW_MAG_ARCSEC2 = 14.0
+#: apparent semi-diameter of the Sun and Moon used for "above the horizon" [rad]
+SEMI_DIAMETER_RAD = math.radians(0.27)
+#: refraction at the horizon (standard atmosphere) bounding the upper-limb test [rad]
+HORIZON_REFRACTION_RAD = math.radians(0.6)
+#: Sun-altitude step of the planner's sky-flux table [degree] (0.5 gives 4 % error in
+#: deep twilight, 0.25 below 0.3 %)
+SKY_TABLE_STEP_DEG = 0.25
+#: ... computed in segments of this many degrees when first needed
+SKY_TABLE_SEGMENT_DEG = 5.0
+#: hemisphere [arcsec^2]
+HEMISPHERE_ARCSEC2 = 2.0 * math.pi * (180.0 * 3600.0 / math.pi) ** 2
+
+#: quadrature nodes of the planner's estimate of the Moon's magnitude (an estimate only)
+PLANNER_MOON_QUADRATURE = 8
+#: nodes of the planner's table of the Moon's flux over phase angle (2° apart) ...
+MOON_TABLE_PHASES = 91
+#: ... and over the observer–Moon distance
+MOON_TABLE_DISTANCES = 8
+#: distances of that table [m]: perigee 356 400 km less the Earth's radius to apogee
+#: 406 700 km plus it, rounded outwards
+MOON_TABLE_DISTANCE_RANGE_M = (3.45e8, 4.15e8)
+
+#: pixels a disc must cover to be shaded pixel by pixel (fewer: the disc-averaged factor)
+RESOLVED_DISC_PIXELS = 16
+
+#: module knobs per fidelity preset (measured error and cost in docs/scene.md)
+FIDELITY = {
+    "fast": {
+        "sky_lut": (12, 13), "sky_samples": 24, "transmittance": (64, 16),
+        "moon_lut": (8, 9), "moon_steps": 16, "moon_quadrature": 8,
+        "moon_disc_quadrature": 12,
+        "skyglow": {"n_azimuth": 32, "n_elevation": 8, "n_distance": 16, "n_components": 4,
+                    "max_distance_m": 30_000.0}},
+    "default": {
+        "sky_lut": (24, 25), "sky_samples": 48, "transmittance": (128, 32),
+        "moon_lut": (12, 13), "moon_steps": 32, "moon_quadrature": 16,
+        "moon_disc_quadrature": 24,
+        "skyglow": {"n_azimuth": 64, "n_elevation": 16, "n_distance": 32, "n_components": 8,
+                    "max_distance_m": 40_000.0}},
+    "reference": {
+        "sky_lut": (48, 49), "sky_samples": 128, "transmittance": (256, 64),
+        "moon_lut": (24, 25), "moon_steps": 64, "moon_quadrature": 32,
+        "moon_disc_quadrature": 48,
+        "skyglow": {"n_azimuth": 128, "n_elevation": 32, "n_distance": 64,
+                    "n_components": 16, "max_distance_m": 40_000.0}},
+}
+
+#: names of the fidelity presets
+FIDELITY_PRESETS = tuple(FIDELITY)
