@@ -16,7 +16,7 @@ import pytest
 import torch
 
 from skytorch.constants import MAG
-from skytorch.eclipse.lunar import danjon_l, lunar_eclipse, plot_lunar_eclipse
+from skytorch.eclipse.lunar import lunar_eclipse, plot_lunar_eclipse
 
 DATE = "2015-09-28"
 
@@ -87,11 +87,6 @@ def test_dataset_and_figure(curve, tmp_path):
     np.testing.assert_allclose(restored.v_magnitude.values, curve.v_magnitude.values)
     plot_lunar_eclipse(curve, tmp_path / "curve.png")
     assert (tmp_path / "curve.png").stat().st_size > 10_000
-
-
-def test_danjon_anchors():
-    values = danjon_l(torch.tensor([3.0, 2.0, -0.65, -3.3, -5.0]))
-    assert torch.allclose(values, torch.tensor([0.0, 0.0, 2.0, 4.0, 4.0], dtype=values.dtype))
 
 
 def test_no_eclipse_raises():

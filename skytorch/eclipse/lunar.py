@@ -17,7 +17,8 @@ point, expressed as (distance along the anti-Sun axis, offset from it). The shad
 evaluated through a (u, v) table restricted to the Moon's distances during the eclipse
 (:class:`~skytorch.eclipse.shadow_table.ShadowTable`, bilinear in ``log I``). From ``F``
 follow the V and B magnitudes (Bessell passbands), B − V and the sRGB colour; the
-magnitude at greatest eclipse gives a Danjon L estimate (a brightness proxy, :func:`danjon_l`).
+magnitude at greatest eclipse gives a Danjon L estimate (:func:`danjon_l`, Vital's
+correlation; NaN outside its range [-3.8, 4.2] mag).
 
 References
 ----------
@@ -44,7 +45,7 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_choice, check_finite, check_int, check_positive, check_range
+from skytorch._validate import check_choice, check_int, check_positive, check_range
 from skytorch.atmosphere import Atmosphere
 from skytorch.atmosphere.aerosol import (
     ANGSTROM_REFERENCE_NM,
@@ -63,6 +64,11 @@ from skytorch.dataset import (
 )
 from skytorch.eclipse.circumstances import _parse_one, _search_range, lunar_eclipses
 from skytorch.eclipse.cone import ENLARGEMENTS
+from skytorch.eclipse.danjon import (  # danjon_l and the constants are re-exported
+    DANJON_ANCHORS,
+    DANJON_RELATION,
+    danjon_l,
+)
 from skytorch.eclipse.occlusion import sun_visible_fraction
 from skytorch.eclipse.shadow import (
     Shadow,  # re-exported by the package
@@ -84,16 +90,6 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
-
-#: (L, V) anchors of the Danjon-L proxy [1], [mag]: L = 4 at V = -3.3, the brightest
-#: totality measured photometrically by Hernitschek et al. 2008 (-3.32 mag, 1990-02-09,
-#: a bright eclipse without stratospheric aerosol), and L = 0 at V = +2, the faint end of
-#: the totality range the project adopts from Keen 1983 (not a fitted relation)
-DANJON_ANCHORS = ((0.0, 2.0), (4.0, -3.3))
-#: how :func:`danjon_l` maps magnitude to L (stored with every light-curve Dataset)
-DANJON_RELATION = ("linear brightness proxy L = 4 (V - 2) / (-3.3 - 2), clipped to [0, 4]; "
-                   "not a published L-magnitude relation")
-
 
 def volcanic_atmosphere(turbidity=2.0, ozone_du=300.0, *, density_factor=2.0,
                         scale_height_m=3000.0):
@@ -147,43 +143,6 @@ _REFERENCES = [
     "Vollmer, M., Gedzelman, S. D. 2008, Simulating irradiance and color of the eclipsed "
     "moon, Appl. Opt. 47, H52, doi:10.1364/AO.47.000H52",
 ]
-
-
-def danjon_l(v_magnitude) -> torch.Tensor:
-    """Danjon L estimated from the V magnitude of the Moon at mid-totality.
-
-    **A brightness proxy, not a published L–magnitude relation** (recorded as
-    :data:`DANJON_RELATION` in every light-curve Dataset): ``L`` is linear in V between the
-    anchors :data:`DANJON_ANCHORS`, ``L = 4 (V - 2) / (-3.3 - 2)``, clipped to [0, 4]; one
-    magnitude is about 0.75 in L. No fitted relation between L and the magnitude of the
-    eclipsed Moon could be found: Danjon 1921 and the scale as published by Espenak
-    (NASA/EclipseWise) define L by colour and visibility only; Hernitschek et al. 2008 give
-    photometric magnitudes (-3.32 and -1.7 mag for 1990-02-09 and 2007-03-03) but no L;
-    Keen 1983 converts observed brightness to aerosol optical depth, not to L; Vital's
-    eclipse reports (2004-2021) analyse magnitude and L estimates side by side without a
-    conversion; the texts of Matsushima 1972 and of a "Danjon scale and umbral magnitude"
-    relation were not available (docs/eclipse.md, "Lunar eclipses: batched atmospheres,
-    Danjon L and 2015-09-28", lists the searches). The visual L also weighs colour and the
-    brightness of the umbral rim, which this proxy ignores.
-
-    Parameters
-    ----------
-    v_magnitude : Tensor (...)
-        V magnitude at greatest eclipse [mag].
-
-    Returns
-    -------
-    Tensor (...)
-        L in [0, 4].
-
-    Examples
-    --------
-    >>> round(float(danjon_l(-0.65)), 2)
-    2.0
-    """
-    v = check_finite("v_magnitude", v_magnitude)
-    (l0, v0), (l1, v1) = DANJON_ANCHORS
-    return torch.clamp(l0 + (v - v0) * (l1 - l0) / (v1 - v0), 0.0, 4.0)
 
 
 def _frames(sun: torch.Tensor, moon: torch.Tensor):
@@ -340,7 +299,8 @@ _SPECS = {
         "Disc-integrated V magnitude at the time closest to the shadow axis"),
     "danjon_l": VariableSpec("1", "Danjon L estimate",
                              "Danjon luminosity L from the V magnitude at greatest eclipse "
-                             "(see the danjon_l_relation attribute)"),
+                             "(Vital's correlation; NaN outside [-3.8, 4.2] mag; see the "
+                             "danjon_l_relation attribute)"),
     "wavelength": VariableSpec("nm", "wavelength", "Vacuum wavelength",
                                standard_name="radiation_wavelength"),
     "channel": VariableSpec("1", "sRGB channel", "R, G, B"),
@@ -441,7 +401,7 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
         "relative_brightness": 10 ** (-0.4 * (v_mag - v_full)),
         "spectral_irradiance": flux,
         "greatest_v_magnitude": v_mag[..., greatest],
-        "danjon_l": danjon_l(v_mag[..., greatest]),
+        "danjon_l": danjon_l(v_mag[..., greatest], outside="nan"),
     }
     return curve, _Run(times, row, sun, moon, sun_distance, shadow, table, wavelength,
                        axis_distance, greatest)
@@ -745,9 +705,9 @@ def plot_lunar_eclipse(dataset: xr.Dataset, path=None):
     title = (f"lunar eclipse {attrs.get('parameter_greatest_eclipse', '')}: greatest V "
              f"{float(greatest):.2f}")
     if "danjon_l" in dataset:
-        title += f", Danjon L ≈ {float(dataset['danjon_l']):.1f} (proxy)"
+        title += f", Danjon L ≈ {float(dataset['danjon_l']):.1f} ± 0.4"
     elif attrs.get("parameter_danjon_l", "none") != "none":
-        title += f", Danjon L ≈ {float(attrs['parameter_danjon_l']):.1f} (proxy)"
+        title += f", Danjon L ≈ {float(attrs['parameter_danjon_l']):.1f} ± 0.4"
     axis.set_title(title, fontsize=10)
     figure.tight_layout()
     if path is not None:
