@@ -26,6 +26,8 @@ Examples
 
 from skytorch.eclipse.circumstances import lunar_eclipses  # noqa: F401
 from skytorch.eclipse.cone import ENLARGEMENTS, shadow_cone, shadow_radii  # noqa: F401
+from skytorch.eclipse.danjon import danjon_class_l, danjon_l_linear  # noqa: F401
+from skytorch.eclipse.observed import observed_lunar_eclipses  # noqa: F401
 from skytorch.eclipse.occlusion import (  # noqa: F401
     LIMB_DARKENING_LAWS,
     limb_darkening_profile,
@@ -37,11 +39,14 @@ __all__ = [
     "LIMB_DARKENING_LAWS",
     "Shadow",
     "ShadowTable",
+    "danjon_class_l",
     "danjon_l",
+    "danjon_l_linear",
     "lunar_eclipse",
     "lunar_light_curve",
     "limb_darkening_profile",
     "lunar_eclipses",
+    "observed_lunar_eclipses",
     "shadow_cone",
     "shadow_radii",
     "sun_visible_fraction",
