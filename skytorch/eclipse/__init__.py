@@ -33,6 +33,9 @@ from skytorch.eclipse.occlusion import (  # noqa: F401
     limb_darkening_profile,
     sun_visible_fraction,
 )
+from skytorch.eclipse.solar import solar_eclipses  # noqa: F401
+from skytorch.eclipse.solar_local import solar_eclipse_local  # noqa: F401
+from skytorch.eclipse.solar_path import obscuration_map, solar_eclipse_path  # noqa: F401
 
 __all__ = [
     "ENLARGEMENTS",
@@ -47,8 +50,12 @@ __all__ = [
     "limb_darkening_profile",
     "lunar_eclipses",
     "observed_lunar_eclipses",
+    "obscuration_map",
     "shadow_cone",
     "shadow_radii",
+    "solar_eclipse_local",
+    "solar_eclipse_path",
+    "solar_eclipses",
     "sun_visible_fraction",
     "volcanic_atmosphere",
 ]
