@@ -82,3 +82,21 @@ def test_bad_ranges():
 def test_empty_range():
     ds = solar_eclipses("2024-05-01", "2024-06-01")
     assert ds.sizes["eclipse"] == 0
+
+
+def test_non_central_eclipses_near_gamma_one():
+    # |gamma| ~ 1: the axis misses Earth, the umbra or antumbra grazes it
+    canon = pd.read_csv(Path(__file__).parent / "data" / "solar_eclipses_noncentral.csv",
+                        comment="#")
+    for _, row in canon.iterrows():
+        when = np.datetime64(row.td)
+        ds = solar_eclipses(when - np.timedelta64(1, "D"), when + np.timedelta64(1, "D"))
+        assert ds.sizes["eclipse"] == 1
+        error = (ds.time_tt.values[0] - when) / np.timedelta64(1, "s")
+        assert abs(error) <= 1.5
+        assert abs(float(ds.gamma[0]) - row.gamma) <= 1e-4
+        # outline-point magnitudes run 3e-4 to 5e-4 above the canon's (as for partials)
+        assert abs(float(ds.magnitude[0]) - row.magnitude) <= 1e-3
+        assert str(ds.kind.values[0]) == KINDS[row.type[0]]
+        assert not bool(ds.central[0]) and int(ds.saros[0]) == row.saros
+        assert abs(float(ds.latitude[0]) - row.lat) <= 0.25
