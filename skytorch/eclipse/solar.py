@@ -308,7 +308,9 @@ _SPECS = {
                                  "eclipses)."),
     "central_duration": VariableSpec("s", "duration of the central phase",
                                      "C3 - C2 (totality or annularity) at the point of "
-                                     "greatest eclipse; NaN for partial eclipses."),
+                                     "greatest eclipse (for non-central eclipses the "
+                                     "outline point, Sun on the horizon; the canon gives "
+                                     "0 there); NaN for partial eclipses."),
     "central_start": VariableSpec("", "first contact of the axis with Earth (UTC)",
                                   "Start of the central line; NaT if not central."),
     "central_end": VariableSpec("", "last contact of the axis with Earth (UTC)",
