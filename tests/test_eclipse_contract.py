@@ -452,7 +452,13 @@ def test_light_curve_rejects(function, keywords, name):
 
 def test_light_curve_small_settings_is_finite_and_in_bounds():
     curve = check_contract(lambda: lunar_light_curve("2015-09-28", False, **FAST),
-                           ("time_or_date",))
+                           ("time_or_date",), finite=False)
+    # Danjon L is NaN exactly when V lies outside Vital's relation (documented); all else
+    # is finite
+    assert all(bool(torch.isfinite(torch.as_tensor(value)).all())
+               for name, value in curve.items() if name != "danjon_l")
+    v = float(curve["greatest_v_magnitude"])
+    assert math.isnan(float(curve["danjon_l"])) == (not -3.8 <= v <= 4.2)
     assert bool((curve["relative_brightness"] > 0).all())
     assert bool((curve["relative_brightness"] <= 1.0 + 1e-9).all())
     dataset = check_contract(lambda: lunar_eclipse("2015-09-28", False, n_images=1,

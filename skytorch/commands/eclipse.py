@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import math
 
 import numpy as np
 
@@ -113,9 +114,14 @@ def _summary(dataset) -> str:
     for name in ("p1", "u1", "u2", "u3", "u4", "p4"):
         lines.append(f"  {name.upper():<9} {attrs.get('parameter_' + name)}")
     danjon = attrs.get("parameter_danjon_l", "none")
-    danjon = "none (not total)" if danjon == "none" else f"{float(danjon):.1f}"
+    if danjon == "none":
+        danjon = "none (not total)"
+    elif math.isnan(float(danjon)):
+        danjon = "none (V outside Vital's relation, [-3.8, 4.2] mag)"
+    else:
+        danjon = f"{float(danjon):.1f} +- 0.4"
     lines.append(f"  V at greatest eclipse {float(attrs['parameter_greatest_v_magnitude']):.2f}"
-                 f" mag; Danjon L {danjon} (brightness proxy, not a published relation)")
+                 f" mag; Danjon L {danjon} (Vital's correlation)")
     return "\n".join(lines)
 
 
