@@ -166,6 +166,14 @@ class Profile:
     support : bool
         The density vanishes outside [first, last breakpoint] (only that range is
         integrated).
+    state, from_state : callable, optional
+        Given together: the density as ``from_state(state(altitude_m), **parameters)``,
+        equal to ``function(altitude_m, **parameters)``. ``state`` is a pure function of
+        the altitude alone (e.g. :func:`skytorch.atmosphere.profiles.us1976_state`, the
+        layers of a standard atmosphere) returning a tuple of tensors shaped like
+        ``altitude_m``; profiles naming the same ``state`` function and the same
+        quadrature (breakpoints, ``truncate``, ``support``) are integrated on one set of
+        nodes where the state is evaluated once for all of them.
     """
 
     function: Callable[..., torch.Tensor]
@@ -175,11 +183,15 @@ class Profile:
     relative_breakpoints_m: torch.Tensor | None = None
     truncate: bool = False
     support: bool = False
+    state: Callable[[torch.Tensor], tuple] | None = None
+    from_state: Callable[..., torch.Tensor] | None = None
 
     def __post_init__(self):
         if (self.breakpoints_m is None) == (self.relative_breakpoints_m is None):
             raise ValueError("a Profile takes exactly one of breakpoints_m and "
                              "relative_breakpoints_m")
+        if (self.state is None) != (self.from_state is None):
+            raise ValueError("a Profile takes state and from_state together (or neither)")
         object.__setattr__(self, "parameters", _frozen(self.parameters))
 
     def __call__(self, altitude_m: torch.Tensor, extra: int = 0) -> torch.Tensor:
@@ -190,6 +202,34 @@ class Profile:
         parameters = {key: insert_dims(value, extra + 1, 0)
                       for key, value in self.parameters.items()}
         return self.function(altitude_m, **parameters)
+
+    def _evaluate(self, altitude_m: torch.Tensor, extra: int, states: dict) -> torch.Tensor:
+        """:meth:`__call__`, taking the state from (or adding it to) ``states``, a dict by
+        state function of the states already evaluated at this ``altitude_m``."""
+        if self.state is None:
+            return self(altitude_m, extra)
+        state = states.get(self.state)
+        if state is None:
+            state = states[self.state] = self.state(altitude_m)
+        parameters = {key: insert_dims(value, extra + 1, 0)
+                      for key, value in self.parameters.items()}
+        return self.from_state(state, **parameters)
+
+    def _same_quadrature(self, other: Profile) -> bool:
+        """Same pieces along every path: equal breakpoints (constants, not needing a
+        gradient), ``truncate`` and ``support``."""
+        if (self.truncate, self.support) != (other.truncate, other.support):
+            return False
+        for mine, theirs in ((self.breakpoints_m, other.breakpoints_m),
+                             (self.relative_breakpoints_m, other.relative_breakpoints_m)):
+            if (mine is None) != (theirs is None):
+                return False
+            if mine is None or mine is theirs:
+                continue
+            if (mine.requires_grad or theirs.requires_grad or mine.shape != theirs.shape
+                    or mine.dtype != theirs.dtype or not torch.equal(mine, theirs)):
+                return False
+        return True
 
     def levels(self, extra: int = 0):
         """Breakpoints for :func:`skytorch.atmosphere.optical_depth.column_integral`.
@@ -331,19 +371,52 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
         return {name: torch.cat([piece[name] for piece in pieces]).reshape(shape)
                 for name in profiles}
     columns = {}
-    for name, profile in profiles.items():
-        if name in vanishing:
-            continue
-        columns[name] = _od.column_integral(
-            lambda h, p=profile: p(h, extra), r, mu, planet_radius_m, top_radius_m,
-            profile.levels(extra), method=method, n_steps=n_steps, rtol=rtol,
-            truncate=profile.truncate, support=profile.support)
+    for group in _quadrature_groups(profiles, vanishing, method):
+        first = profiles[group[0]]
+        if len(group) == 1:
+            def density(h, p=first):
+                return p._evaluate(h, extra, {})
+        else:
+            def density(h, members=tuple(profiles[name] for name in group)):
+                states = {}  # each state evaluated once on these nodes
+                return tuple(p._evaluate(h, extra, states) for p in members)
+        values = _od.column_integral(
+            density, r, mu, planet_radius_m, top_radius_m, first.levels(extra),
+            method=method, n_steps=n_steps, rtol=rtol, truncate=first.truncate,
+            support=first.support)
+        columns.update(zip(group, values if len(group) > 1 else (values,), strict=True))
+    columns = {name: columns[name] for name in profiles if name in columns}
     if vanishing:
         reference = next(iter(columns.values())) if columns else 0.0 * (r * mu)
         for name in vanishing:
             columns[name] = torch.zeros_like(reference)
         columns = {name: columns[name] for name in profiles}
     return columns
+
+
+def _quadrature_groups(profiles: Mapping[str, Profile], vanishing: tuple[str, ...],
+                       method: str) -> list[tuple[str, ...]]:
+    """Names of the profiles to integrate together, in order of first appearance.
+
+    With ``"gauss"`` the profiles of the same quadrature share their nodes (each keeps
+    exactly the pieces it had alone) and, where they name one :attr:`Profile.state`, its
+    evaluation; with ``"adaptive"`` (which refines each column on its own) and
+    ``"trapezoid"`` every profile is integrated alone.
+    """
+    groups: list[list[str]] = []
+    for name, profile in profiles.items():
+        if name in vanishing:
+            continue
+        if method == "gauss":
+            for group in groups:
+                if profiles[group[0]]._same_quadrature(profile):
+                    group.append(name)
+                    break
+            else:
+                groups.append([name])
+        else:
+            groups.append([name])
+    return [tuple(group) for group in groups]
 
 
 @dataclass(frozen=True)

@@ -1398,6 +1398,11 @@ def _sounding_molecules(atm, dtype):
     return density, levels, height.to(dtype)
 
 
+def _us1976_density(state) -> torch.Tensor:
+    """The density ratio of a :func:`skytorch.atmosphere.profiles.us1976_state`."""
+    return state[1]
+
+
 def _rayleigh_profile(atm: Atmosphere, dtype: torch.dtype) -> Profile:
     if atm.molecule_profile == "sounding":
         density, levels, height = _sounding_molecules(atm, dtype)
@@ -1405,7 +1410,8 @@ def _rayleigh_profile(atm: Atmosphere, dtype: torch.dtype) -> Profile:
     if atm.molecule_profile == "us1976":
         return Profile(_profiles.us1976, {}, torch.tensor(_us1976_column_height_m(),
                                                           dtype=dtype),
-                       breakpoints_m=torch.tensor(_US1976_BREAKS_M, dtype=dtype))
+                       breakpoints_m=torch.tensor(_US1976_BREAKS_M, dtype=dtype),
+                       state=_profiles.us1976_state, from_state=_us1976_density)
     height = atm._p("rayleigh_scale_height_m", dtype)
     return Profile(_profiles.exponential, {"scale_height_m": height}, height,
                    relative_breakpoints_m=height[..., None]

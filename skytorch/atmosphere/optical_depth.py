@@ -187,8 +187,23 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support
     n_pieces = u.shape[-2]
     altitude = _altitude(c_lo[..., None, None], lo[..., None, None], u, planet_radius)
     values = density(altitude.reshape(*altitude.shape[:-2], n_pieces * n_nodes))
-    values = values.reshape(*values.shape[:-1], n_pieces, n_nodes)
-    return ((values @ weights) * width).sum(-1)
+
+    def reduce(value):
+        value = value.reshape(*value.shape[:-1], n_pieces, n_nodes)
+        return ((value @ weights) * width).sum(-1)
+
+    if isinstance(values, (tuple, list)):
+        return tuple(reduce(value) for value in values)
+    return reduce(values)
+
+
+def _add(total, part):
+    """``total + part`` for tensors or, elementwise, for tuples of them."""
+    if isinstance(part, tuple):
+        if not isinstance(total, tuple):
+            total = (total,) * len(part)
+        return tuple(a + b for a, b in zip(total, part, strict=True))
+    return total + part
 
 
 def _trapezoid_leg(density, leg, planet_radius, n_steps):
@@ -197,7 +212,13 @@ def _trapezoid_leg(density, leg, planet_radius, n_steps):
     values = density(_altitude(leg["c_lo"][..., None], leg["lo"][..., None], u,
                                planet_radius))
     step = leg["length"] / n_steps
-    return step * (values.sum(-1) - 0.5 * (values[..., 0] + values[..., -1]))
+
+    def reduce(value):
+        return step * (value.sum(-1) - 0.5 * (value[..., 0] + value[..., -1]))
+
+    if isinstance(values, (tuple, list)):
+        return tuple(reduce(value) for value in values)
+    return reduce(values)
 
 
 def column_integral(density: Density, r, mu, planet_radius: float, top_radius: float,
@@ -210,7 +231,9 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     ----------
     density : callable
         ``density(altitude_m)`` with ``altitude_m`` of shape ``(..., n_sample)`` returns the
-        relative density, same shape (its parameters broadcast against ``...``).
+        relative density, same shape (its parameters broadcast against ``...``), or a
+        tuple of such densities (several profiles integrated on the same nodes; a tuple
+        of columns is returned, and ``"adaptive"`` refines until all have converged).
     r : Tensor (...)
         Radius of the ray's origin [m] (``>= planet_radius``; may lie above the top).
     mu : Tensor (...)
@@ -235,9 +258,9 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
 
     Returns
     -------
-    Tensor (...)
+    Tensor (...) or tuple of them
         Column integral [m] from the origin (or the atmosphere's entry point) to where the
-        ray leaves the atmosphere or meets the ground.
+        ray leaves the atmosphere or meets the ground (one per density of a tuple).
     """
     check_choice("method", method, METHODS)
     n_steps = check_int("n_steps", DEFAULT_STEPS[method] if n_steps is None else n_steps, 1)
@@ -258,15 +281,15 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
         # n_steps uniform steps along each leg
         total = zero
         for leg in legs:
-            total = total + _trapezoid_leg(density, leg, planet_radius, n_steps)
-        return total
+            total = _add(total, _trapezoid_leg(density, leg, planet_radius, n_steps))
+        return total if legs else _empty(density, r, zero)
 
     def integrate(n):
         total = zero
         for leg in legs:
-            total = total + _gauss_leg(density, leg, planet_radius, levels_m, n, truncate,
-                                       support)
-        return total
+            total = _add(total, _gauss_leg(density, leg, planet_radius, levels_m, n,
+                                           truncate, support))
+        return total if legs else _empty(density, r, zero)
 
     if method == "gauss":
         return integrate(n_steps)
@@ -276,13 +299,27 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
         n *= 2
         current = integrate(n)
         with torch.no_grad():
-            change = (current - previous).abs() / current.abs().clamp(
-                min=torch.finfo(current.dtype).tiny)
-            converged = bool((change <= rtol).all())
+            converged = all(
+                bool(((now - before).abs() / now.abs().clamp(min=torch.finfo(now.dtype).tiny)
+                      <= rtol).all())
+                for now, before in zip(*(_as_tuple(value) for value in (current, previous)),
+                                       strict=True))
         previous = current
         if converged:
             break
     return previous
+
+
+def _as_tuple(value):
+    return value if isinstance(value, tuple) else (value,)
+
+
+def _empty(density, r, zero):
+    """The zero column(s) of paths that do not cross the atmosphere (one per density)."""
+    probe = density(r.new_zeros(*zero.shape, 1))
+    if isinstance(probe, (tuple, list)):
+        return tuple(zero for _ in probe)
+    return zero
 
 
 def chapman_horizontal(x) -> torch.Tensor:

@@ -44,7 +44,8 @@ from skytorch._validate import as_tensor
 
 __all__ = ["PROFILES", "SOUNDING_UNITS", "US1976_KINK_ALTITUDES_M", "US1976_SCALE_HEIGHT_M",
            "check_sounding", "exponential", "log_linear", "piecewise_linear", "tent", "us1976",
-           "us1976_pressure_ratio", "us1976_temperature"]
+           "us1976_air_from_state", "us1976_pressure_ratio", "us1976_state", "us1976_temperature",
+           "us1976_water_from_state"]
 
 #: model keywords for the molecular profile ("sounding": a user's profile, see
 #: :func:`check_sounding`)
@@ -171,6 +172,67 @@ def us1976_pressure_ratio(altitude_m) -> torch.Tensor:
     """Pressure of the U.S. Standard Atmosphere 1976 relative to sea level [1] at
     geometric altitude [m] (same layers and continuations as :func:`us1976`)."""
     return torch.exp(_us1976_state(as_tensor("altitude_m", altitude_m))[0])
+
+
+def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """One evaluation of the U.S. Standard Atmosphere 1976, shared by the profiles that
+    follow it (:attr:`skytorch.atmosphere.constituents.Profile.state`).
+
+    Parameters
+    ----------
+    altitude_m : Tensor (...)
+        Geometric altitude [m].
+
+    Returns
+    -------
+    altitude_m, density_ratio, pressure_ratio : Tensor (...)
+        The altitude itself [m], :func:`us1976` [1] and the pressure ratio as the density
+        ratio times :math:`T(\\max(z, 0))/T_0` [1] (below the ground the density is
+        continued and the temperature held at its ground value, as the gas profiles of
+        :mod:`skytorch.atmosphere.gases` do).
+
+    Examples
+    --------
+    >>> import torch
+    >>> _, density, pressure = us1976_state(torch.tensor([0.0, 11_000.0], dtype=torch.float64))
+    >>> [round(float(v), 4) for v in pressure]   # 22 699.9 Pa at 11 km geometric (ref. 1)
+    [1.0, 0.224]
+    >>> bool(torch.equal(density, us1976(torch.tensor([0.0, 11_000.0], dtype=torch.float64))))
+    True
+    """
+    log_p, temperature = _us1976_state(altitude_m)
+    density = torch.exp(log_p - torch.log(temperature / _US1976_T0))
+    ground = torch.where(altitude_m < 0.0, torch.full_like(temperature, _US1976_T0),
+                         temperature)
+    return altitude_m, density, density * ground / _US1976_T0
+
+
+def us1976_air_from_state(state, exponent, power) -> torch.Tensor:
+    """:math:`\\rho^{power}\\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
+    return _power(state[1], power) * _power(state[2], exponent)
+
+
+def us1976_water_from_state(state, scale_height_m, exponent) -> torch.Tensor:
+    """:math:`e^{-z/H_w}\\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
+    return torch.exp(-state[0] / scale_height_m) * _power(state[2], exponent)
+
+
+def _power(base: torch.Tensor, exponent) -> torch.Tensor:
+    """``base ** exponent`` of a positive ``base``, by a multiplication or a square root
+    for a constant exponent of 0, 1/2, 1 or 2 (equal to the power within rounding; a
+    general power costs an exponential and a logarithm per element)."""
+    if isinstance(exponent, torch.Tensor) and (exponent.requires_grad or exponent.numel() != 1):
+        return base ** exponent
+    value = float(exponent)
+    if value == 1.0:
+        return base
+    if value == 2.0:
+        return base * base
+    if value == 0.5:
+        return torch.sqrt(base)
+    if value == 0.0:
+        return torch.ones_like(base)
+    return base ** exponent
 
 
 def _us1976_state(z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

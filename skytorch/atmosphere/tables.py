@@ -243,10 +243,10 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
     # the last column is the ray tangent to the ground: nudge it above the horizon so that
     # it counts as reaching the top (continuity with its neighbours)
     mu = torch.where(x_mu[None, :] == 1.0, mu * (1.0 - 1e-12), mu)
-    tau = atmosphere.optical_depth(wavelength, torch.acos(mu), altitude, method=method,
-                                   n_steps=n_steps)
+    # the columns once; the optical depth at every wavelength follows from them
     columns = atmosphere.column_integrals(torch.acos(mu), altitude, method=method,
                                           n_steps=n_steps)
+    tau = atmosphere.constituents(wavelength).optical_depth(columns)
     species = list(columns)
     column = torch.stack([columns[name] for name in species], dim=-1)
     key = table_key(atmosphere, wavelength, n_mu, n_r, method, n_steps)
