@@ -92,6 +92,9 @@ def as_tensor(
         return value
     if value is None or isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be a number or an array of numbers; got {value!r}")
+    if isinstance(value, np.ndarray) and not value.flags.writeable:
+        # a read-only array (e.g. pandas ``.values``) cannot be shared with a tensor
+        value = value.copy()
     try:
         tensor = torch.as_tensor(value, dtype=dtype or torch.float64, device=device)
     except (TypeError, ValueError, RuntimeError) as error:

@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 import torch
 
@@ -78,3 +79,15 @@ def test_choice_int_and_shapes():
     assert check_broadcastable(a=torch.zeros(5, 1), b=torch.zeros(1, 4)) == torch.Size([5, 4])
     with pytest.raises(ValueError, match=r"a \(3,\), b \(4,\)"):
         check_broadcastable(a=torch.zeros(3), b=torch.zeros(4))
+
+
+def test_as_tensor_accepts_read_only_arrays_without_warning():
+    """A read-only NumPy array (pandas ``.values``) converts without a torch warning."""
+    import warnings
+
+    values = np.arange(4.0)
+    values.setflags(write=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tensor = as_tensor("x", values)
+    assert tensor.tolist() == [0.0, 1.0, 2.0, 3.0]
