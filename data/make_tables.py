@@ -6,8 +6,8 @@ tables are extracted from published datasets redistributed by three Python packa
 * colour-science (BSD-3): CIE 1931 2-degree colour-matching functions and the CIE 1924
   photopic luminous efficiency function V(lambda), as tabulated by the CIE
   (CIE 015:2004 "Colorimetry", 3rd ed.; CIE 018:2019 / ISO 11664-1:2019), 1 nm steps.
-* speclite (BSD-3): Johnson-Cousins B and V passbands of Bessell, M. S. 1990, "UBVRI
-  passbands", PASP 102, 1181, doi:10.1086/132749, Table 2 (normalised response).
+* speclite (BSD-3): Johnson-Cousins B, V, R_C and I_C passbands of Bessell, M. S. 1990,
+  "UBVRI passbands", PASP 102, 1181, doi:10.1086/132749, Table 2 (normalised response).
 * pvlib (BSD-3): the extraterrestrial ("Etr") column of the ASTM G173-03 reference
   spectra (SMARTS v2.9.2, Gueymard 2004 composite extraterrestrial spectrum close to
   ASTM E-490), 280-4000 nm, W m^-2 nm^-1 at 1 AU. Bruneton's precomputed atmospheric
@@ -76,12 +76,13 @@ def _read_ecsv(path: Path) -> np.ndarray:
 
 
 def bessell_tables(wheel_dir: Path) -> None:
-    for band in ("B", "V"):
+    for band in ("B", "V", "R", "I"):
         table = _read_ecsv(wheel_dir / "speclite" / "data" / "filters" / f"bessell-{band}.ecsv")
         table[:, 0] /= 10.0  # Angstrom -> nm
         _write(
             f"bessell1990_{band.lower()}.csv",
-            [f"Johnson-Cousins {band} passband, normalised response (maximum 1).",
+            [f"Johnson-Cousins {band}{'_C' if band in 'RI' else ''} passband, normalised "
+             "response (maximum 1).",
              "Source: Bessell, M. S. 1990, PASP 102, 1181, doi:10.1086/132749, Table 2,",
              f"as redistributed by speclite (bessell-{band}.ecsv). Response for energy",
              "integration (Bessell & Murphy 2012, PASP 124, 140, doi:10.1086/664083)."],

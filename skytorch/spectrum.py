@@ -8,7 +8,7 @@ spectra and temperatures they take.
 Shipped tables (``data/``, sources in ``data/README.md``):
 
 * CIE 1931 2° colour-matching functions and CIE 1924 photopic V(λ), 360–830 nm, 1 nm [1];
-* Johnson–Cousins B and V passbands of Bessell 1990 [2];
+* Johnson–Cousins B, V, R_C and I_C passbands of Bessell 1990 [2];
 * the ASTM G173-03 extraterrestrial solar spectral irradiance at 1 AU, 280–4000 nm [3].
 
 Spectra on coarse grids (the three ``"rgb"`` wavelengths or Bruneton's 15 bands) are
@@ -16,7 +16,9 @@ turned into tristimulus values and magnitudes by reconstructing a continuous spe
 piecewise linear in the wavelength (optionally relative to the solar spectrum, the way
 Bruneton converts sky radiance to luminance [4]), and integrating it against the 1-nm
 tables. Because the reconstruction is linear in the spectrum, the whole conversion is a
-fixed ``(n_wavelength, 3)`` matrix applied to the trailing dimension.
+fixed ``(n_wavelength, 3)`` matrix applied to the trailing dimension. The CIE functions
+and the B and V passbands are integrated on the CIE 1-nm grid (360–830 nm); R (550–900
+nm) and I (700–920 nm) each on a 1-nm grid spanning their own table.
 
 References
 ----------
@@ -79,10 +81,13 @@ __all__ = [
     "WAVELENGTH_PRESETS",
     "ZERO_POINTS",
     "b_band_response",
+    "band_grid",
     "blackbody_radiance",
     "bv_to_temperature",
     "cie_xyz_cmf",
+    "i_band_response",
     "photopic_luminous_efficiency",
+    "r_band_response",
     "solar_irradiance",
     "spectrum_to_magnitude",
     "spectrum_to_srgb",
@@ -105,16 +110,17 @@ BANDS15_EDGES_NM = tuple(360.0 + i * (830.0 - 360.0) / 15 for i in range(16))
 #: names accepted by :func:`wavelength_grid`
 WAVELENGTH_PRESETS = ("rgb", "bands15", "cie5", "cie1")
 #: photometric bands of :func:`spectrum_to_magnitude`
-BANDS = ("B", "V")
+BANDS = ("B", "V", "R", "I")
 #: zero-point systems of :func:`spectrum_to_magnitude`
 ZERO_POINTS = ("bessell1998",)
 #: reference spectra for the reconstruction of coarse spectra
 REFERENCES = ("none", "solar")
 
 #: f_lambda of a zero-magnitude star [W m^-2 nm^-1] (Bessell et al. 1998, Table A2:
-#: 632e-11 and 363.1e-11 erg cm^-2 s^-1 A^-1 for B and V; 1 erg cm^-2 s^-1 A^-1 is
-#: 1e-2 W m^-2 nm^-1)
-ZERO_POINT_FLUX_W_M2_NM = {"bessell1998": {"B": 6.32e-11, "V": 3.631e-11}}
+#: 632e-11, 363.1e-11, 217.7e-11 and 112.6e-11 erg cm^-2 s^-1 A^-1 for B, V, R_C and
+#: I_C; 1 erg cm^-2 s^-1 A^-1 is 1e-2 W m^-2 nm^-1)
+ZERO_POINT_FLUX_W_M2_NM = {"bessell1998": {"B": 6.32e-11, "V": 3.631e-11,
+                                           "R": 2.177e-11, "I": 1.126e-11}}
 
 #: linear sRGB from CIE XYZ (D65 white), IEC 61966-2-1:1999 eq. (F.7) [5]
 XYZ_TO_LINEAR_SRGB = (
@@ -135,7 +141,7 @@ BV_RANGE_MAG = (-0.5, 3.0)
 
 # --- tables -----------------------------------------------------------------------------------
 
-@lru_cache(maxsize=8)  # three shipped tables; 0.8 ms to parse one
+@lru_cache(maxsize=16)  # nine shipped tables; 0.8 ms to parse one
 def _table(name: str) -> torch.Tensor:
     """Read a shipped CSV table as a float64 tensor (rows, columns); '#' lines are comments."""
     lines = data_path(name).read_text(encoding="utf-8").splitlines()
@@ -346,11 +352,96 @@ def b_band_response(wavelength_nm) -> torch.Tensor:
     return _band_response("B", wavelength_nm)
 
 
+def r_band_response(wavelength_nm) -> torch.Tensor:
+    """Cousins R_C passband (Bessell 1990), maximum 1, zero outside 550–900 nm.
+
+    Parameters
+    ----------
+    wavelength_nm : array_like
+        ``(...)`` [nm].
+
+    Returns
+    -------
+    torch.Tensor
+        ``(...)`` normalised response for energy integration [8].
+
+    Examples
+    --------
+    >>> float(r_band_response(600.0))
+    1.0
+    """
+    return _band_response("R", wavelength_nm)
+
+
+def i_band_response(wavelength_nm) -> torch.Tensor:
+    """Cousins I_C passband (Bessell 1990), maximum 1, zero outside 700–920 nm.
+
+    Parameters
+    ----------
+    wavelength_nm : array_like
+        ``(...)`` [nm].
+
+    Returns
+    -------
+    torch.Tensor
+        ``(...)`` normalised response for energy integration [8].
+
+    Examples
+    --------
+    >>> float(i_band_response(805.0))
+    1.0
+    """
+    return _band_response("I", wavelength_nm)
+
+
+def band_grid(band: str, dtype: torch.dtype = torch.float64) -> torch.Tensor:
+    """The 1-nm grid on which :func:`spectrum_to_magnitude` integrates a passband.
+
+    Parameters
+    ----------
+    band : {"B", "V", "R", "I"}
+        Johnson–Cousins passband.
+    dtype : torch.dtype
+        Floating dtype of the result.
+
+    Returns
+    -------
+    torch.Tensor
+        ``(wavelength,)`` [nm]: the CIE grid 360–830 nm for B and V, the span of the
+        passband's table for R (550–900 nm) and I (700–920 nm). A spectrum sampled on
+        this grid is integrated without reconstruction error.
+
+    Examples
+    --------
+    >>> grid = band_grid("I")
+    >>> float(grid[0]), float(grid[-1]), len(grid)
+    (700.0, 920.0, 221)
+    """
+    check_choice("band", band, BANDS)
+    if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
+        raise TypeError(f"dtype must be a floating torch.dtype (torch.float64, torch.float32); "
+                        f"got {dtype!r:.60}")
+    return _fine_grid(torch.float64, band)[0].to(dtype)
+
+
 # --- integration of sampled spectra -------------------------------------------------------------
 
-def _fine_grid(dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
-    """Return the 1-nm grid of the tables and its trapezoid weights [nm]."""
-    fine = wavelength_grid("cie1", dtype=dtype)
+#: responses integrated on the CIE 1-nm grid 360-830 nm (the others on their own table span)
+_CIE_GRID_RESPONSES = ("xyz", "B", "V")
+
+
+def _fine_grid(dtype: torch.dtype, response: str = "xyz") -> tuple[torch.Tensor, torch.Tensor]:
+    """Return the 1-nm grid of ``response`` and its trapezoid weights [nm].
+
+    The CIE grid 360–830 nm for ``"xyz"``, ``"B"`` and ``"V"``; for the R and I
+    passbands, which reach beyond 830 nm, whole nanometres spanning their table.
+    """
+    if response in _CIE_GRID_RESPONSES:
+        fine = wavelength_grid("cie1", dtype=dtype)
+    else:
+        band_wavelength = _band_table(response)[:, 0]
+        low, high = float(band_wavelength[0]), float(band_wavelength[-1])
+        fine = torch.arange(low, high + 0.5, 1.0, dtype=torch.float64).to(dtype)
     weights = torch.ones_like(fine)
     weights[0] = weights[-1] = 0.5
     return fine, weights
@@ -377,11 +468,12 @@ def _hat_weights(wavelength: torch.Tensor, fine: torch.Tensor) -> torch.Tensor:
 
 
 def _fine_response(response: str) -> torch.Tensor:
-    """Response functions (n_fine, k) on the 1-nm grid: ``"xyz"`` (k = 3), ``"B"``, ``"V"``."""
+    """Response functions (n_fine, k) on the 1-nm grid of ``response``: ``"xyz"`` (k = 3)
+    or a band of :data:`BANDS` (k = 1)."""
     if response == "xyz":
         return _table("cie1931_2deg_cmf.csv")[:, 1:4]
     band_table = _band_table(response)
-    fine, _ = _fine_grid(torch.float64)
+    fine, _ = _fine_grid(torch.float64, response)
     return _interp(fine, band_table[:, 0], band_table[:, 1:2])
 
 
@@ -390,7 +482,7 @@ def _projection_matrix(wavelengths: tuple[float, ...], response: str,
                        reference: str) -> torch.Tensor:
     """Return the cached float64 projection matrix for sorted, distinct ``wavelengths``."""
     ordered = torch.tensor(wavelengths, dtype=torch.float64)
-    fine, trapezoid = _fine_grid(torch.float64)
+    fine, trapezoid = _fine_grid(torch.float64, response)
     hat = _hat_weights(ordered, fine)
     if reference == "solar":
         hat = hat * solar_irradiance(fine).unsqueeze(-1) / solar_irradiance(ordered)
@@ -591,12 +683,13 @@ def spectrum_to_magnitude(spectral_flux, wavelength_nm, band: str = "V",
     wavelength_nm : array_like
         ``(wavelength,)`` distinct wavelengths [nm]; the spectrum is reconstructed as in
         :func:`spectrum_to_xyz` (held constant beyond the end samples).
-    band : {"B", "V"}
-        Johnson–Cousins passband (Bessell 1990).
+    band : {"B", "V", "R", "I"}
+        Johnson–Cousins passband (Bessell 1990; R and I are Cousins R_C, I_C).
     zero_point : "bessell1998" or float
         ``"bessell1998"``: f_λ of magnitude 0 from Bessell et al. 1998, Table A2
-        (6.32e-11 for B, 3.631e-11 for V [W m^-2 nm^-1]; Vega has V = 0.03); or that flux
-        density directly [W m^-2 nm^-1].
+        (6.32e-11 for B, 3.631e-11 for V, 2.177e-11 for R, 1.126e-11 for I
+        [W m^-2 nm^-1]; Vega has V = 0.03); or that flux density directly
+        [W m^-2 nm^-1].
     reference : {"none", "solar"}
         Reconstruction of coarse spectra (see :func:`spectrum_to_xyz`).
 
@@ -609,13 +702,26 @@ def spectrum_to_magnitude(spectral_flux, wavelength_nm, band: str = "V",
     -----
     m = −2.5 log10(⟨f_λ⟩ / f_0) with ⟨f_λ⟩ = ∫ f_λ R dλ / ∫ R dλ, the energy-weighted
     mean, because Bessell's 1990 passbands are energy response functions (Bessell &
-    Murphy 2012, §2).
+    Murphy 2012, §2). The integral runs over :func:`band_grid` (1 nm; B and V on the
+    CIE grid 360–830 nm, R on 550–900 nm, I on 700–920 nm). Beyond its end samples the
+    spectrum is held constant, so a spectrum on the ``"cie1"`` grid (ending at 830 nm)
+    gives an R or I magnitude that assumes a flat spectrum beyond 830 nm: sample R and I
+    spectra to 900 and 920 nm (e.g. on :func:`band_grid`).
+
+    Solar colours from the shipped ASTM G173 spectrum: B−V = 0.654, V−R = 0.378,
+    V−I = 0.739, against the solar-analogue values of Ramírez et al. 2012 (ApJ 752, 5,
+    doi:10.1088/0004-637X/752/1/5) 0.653 ± 0.003, 0.356 ± 0.003 and 0.701 ± 0.003:
+    V−R is 0.022 and V−I 0.038 mag redder (weighting by photons instead of energy gives
+    0.366 and 0.734, so the difference lies in the spectrum, passbands or zero points).
 
     Examples
     --------
     >>> wl = wavelength_grid("cie1")
     >>> round(float(spectrum_to_magnitude(solar_irradiance(wl), wl, "V")), 2)
     -26.76
+    >>> wl_i = band_grid("I")
+    >>> round(float(spectrum_to_magnitude(solar_irradiance(wl_i), wl_i, "I")), 2)
+    -27.5
     """
     values, dtype = _spectral_input("spectral_flux", spectral_flux, wavelength_nm)
     check_range("spectral_flux", values, low=0.0, unit=" W m^-2 nm^-1")
@@ -626,7 +732,7 @@ def spectrum_to_magnitude(spectral_flux, wavelength_nm, band: str = "V",
     else:
         flux_zero = float(check_range("zero_point", zero_point, low=0.0, low_inclusive=False,
                                       unit=" W m^-2 nm^-1"))
-    _, trapezoid = _fine_grid(torch.float64)
+    _, trapezoid = _fine_grid(torch.float64, band)
     matrix = _projection(wavelength_nm, values.shape[-1], band, reference, dtype,
                          "spectral_flux")[:, 0]
     normalisation = float((_fine_response(band)[:, 0] * trapezoid).sum())

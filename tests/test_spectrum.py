@@ -71,6 +71,30 @@ def test_passbands_match_bessell_1990_table_points():
     assert float(spectrum.b_band_response(650.0)) == 0.0
 
 
+def test_cousins_r_and_i_passbands_match_bessell_1990_table_points():
+    # Bessell 1990 Table 2: R_C peaks at 600 nm, R(700) = 0.61, R(800) = 0.14, zero at
+    # 550 and 900 nm; I_C is 1 at 800-810 nm, I(750) = 0.91, I(900) = 0.15, zero at 920 nm
+    assert float(spectrum.r_band_response(600.0)) == 1.0
+    assert float(spectrum.r_band_response(700.0)) == pytest.approx(0.61)
+    assert float(spectrum.r_band_response(800.0)) == pytest.approx(0.14)
+    assert float(spectrum.i_band_response(805.0)) == 1.0
+    assert float(spectrum.i_band_response(750.0)) == pytest.approx(0.91)
+    assert float(spectrum.i_band_response(900.0)) == pytest.approx(0.15)
+    for response, outside in ((spectrum.r_band_response, (540.0, 905.0)),
+                              (spectrum.i_band_response, (690.0, 925.0))):
+        assert float(response(outside[0])) == 0.0 and float(response(outside[1])) == 0.0
+
+
+def test_band_grids_cover_their_passbands():
+    # B and V on the CIE grid; R and I on whole nanometres over their own tables
+    assert torch.equal(spectrum.band_grid("V"), spectrum.wavelength_grid("cie1"))
+    for band, (low, high) in (("R", (550.0, 900.0)), ("I", (700.0, 920.0))):
+        grid = spectrum.band_grid(band, dtype=torch.float32)
+        assert grid.dtype == torch.float32
+        assert (float(grid[0]), float(grid[-1])) == (low, high)
+        assert torch.all(grid[1:] - grid[:-1] == 1.0)
+
+
 def test_solar_table_plus_infrared_tail_gives_total_solar_irradiance():
     # Total solar irradiance 1361 W m^-2 (Kopp & Lean 2011, doi:10.1029/2010GL045777).
     # The table covers 280-4000 nm; beyond 4000 nm the Sun radiates like a 5772 K black
@@ -212,10 +236,51 @@ def test_solar_colour_and_magnitude():
     assert float(v) == pytest.approx(-26.76, abs=0.05 * MAG)
 
 
+def test_solar_cousins_colours():
+    # Ramirez et al. 2012, ApJ 752, 5, doi:10.1088/0004-637X/752/1/5 (line-depth-ratio
+    # solution): (V-R)_C = 0.356 +- 0.003 and (V-I)_C = 0.701 +- 0.003, so
+    # (R-I)_C = 0.345. The ASTM G173 Sun with Bessell 1990 passbands and Bessell et al.
+    # 1998 zero points gives V-R = 0.378 and R-I = 0.360, both redder, so that
+    # V-I = 0.739 is 0.038 mag redder than Ramirez (beyond 0.03; stated in the Notes of
+    # spectrum_to_magnitude, not asserted at that tolerance).
+    wavelength = torch.arange(350.0, 1001.0, 1.0, dtype=torch.float64)
+    sun = spectrum.solar_irradiance(wavelength)
+    v, r, i = (spectrum.spectrum_to_magnitude(sun, wavelength, band) for band in "VRI")
+    assert float(v - r) == pytest.approx(0.356, abs=0.03 * MAG)
+    assert float(r - i) == pytest.approx(0.701 - 0.356, abs=0.03 * MAG)
+
+
+@pytest.mark.parametrize("band", ["R", "I"])
+def test_red_band_magnitude_against_quadrature(band):
+    # a 4000 K black body, integrated with scipy's adaptive quadrature against the
+    # passband table (linear interpolation written with numpy): the energy-weighted mean
+    # over the whole passband, including its part beyond 830 nm
+    import numpy as np
+
+    table = np.loadtxt(f"data/bessell1990_{band.lower()}.csv", delimiter=",", comments="#",
+                       skiprows=5)
+
+    def response(x):
+        return float(np.interp(x, table[:, 0], table[:, 1]))
+
+    low, high = table[0, 0], table[-1, 0]
+    points = list(table[:, 0])
+    numerator = quad(lambda x: planck_si(x * 1e-9, 4000.0) * 1e-9 * response(x), low, high,
+                     points=points, limit=200)[0]
+    denominator = quad(response, low, high, points=points, limit=200)[0]
+    zero = spectrum.ZERO_POINT_FLUX_W_M2_NM["bessell1998"][band]
+    expected = -2.5 * math.log10(numerator / denominator / zero)
+    wavelength = torch.arange(500.0, 1000.5, 0.5, dtype=torch.float64)
+    flux = spectrum.blackbody_radiance(wavelength, 4000.0)
+    magnitude = spectrum.spectrum_to_magnitude(flux, wavelength, band)
+    assert float(magnitude) == pytest.approx(expected, abs=1e-4 * MAG)
+
+
 def test_magnitude_zero_point_definition():
     # a flat f_lambda equal to Bessell et al. 1998's zero point has magnitude 0
     wavelength = spectrum.wavelength_grid("cie5")
-    for band, flux in (("V", 3.631e-11), ("B", 6.32e-11)):
+    for band, flux in (("V", 3.631e-11), ("B", 6.32e-11), ("R", 2.177e-11),
+                       ("I", 1.126e-11)):
         m = spectrum.spectrum_to_magnitude(torch.full_like(wavelength, flux), wavelength, band)
         assert abs(float(m)) < 1e-9 * MAG
     # ten times fainter -> +2.5 mag, with an explicit zero point
@@ -328,7 +393,9 @@ def test_bad_input():
     with pytest.raises(ValueError, match="wavelength_nm"):
         spectrum.solar_irradiance(5000.0)
     with pytest.raises(ValueError, match="band"):
-        spectrum.spectrum_to_magnitude(torch.ones(3), wavelength, band="R")
+        spectrum.spectrum_to_magnitude(torch.ones(3), wavelength, band="U")
+    with pytest.raises(ValueError, match="band"):
+        spectrum.band_grid("K")
     with pytest.raises(ValueError, match="spectral_flux"):
         spectrum.spectrum_to_magnitude(-torch.ones(3), wavelength)
     with pytest.raises(ValueError, match="bv"):
