@@ -394,6 +394,17 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
     return columns
 
 
+def _fits(total: torch.Tensor, *shapes, dtype: torch.dtype) -> bool:
+    """Whether terms of ``shapes`` and ``dtype`` add into ``total`` in place (they broadcast
+    to its shape and do not promote its dtype)."""
+    if torch.promote_types(total.dtype, dtype) != total.dtype:
+        return False
+    try:
+        return tuple(broadcast_shape(total.shape, *shapes)) == tuple(total.shape)
+    except ValueError:
+        return False
+
+
 def _quadrature_groups(profiles: Mapping[str, Profile], vanishing: tuple[str, ...],
                        method: str) -> list[tuple[str, ...]]:
     """Names of the profiles to integrate together, in order of first appearance.
@@ -525,13 +536,28 @@ class Constituents:
         if missing:
             raise ValueError(f"columns lack species {missing}; every species of "
                              f"{list(self.names)} needs its path column")
-        result = {s.name: s.optical_depth(columns[s.name], extra) for s in self.species}
         if per_species:
+            result = {s.name: s.optical_depth(columns[s.name], extra) for s in self.species}
             # every species with the shape of the total (Dataset-ready; views, no copies)
             return dict(zip(result, torch.broadcast_tensors(*result.values()), strict=True))
-        total = None
-        for value in result.values():
-            total = value if total is None else total + value
+        # the sum accumulated in place in a tensor of its own (in species order), linear
+        # species added as column x coefficient in one pass
+        total, owned = None, False
+        for s in self.species:
+            column = columns[s.name]
+            if s.law is None and owned:
+                coefficient = insert_dims(s.extinction, extra, 1)
+                if _fits(total, column.shape + (1,), coefficient.shape,
+                         dtype=torch.promote_types(column.dtype, coefficient.dtype)):
+                    total.addcmul_(column[..., None], coefficient)
+                    continue
+            value = s.optical_depth(column, extra)
+            if total is None:
+                total = value
+            elif owned and _fits(total, value.shape, dtype=value.dtype):
+                total.add_(value)
+            else:
+                total, owned = total + value, True
         return total
 
     # ------------------------------------------------------------------ local coefficients
