@@ -1,12 +1,14 @@
-"""Spectral resolution of the gas bands against the error in B, V and B-V of the direct beam.
+"""Spectral resolution of the gas bands against the error in B, V, R, I of the direct beam.
 
 The water vapour, O2 and O2-O2 optical depths (``skytorch.atmosphere.gases``) are
-evaluated on grids of 1, 5 and 10 nm (360-700 nm, the B and V passbands), their
+evaluated on grids of 1, 5 and 10 nm (360-920 nm, the B, V, R_C and I_C passbands), their
 transmittance interpolated linearly onto a 0.1 nm grid and multiplied with everything else
 (Rayleigh, aerosol, ozone and the ASTM G173 solar spectrum, all on the 0.1 nm grid); the
-extinction of the direct beam in B and V (Bessell 1990 passbands, ``skytorch.spectrum``;
-trapezoid rule on the 0.1 nm grid) is compared with the gases on the 0.1 nm grid itself
-(reference; 0.05 nm changes it by less than 1e-5 mag). Paths (straight rays, Earth preset,
+extinction of the direct beam in B, V, R and I and the colours B-V, V-R, V-I (Bessell 1990
+passbands, ``skytorch.spectrum``; trapezoid rule on the 0.1 nm grid) is compared with the
+gases on the 0.1 nm grid itself (reference; 0.05 nm changes it by less than 1e-5 mag).
+The O2 A band (760 nm), the O2 B band (690 nm) and the 720, 820 and 940 nm water bands lie
+in R and I. Paths (straight rays, Earth preset,
 1.4 cm water): zenith angle 80 deg from sea level, and two-way limb paths from space
 grazing at 5, 10 and 15 km (eclipse-like; refraction not included). Also listed: the error
 of leaving the gases out, and the change from the pressure-scaling exponent m = 0.5 to 0
@@ -34,11 +36,17 @@ from skytorch.atmosphere import Atmosphere, gases  # noqa: E402
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable  # noqa: E402
 from skytorch.spectrum import (  # noqa: E402
     b_band_response,
+    i_band_response,
+    r_band_response,
     solar_irradiance,
     v_band_response,
 )
 
-RANGE_NM = (360.0, 700.0)
+RANGE_NM = (360.0, 920.0)
+RESPONSES = {"B": b_band_response, "V": v_band_response, "R": r_band_response,
+             "I": i_band_response}
+#: colour indices reported, as (bluer band, redder band)
+COLOURS = (("B", "V"), ("V", "R"), ("V", "I"))
 FINE_STEP_NM = 0.1
 RESOLUTIONS_NM = (1.0, 5.0, 10.0)
 GAS_NAMES = gases.GAS_SPECIES
@@ -68,12 +76,12 @@ def _optical_depths(atm, wavelength, r, mu, extra_species=()):
 
 
 def _extinction_mag(transmittance, fine, solar):
-    """Extinction in B, V [mag] of transmittance (path, wavelength) on the fine grid:
+    """Extinction in B, V, R, I [mag] of transmittance (path, wavelength) on the fine grid:
     -2.5 log10 of the solar- and passband-weighted mean transmittance, trapezoid rule on
     the fine grid itself (``spectrum_to_magnitude`` samples spectra at whole nanometres,
     which would hide sub-nanometre structure)."""
     out = {}
-    for band, response in (("B", b_band_response), ("V", v_band_response)):
+    for band, response in RESPONSES.items():
         weight = solar * response(fine)
         mean = torch.trapezoid(transmittance * weight, fine) / torch.trapezoid(weight, fine)
         out[band] = (-2.5 * torch.log10(mean)).numpy()
@@ -105,11 +113,17 @@ def run(quick):
     def add(label, step, transmittance, seconds):
         mag = _extinction_mag(transmittance, fine, solar)
         for i, name in enumerate(names):
-            error_b = float(mag["B"][i] - reference["B"][i])
-            error_v = float(mag["V"][i] - reference["V"][i])
-            rows.append((name, label, step, error_b, error_v, error_b - error_v, seconds,
-                         float(reference["V"][i]), float(reference["B"][i]
-                                                         - reference["V"][i])))
+            row = {"path": name, "variant": label, "resolution": step, "time": seconds}
+            error = {band: float(mag[band][i] - reference[band][i]) for band in RESPONSES}
+            for band in RESPONSES:
+                row[f"error_{band.lower()}"] = error[band]
+            for blue, red in COLOURS:
+                key = f"{blue}{red}".lower()
+                row[f"error_{key}"] = error[blue] - error[red]
+                row[f"reference_{key}"] = float(reference[blue][i] - reference[red][i])
+            for band in RESPONSES:
+                row[f"reference_{band.lower()}"] = float(reference[band][i])
+            rows.append(row)
 
     repeat = 1 if quick else 5
     for step in RESOLUTIONS_NM:
@@ -132,7 +146,7 @@ def run(quick):
     tau_finer = _optical_depths(atm, finer, r, mu)
     finer_mag = _extinction_mag(torch.exp(-sum(tau_finer.values())), finer,
                                 solar_irradiance(finer))
-    convergence = max(float(np.abs(finer_mag[b] - reference[b]).max()) for b in ("B", "V"))
+    convergence = max(float(np.abs(finer_mag[b] - reference[b]).max()) for b in RESPONSES)
     for exponent in (0.0, 1.0):
         extra = gases.species_builders(exponent, suffix="_alt")
         t = _optical_depths(atm, fine, r, mu, extra)
@@ -142,35 +156,41 @@ def run(quick):
 
 
 def build(rows, convergence, atm):
-    def column(index):
-        return np.array([row[index] for row in rows])
+    def column(key):
+        values = np.array([row[key] for row in rows])
+        return values if values.dtype.kind in "UO" else values.astype(float)
 
     unit = VariableSpec("1", "index", "Configuration index.")
     data_vars = {
-        "path": variable("case", column(0), VariableSpec(
+        "path": variable("case", column("path"), VariableSpec(
             "1", "direct-beam path", "Straight rays: zenith 80 deg from sea level, or a "
             "two-way limb path from space grazing at the given tangent altitude.")),
-        "variant": variable("case", column(1), VariableSpec(
+        "variant": variable("case", column("variant"), VariableSpec(
             "1", "gas representation", "sampled: gas transmittance on the coarse grid, "
             "interpolated; no gases; exponent m: pressure scaling 0 or 1 instead of 0.5.")),
-        "resolution": variable("case", column(2).astype(float), VariableSpec(
+        "resolution": variable("case", column("resolution"), VariableSpec(
             "nm", "grid step of the gas optical depths", "")),
-        "error_b": variable("case", column(3).astype(float), VariableSpec(
-            "mag", "error of the B extinction", "Against gases on the 0.1 nm grid.")),
-        "error_v": variable("case", column(4).astype(float), VariableSpec(
-            "mag", "error of the V extinction", "Against gases on the 0.1 nm grid.")),
-        "error_bv": variable("case", column(5).astype(float), VariableSpec(
-            "mag", "error of B-V", "Against gases on the 0.1 nm grid.")),
-        "time": variable("case", column(6).astype(float), VariableSpec(
+        "time": variable("case", column("time"), VariableSpec(
             "s", "time of the optical depths", "Median wall time, all paths, all species.")),
-        "reference_v": variable("case", column(7).astype(float), VariableSpec(
-            "mag", "V extinction of the reference", "")),
-        "reference_bv": variable("case", column(8).astype(float), VariableSpec(
-            "mag", "B-V reddening of the reference", "")),
     }
+    for band in RESPONSES:
+        key = band.lower()
+        data_vars[f"error_{key}"] = variable("case", column(f"error_{key}"), VariableSpec(
+            "mag", f"error of the {band} extinction", "Against gases on the 0.1 nm grid."))
+        data_vars[f"reference_{key}"] = variable("case", column(f"reference_{key}"),
+                                                 VariableSpec(
+            "mag", f"{band} extinction of the reference", ""))
+    for blue, red in COLOURS:
+        key = f"{blue}{red}".lower()
+        data_vars[f"error_{key}"] = variable("case", column(f"error_{key}"), VariableSpec(
+            "mag", f"error of {blue}-{red}", "Against gases on the 0.1 nm grid."))
+        data_vars[f"reference_{key}"] = variable("case", column(f"reference_{key}"),
+                                                 VariableSpec(
+            "mag", f"{blue}-{red} reddening of the reference", ""))
     coords = {"case": coordinate("case", np.arange(len(rows)), unit)}
     return build_dataset(data_vars, coords,
-                         title="Gas band resolution against B, V, B-V of the direct beam",
+                         title="Gas band resolution against B, V, R, I and colours of "
+                               "the direct beam",
                          references=["Bird & Riordan 1986, doi:10.1175/1520-0450(1986)"
                                      "025<0087:SSSMFD>2.0.CO;2",
                                      "Karman et al. 2019, doi:10.1016/j.icarus.2019.02.034"],
@@ -182,15 +202,19 @@ def build(rows, convergence, atm):
 def plot(dataset):
     import matplotlib.pyplot as plt
 
-    figure, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    panels = (("error_v", "|error of V| [mag]"), ("error_bv", "|error of B-V| [mag]"),
+              ("error_r", "|error of R| [mag]"), ("error_i", "|error of I| [mag]"),
+              ("error_vr", "|error of V-R| [mag]"), ("error_vi", "|error of V-I| [mag]"))
+    figure, grid = plt.subplots(2, 3, figsize=(14, 7.5))
+    axes = grid.ravel()
     sampled = (dataset["variant"] == "sampled").values
     for path in np.unique(dataset["path"].values):
         mask = sampled & (dataset["path"] == path).values
         res = dataset["resolution"].values[mask]
-        for axis, name in zip(axes, ("error_v", "error_bv"), strict=True):
+        for axis, (name, _) in zip(axes, panels, strict=True):
             axis.loglog(res, np.maximum(np.abs(dataset[name].values[mask]), 1e-7), "o-",
                         label=path)
-    for axis, title in zip(axes, ("|error of V| [mag]", "|error of B-V| [mag]"), strict=True):
+    for axis, (_, title) in zip(axes, panels, strict=True):
         axis.set_xlabel("grid step of the gas bands [nm]")
         axis.set_ylabel(title)
         axis.legend(fontsize=7)
@@ -207,9 +231,13 @@ def main(argv=None):
                          "gas_resolution_accuracy_cost")
     print(f"reference convergence (0.05 vs 0.1 nm): {convergence:.2e} mag")
     for row in rows:
-        print(f"{row[0]:>15} {row[1]:>14} {row[2]:5.1f} nm  dB {row[3]:+.5f}  dV {row[4]:+.5f}"
-              f"  d(B-V) {row[5]:+.5f}  {row[6] * 1e3:7.1f} ms  (V {row[7]:.3f}, B-V "
-              f"{row[8]:.3f})")
+        errors = "  ".join(f"d{name} {row['error_' + name.lower().replace('-', '')]:+.5f}"
+                           for name in ("B", "V", "R", "I", "B-V", "V-R", "V-I"))
+        print(f"{row['path']:>15} {row['variant']:>14} {row['resolution']:5.1f} nm  {errors}"
+              f"  {row['time'] * 1e3:7.1f} ms  (V {row['reference_v']:.3f}, R "
+              f"{row['reference_r']:.3f}, I {row['reference_i']:.3f}, B-V "
+              f"{row['reference_bv']:.3f}, V-R {row['reference_vr']:.3f}, V-I "
+              f"{row['reference_vi']:.3f})")
     return paths
 
 
