@@ -508,8 +508,10 @@ class Constituents:
                                 batch_shape=self.batch_shape)
 
     def densities(self, altitude_m: torch.Tensor, extra: int = 0) -> dict[str, torch.Tensor]:
-        """Relative density of every species at ``altitude_m`` (*B', *extra, n_sample)."""
-        return {s.name: s.profile(altitude_m, extra) for s in self.species}
+        """Relative density of every species at ``altitude_m`` (*B', *extra, n_sample)
+        (a :attr:`Profile.state` shared by several species evaluated once)."""
+        states = {}
+        return {s.name: s.profile._evaluate(altitude_m, extra, states) for s in self.species}
 
     # ------------------------------------------------------------------ optical depth
     def optical_depth(self, columns: Mapping[str, torch.Tensor], *, per_species: bool = False,
@@ -566,12 +568,14 @@ class Constituents:
         """Local extinction coefficient of every species (*B', *extra, n_sample, wavelength)
         [1/m] at ``altitude_m`` (*B', *extra, n_sample) (the linear coefficient times the
         density; a species with a nonlinear law contributes its ``extinction``)."""
-        return {s.name: s.profile(altitude_m, extra)[..., None]
+        states = {}
+        return {s.name: s.profile._evaluate(altitude_m, extra, states)[..., None]
                 * insert_dims(s.extinction, extra + 1, 1) for s in self.species}
 
     def scattering_coefficients(self, altitude_m: torch.Tensor, extra: int = 0
                                 ) -> dict[str, torch.Tensor]:
         """Local scattering coefficient of every scattering species (*B', *extra, n_sample,
         wavelength) [1/m]."""
-        return {s.name: s.profile(altitude_m, extra)[..., None]
+        states = {}
+        return {s.name: s.profile._evaluate(altitude_m, extra, states)[..., None]
                 * insert_dims(s.scattering, extra + 1, 1) for s in self.scatterers()}
