@@ -1,15 +1,15 @@
-"""Ray–sphere geometry in a spherically symmetric atmosphere, stable near the horizon.
+r"""Ray–sphere geometry in a spherically symmetric atmosphere, stable near the horizon.
 
 A ray starts at radius ``r`` from the planet's centre with direction cosine ``mu`` to the
 local zenith. Along the ray, the signed distance from the point of closest approach is
 :math:`t`, with :math:`r(t)^2 = p^2 + t^2`, impact parameter
-:math:`p^2 = r^2 (1 - \\mu^2)` and observer at :math:`t_0 = r\\mu`.
+:math:`p^2 = r^2 (1 - \mu^2)` and observer at :math:`t_0 = r\mu`.
 
 The textbook forms of the intersection distances (ref. 1, functions
 ``DistanceToTopAtmosphereBoundary`` and ``DistanceToBottomAtmosphereBoundary``) subtract
 nearly equal numbers for rays close to the horizon or starting on a boundary. Here the
-discriminants are written as :math:`r^2\\mu^2 + (R_t - r)(R_t + r)` and
-:math:`r^2\\mu^2 - (r - R)(r + R)` (no cancellation of the large :math:`r^2` terms) and
+discriminants are written as :math:`r^2\mu^2 + (R_t - r)(R_t + r)` and
+:math:`r^2\mu^2 - (r - R)(r + R)` (no cancellation of the large :math:`r^2` terms) and
 the root that would cancel is taken from the product of the roots, :math:`d_1 d_2 = c`
 (the "citardauq" form), so distances keep full relative precision in float32 for rays
 tangent to the ground, grazing the top or starting exactly on a boundary.
@@ -50,18 +50,18 @@ __all__ = [
 
 
 def safe_sqrt(x: torch.Tensor) -> torch.Tensor:
-    """:math:`\\sqrt{\\max(x, 0)}` with a finite (zero) gradient where ``x <= 0``."""
+    r""":math:`\sqrt{\max(x, 0)}` with a finite (zero) gradient where ``x <= 0``."""
     tiny = torch.finfo(x.dtype).tiny
     return torch.sqrt(torch.clamp(x, min=tiny)) * (x > 0)
 
 
 def _discriminant_top(r, mu, top_radius):
-    """:math:`r^2\\mu^2 + (R_t - r)(R_t + r) = R_t^2 - p^2`."""
+    r""":math:`r^2\mu^2 + (R_t - r)(R_t + r) = R_t^2 - p^2`."""
     return (r * mu) ** 2 + (top_radius - r) * (top_radius + r)
 
 
 def _discriminant_ground(r, mu, planet_radius):
-    """:math:`r^2\\mu^2 - (r - R)(r + R) = R^2 - p^2`."""
+    r""":math:`r^2\mu^2 - (r - R)(r + R) = R^2 - p^2`."""
     return (r * mu) ** 2 - (r - planet_radius) * (r + planet_radius)
 
 
@@ -73,7 +73,7 @@ def _safe_divide(numerator, denominator):
 
 
 def _distance_to_top(r, mu, top_radius) -> torch.Tensor:
-    """Implementation of :func:`distance_to_top` (inputs already checked)."""
+    """Implement :func:`distance_to_top` (inputs already checked)."""
     disc = _discriminant_top(r, mu, top_radius)
     root = safe_sqrt(disc)
     c = (top_radius - r) * (top_radius + r)
@@ -83,7 +83,7 @@ def _distance_to_top(r, mu, top_radius) -> torch.Tensor:
 
 
 def _distance_to_ground(r, mu, planet_radius) -> torch.Tensor:
-    """Implementation of :func:`distance_to_ground` (inputs already checked)."""
+    """Implement :func:`distance_to_ground` (inputs already checked)."""
     disc = _discriminant_ground(r, mu, planet_radius)
     root = safe_sqrt(disc)
     c = (r - planet_radius) * (r + planet_radius)
@@ -92,14 +92,14 @@ def _distance_to_ground(r, mu, planet_radius) -> torch.Tensor:
 
 
 def _ray_hits_ground(r, mu, planet_radius) -> torch.Tensor:
-    """Implementation of :func:`ray_hits_ground` (inputs already checked)."""
+    """Implement :func:`ray_hits_ground` (inputs already checked)."""
     mu = torch.as_tensor(mu)
     tolerance = 8.0 * torch.finfo(mu.dtype).eps if mu.is_floating_point() else 0.0
     return (mu < -tolerance) & (_discriminant_ground(r, mu, planet_radius) >= 0)
 
 
 def _ray_segment(r, mu, planet_radius, top_radius) -> dict[str, torch.Tensor]:
-    """Implementation of :func:`ray_segment` (inputs already checked)."""
+    """Implement :func:`ray_segment` (inputs already checked)."""
     hits = _ray_hits_ground(r, mu, planet_radius)
     disc_ground = _discriminant_ground(r, mu, planet_radius)
     disc_top = _discriminant_top(r, mu, top_radius)
@@ -117,7 +117,7 @@ def _ray_segment(r, mu, planet_radius, top_radius) -> dict[str, torch.Tensor]:
 
 
 def _texture_rays(x_r, x_mu, planet_radius, top_radius) -> tuple[torch.Tensor, torch.Tensor]:
-    """Implementation of :func:`texture_rays` (inputs already checked)."""
+    """Implement :func:`texture_rays` (inputs already checked)."""
     horizon = math.sqrt(top_radius**2 - planet_radius**2)
     rho = x_r * horizon
     r = torch.sqrt(rho * rho + planet_radius**2)
@@ -135,7 +135,7 @@ def _texture_rays(x_r, x_mu, planet_radius, top_radius) -> tuple[torch.Tensor, t
 
 def _texture_coordinates(altitude_m, mu, planet_radius, top_radius
                         ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Implementation of :func:`texture_coordinates` (inputs already checked)."""
+    """Implement :func:`texture_coordinates` (inputs already checked)."""
     horizon = math.sqrt(top_radius**2 - planet_radius**2)
     r = planet_radius + altitude_m
     rho = safe_sqrt(altitude_m * (r + planet_radius))
@@ -150,7 +150,7 @@ def _texture_coordinates(altitude_m, mu, planet_radius, top_radius
 
 
 def _radius(name: str, value) -> float | torch.Tensor:
-    """A sphere radius [m]: a positive finite number or tensor."""
+    """Return a sphere radius [m]: a positive finite number or tensor."""
     if isinstance(value, bool):
         raise TypeError(f"{name} must be a number [m]; got {value!r}")
     if isinstance(value, (int, float)):
@@ -161,7 +161,7 @@ def _radius(name: str, value) -> float | torch.Tensor:
 
 
 def _ray(r, mu, **radii):
-    """Checked ray origin radius, direction cosine and radii, broadcastable together."""
+    """Return checked ray origin radius, direction cosine and radii, broadcastable together."""
     dtype = common_dtype(r, mu, *radii.values())
     r = check_range("r", r, 0.0, unit=" m", dtype=dtype)
     mu = check_range("mu", mu, -1.0 - _MU_SLACK, 1.0 + _MU_SLACK, dtype=dtype)
@@ -183,7 +183,7 @@ _MU_SLACK = 1e-6
 
 
 def distance_to_top(r, mu, top_radius) -> torch.Tensor:
-    """Distance along the ray to where it leaves the top of the atmosphere [m].
+    r"""Distance along the ray to where it leaves the top of the atmosphere [m].
 
     Parameters
     ----------
@@ -197,20 +197,20 @@ def distance_to_top(r, mu, top_radius) -> torch.Tensor:
     Returns
     -------
     Tensor (...)
-        Distance :math:`d = -r\\mu + \\sqrt{r^2\\mu^2 + R_t^2 - r^2} \\ge 0` [m], computed as
-        :math:`(R_t^2 - r^2)/(r\\mu + \\sqrt{\\cdot})` for upward rays.
+        Distance :math:`d = -r\mu + \sqrt{r^2\mu^2 + R_t^2 - r^2} \ge 0` [m], computed as
+        :math:`(R_t^2 - r^2)/(r\mu + \sqrt{\cdot})` for upward rays.
 
     Raises
     ------
     ValueError
-        NaN/inf, a negative radius, :math:`|\\mu| > 1` or shapes that do not broadcast.
+        NaN/inf, a negative radius, :math:`|\mu| > 1` or shapes that do not broadcast.
     """
     r, mu, radii = _ray(r, mu, top_radius=top_radius)
     return _distance_to_top(r, mu, radii["top_radius"])
 
 
 def distance_to_ground(r, mu, planet_radius) -> torch.Tensor:
-    """Distance along the ray to the ground [m] (meaningful where :func:`ray_hits_ground`).
+    r"""Distance along the ray to the ground [m] (meaningful where :func:`ray_hits_ground`).
 
     Parameters
     ----------
@@ -224,10 +224,10 @@ def distance_to_ground(r, mu, planet_radius) -> torch.Tensor:
     Returns
     -------
     Tensor (...)
-        :math:`d = -r\\mu - \\sqrt{r^2\\mu^2 - (r^2 - R^2)}`, computed as
-        :math:`(r^2 - R^2)/(-r\\mu + \\sqrt{\\cdot})` [m]; for rays that miss the ground
+        :math:`d = -r\mu - \sqrt{r^2\mu^2 - (r^2 - R^2)}`, computed as
+        :math:`(r^2 - R^2)/(-r\mu + \sqrt{\cdot})` [m]; for rays that miss the ground
         the distance to the point of closest approach's projection,
-        :math:`(r^2 - R^2)/(-r\\mu)` clamped at 0 (as in ref. 1, never NaN).
+        :math:`(r^2 - R^2)/(-r\mu)` clamped at 0 (as in ref. 1, never NaN).
     """
     r, mu, radii = _ray(r, mu, planet_radius=planet_radius)
     return _distance_to_ground(r, mu, radii["planet_radius"])
@@ -251,7 +251,7 @@ def ray_hits_ground(r, mu, planet_radius) -> torch.Tensor:
 
 
 def ray_segment(r, mu, planet_radius, top_radius) -> dict[str, torch.Tensor]:
-    """The part of a straight ray inside the atmosphere, in the :math:`t` parametrisation.
+    r"""Return the part of a straight ray inside the atmosphere, in the :math:`t` parametrisation.
 
     Parameters
     ----------
@@ -272,8 +272,8 @@ def ray_segment(r, mu, planet_radius, top_radius) -> dict[str, torch.Tensor]:
 
     Notes
     -----
-    Altitude along the ray: :math:`h(t) = (p^2 - R^2 + t^2)/(\\sqrt{R^2 + p^2 - R^2 + t^2}
-    + R)`. An origin above the top starts at :math:`t = -\\sqrt{R_t^2 - p^2}` if the ray
+    Altitude along the ray: :math:`h(t) = (p^2 - R^2 + t^2)/(\sqrt{R^2 + p^2 - R^2 + t^2}
+    + R)`. An origin above the top starts at :math:`t = -\sqrt{R_t^2 - p^2}` if the ray
     descends into the atmosphere, otherwise the segment is empty.
     """
     r, mu, radii = _ray(r, mu, planet_radius=planet_radius, top_radius=top_radius)

@@ -1,4 +1,4 @@
-"""Ozone absorption: temperature-dependent cross-sections, 214–1100 nm, and the column.
+r"""Ozone absorption: temperature-dependent cross-sections, 214–1100 nm, and the column.
 
 Absolute values: Serdyuchenko et al. (ref. 1), measured at 223 K and 243 K, shipped as
 means over 1 nm bins ``[λ - 0.5, λ + 0.5)`` of vacuum wavelength centred on each whole
@@ -16,10 +16,10 @@ temperatures:
 
 .. math::
 
-    \\sigma(\\lambda, T) = \\sigma_S(\\lambda, 223\\,K)\\,
-    \\frac{\\sigma_B(\\lambda, T)}{\\sigma_B(\\lambda, 223\\,K)} \\; (T < 223\\,K), \\qquad
-    \\sigma_S(\\lambda, 243\\,K)\\,
-    \\frac{\\sigma_B(\\lambda, T)}{\\sigma_B(\\lambda, 243\\,K)} \\; (T > 243\\,K).
+    \sigma(\lambda, T) = \sigma_S(\lambda, 223\,K)\,
+    \frac{\sigma_B(\lambda, T)}{\sigma_B(\lambda, 223\,K)} \; (T < 223\,K), \qquad
+    \sigma_S(\lambda, 243\,K)\,
+    \frac{\sigma_B(\lambda, T)}{\sigma_B(\lambda, 243\,K)} \; (T > 243\,K).
 
 Why: Serdyuchenko's set is the more accurate absolute scale (Bogumil's is about 5 %
 higher in the Chappuis band, ref. 1), Bogumil's five temperatures span the atmosphere's;
@@ -212,18 +212,18 @@ _TENT_NODES = 801
 
 
 def ozone_effective_temperature(peak_altitude_m, half_width_m) -> torch.Tensor:
-    """Ozone-weighted mean U.S. Standard Atmosphere 1976 temperature over a tent layer [K].
+    r"""Ozone-weighted mean U.S. Standard Atmosphere 1976 temperature over a tent layer [K].
 
     Parameters
     ----------
     peak_altitude_m, half_width_m : float or Tensor (...)
-        Peak altitude and half width of the tent :math:`\\max(0, 1 - |h - h_c|/w)` [m]
+        Peak altitude and half width of the tent :math:`\max(0, 1 - |h - h_c|/w)` [m]
         (:func:`skytorch.atmosphere.profiles.tent`), broadcasting together.
 
     Returns
     -------
     Tensor (...)
-        :math:`\\int \\rho(h) T(h)\\,dh / \\int \\rho(h)\\,dh` over the part of the tent
+        :math:`\int \rho(h) T(h)\,dh / \int \rho(h)\,dh` over the part of the tent
         above the ground [K] (trapezoid rule on 1601 nodes; differentiable).
 
     Examples

@@ -85,7 +85,7 @@ REFRACTIVITY_REFERENCE_WAVELENGTH_NM = 589.3
 
 
 def air_refractivity(wavelength_nm, co2_ppv: float = DEFAULT_CO2_PPV) -> torch.Tensor:
-    """Refractivity :math:`n_s - 1` of dry air at 288.15 K, 1013.25 hPa.
+    r"""Refractivity :math:`n_s - 1` of dry air at 288.15 K, 1013.25 hPa.
 
     Parameters
     ----------
@@ -101,9 +101,9 @@ def air_refractivity(wavelength_nm, co2_ppv: float = DEFAULT_CO2_PPV) -> torch.T
 
     Notes
     -----
-    Ref. 2 (ref. 1 eq. 18), with :math:`\\lambda` in micrometres:
-    :math:`10^8 (n_{300} - 1) = 8060.51 + 2480990/(132.274 - \\lambda^{-2})
-    + 17455.7/(39.32957 - \\lambda^{-2})`, and ref. 1 eq. 19:
+    Ref. 2 (ref. 1 eq. 18), with :math:`\lambda` in micrometres:
+    :math:`10^8 (n_{300} - 1) = 8060.51 + 2480990/(132.274 - \lambda^{-2})
+    + 17455.7/(39.32957 - \lambda^{-2})`, and ref. 1 eq. 19:
     :math:`(n - 1) = (n_{300} - 1)[1 + 0.54 (C - 0.0003)]`.
     """
     lam = _check_wavelength(wavelength_nm) * 1e-3
@@ -113,10 +113,10 @@ def air_refractivity(wavelength_nm, co2_ppv: float = DEFAULT_CO2_PPV) -> torch.T
 
 
 def refractivity_dispersion(wavelength_nm) -> torch.Tensor:
-    """Spectral shape of refractivity relative to its value at 589.3 nm [1].
+    r"""Spectral shape of refractivity relative to its value at 589.3 nm [1].
 
     Used to give a constant refractivity (ref. 4) a wavelength dependence:
-    :math:`(n-1)(\\lambda) = (n-1)_{589.3} \\, f(\\lambda)/f(589.3)` with :math:`f` the
+    :math:`(n-1)(\lambda) = (n-1)_{589.3} \, f(\lambda)/f(589.3)` with :math:`f` the
     Peck–Reeder dispersion of air (an approximation for CO2).
     """
     reference = air_refractivity(torch.tensor(REFRACTIVITY_REFERENCE_WAVELENGTH_NM,
@@ -125,14 +125,14 @@ def refractivity_dispersion(wavelength_nm) -> torch.Tensor:
 
 
 def air_king_factor(wavelength_nm, co2_ppv: float = DEFAULT_CO2_PPV) -> torch.Tensor:
-    """King correction factor :math:`F_{air}(\\lambda)` (ref. 1, eqs. 22-23).
+    r"""King correction factor :math:`F_{air}(\lambda)` (ref. 1, eqs. 22-23).
 
     Notes
     -----
-    :math:`F(N_2) = 1.034 + 3.17\\times10^{-4}\\lambda^{-2}`,
-    :math:`F(O_2) = 1.096 + 1.385\\times10^{-3}\\lambda^{-2} + 1.448\\times10^{-4}\\lambda^{-4}`,
+    :math:`F(N_2) = 1.034 + 3.17\times10^{-4}\lambda^{-2}`,
+    :math:`F(O_2) = 1.096 + 1.385\times10^{-3}\lambda^{-2} + 1.448\times10^{-4}\lambda^{-4}`,
     :math:`F(Ar) = 1`, :math:`F(CO_2) = 1.15`, weighted by volume percentages
-    78.084, 20.946, 0.934 and :math:`100\\,C`.
+    78.084, 20.946, 0.934 and :math:`100\,C`.
     """
     lam = _check_wavelength(wavelength_nm) * 1e-3
     inv2 = lam ** -2
@@ -150,7 +150,7 @@ def air_molar_mass(co2_ppv: float = DEFAULT_CO2_PPV) -> float:
 
 
 def _lorentz_lorenz_cross_section(wavelength_nm, refractivity, number_density_m3, king_factor):
-    """:math:`\\sigma = 24\\pi^3 (n^2-1)^2 / (\\lambda^4 N^2 (n^2+2)^2) F_K` [m^2]."""
+    r""":math:`\sigma = 24\pi^3 (n^2-1)^2 / (\lambda^4 N^2 (n^2+2)^2) F_K` [m^2]."""
     lam_m = wavelength_nm * 1e-9
     n2 = (1.0 + refractivity) ** 2
     ratio = (n2 - 1.0) / (n2 + 2.0)
@@ -160,7 +160,7 @@ def _lorentz_lorenz_cross_section(wavelength_nm, refractivity, number_density_m3
 def rayleigh_cross_section(wavelength_nm, gas: str = "air", *, co2_ppv: float = DEFAULT_CO2_PPV,
                            reference_refractivity: float | None = None,
                            reference_number_density_m3: float | None = None) -> torch.Tensor:
-    """Rayleigh scattering cross-section per molecule [m^2].
+    r"""Rayleigh scattering cross-section per molecule [m^2].
 
     Parameters
     ----------
@@ -183,9 +183,9 @@ def rayleigh_cross_section(wavelength_nm, gas: str = "air", *, co2_ppv: float = 
 
     Notes
     -----
-    :math:`\\sigma(\\lambda) = \\frac{24\\pi^3 (n^2-1)^2}{\\lambda^4 N^2 (n^2+2)^2} F_K(\\lambda)`
+    :math:`\sigma(\lambda) = \frac{24\pi^3 (n^2-1)^2}{\lambda^4 N^2 (n^2+2)^2} F_K(\lambda)`
     (ref. 1, eq. 2), independent of the density at which :math:`n` and :math:`N` are
-    taken as long as :math:`n - 1 \\propto N`.
+    taken as long as :math:`n - 1 \propto N`.
     """
     check_choice("gas", gas, RAYLEIGH_GASES)
     check_range("co2_ppv", co2_ppv, 0.0, 1.0)

@@ -1,6 +1,6 @@
-"""Phase functions and single-scattering sky radiance.
+r"""Phase functions and single-scattering sky radiance.
 
-Phase functions are normalised over the sphere, :math:`\\int P\\,d\\Omega = 1` [1/sr].
+Phase functions are normalised over the sphere, :math:`\int P\,d\Omega = 1` [1/sr].
 
 References
 ----------
@@ -75,7 +75,7 @@ def _asymmetry(g, cos_theta) -> torch.Tensor:
 
 
 def rayleigh_phase(cos_theta) -> torch.Tensor:
-    """Rayleigh phase function :math:`\\frac{3}{16\\pi}(1 + \\cos^2\\theta)` [1/sr] (ref. 1).
+    r"""Rayleigh phase function :math:`\frac{3}{16\pi}(1 + \cos^2\theta)` [1/sr] (ref. 1).
 
     Parameters
     ----------
@@ -87,9 +87,9 @@ def rayleigh_phase(cos_theta) -> torch.Tensor:
 
 
 def henyey_greenstein(cos_theta, g) -> torch.Tensor:
-    """Henyey–Greenstein phase function [1/sr] (ref. 2).
+    r"""Henyey–Greenstein phase function [1/sr] (ref. 2).
 
-    :math:`P = \\frac{1}{4\\pi}\\frac{1 - g^2}{(1 + g^2 - 2 g \\cos\\theta)^{3/2}}`.
+    :math:`P = \frac{1}{4\pi}\frac{1 - g^2}{(1 + g^2 - 2 g \cos\theta)^{3/2}}`.
 
     Parameters
     ----------
@@ -104,10 +104,10 @@ def henyey_greenstein(cos_theta, g) -> torch.Tensor:
 
 
 def cornette_shanks(cos_theta, g) -> torch.Tensor:
-    """Cornette–Shanks phase function [1/sr] (ref. 3, as used in ref. 4).
+    r"""Cornette–Shanks phase function [1/sr] (ref. 3, as used in ref. 4).
 
-    :math:`P = \\frac{3}{8\\pi}\\frac{(1 - g^2)(1 + \\cos^2\\theta)}
-    {(2 + g^2)(1 + g^2 - 2 g\\cos\\theta)^{3/2}}`.
+    :math:`P = \frac{3}{8\pi}\frac{(1 - g^2)(1 + \cos^2\theta)}
+    {(2 + g^2)(1 + g^2 - 2 g\cos\theta)^{3/2}}`.
     """
     cos_theta = _cosine(cos_theta)
     g = _asymmetry(g, cos_theta)
@@ -124,7 +124,7 @@ def phase_function(cos_theta, g, model: str = "cornetteshanks1992") -> torch.Ten
 
 
 def _direction(zenith, azimuth):
-    """Unit vectors (..., 3) in the observer's (north, east, up) frame."""
+    """Return unit vectors (..., 3) in the observer's (north, east, up) frame."""
     zenith, azimuth = torch.broadcast_tensors(zenith, azimuth)
     sin_z = torch.sin(zenith)
     return torch.stack([sin_z * torch.cos(azimuth), sin_z * torch.sin(azimuth),
@@ -135,7 +135,7 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
                                view_azimuth_rad=0.0, sun_zenith_rad=0.0,
                                sun_azimuth_rad=0.0, altitude_m=0.0, *, n_samples: int = 128,
                                table=None, sun_steps: int | None = None) -> torch.Tensor:
-    """Single-scattering sky radiance per unit extraterrestrial solar irradiance [1/sr].
+    r"""Single-scattering sky radiance per unit extraterrestrial solar irradiance [1/sr].
 
     Parameters
     ----------
@@ -162,20 +162,20 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     Returns
     -------
     Tensor (..., wavelength)
-        :math:`L/E_\\odot` [sr^-1]; ``...`` broadcasts the angles, the altitude and the
+        :math:`L/E_\odot` [sr^-1]; ``...`` broadcasts the angles, the altitude and the
         parameters' batch shape (ValueError naming the shapes otherwise).
 
     Notes
     -----
     .. math::
 
-        \\frac{L}{E_\\odot} = \\int_0^{L} \\sum_{i} \\beta_i(h(s))\\,P_i(\\cos\\theta)\\,
-        T(0 \\to s)\\,T_\\odot(s)\\,ds,\\qquad \\cos\\theta = \\hat v\\cdot\\hat s,
+        \frac{L}{E_\odot} = \int_0^{L} \sum_{i} \beta_i(h(s))\,P_i(\cos\theta)\,
+        T(0 \to s)\,T_\odot(s)\,ds,\qquad \cos\theta = \hat v\cdot\hat s,
 
     over Rayleigh and aerosol scattering (ref. 4, eq. 1 without multiple scattering),
     with the view ray ending at the top of the atmosphere or the ground,
-    :math:`T(0 \\to s)` integrated along the view ray (trapezoid on the samples) and
-    :math:`T_\\odot(s) = 0` where the ray to the Sun meets the planet (its shadow).
+    :math:`T(0 \to s)` integrated along the view ray (trapezoid on the samples) and
+    :math:`T_\odot(s) = 0` where the ray to the Sun meets the planet (its shadow).
     """
     from skytorch.atmosphere.model import Atmosphere, altitude_tensor, wavelength_tensor
 
@@ -215,8 +215,10 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
 def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth,
                          altitude, *, n_samples: int = 128, table=None,
                          sun_steps: int | None = None) -> torch.Tensor:
-    """Single-scattering radiance :math:`L/E_\\odot` (..., wavelength) [sr^-1] of
-    :class:`~skytorch.atmosphere.constituents.Constituents` (checked inputs).
+    r"""Single-scattering radiance :math:`L/E_\odot`.
+
+    (..., wavelength) [sr^-1] of :class:`~skytorch.atmosphere.constituents.Constituents` (checked
+    inputs).
 
     The kernel behind :func:`single_scattering_radiance`: every species that scatters
     contributes its scattering coefficient and phase function; the view-path optical

@@ -174,7 +174,7 @@ def danjon_l(v_magnitude, *, outside: str = "raise", return_uncertainty: bool = 
 
 
 def danjon_l_linear(v_magnitude) -> torch.Tensor:
-    """The earlier linear brightness proxy for Danjon L (a named alternative).
+    """Return the earlier linear brightness proxy for Danjon L (a named alternative).
 
     **Not a published L–magnitude relation** (:data:`DANJON_RELATION_LINEAR`): L is linear
     in V between the anchors :data:`DANJON_ANCHORS`, ``L = 4 (V - 2) / (-3.3 - 2)``, and

@@ -72,7 +72,7 @@ _SPECS = {
 
 @lru_cache(maxsize=1)
 def _rows() -> tuple[dict[str, str], ...]:
-    """The table's rows as text (read once; a pure function of the shipped file)."""
+    """Return the table's rows as text (read once; a pure function of the shipped file)."""
     with open(data_path(OBSERVED_FILE), newline="", encoding="utf-8") as handle:
         lines = [line for line in handle if not line.startswith("#")]
     return tuple(csv.DictReader(lines))

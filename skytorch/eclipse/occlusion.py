@@ -1,4 +1,4 @@
-"""Fraction of a limb-darkened solar disc left visible by a spherical occluder.
+r"""Fraction of a limb-darkened solar disc left visible by a spherical occluder.
 
 The Sun is a disc of angular radius ``rho_s`` with a radially symmetric, limb-darkened
 radiance; the occluder is a disc (spherical cap) of angular radius ``rho_o`` whose centre
@@ -15,9 +15,9 @@ disc inside the occluder). Because the radiance depends only on the angular dist
 
 .. math::
 
-    B = \\iint_{\\text{lens}} I(\\theta)\\, \\sin\\theta\\, d\\theta\\, d\\psi
-      = \\oint_{\\partial\\,\\text{lens}} C(\\theta)\\, d\\psi ,
-    \\qquad C(\\theta) = \\int_0^\\theta I(\\theta')\\sin\\theta'\\, d\\theta' ,
+    B = \iint_{\text{lens}} I(\theta)\, \sin\theta\, d\theta\, d\psi
+      = \oint_{\partial\,\text{lens}} C(\theta)\, d\psi ,
+    \qquad C(\theta) = \int_0^\theta I(\theta')\sin\theta'\, d\theta' ,
 
 as in the Green's-theorem transit models of Pál (2012). The contour is made of the arc of
 the solar limb inside the occluder (half-angle ``alpha`` seen from the Sun's centre; it
@@ -39,13 +39,13 @@ angles and at tangency:
 
 .. math::
 
-    \\operatorname{hav}\\theta = \\operatorname{hav}(d-\\rho_o)
-        + \\sin d \\sin\\rho_o \\operatorname{hav}\\varphi ,\\qquad
-    \\operatorname{hav}\\alpha = \\frac{\\sin\\frac{\\rho_o-d+\\rho_s}{2}
-        \\sin\\frac{\\rho_o+d-\\rho_s}{2}}{\\sin d\\sin\\rho_s} ,
+    \operatorname{hav}\theta = \operatorname{hav}(d-\rho_o)
+        + \sin d \sin\rho_o \operatorname{hav}\varphi ,\qquad
+    \operatorname{hav}\alpha = \frac{\sin\frac{\rho_o-d+\rho_s}{2}
+        \sin\frac{\rho_o+d-\rho_s}{2}}{\sin d\sin\rho_s} ,
 
-    \\frac{d\\psi}{d\\varphi}\\sin^2\\theta = \\sin\\rho_o\\,[\\sin(\\rho_o-d)
-        + 2\\sin d\\cos\\rho_o\\operatorname{hav}\\varphi] .
+    \frac{d\psi}{d\varphi}\sin^2\theta = \sin\rho_o\,[\sin(\rho_o-d)
+        + 2\sin d\cos\rho_o\operatorname{hav}\varphi] .
 
 The half-angles ``alpha`` and ``phi_max`` are computed from their haversines and the
 complements ``cos^2(x/2)``, each a product of sines of angles that are formed exactly
@@ -170,14 +170,16 @@ def _haversine(x: torch.Tensor) -> torch.Tensor:
 
 
 def _nodes(n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Legendre nodes and weights on [0, 1] (:func:`skytorch._quadrature.legendre_unit`),
-    as writable copies of its read-only cached arrays."""
+    """Gauss-Legendre nodes and weights on [0, 1] (:func:`skytorch._quadrature.legendre_unit`).
+
+    As writable copies of its read-only cached arrays.
+    """
     x, w = legendre_unit(n_nodes)
     return x.copy(), w.copy()
 
 
 def _series_terms(b: torch.Tensor) -> int:
-    """Number of terms of the 1/cos(theta) series needed for ~1e-9 relative accuracy."""
+    """Return number of terms of the 1/cos(theta) series needed for ~1e-9 relative accuracy."""
     b_max = float(b.detach().max()) if b.numel() else 0.0
     for n in range(1, len(_SERIES)):
         if _SERIES[n] * b_max**n < 1e-9:
@@ -295,8 +297,10 @@ def _radial_coefficients(b, *law_weights, matrix=None) -> torch.Tensor:
 
 
 def _radial_coefficients_(b, law_weights, matrix, out, series) -> torch.Tensor:
-    """:func:`_radial_coefficients` without gradients, node-major ``(power, m)``, written
-    into ``out`` (``series``, same shape, is overwritten)."""
+    """:func:`_radial_coefficients` without gradients, node-major ``(power, m)``.
+
+    Written into ``out`` (``series``, same shape, is overwritten).
+    """
     b = b.unsqueeze(0)
     columns = matrix.unsqueeze(-1)  # (law, n, power, 1)
     out.zero_()
@@ -341,9 +345,11 @@ def _sqrt_(x: torch.Tensor, scratch: torch.Tensor) -> torch.Tensor:
 def _haversine_quotient_(numerator: torch.Tensor, denominator: torch.Tensor,
                          full: torch.Tensor | None, scratch: torch.Tensor,
                          fill: float = 1.0) -> torch.Tensor:
-    """:func:`_haversine_quotient` without gradients, written into ``numerator``
-    (``denominator`` and ``scratch`` are overwritten; where ``full`` is true the quotient is
-    ``fill``, 1 by default; ``full=None`` sets nothing)."""
+    """:func:`_haversine_quotient` without gradients.
+
+    Written into ``numerator`` (``denominator`` and ``scratch`` are overwritten; where ``full`` is
+    true the quotient is ``fill``, 1 by default; ``full=None`` sets nothing).
+    """
     floor = torch.finfo(numerator.dtype).tiny ** 0.75
     safe = torch.maximum(denominator.clamp_(min=floor), torch.abs(numerator, out=scratch),
                          out=denominator)
@@ -354,8 +360,10 @@ def _haversine_quotient_(numerator: torch.Tensor, denominator: torch.Tensor,
 
 
 def _sixteenth_tangent(hav_phi: torch.Tensor, cos2_half_phi: torch.Tensor) -> torch.Tensor:
-    """``tan(phi / 16)`` from ``hav(phi)`` and ``cos^2(phi / 2) = 1 - hav(phi)``, both in
-    [0, 1] (the complement given separately keeps ``phi`` accurate near ``pi``)."""
+    """``tan(phi / 16)`` from ``hav(phi)`` and ``cos^2(phi / 2) = 1 - hav(phi)``.
+
+    Both in [0, 1] (the complement given separately keeps ``phi`` accurate near ``pi``).
+    """
     tangent = torch.sqrt(hav_phi) / (1.0 + torch.sqrt(cos2_half_phi))  # tan(phi / 4)
     for _ in range(2):  # half-angle tangent: tan(x / 2) = tan x / (1 + sqrt(1 + tan^2 x))
         tangent = tangent / (1.0 + torch.sqrt(1.0 + tangent * tangent))
@@ -577,7 +585,7 @@ _WORKSPACE_BUFFERS = 36
 
 def _fraction_without_gradient(rho_s, rho_o, d, radial, s, weight, out: torch.Tensor,
                                workspace: _Workspace) -> torch.Tensor:
-    """Same result as :func:`_visible_fraction_flat`, for inputs that need no gradient.
+    """Return same result as :func:`_visible_fraction_flat`, for inputs that need no gradient.
 
     Written for speed: six sines and no cosine per configuration (``sin d``, ``sin rho_o``
     and ``cos rho_o`` from the sines of the half angles; the cosines of half angles in
@@ -706,8 +714,10 @@ def _fraction_without_gradient(rho_s, rho_o, d, radial, s, weight, out: torch.Te
 
 
 def _thread_pool(workers: int) -> ThreadPoolExecutor:
-    """Threads that evaluate chunks of configurations concurrently (one pool per process:
-    a pool inherited through ``fork`` has no threads in the child)."""
+    """Threads that evaluate chunks of configurations concurrently.
+
+    One pool per process: a pool inherited through ``fork`` has no threads in the child.
+    """
     return _process_thread_pool(workers, os.getpid())
 
 
@@ -750,7 +760,7 @@ def sun_visible_fraction(
     *,
     n_nodes: int = DEFAULT_NODES,
 ) -> torch.Tensor:
-    """Fraction of the limb-darkened solar flux not blocked by a spherical occluder.
+    r"""Fraction of the limb-darkened solar flux not blocked by a spherical occluder.
 
     Parameters
     ----------
@@ -780,9 +790,9 @@ def sun_visible_fraction(
 
     .. math::
 
-        B = 2\\alpha C(\\rho_s) + 2\\int_0^{\\varphi_{max}} K(\\theta(\\varphi))
-            \\sin\\rho_o[\\sin(\\rho_o-d) + 2\\sin d\\cos\\rho_o\\operatorname{hav}\\varphi]
-            \\,d\\varphi, \\qquad f = 1 - \\frac{B}{2\\pi C(\\rho_s)} .
+        B = 2\alpha C(\rho_s) + 2\int_0^{\varphi_{max}} K(\theta(\varphi))
+            \sin\rho_o[\sin(\rho_o-d) + 2\sin d\cos\rho_o\operatorname{hav}\varphi]
+            \,d\varphi, \qquad f = 1 - \frac{B}{2\pi C(\rho_s)} .
 
     For ``u = 0`` this is the exact circle–circle (cap–cap) lens area. See the module
     docstring for the derivation and references.

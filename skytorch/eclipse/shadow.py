@@ -467,6 +467,7 @@ class RingProfile:
 
     @property
     def n_altitude(self) -> int:
+        """Number of altitude nodes of the ray-traced deviation table."""
         return int(self.deviation_rad.shape[0])
 
     def beta(self, s: torch.Tensor) -> torch.Tensor:
@@ -474,7 +475,7 @@ class RingProfile:
         return self.grid.beta(s)
 
     def dbeta_ds(self, s: torch.Tensor) -> torch.Tensor:
-        """Derivative of :meth:`beta` [m] (one-sided at the kink nodes)."""
+        """Return derivative of :meth:`beta` [m] (one-sided at the kink nodes)."""
         return self.grid.dbeta_ds(s)
 
     def s_of_beta(self, beta_m):
@@ -488,7 +489,7 @@ class RingProfile:
         return torch.cat([_spline_coefficients(values[a:b + 1]) for a, b in self.grid.pieces])
 
     def tables(self, dtype: torch.dtype) -> dict[str, torch.Tensor]:
-        """Padded interpolation tables cast to ``dtype`` (cached)."""
+        """Return padded interpolation tables cast to ``dtype`` (cached)."""
         if dtype not in self._cache:
             deviation = self.deviation_rad.to(dtype)[:, None]
             periapsis = self.periapsis_altitude_m.to(dtype)[:, None]
@@ -703,9 +704,12 @@ def _broadcast_batch(values: torch.Tensor, batch_shape: tuple[int, ...]) -> torc
 
 
 def _check_wavelength(wavelength_nm, dtype) -> torch.Tensor:
-    """Wavelengths as a 1-D tensor, finite and within the atmosphere's range [nm]
-    (:data:`skytorch.atmosphere.rayleigh.WAVELENGTH_RANGE_NM`, also for an airless
-    occluder, so that a shadow accepts one range)."""
+    """Wavelengths as a 1-D tensor.
+
+    Finite and within the atmosphere's range [nm]
+    (:data:`skytorch.atmosphere.rayleigh.WAVELENGTH_RANGE_NM`, also for an airless occluder, so that
+    a shadow accepts one range).
+    """
     wavelength = check_range("wavelength_nm", wavelength_nm, *WAVELENGTH_RANGE_NM,
                              unit=" nm", dtype=dtype)
     if wavelength.ndim > 1:
@@ -886,7 +890,7 @@ class Shadow(nn.Module):
     # ------------------------------------------------------------------ presets
     @classmethod
     def earth(cls, atmosphere=None, **kwargs) -> Shadow:
-        """The Earth's shadow; ``atmosphere=None`` uses ``Atmosphere.earth()``.
+        """Return the Earth's shadow; ``atmosphere=None`` uses ``Atmosphere.earth()``.
 
         Pass ``atmosphere=False`` for the airless Earth (radius 6371 km).
         """
@@ -895,7 +899,7 @@ class Shadow(nn.Module):
 
     @classmethod
     def mars(cls, atmosphere=None, **kwargs) -> Shadow:
-        """The shadow of Mars at its mean distance from the Sun (1.5237 AU).
+        """Return the shadow of Mars at its mean distance from the Sun (1.5237 AU).
 
         ``atmosphere=None`` uses ``Atmosphere.mars()``; ``False`` gives the airless planet.
         """
@@ -915,12 +919,13 @@ class Shadow(nn.Module):
         return cls(atmosphere=atmosphere, **options)
 
     def extra_repr(self) -> str:
+        """Name, radii [m] and the effects modelled, for the module's repr."""
         return (f"name={self.name!r}, radius={self.occluder_radius_m:.0f} m, "
                 f"top={self.top_radius_m:.0f} m, refraction={self.refraction}, "
                 f"extinction={self.extinction}, scattering={self.scattering}")
 
     def parameters_dict(self) -> dict:
-        """Settings of this shadow model (for Dataset attributes)."""
+        """Return settings of this shadow model (for Dataset attributes)."""
         result = {
             "shadow": self.name, "occluder_radius_m": self.occluder_radius_m,
             "top_radius_m": self.top_radius_m, "sun_distance_m": self.sun_distance_m,
@@ -947,7 +952,7 @@ class Shadow(nn.Module):
         n_split = self.n_split or (DEFAULT_SPLIT_KINKED if kinked else DEFAULT_SPLIT)
         return n_ring, n_split
 
-    def ring_profile(self, wavelength_nm) -> RingProfile | None:
+    def ring_profile(self, wavelength_nm) -> RingProfile | None:  # noqa: C901 (one cached build)
         """Tabulated ring (bending, optical depth) for these wavelengths (cached).
 
         Returns ``None`` for an airless occluder.

@@ -161,9 +161,11 @@ def _members(value: torch.Tensor, batch_shape: tuple[int, ...], leading: int) ->
 
 
 def _optical_depth(constituents, columns: dict, batch: tuple[int, ...]) -> torch.Tensor:
-    """Optical depth (*lead, n_batch, n_wl) of path columns (*lead, n_batch) of every
-    species (:meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`, with the
-    members moved to the constituents' leading batch dims and back)."""
+    """Optical depth (*lead, n_batch, n_wl) of path columns (*lead, n_batch) of every species.
+
+    :meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`, with the members moved to
+    the constituents' leading batch dims and back.
+    """
     lead = next(iter(columns.values())).shape[:-1]
     order = (len(lead), *range(len(lead)))
     aligned = {name: value.permute(order).reshape(*batch, *lead)

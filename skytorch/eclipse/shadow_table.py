@@ -507,7 +507,7 @@ class ShadowTable(nn.Module):
 
     # ------------------------------------------------------------------ Dataset
     def to_dataset(self) -> xr.Dataset:
-        """The table as a CF Dataset (dims u, v, [atmosphere_k ...,] wavelength)."""
+        """Return the table as a CF Dataset (dims u, v, [atmosphere_k ...,] wavelength)."""
         batch_dims = tuple(f"atmosphere_{k}" for k in range(len(self.batch_shape)))
         data_vars = {"relative_illuminance": variable(("u", "v", *batch_dims, "wavelength"),
                                                       to_numpy(self.values),
@@ -535,7 +535,7 @@ class ShadowTable(nn.Module):
                              references=_REFERENCES, parameters=parameters)
 
     @classmethod
-    def from_dataset(cls, dataset: xr.Dataset) -> ShadowTable:
+    def from_dataset(cls, dataset: xr.Dataset) -> ShadowTable:  # noqa: C901 (flat checks)
         """Rebuild a table written by :meth:`to_dataset`."""
         if not isinstance(dataset, xr.Dataset):
             raise TypeError(f"dataset must be an xarray.Dataset; got {type(dataset).__name__}")
@@ -576,7 +576,7 @@ def _is_terminal() -> bool:
 
 
 def _uniform_grid(name: str, value, low: float, high: float) -> torch.Tensor:
-    """A 1-D, uniform, increasing grid of at least two nodes within [low, high]."""
+    """Return a 1-D, uniform, increasing grid of at least two nodes within [low, high]."""
     grid = check_range(name, value, low, high, dtype=torch.float64)
     if grid.ndim != 1 or grid.shape[0] < 2:
         raise ValueError(f"{name} must be a 1-D grid of at least 2 nodes; got shape "
@@ -596,7 +596,7 @@ def _shadow_hash(shadow) -> str:
 
 
 def _provenance(shadow, n_u: int, n_v: int) -> dict:
-    """What :meth:`ShadowTable.compute` built a table for."""
+    """Return what :meth:`ShadowTable.compute` built a table for."""
     record = {"shadow_sha256": _shadow_hash(shadow), "n_u": n_u, "n_v": n_v}
     if shadow.atmosphere is not None:
         from skytorch.atmosphere.tables import atmosphere_hash

@@ -73,7 +73,7 @@ DISC_GRID_METHODS = ("polar", "pixels")
 
 
 def _flag(name: str, value) -> bool:
-    """A boolean option; anything else (strings such as "no", numbers) is a TypeError."""
+    """Return a boolean option; anything else (strings such as "no", numbers) is a TypeError."""
     if not isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be True or False; got {value!r}")
     return bool(value)
@@ -145,7 +145,7 @@ def disc_grid(n: int, method: str = "polar", dtype: torch.dtype = torch.float64)
 
 
 def sun_direction(phase_angle_rad, bright_limb_angle_rad=1.5 * math.pi) -> torch.Tensor:
-    """Unit vector towards the Sun in the disc frame (…, 3).
+    """Return unit vector towards the Sun in the disc frame (…, 3).
 
     Parameters
     ----------

@@ -153,9 +153,12 @@ _COORD_SPECS = {
 
 
 def stack_frames(frames, dim: str, coordinate, title: str):
-    """Stack rendered scenes along ``dim``: the changing variables get the dimension,
-    the planner's decisions become string variables over it, the attributes that differ
-    between frames are dropped and ``effects_computed`` lists the union."""
+    """Stack rendered scenes along ``dim``.
+
+    The changing variables get the dimension, the planner's decisions become string variables over
+    it, the attributes that differ between frames are dropped and ``effects_computed`` lists the
+    union.
+    """
     computed = [f.attrs["effects_computed"] for f in frames]
     skipped = [f.attrs["effects_skipped"] for f in frames]
     varying = [k for k in frames[0].attrs if any(f.attrs.get(k) != frames[0].attrs[k]

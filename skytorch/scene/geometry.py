@@ -1,4 +1,4 @@
-"""Sun and Moon at the observers of a scene, from one ephemeris evaluation per instant.
+r"""Sun and Moon at the observers of a scene, from one ephemeris evaluation per instant.
 
 The planner and the render share these numbers (kept per instant and site by
 :meth:`skytorch.scene.resources.SceneResources.geometries`): :func:`site_geometries` reads the
@@ -10,11 +10,11 @@ of every observer (``icrs_to_horizontal`` rotation: precession–nutation, sider
 Notes
 -----
 Light time: the body's barycentric position is moved back along its velocity by
-:math:`\\tau = |r|/c`, iterated twice (the quadratic term of the Moon's motion over
+:math:`\tau = |r|/c`, iterated twice (the quadratic term of the Moon's motion over
 1.3 s is millimetres, the Sun's over 499 s metres). Annual aberration: the relativistic
 formula of :func:`skytorch.ephemeris.aberrate` with the Earth's barycentric velocity.
 Gravitational deflection is omitted: for the Sun itself it vanishes, for the Moon it is
-:math:`0.004'' \\cot(\\psi/2)` (:math:`\\psi` the Moon's elongation), milliarcseconds
+:math:`0.004'' \cot(\psi/2)` (:math:`\psi` the Moon's elongation), milliarcseconds
 except near new Moon. The topocentric vectors are the apparent geocentric vectors less
 the observer's geocentric position (WGS84); the observer's diurnal aberration (at most
 0.32 arcsec) is omitted. The result agrees with skyfield's full
@@ -78,8 +78,10 @@ class Geometry:
 
     @property
     def moon_sun_distance_m(self) -> float:
-        """Distance from the Moon to the Sun [m] (the Earth–Sun distance when the vectors
-        are not given)."""
+        """Distance from the Moon to the Sun [m].
+
+        The Earth–Sun distance when the vectors are not given.
+        """
         distance = math.dist(self.sun_horizontal_m, self.moon_horizontal_m)
         return distance if distance > 0.0 else self.sun_distance_m
 
@@ -125,7 +127,7 @@ def apparent_geocentric(time) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]
 
 
 def _bodies():
-    """The Earth, Sun and Moon of DE421 (skyfield vector sums of the loaded kernel)."""
+    """Return the Earth, Sun and Moon of DE421 (skyfield vector sums of the loaded kernel)."""
     from skytorch.ephemeris import load_ephemeris
 
     kernel = load_ephemeris()

@@ -1,9 +1,9 @@
-"""Planner: compute only the effects that can change a scene beyond its tolerance.
+r"""Planner: compute only the effects that can change a scene beyond its tolerance.
 
 The NeL/Ryzom sky (ref. 1) draws only what the time of day and the weather make
 visible; Müller et al. (ref. 2, §5) switch stars and the Moon with a day–night factor.
 Here the decision is quantitative: each effect's share of the image's V-band flux (the
-L1 norm of the luminance over the pixels, :math:`\\sum_p Y_p\\,\\Omega_p`) is bounded
+L1 norm of the luminance over the pixels, :math:`\sum_p Y_p\,\Omega_p`) is bounded
 with cheap estimates, and an effect whose share is below ``scene.tolerance`` is skipped
 with the reason recorded. Omitting it then changes the image by at most that share.
 
@@ -130,6 +130,7 @@ class Plan:
     seconds: float = 0.0
 
     def __contains__(self, effect: str) -> bool:
+        """Whether ``effect`` is among the computed effects."""
         return effect in self.computed
 
     def attrs(self) -> dict[str, str]:
@@ -139,9 +140,11 @@ class Plan:
 
 
 def _sky_flux(resources: SceneResources, elevation_m: float, geometry: Geometry) -> float:
-    """Hemisphere V flux of single-scattered sunlight (relative to V = 0), interpolated
-    log-linearly in the Sun's altitude in
-    :meth:`~skytorch.scene.resources.SceneResources.sky_flux_table`."""
+    """Hemisphere V flux of single-scattered sunlight (relative to V = 0).
+
+    Interpolated log-linearly in the Sun's altitude in
+    :meth:`~skytorch.scene.resources.SceneResources.sky_flux_table`.
+    """
     deepest = resources.deepest_sunlit_deg
     if geometry.sun_altitude_deg <= -deepest:
         return 0.0
@@ -195,7 +198,7 @@ def _pixel_moves(resources: SceneResources, elevation_m: float, view, altitude_d
     return bool((before != after).any()), float((apparent - true).abs().max())
 
 
-def plan(scene, view=None, resources: SceneResources | None = None,
+def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C901 (rule table)
          geometry: Geometry | None = None) -> Plan:
     """Decide which effects of ``scene`` to compute.
 

@@ -1,4 +1,4 @@
-"""Composition of a scene's components into spectral radiance images.
+r"""Composition of a scene's components into spectral radiance images.
 
 Every component is a spectral radiance image ``(*view, wavelength)``
 [W m^-2 sr^-1 nm^-1]; the image is their sum (Müller et al. 2012, §5: atmosphere,
@@ -12,8 +12,8 @@ occulted):
   is dimmed by the V-band extinction relative to the zenith (:func:`natural_extinction`).
 * ``sky`` — single-scattered sunlight (:meth:`Atmosphere.sky_radiance`), tabulated on a
   (view zenith, relative azimuth) grid for the scene's Sun and interpolated bilinearly;
-  the zenith nodes are denser towards the horizon (:math:`z = \\tfrac{\\pi}{2}\\sin
-  \\tfrac{\\pi u}{2}`) and the azimuth nodes towards the Sun (:math:`\\phi = \\pi u^2`).
+  the zenith nodes are denser towards the horizon (:math:`z = \tfrac{\pi}{2}\sin
+  \tfrac{\pi u}{2}`) and the azimuth nodes towards the Sun (:math:`\phi = \pi u^2`).
 * ``moon`` — the disc's irradiance (:func:`skytorch.moon.lunar_irradiance`) times the
   transmittance along the line of sight, spread over the pixel that holds it, plus the
   moonlit sky (:func:`skytorch.moon.sky.moonlit_sky_single_scattering`) tabulated
@@ -106,11 +106,12 @@ class Knobs:
     lamp: str = "white"
 
     def __getitem__(self, name: str):
+        """Return the fidelity knob ``name``."""
         return self.fidelity[name]
 
     @classmethod
     def of(cls, scene, plan: Plan | None = None) -> Knobs:
-        """The knobs of a one-observer scene and its plan (no effect flags without one)."""
+        """Return the knobs of a one-observer scene and its plan (no effect flags without one)."""
         computed = () if plan is None else plan.computed
         return cls(FIDELITY[scene.fidelity], scene.dtype, scene.time, float(scene.lat_deg),
                    float(scene.lon_deg), float(scene.elevation_m),
@@ -213,8 +214,10 @@ def moon_surface_points(geometry, directions: torch.Tensor) -> torch.Tensor:
 
 
 def _rotation(source: torch.Tensor, target: torch.Tensor):
-    """The rotation taking the unit vector ``source`` to ``target`` (Rodrigues), as a
-    function of vectors (..., 3)."""
+    """Return the rotation taking the unit vector ``source`` to ``target`` (Rodrigues).
+
+    As a function of vectors (..., 3).
+    """
     axis = torch.linalg.cross(source, target)
     cosine = float(source @ target)
 
@@ -287,16 +290,20 @@ class MoonDisc:
             if eclipse else None
 
     def normals(self, directions: torch.Tensor) -> torch.Tensor:
-        """Disc-frame normals (n, 3) of the surface points seen along apparent directions
-        (n, 3) (unit, horizontal frame); a line that misses the sphere takes its point of
-        closest approach (a limb normal)."""
+        """Disc-frame normals (n, 3) of the surface points seen along apparent directions (n, 3).
+
+        (unit, horizontal frame); a line that misses the sphere takes its point of closest approach
+        (a limb normal).
+        """
         outward = moon_surface_points(self.geometry, self.rotate(directions)) - self.centre
         outward = outward / torch.linalg.vector_norm(outward, dim=-1, keepdim=True)
         return outward @ self.axes.T
 
     def radiance(self, normals: torch.Tensor) -> torch.Tensor:
-        """Spectral radiance (n, wl) [W m^-2 sr^-1 nm^-1] above the atmosphere at disc-frame
-        normals (n, 3), uneclipsed (:func:`skytorch.moon.disc_radiance`)."""
+        """Spectral radiance (n, wl) [W m^-2 sr^-1 nm^-1] above the atmosphere, uneclipsed.
+
+        At disc-frame normals (n, 3), by :func:`skytorch.moon.disc_radiance`.
+        """
         from skytorch.moon.disc import disc_radiance
 
         g = self.geometry
@@ -305,14 +312,18 @@ class MoonDisc:
                              distance_m=g.moon_distance_m, earthshine=self.earthshine)
 
     def points(self, normals: torch.Tensor) -> torch.Tensor:
-        """Lunar surface points (n, 3) [m] from the observer (horizontal frame) at
-        disc-frame normals (n, 3)."""
+        """Lunar surface points (n, 3) [m] from the observer.
+
+        (horizontal frame) at disc-frame normals (n, 3).
+        """
         return self.centre + MOON_RADIUS_M * (normals @ self.axes)
 
     def __call__(self, directions):
-        """Relative radiance (n, wl) and shadow factor (n, wl) (``None`` without eclipse)
-        of pixels with apparent directions (n, 3); for ``None``, the factor (wl,) of a disc
-        smaller than a pixel (the disc-averaged shadow) or ``None``."""
+        """Relative radiance (n, wl) and shadow factor (n, wl).
+
+        (``None`` without eclipse) of pixels with apparent directions (n, 3); for ``None``, the
+        factor (wl,) of a disc smaller than a pixel (the disc-averaged shadow) or ``None``.
+        """
         if directions is None:
             return self.mean_shadow
         normals = self.normals(directions)
@@ -321,9 +332,11 @@ class MoonDisc:
         return self.radiance(normals), shadow
 
     def bright_point(self) -> tuple[float, float]:
-        r"""Apparent altitude and azimuth [rad] of the centroid of the sunlit part of the
-        disc, :math:`\tfrac{4}{3\pi}(1 - \cos\alpha)` lunar radii from the centre towards
-        the bright limb (where a crescent narrower than the pixels is drawn)."""
+        r"""Apparent altitude and azimuth [rad] of the centroid of the sunlit part of the disc.
+
+        :math:`\tfrac{4}{3\pi}(1 - \cos\alpha)` lunar radii from the centre towards the bright limb
+        (where a crescent narrower than the pixels is drawn).
+        """
         offset = 4.0 / (3.0 * math.pi) * (1.0 - math.cos(float(self.phase_angle_rad)))
         angle = offset * self.geometry.moon_radius_rad
         chi = float(self.bright_limb_rad)
@@ -335,9 +348,10 @@ class MoonDisc:
 
 
 def eclipse_factor(resources, geometry, wavelength, n_disc: int = 8, disc=None) -> torch.Tensor:
-    """Relative illuminance of the Earth's shadow averaged over the Moon's visible disc
-    (n_wavelength,), weighted by the uneclipsed radiance of the disc (the flux-weighted
-    mean over :func:`skytorch.moon.disc_grid` points, 8 × 16 polar nodes by default).
+    """Relative illuminance of the Earth's shadow averaged over the Moon's visible disc.
+
+    (n_wavelength,), weighted by the uneclipsed radiance of the disc (the flux-weighted mean over
+    :func:`skytorch.moon.disc_grid` points, 8 × 16 polar nodes by default).
 
     ``disc`` is the scene's :class:`MoonDisc` (its phase and earthshine set the weights);
     without it the disc is weighted by area.
@@ -372,7 +386,7 @@ def _splat(view, altitude_rad, azimuth_rad, flux, n_wavelength, dtype) -> torch.
 
 def _disc(view, altitude_rad: float, azimuth_rad: float, radius_rad: float, flux,
           dtype, pattern=None) -> torch.Tensor:
-    """A disc of angular radius ``radius_rad`` and total flux (wl,) as radiance.
+    """Return a disc of angular radius ``radius_rad`` and total flux (wl,) as radiance.
 
     Without ``pattern`` the pixels whose centres lie within the radius share the flux in
     proportion to their solid angle (a uniformly bright disc). ``pattern`` (a
@@ -515,8 +529,10 @@ def natural_extinction(resources, view, knobs) -> torch.Tensor:
 
 
 def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
-    r"""Natural background (*view, wl) [W m^-2 sr^-1 nm^-1]: ``knobs.natural_mag_arcsec2``
-    at the zenith with the solar spectral shape (zodiacal light is scattered sunlight).
+    r"""Natural background (*view, wl) [W m^-2 sr^-1 nm^-1].
+
+    ``knobs.natural_mag_arcsec2`` at the zenith with the solar spectral shape (zodiacal light is
+    scattered sunlight).
 
     By ``knobs.natural_model``: ``"garstang1989"`` multiplies it by
     :func:`natural_gradient` and :func:`natural_extinction` (refracted paths when
@@ -562,8 +578,11 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
 
 
 def sun_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
-    """The solar disc (*view, wl) [W m^-2 sr^-1 nm^-1]: extraterrestrial irradiance times
-    the transmittance at its (refracted) altitude, spread over its pixels."""
+    """Return the solar disc (*view, wl) [W m^-2 sr^-1 nm^-1].
+
+    Extraterrestrial irradiance times the transmittance at its (refracted) altitude, spread over its
+    pixels.
+    """
     from skytorch.spectrum import solar_irradiance
 
     altitude = _apparent(resources, knobs, geometry.sun_altitude_deg)
@@ -576,10 +595,13 @@ def sun_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
 
 
 def moon_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
-    """The Moon (*view, wl) [W m^-2 sr^-1 nm^-1]: its disc (irradiance times transmittance,
-    shaded pixel by pixel by the lunar reflectance law for the topocentric Sun–Moon–observer
-    geometry and, with ``knobs.eclipse``, by the Earth's shadow at the lunar surface each pixel
-    sees: :class:`MoonDisc`) plus the moonlit sky (times the disc-averaged shadow)."""
+    """Return the Moon (*view, wl) [W m^-2 sr^-1 nm^-1].
+
+    Its disc (irradiance times transmittance, shaded pixel by pixel by the lunar reflectance law for
+    the topocentric Sun–Moon–observer geometry and, with ``knobs.eclipse``, by the Earth's shadow at
+    the lunar surface each pixel sees: :class:`MoonDisc`) plus the moonlit sky (times the
+    disc-averaged shadow).
+    """
     from skytorch.moon import lunar_irradiance
 
     wl = wavelength.to(torch.float64)
@@ -626,10 +648,11 @@ def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tens
 
 
 def stars_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
-    """Catalogue stars at their apparent places with extincted magnitudes (tensor layer of
-    :func:`skytorch.stars.observe`: positions, refraction and extinction tables from the
-    resources);
-    stars behind the Moon's disc (:func:`occulted`) are left out."""
+    """Catalogue stars at their apparent places with extincted magnitudes.
+
+    (tensor layer of :func:`skytorch.stars.observe`: positions, refraction and extinction tables
+    from the resources); stars behind the Moon's disc (:func:`occulted`) are left out.
+    """
     from skytorch.ephemeris import parse_times
     from skytorch.stars import observe_tensors, time_operators
 
@@ -670,9 +693,11 @@ def occulted(resources, geometry, altitude_rad, azimuth_rad, knobs) -> torch.Ten
 
 
 def skyglow_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
-    """City skyglow (*view, wl) [W m^-2 sr^-1 nm^-1] from the resources' skyglow model
-    (:meth:`~skytorch.scene.resources.SceneResources.skyglow_model`, cached on disk;
-    ``geometry`` is not used)."""
+    """City skyglow (*view, wl) [W m^-2 sr^-1 nm^-1] from the resources' skyglow model.
+
+    :meth:`~skytorch.scene.resources.SceneResources.skyglow_model`, cached on disk; ``geometry`` is
+    not used.
+    """
     model = resources.skyglow_model(knobs["skyglow"])
     out = model.render(knobs.light_map, observer_xy=tuple(knobs.observer_xy),
                        lamp=knobs.lamp, as_dataset=False)
@@ -739,7 +764,7 @@ def _check_scene(scene) -> None:
 
 
 def _resources(scene, resources) -> SceneResources:
-    """The resources of a render: the scene's own, or the given ones (checked)."""
+    """Return the resources of a render: the scene's own, or the given ones (checked)."""
     if resources is None:
         return scene.resources()
     if not isinstance(resources, SceneResources):
@@ -750,8 +775,9 @@ def _resources(scene, resources) -> SceneResources:
 
 
 def render(scene, plan=None, resources=None):
-    """Render ``scene`` to a Dataset (see :func:`skytorch.scene.dataset.scene_dataset`); a
-    scene with several observers goes to :func:`render_observers`.
+    """Render ``scene`` to a Dataset (see :func:`skytorch.scene.dataset.scene_dataset`).
+
+    A scene with several observers goes to :func:`render_observers`.
 
     Parameters
     ----------

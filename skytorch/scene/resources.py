@@ -98,6 +98,7 @@ class SceneSpec:
     wavelengths: tuple[float, ...]
 
     def __post_init__(self):
+        """Check the spec's fields and store them as floats (TypeError for non-numbers)."""
         for name in ("turbidity", "ozone_du"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -111,7 +112,7 @@ class SceneSpec:
 
     @classmethod
     def of(cls, scene) -> SceneSpec:
-        """The spec of a :class:`skytorch.scene.Scene`."""
+        """Return the spec of a :class:`skytorch.scene.Scene`."""
         return cls(float(scene.turbidity), float(scene.ozone_du),
                    tuple(scene.wavelength_nm().tolist()))
 
@@ -145,17 +146,20 @@ class SceneResources:
 
     @classmethod
     def for_scene(cls, scene) -> SceneResources:
-        """New (empty) resources for the spec of ``scene``."""
+        """Return new (empty) resources for the spec of ``scene``."""
         return cls(SceneSpec.of(scene))
 
     def __repr__(self) -> str:
+        """Show the spec and the names of the resources built so far."""
         return f"SceneResources({self.spec!r}, built={list(self.built())})"
 
     # pickling (process pools) and copies: the spec travels, the tables are rebuilt
     def __getstate__(self) -> dict:
+        """Pickle the spec only."""
         return {"spec": self.spec}
 
     def __setstate__(self, state: dict) -> None:
+        """Rebuild empty resources for the pickled spec."""
         self.__init__(state["spec"])
 
     def check(self, scene) -> None:
@@ -197,8 +201,10 @@ class SceneResources:
 
     @property
     def shadow(self):
-        """The Earth's shadow (:meth:`skytorch.eclipse.Shadow.earth`) of the atmosphere; its
-        ring table is traced once per wavelength grid and kept on it."""
+        """The Earth's shadow (:meth:`skytorch.eclipse.Shadow.earth`) of the atmosphere.
+
+        Its ring table is traced once per wavelength grid and kept on it.
+        """
         def build():
             from skytorch.eclipse import Shadow
 
@@ -207,8 +213,10 @@ class SceneResources:
         return self._get("shadow", build)
 
     def transmittance_table(self, n_mu: int, n_r: int):
-        """Transmittance table of the atmosphere at the spec's wavelengths (``n_mu × n_r``
-        nodes; :class:`skytorch.atmosphere.tables.TransmittanceTable`, disk cache)."""
+        """Transmittance table of the atmosphere at the spec's wavelengths.
+
+        ``n_mu × n_r`` nodes; :class:`skytorch.atmosphere.tables.TransmittanceTable`, disk cache.
+        """
         def build():
             from skytorch.atmosphere.tables import TransmittanceTable
 
@@ -219,8 +227,10 @@ class SceneResources:
 
     # ------------------------------------------------------------------ site tables
     def refraction_table(self, elevation_m: float):
-        """Ray-traced refraction of the atmosphere at an observer height [m]
-        (:func:`skytorch.stars.refraction_table`)."""
+        """Ray-traced refraction of the atmosphere at an observer height [m].
+
+        :func:`skytorch.stars.refraction_table`.
+        """
         elevation_m = float(elevation_m)
 
         def build():
@@ -231,8 +241,10 @@ class SceneResources:
         return self._get(("refraction", elevation_m), build)
 
     def extinction_table(self, elevation_m: float, refraction: bool):
-        """V-band extinction of the atmosphere at an observer height [m], along refracted
-        paths when ``refraction`` (:func:`skytorch.stars.extinction_table`)."""
+        """V-band extinction of the atmosphere at an observer height [m].
+
+        Along refracted paths when ``refraction`` (:func:`skytorch.stars.extinction_table`).
+        """
         elevation_m, refraction = float(elevation_m), bool(refraction)
 
         def build():
@@ -243,14 +255,20 @@ class SceneResources:
         return self._get(("extinction", elevation_m, refraction), build)
 
     def star_site_tables(self, elevation_m: float, refraction: bool):
-        """Refraction table (``None`` without refraction) and extinction table at an
-        observer height [m] (:meth:`refraction_table`, :meth:`extinction_table`)."""
+        """Return the refraction and extinction tables at an observer height [m].
+
+        The refraction table is ``None`` without refraction (:meth:`refraction_table`,
+        :meth:`extinction_table`).
+        """
         return (self.refraction_table(elevation_m) if refraction else None,
                 self.extinction_table(elevation_m, refraction))
 
     def refracted_altitude(self, elevation_m: float, true_altitude_rad: float) -> float:
-        """Apparent altitude [rad] of a true altitude [rad] (below −1° taken at −1°) at an
-        observer height [m], from the refraction table (ray-traced refraction)."""
+        """Apparent altitude [rad] of a true altitude [rad].
+
+        (below −1° taken at −1°) at an observer height [m], from the refraction table (ray-traced
+        refraction).
+        """
         from skytorch.stars import refract
 
         table = self.refraction_table(elevation_m)
@@ -273,7 +291,7 @@ class SceneResources:
 
     def sky_flux_table(self, elevation_m: float, segment: int
                        ) -> tuple[np.ndarray, np.ndarray]:
-        """The planner's estimate of the sunlit sky's V flux against the Sun's altitude.
+        """Return the planner's estimate of the sunlit sky's V flux against the Sun's altitude.
 
         Single-scattering radiance (:meth:`Atmosphere.sky_radiance`) at 9 directions (the
         zenith and 60° and 85° from it at 0°, 90°, 180°, 270° from the Sun's azimuth),
@@ -320,7 +338,7 @@ class SceneResources:
 
     # ------------------------------------------------------------------ Moon and stars
     def moon_flux_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The Moon's V flux with and without earthshine over phase angle and distance.
+        """Return the Moon's V flux with and without earthshine over phase angle and distance.
 
         Returns
         -------
@@ -347,8 +365,10 @@ class SceneResources:
         return self._get("moon_flux", build)
 
     def moon_fluxes(self, geometry: Geometry) -> tuple[float, float]:
-        """V flux of the Moon with earthshine and of its earthshine alone (relative to
-        V = 0), interpolated bilinearly in :meth:`moon_flux_table`."""
+        """V flux of the Moon with earthshine and of its earthshine alone (relative to V = 0).
+
+        Interpolated bilinearly in :meth:`moon_flux_table`.
+        """
         alpha, distance, table = self.moon_flux_table()
         u = min(max(geometry.phase_angle_rad, 0.0), math.pi) / math.pi * (alpha.size - 1)
         v = (min(max(geometry.moon_distance_m, distance[0]), distance[-1]) - distance[0]) / (
@@ -362,7 +382,7 @@ class SceneResources:
         return total, total - sunlit
 
     def catalogue(self, limit_magnitude: float):
-        """The star catalogue to a V limit (:func:`skytorch.stars.bright_stars`)."""
+        """Return the star catalogue to a V limit (:func:`skytorch.stars.bright_stars`)."""
         limit_magnitude = float(limit_magnitude)
 
         def build():
@@ -379,8 +399,10 @@ class SceneResources:
             10.0 ** (-0.4 * self.catalogue(limit_magnitude)["vmag"].values))))
 
     def star_vectors(self, limit_magnitude: float):
-        """Catalogue vectors (:func:`skytorch.stars.star_vectors`), V, B−V and the epoch
-        [Julian year] of the catalogue to a V limit."""
+        """Catalogue vectors (:func:`skytorch.stars.star_vectors`), V.
+
+        B−V and the epoch [Julian year] of the catalogue to a V limit.
+        """
         limit_magnitude = float(limit_magnitude)
 
         def build():
@@ -397,9 +419,12 @@ class SceneResources:
         return self._get(("star_vectors", limit_magnitude), build)
 
     def catalogue_spectra(self, limit_magnitude: float, spectra: Callable) -> torch.Tensor:
-        """Spectra of V = 0 (star, wl) for every catalogue star to a V limit at the spec's
-        wavelengths: ``spectra(vmag, bv, wavelength)`` (the renderer's black bodies), B−V
-        missing taken as the solar 0.65."""
+        """Return spectra of V = 0 (star, wl) of the catalogue stars to a V limit.
+
+        Every catalogue star to the limit, at the spec's wavelengths:
+        ``spectra(vmag, bv, wavelength)`` (the renderer's black bodies), B−V
+        missing taken as the solar 0.65.
+        """
         limit_magnitude = float(limit_magnitude)
 
         def build():
@@ -412,8 +437,7 @@ class SceneResources:
 
     # ------------------------------------------------------------------ skyglow
     def _skyglow_code_hash(self) -> str:
-        """Hash of the skyglow and atmosphere sources: a changed model rebuilds cached
-        tables."""
+        """Hash of the skyglow and atmosphere sources: a changed model rebuilds cached tables."""
         def build():
             from pathlib import Path
 
@@ -429,8 +453,11 @@ class SceneResources:
         return self._get("skyglow_code_hash", build)
 
     def skyglow_key(self, settings: dict) -> str:
-        """SHA-256 (hex) of everything a skyglow model depends on: the atmosphere, the
-        wavelengths, the model's settings and the skyglow and atmosphere sources."""
+        """SHA-256 (hex) of everything a skyglow model depends on.
+
+        The atmosphere, the wavelengths, the model's settings and the skyglow and atmosphere
+        sources.
+        """
         text = json.dumps({"turbidity": self.spec.turbidity, "ozone_du": self.spec.ozone_du,
                            "wavelength": list(self.spec.wavelengths),
                            "settings": settings, "code": self._skyglow_code_hash(),
@@ -438,16 +465,17 @@ class SceneResources:
         return hashlib.sha256(text.encode()).hexdigest()
 
     def skyglow_cache_path(self, settings: dict):
-        """Cache file of the skyglow model with ``settings``, and the parameter hash it must
-        carry."""
+        """Return the skyglow model's cache file for ``settings`` and the hash it must carry."""
         from skytorch.atmosphere.tables import cache_directory
 
         key = self.skyglow_key(settings)
         return cache_directory() / f"skyglow_{key[:16]}.nc", key
 
     def skyglow_model(self, settings: dict):
-        """The skyglow model of the atmosphere with ``settings`` (keywords of
-        :meth:`skytorch.skyglow.SkyglowModel.precompute`), cached on disk and kept here.
+        """Return the skyglow model of the atmosphere with ``settings``.
+
+        (keywords of :meth:`skytorch.skyglow.SkyglowModel.precompute`), cached on disk and kept
+        here.
 
         The file is written with :func:`skytorch._cache.write_verified` (a record of its
         SHA-256 and of the parameter hash beside it) and read with
@@ -473,16 +501,19 @@ class SceneResources:
 
     # ------------------------------------------------------------------ views
     def view(self, kind: str, size: int, dtype, build: Callable):
-        """A fisheye or panorama :class:`~skytorch.scene.scene.View` of ``size`` pixels,
-        ``build()`` on first use and kept (shared by the renders: do not modify its
-        tensors)."""
+        """Return a fisheye or panorama :class:`~skytorch.scene.scene.View` of ``size`` pixels.
+
+        ``build()`` on first use and kept (shared by the renders: do not modify its tensors).
+        """
         return self._get(("view", kind, int(size), str(dtype)), build)
 
     # ------------------------------------------------------------------ geometry
     def geometries(self, time, lat_deg, lon_deg, elevation_m) -> list[Geometry]:
-        """:func:`skytorch.scene.geometry.site_geometries` kept per (time, site): observers
-        already seen at this instant are not recomputed; the others share one ephemeris
-        evaluation. Fresh copies (the caller may modify them)."""
+        """:func:`skytorch.scene.geometry.site_geometries` kept per (time, site).
+
+        Observers already seen at this instant are not recomputed; the others share one ephemeris
+        evaluation. Fresh copies (the caller may modify them).
+        """
         time = np.datetime64(time, "ns")
         keys = [(time, a, b, c) for a, b, c in zip(_floats(lat_deg), _floats(lon_deg),
                                                    _floats(elevation_m), strict=True)]

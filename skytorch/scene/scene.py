@@ -113,7 +113,7 @@ class View:
         return tuple(self.zenith_rad.shape)
 
     def unit_vectors(self) -> torch.Tensor:
-        """Unit vectors (*dims, 3) of the pixel directions in (north, east, up), float64."""
+        """Return unit vectors (*dims, 3) of the pixel directions in (north, east, up), float64."""
         if getattr(self, "_unit", None) is None:
             zenith = self.zenith_rad.to(torch.float64)
             azimuth = self.azimuth_rad.to(torch.float64)
@@ -225,10 +225,10 @@ def camera_view(altitude_deg: float, azimuth_deg: float, fov_deg: float, size: i
 
 
 def fisheye_view(size: int, dtype=torch.float64) -> View:
-    """All-sky azimuthal-equidistant view of ``size × size`` pixels (north up, east left).
+    r"""All-sky azimuthal-equidistant view of ``size × size`` pixels (north up, east left).
 
-    The solid angle of a pixel is :math:`\\sin z\\,(\\pi/2)/r\\,\\Delta x\\,\\Delta y` with
-    :math:`z = r\\pi/2` (the Jacobian of the equidistant projection).
+    The solid angle of a pixel is :math:`\sin z\,(\pi/2)/r\,\Delta x\,\Delta y` with
+    :math:`z = r\pi/2` (the Jacobian of the equidistant projection).
     """
     size = check_int("size", size, 2)
     centres = (torch.arange(size, dtype=dtype) + 0.5) / size * 2.0 - 1.0
@@ -260,7 +260,7 @@ def panorama_view(size: int, dtype=torch.float64) -> View:
 
 
 def directions_view(altitude_deg, azimuth_deg, dtype=torch.float64) -> View:
-    """A list of view directions (altitude, azimuth) [degree] (dimension ``direction``)."""
+    """Return a list of view directions (altitude, azimuth) [degree] (dimension ``direction``)."""
     altitude = torch.as_tensor(np.asarray(altitude_deg, dtype=float), dtype=dtype).reshape(-1)
     azimuth = torch.as_tensor(np.asarray(azimuth_deg, dtype=float), dtype=dtype).reshape(-1)
     if altitude.shape != azimuth.shape:
@@ -275,8 +275,10 @@ def directions_view(altitude_deg, azimuth_deg, dtype=torch.float64) -> View:
 
 
 def _not_differentiable(name: str, value) -> None:
-    """A scene reads its parameters as numbers: refuse a tensor that asks for gradients
-    rather than detach it silently."""
+    """Refuse a tensor that asks for gradients rather than detach it silently.
+
+    A scene reads its parameters as numbers.
+    """
     if isinstance(value, torch.Tensor) and value.requires_grad:
         raise TypeError(
             f"{name}: a Scene is not differentiable (its components come from tables cached "
@@ -293,8 +295,10 @@ def _shape(value) -> tuple[int, ...]:
 
 def _scalar(name: str, value, low: float | None = None, high: float | None = None, *,
             unit: str = "") -> float:
-    """A finite Python float (in ``[low, high]``) from a number, numpy scalar or
-    one-element tensor; ``TypeError``/``ValueError`` naming ``name`` otherwise."""
+    """Return a finite Python float (in ``[low, high]``) from a number.
+
+    Numpy scalar or one-element tensor; ``TypeError``/``ValueError`` naming ``name`` otherwise.
+    """
     if isinstance(value, bool) or value is None or isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be a number; got {value!r}")
     _not_differentiable(name, value)
@@ -307,8 +311,10 @@ def _scalar(name: str, value, low: float | None = None, high: float | None = Non
 
 
 def _wavelengths(value):
-    """A preset name of :func:`skytorch.spectrum.wavelength_grid`, or a tuple of increasing
-    wavelengths [nm] inside :data:`skytorch.spectrum.VISIBLE_RANGE_NM`."""
+    """Return a preset name of :func:`skytorch.spectrum.wavelength_grid`.
+
+    Or a tuple of increasing wavelengths [nm] inside :data:`skytorch.spectrum.VISIBLE_RANGE_NM`.
+    """
     from skytorch.spectrum import VISIBLE_RANGE_NM, WAVELENGTH_PRESETS
 
     if isinstance(value, str):
@@ -328,7 +334,7 @@ def _wavelengths(value):
 
 
 def _effects(name: str, value, vocabulary) -> tuple[str, ...]:
-    """A tuple of names from ``vocabulary``, given as a sequence or a comma-separated str."""
+    """Return a tuple of names from ``vocabulary``, given as a sequence or a comma-separated str."""
     if value is None:
         return ()
     if isinstance(value, str):
@@ -353,8 +359,10 @@ def _numbers(name: str, value, low=None, high=None, unit: str = "") -> tuple[flo
 
 
 def _directions(value) -> dict:
-    """``{"altitude_deg": (...), "azimuth_deg": (...)}`` of one length, altitudes in
-    [0, 90] and finite azimuths [degree]."""
+    """``{"altitude_deg": (...), "azimuth_deg": (...)}`` of one length.
+
+    Altitudes in [0, 90] and finite azimuths [degree].
+    """
     if not isinstance(value, Mapping):
         raise TypeError("directions must be a mapping {'altitude_deg': [...], 'azimuth_deg': "
                         f"[...]}} [degree]; got {type(value).__name__}")
@@ -372,8 +380,10 @@ def _directions(value) -> dict:
 
 
 def _camera(value) -> dict:
-    """A camera mapping: ``fov_deg`` and either ``target`` or ``altitude_deg`` and
-    ``azimuth_deg`` (checked)."""
+    """Return a camera mapping.
+
+    ``fov_deg`` and either ``target`` or ``altitude_deg`` and ``azimuth_deg`` (checked).
+    """
     if not isinstance(value, Mapping):
         raise TypeError("camera must be a mapping {'fov_deg': ..., 'target': 'moon'} or "
                         "{'fov_deg': ..., 'altitude_deg': ..., 'azimuth_deg': ...}; got "
@@ -528,7 +538,8 @@ class Scene:
     #: them on); kept when their spec is this scene's, else new ones are made
     _resources: SceneResources | None = field(default=None, repr=False, compare=False)
 
-    def __post_init__(self):
+    def __post_init__(self):  # noqa: C901 (a flat list of per-field checks)
+        """Check every field and store it normalised (TypeError/ValueError naming it)."""
         from skytorch.ephemeris import parse_times
 
         self.time = parse_times(self.time)
@@ -602,8 +613,9 @@ class Scene:
 
     # ------------------------------------------------------------------ observers
     def _observers(self, atmosphere) -> None:
-        """Validate the observers; broadcast sequences of coordinates to tuples of one
-        length (scalars stay floats).
+        """Validate the observers.
+
+        Broadcast sequences of coordinates to tuples of one length (scalars stay floats).
 
         Latitude, longitude and height go through the ephemeris' observer check
         (:func:`skytorch.ephemeris.check_observer`); the height must also lie inside the
@@ -650,8 +662,10 @@ class Scene:
 
     @property
     def several_observers(self) -> bool:
-        """Whether the observers were given as sequences (the render then has a dimension
-        ``observer``, even of length one)."""
+        """Whether the observers were given as sequences.
+
+        The render then has a dimension ``observer``, even of length one.
+        """
         return isinstance(self.lat_deg, tuple)
 
     def observers(self) -> list[Scene]:
@@ -667,7 +681,7 @@ class Scene:
 
     # ------------------------------------------------------------------ pieces
     def wavelength_nm(self) -> torch.Tensor:
-        """The scene's wavelength grid (n_wavelength,) [nm]."""
+        """Return the scene's wavelength grid (n_wavelength,) [nm]."""
         from skytorch.spectrum import wavelength_grid
 
         if isinstance(self.wavelengths, str):
@@ -675,9 +689,12 @@ class Scene:
         return torch.as_tensor(np.asarray(self.wavelengths, dtype=float), dtype=self.dtype)
 
     def make_view(self, resources: SceneResources | None = None) -> View:
-        """The :class:`View` of the scene (``resources``, default :meth:`resources`, keep the
-        fisheye and panorama views, shared by renders: do not modify their tensors; a camera
-        aimed at the Sun or Moon reads their places from them)."""
+        """Return the :class:`View` of the scene.
+
+        ``resources``, default :meth:`resources`, keep the fisheye and panorama views, shared by
+        renders: do not modify their tensors; a camera aimed at the Sun or Moon reads their places
+        from them.
+        """
         if self.view in ("fisheye", "panorama"):
             make = fisheye_view if self.view == "fisheye" else panorama_view
             return self._checked(resources).view(self.view, self.size, self.dtype,
@@ -689,8 +706,11 @@ class Scene:
                                self.dtype)
 
     def camera_centre(self, resources: SceneResources | None = None) -> tuple[float, float]:
-        """Altitude and azimuth [degree] of a camera view's centre: given, or the apparent
-        (refracted) place of its target (from ``resources``, default :meth:`resources`)."""
+        """Altitude and azimuth [degree] of a camera view's centre.
+
+        Given, or the apparent (refracted) place of its target (from ``resources``, default
+        :meth:`resources`).
+        """
         if "target" not in self.camera:
             return float(self.camera["altitude_deg"]), float(self.camera["azimuth_deg"])
         resources = self._checked(resources)
@@ -702,9 +722,11 @@ class Scene:
         return apparent, getattr(g, f"{body}_azimuth_deg")
 
     def resources(self) -> SceneResources:
-        """The scene's :class:`~skytorch.scene.resources.SceneResources`: built with the scene,
-        filled by its plans and renders, and shared with the copies of :meth:`replace` and
-        :meth:`observers` that keep its spec (keep it to render a time series)."""
+        """Return the scene's :class:`~skytorch.scene.resources.SceneResources`.
+
+        Built with the scene, filled by its plans and renders, and shared with the copies of
+        :meth:`replace` and :meth:`observers` that keep its spec (keep it to render a time series).
+        """
         return self._resources
 
     def _checked(self, resources: SceneResources | None) -> SceneResources:
@@ -717,16 +739,18 @@ class Scene:
         return resources
 
     def atmosphere(self):
-        """The scene's :class:`skytorch.atmosphere.Atmosphere` (held by its resources)."""
+        """Return the scene's :class:`skytorch.atmosphere.Atmosphere` (held by its resources)."""
         return self._resources.atmosphere
 
     def replace(self, **changes) -> Scene:
-        """A copy with some fields changed; it shares this scene's resources when its
-        spec (turbidity, ozone, wavelengths) is the same."""
+        """Return a copy with some fields changed.
+
+        It shares this scene's resources when its spec (turbidity, ozone, wavelengths) is the same.
+        """
         return replace(self, **changes)
 
-    def parameters(self) -> dict:
-        """The scene's parameters as netCDF-safe values (Dataset attributes)."""
+    def parameters(self) -> dict:  # noqa: C901 (one branch per field type)
+        """Return the scene's parameters as netCDF-safe values (Dataset attributes)."""
         out = {}
         for f in fields(self):
             if f.name == "_resources":
@@ -755,9 +779,11 @@ class Scene:
 
     # ------------------------------------------------------------------ actions
     def plan(self, resources: SceneResources | None = None):
-        """Decide the effects to compute (:func:`skytorch.scene.planner.plan`); a list of
-        plans, one per observer, for several observers (their Sun and Moon from one
-        ephemeris evaluation). ``resources`` default to :meth:`resources`."""
+        """Decide the effects to compute (:func:`skytorch.scene.planner.plan`).
+
+        A list of plans, one per observer, for several observers (their Sun and Moon from one
+        ephemeris evaluation). ``resources`` default to :meth:`resources`.
+        """
         resources = self._checked(resources)
         if not self.several_observers:
             return make_plan(self, resources=resources)
@@ -767,15 +793,17 @@ class Scene:
                 for scene, g in zip(self.observers(), geometries, strict=True)]
 
     def render(self, plan=None, resources: SceneResources | None = None):
-        """Render the scene to a Dataset (:func:`skytorch.scene.render.render`), with its
-        own resources or the given ones (``ValueError`` when their spec differs)."""
+        """Render the scene to a Dataset (:func:`skytorch.scene.render.render`).
+
+        With its own resources or the given ones (``ValueError`` when their spec differs).
+        """
         from skytorch.scene.render import render
 
         return render(self, plan, resources)
 
     # ------------------------------------------------------------------ TOML
     @classmethod
-    def from_dict(cls, config: Mapping, base_dir: Path | None = None) -> Scene:
+    def from_dict(cls, config: Mapping, base_dir: Path | None = None) -> Scene:  # noqa: C901 (a branch per TOML key)
         """Build a scene from a mapping (the TOML scene format, see ``docs/scene.md``).
 
         Tables ``[observer]`` (lat_deg, lon_deg, elevation_m), ``[view]`` (kind, size,

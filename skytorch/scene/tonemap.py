@@ -1,15 +1,15 @@
-"""Tone mapping of sky images: exposure, night vision (Purkinje shift), sRGB PNG.
+r"""Tone mapping of sky images: exposure, night vision (Purkinje shift), sRGB PNG.
 
 Absolute luminances span 1e-4 cd m^-2 (dark sky) to 1e9 cd m^-2 (the solar disc); a
 display shows [0, 1]. The mapping is
 
-1. exposure: :math:`Y \\to k\\,Y` with ``exposure`` [cd^-1 m^2], or automatically
-   :math:`k = a / \\bar Y_{log}` with the log-average luminance of the sky pixels and key
+1. exposure: :math:`Y \to k\,Y` with ``exposure`` [cd^-1 m^2], or automatically
+   :math:`k = a / \bar Y_{log}` with the log-average luminance of the sky pixels and key
    :math:`a = 0.18` (Reinhard et al. 2002, eq. 1–2);
 2. night vision (optional): below the photopic range the eye loses colour and shifts
-   towards blue. The scotopic luminance :math:`Y_s = Y\\,[1.33\\,(1 + (Y+Z)/X) - 1.68]`
+   towards blue. The scotopic luminance :math:`Y_s = Y\,[1.33\,(1 + (Y+Z)/X) - 1.68]`
    (Larson et al. 1997, eq. 7) is mixed in with weight :math:`s` falling linearly in
-   :math:`\\log_{10} Y` from 1 at 0.01 cd m^-2 to 0 at 3 cd m^-2 (the mesopic range),
+   :math:`\log_{10} Y` from 1 at 0.01 cd m^-2 to 0 at 3 cd m^-2 (the mesopic range),
    rendered in the bluish grey of chromaticity (0.25, 0.25) used for night scenes by
    Jensen et al. (2001);
 3. the global Reinhard operator :math:`Y/(1+Y)` on the luminance, keeping chromaticity;
@@ -50,7 +50,7 @@ NIGHT_CHROMATICITY = (0.25, 0.25)
 
 
 def auto_exposure(luminance: torch.Tensor, valid: torch.Tensor | None = None) -> float:
-    """Reinhard's exposure :math:`a / \\exp(\\overline{\\ln(\\delta + Y)})` [cd^-1 m^2]."""
+    r"""Reinhard's exposure :math:`a / \exp(\overline{\ln(\delta + Y)})` [cd^-1 m^2]."""
     values = luminance.reshape(-1) if valid is None else luminance[valid]
     values = values.to(torch.float64).clamp(min=0.0)
     if values.numel() == 0:

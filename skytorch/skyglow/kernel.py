@@ -1,4 +1,4 @@
-"""Single-scattering skyglow kernel b(θ, φ, r, h_c, h_o, λ) of one ground light source.
+r"""Single-scattering skyglow kernel b(θ, φ, r, h_c, h_o, λ) of one ground light source.
 
 A source of unit luminous (or radiant) flux stands at ground distance ``r`` and altitude
 ``h_c`` in azimuth 0; an observer at altitude ``h_o`` looks in azimuth ``θ`` and elevation
@@ -8,8 +8,8 @@ aerosol phase functions (Dobashi et al. 2023, eq. 1–2):
 
 .. math::
 
-    b = \\int_0^{u_{top}} T(O, P)\\, \\sum_s \\beta_s(P)\\, p_s(\\cos\\Theta)\\,
-        \\frac{I(\\psi)\\, T(S, P)}{|P - S|^2 + a^2}\\, du ,
+    b = \int_0^{u_{top}} T(O, P)\, \sum_s \beta_s(P)\, p_s(\cos\Theta)\,
+        \frac{I(\psi)\, T(S, P)}{|P - S|^2 + a^2}\, du ,
 
 where ``P = O + u d`` is a point of the view ray, ``I(ψ)`` the upward emission function of
 the source [sr^-1 per unit flux] at emission zenith angle ``ψ``, ``Θ`` the scattering
@@ -84,7 +84,7 @@ DOBASHI_BEAM_EXPONENT = 8.0
 
 def emission_intensity(cos_psi: torch.Tensor, emission: str = "garstang1986",
                        parameters: Mapping[str, float] | None = None) -> torch.Tensor:
-    """Upward intensity of a lit ground element per unit emitted flux [sr^-1].
+    r"""Upward intensity of a lit ground element per unit emitted flux [sr^-1].
 
     Parameters
     ----------
@@ -92,12 +92,12 @@ def emission_intensity(cos_psi: torch.Tensor, emission: str = "garstang1986",
         Cosine of the emission zenith angle ψ (1 = straight up). Directions below the
         local horizon (``cos_psi <= 0``) receive no light.
     emission : {"garstang1986", "lambertian", "dobashi2023"}
-        ``"garstang1986"``: :math:`I = [2G(1-F)\\cos ψ + 0.554 F ψ^4] / (2π)` with the
+        ``"garstang1986"``: :math:`I = [2G(1-F)\cos ψ + 0.554 F ψ^4] / (2π)` with the
         fraction ``F`` of light sent directly upwards (default 0.10) and ground
         reflectance ``G`` (default 0.15); the upward total is ``G(1 − F) + F`` of the flux.
-        ``"lambertian"``: :math:`\\cos ψ / π`, all flux upwards.
+        ``"lambertian"``: :math:`\cos ψ / π`, all flux upwards.
         ``"dobashi2023"``: light emitted towards the zenith (Dobashi et al. 2023 §3.1),
-        represented by the normalised beam :math:`(n + 1) \\cos^n ψ / (2π)` with
+        represented by the normalised beam :math:`(n + 1) \cos^n ψ / (2π)` with
         ``n = beam_exponent`` (default 8): an infinitely thin beam would never cross a
         view ray of finite elevation.
     parameters : mapping, optional
@@ -142,7 +142,7 @@ EMISSION_PARAMETERS = {"garstang1986": {"F": (0.0, 1.0), "G": (0.0, 1.0)},
 
 
 def _emission_parameters(emission: str, parameters) -> dict:
-    """Validated emission parameters: unknown names and out-of-range values raise."""
+    """Return validated emission parameters: unknown names and out-of-range values raise."""
     if parameters is None:
         return {}
     if not isinstance(parameters, Mapping):
@@ -253,12 +253,14 @@ class Medium:
 
     # --- optical depth to the top of the atmosphere --------------------------------------
     def _optical_depth_table(self, n_r, n_mu, n_steps, constituents=None):
-        """log optical depth to the top (r, mu, wavelength); with ``constituents`` (the
-        Atmosphere's method) from the per-species path columns of each table ray
-        (every species, nonlinear laws included), otherwise by quadrature of the
-        extinction table along the ray. The kernel forms partial paths as differences of
-        two look-ups: exact for linear species, an approximation for band absorbers with
-        a curve of growth (O2, H2O), whose optical depth is not additive along a path."""
+        """Log optical depth to the top (r, mu, wavelength).
+
+        With ``constituents`` (the Atmosphere's method) from the per-species path columns of each
+        table ray (every species, nonlinear laws included), otherwise by quadrature of the
+        extinction table along the ray. The kernel forms partial paths as differences of two
+        look-ups: exact for linear species, an approximation for band absorbers with a curve of
+        growth (O2, H2O), whose optical depth is not additive along a path.
+        """
         big_h = math.sqrt(self.top_radius_m**2 - self.planet_radius_m**2)
         x_r = torch.linspace(0.0, 1.0, n_r, dtype=torch.float64)
         x_mu = torch.linspace(0.0, 1.0, n_mu, dtype=torch.float64)
@@ -318,15 +320,15 @@ class Medium:
         return self.optical_depth_from_altitude(radius - self.planet_radius_m, mu)
 
     def optical_depth_from_altitude(self, altitude_m, mu):
-        """Optical depth from altitude ``h`` along direction cosine ``μ ≥ 0`` to the top.
+        r"""Optical depth from altitude ``h`` along direction cosine ``μ ≥ 0`` to the top.
 
         The table coordinates are computed from the altitude without differences of
         radii, so that float32 keeps them accurate near the ground:
 
         .. math::
 
-            ρ^2 = h (h + 2R), \\qquad r_t^2 - r^2 = (h_t - h)(r_t + r), \\qquad
-            d = \\frac{r_t^2 - r^2}{r μ + \\sqrt{r^2 μ^2 + r_t^2 - r^2}},
+            ρ^2 = h (h + 2R), \qquad r_t^2 - r^2 = (h_t - h)(r_t + r), \qquad
+            d = \frac{r_t^2 - r^2}{r μ + \sqrt{r^2 μ^2 + r_t^2 - r^2}},
 
         with ``ρ`` the distance to the horizon, ``d`` the distance to the top along the
         ray, ``R`` the planet radius and ``r_t``, ``h_t`` the top radius and altitude.
@@ -522,7 +524,7 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
 
 def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_parameters, a,
                   quadrature):
-    """The quadrature for a flat batch of geometries: returns (n, wavelength).
+    """Return the quadrature for a flat batch of geometries: returns (n, wavelength).
 
     Every length is formed from altitudes and offsets, never as a difference of two radii
     near ``R`` (float32 resolves those to 0.5 m only): the source height below the

@@ -503,7 +503,7 @@ class SkyglowModel(nn.Module):
         return self.basis.shape[1] - 1
 
     @classmethod
-    def precompute(cls, atmosphere, n_azimuth: int = 256, n_elevation: int = 64,
+    def precompute(cls, atmosphere, n_azimuth: int = 256, n_elevation: int = 64,  # noqa: C901 (defaults, checks)
                    max_distance_m: float = 20_000.0, n_distance: int = 128,
                    n_components=32, emission: str = "garstang1986",
                    n_source_altitude: int = 1, n_observer_altitude: int = 1, *,
@@ -1066,7 +1066,7 @@ class SkyglowModel(nn.Module):
                                              tuple(g.clone() for g in geometry), plan)
         return plan
 
-    def radiance_per_lumen(self, cells: Mapping[str, torch.Tensor], observer_xy,
+    def radiance_per_lumen(self, cells: Mapping[str, torch.Tensor], observer_xy,  # noqa: C901 (checks, resampling modes)
                            observer_altitude_m=0.0, *, resampling: str = "splat",
                            oversampling: int = 1, max_pairs: int = 4_000_000,
                            reuse_splat: bool = True) -> torch.Tensor:
