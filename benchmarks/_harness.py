@@ -26,7 +26,7 @@ BENCHMARKS_MD = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
 def argument_parser(description: str, *, repeat: int = 5, threads: int | None = None,
                     thread_option: bool = True, append_option: bool = True
                     ) -> argparse.ArgumentParser:
-    """An argument parser with the options the benchmark scripts share.
+    """Return an argument parser with the options the benchmark scripts share.
 
     ``--append`` (add the printed Markdown to ``docs/benchmarks.md``), ``--repeat N``
     (timed runs per case, default ``repeat``) and ``--threads T`` (torch intra-op threads,

@@ -74,8 +74,11 @@ def _previous_implementation():
 
 
 def _alternating_medians(functions: dict, repeat: int, warmup: int = 1) -> dict[str, float]:
-    """Median wall time of each function, the functions called in turn in every repetition
-    (so that a change of machine load affects all of them alike) [s]."""
+    """Median wall time of each function.
+
+    The functions called in turn in every repetition (so that a change of machine load affects all
+    of them alike) [s].
+    """
     for _ in range(warmup):
         for function in functions.values():
             function()

@@ -38,8 +38,10 @@ from benchmarks._harness import (  # noqa: E402
 
 
 def median_cpu_seconds(function, repeat: int) -> float:
-    """Median CPU time of ``function()`` (all threads of this process) [s]; less sensitive
-    than wall time to other processes on a shared machine."""
+    """Median CPU time of ``function()`` (all threads of this process) [s].
+
+    Less sensitive than wall time to other processes on a shared machine.
+    """
     import statistics
     import time
 
@@ -69,9 +71,12 @@ def scenes(size: int, fidelity: str = "default"):
 
 
 def planner_overhead(scene, repeat: int):
-    """Medians of wall and CPU time [s]: render given a plan, render without one, plan()
-    alone — each at instants no plan has seen (one second apart, so the work is the same
-    and the per-(time, site) geometry cache is cold), interleaved run by run."""
+    """Medians of wall and CPU time [s].
+
+    Render given a plan, render without one, plan() alone — each at instants no plan has seen (one
+    second apart, so the work is the same and the per-(time, site) geometry cache is cold),
+    interleaved run by run.
+    """
     import statistics
     import time
 

@@ -73,7 +73,7 @@ COLUMNS = ("process", "import", "first render", "import + first CPU", "warm rend
 
 
 def run_once(tree: str, size: int, cache: str) -> dict[str, float]:
-    """Timings [s] of one fresh process running the child against ``tree``."""
+    """Return timings [s] of one fresh process running the child against ``tree``."""
     env = dict(os.environ, PYTHONPATH=tree, SKYTORCH_CACHE_DIR=cache, OMP_NUM_THREADS="1")
     start = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", CHILD.format(size=size)], env=env,

@@ -82,7 +82,7 @@ def _median_wall_cpu(function, repeat: int, warmup: int = 1) -> tuple[float, flo
 
 
 def _grid_map(n_side: int, extent_m: float, seed: int = 0):
-    """A fully lit n_side × n_side map (random fluxes) covering ±extent_m."""
+    """Return a fully lit n_side × n_side map (random fluxes) covering ±extent_m."""
     from skytorch.skyglow.model import light_map_arrays
 
     generator = torch.Generator().manual_seed(seed)
@@ -177,7 +177,7 @@ def paper_precompute(n_observer_altitudes: int = 16, *, compute_dtype=torch.floa
 
 
 def _paper_rows(rows, args) -> str:
-    """The measured (sliced) paper-resolution precompute, extrapolated to 16 altitudes."""
+    """Return the measured (sliced) paper-resolution precompute, extrapolated to 16 altitudes."""
     k = args.paper_slice
     dtype = getattr(torch, args.paper_dtype)
     model, timings = paper_precompute(k, compute_dtype=dtype, n_steps=args.paper_steps,

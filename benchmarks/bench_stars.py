@@ -45,8 +45,11 @@ TARGET_RATIO = 20.0
 
 
 def median_cpu_seconds(function, repeat: int = 3, warmup: int = 1) -> float:
-    """Median CPU time of this process for ``function()`` [s] (insensitive to other jobs
-    on a shared machine; with one torch thread it is the wall time on an idle core)."""
+    """Median CPU time of this process for ``function()`` [s].
+
+    Insensitive to other jobs on a shared machine; with one torch thread it is the wall time on an
+    idle core.
+    """
     for _ in range(warmup):
         function()
     samples = []

@@ -123,8 +123,11 @@ def _warm_up() -> None:
 
 
 def process_cluster(n_workers: int):
-    """A LocalCluster of single-threaded worker processes, set up as ``st.sweep`` sets up
-    its own (glibc's malloc trimming, see ``skytorch.sweep.WORKER_PROCESS_CONFIG``)."""
+    """Return a LocalCluster of single-threaded worker processes.
+
+    Set up as ``st.sweep`` sets up its own (glibc's malloc trimming, see
+    ``skytorch.sweep.WORKER_PROCESS_CONFIG``).
+    """
     import dask
     from distributed import LocalCluster
 
@@ -136,9 +139,11 @@ def process_cluster(n_workers: int):
 
 
 def eclipse_case(label: str, n: int) -> float:
-    """Seconds for the n x n eclipse light-curve sweep with one backend (after a warm-up
-    call at a point outside the grid in this process and, for worker processes, in each
-    worker)."""
+    """Seconds for the n x n eclipse light-curve sweep with one backend.
+
+    After a warm-up call at a point outside the grid in this process and, for worker processes, in
+    each worker.
+    """
     import time
 
     options = dict(ECLIPSE_CASES[label])

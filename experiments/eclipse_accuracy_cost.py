@@ -140,7 +140,7 @@ def scattering(quick: bool, output_dir) -> dict:
     return dict(zip(zip(names, values, strict=True), errors, strict=True))
 
 
-def main(argv=None) -> int:
+def main(argv=None) -> int:  # noqa: C901 (sequential experiment steps)
     argv = list(argv) if argv is not None else sys.argv[1:]
     only_scattering = "--scattering-only" in argv
     argv = [a for a in argv if a != "--scattering-only"]

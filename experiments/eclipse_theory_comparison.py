@@ -383,7 +383,7 @@ def mars(quick: bool):
 
 
 def limb_views(quick: bool):
-    """The atmosphere ring seen from the Moon: umbra centre, mid-umbra, umbra edge."""
+    """Return the atmosphere ring seen from the Moon: umbra centre, mid-umbra, umbra edge."""
     from skytorch.eclipse.lunar import _display
     from skytorch.eclipse.shadow import Shadow
     from skytorch.spectrum import solar_irradiance, spectrum_to_xyz

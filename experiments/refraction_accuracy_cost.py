@@ -70,7 +70,7 @@ def _measure(function, reference, repeat: int) -> tuple[float, float]:
     return error, seconds
 
 
-def main(argv=None) -> int:
+def main(argv=None) -> int:  # noqa: C901 (sequential experiment steps)
     args = parse_arguments(__doc__.splitlines()[0], argv)
     quick = args.quick
     atm = Atmosphere.earth(turbidity=1.0, ozone_du=0.0)

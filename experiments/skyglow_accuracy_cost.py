@@ -45,7 +45,7 @@ def _timed(function, repeat=3):
     return float(np.median(samples)), result
 
 
-def main(argv=None) -> int:
+def main(argv=None) -> int:  # noqa: C901 (sequential experiment steps)
     args = parse_arguments(__doc__.splitlines()[0], argv)
     from skytorch.atmosphere import Atmosphere
     from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable

@@ -44,7 +44,7 @@ def bennett_refraction_rad(apparent_altitude_rad: torch.Tensor) -> torch.Tensor:
 
 
 def _timed(function, repeat: int = 5):
-    """Result and smallest CPU time of this process over ``repeat`` calls [s].
+    """Return result and smallest CPU time of this process over ``repeat`` calls [s].
 
     CPU time rather than wall time: the machine is shared, and wall times there vary by
     factors of several from run to run.
@@ -122,8 +122,10 @@ def position_variants(n_star: int, n_time: int):
                             dtype=dtype)
 
     def mean_of_date_operators(with_pm: bool, with_aberration: bool):
-        """Precession and mean sidereal time only (no nutation), from skyfield's P and GMST;
-        optionally aberration from Earth's barycentric and the diurnal velocity."""
+        """Precession and mean sidereal time only (no nutation), from skyfield's P and GMST.
+
+        Optionally aberration from Earth's barycentric and the diurnal velocity.
+        """
         t_fresh = ephemeris.skyfield_time(times)  # skyfield caches P/gmst on a Time
         precession = np.moveaxis(np.asarray(t_fresh.P), -1, 0).reshape(-1, 3, 3) @ ICRS_to_J2000
         theta = np.asarray(t_fresh.gmst).reshape(-1) * (np.pi / 12.0)

@@ -57,7 +57,7 @@ _CACHE: dict = {}
 
 
 def cached_model(**kwargs):
-    """A small precomputed SkyglowModel on the stand-in atmosphere, built once per process."""
+    """Return a small precomputed SkyglowModel on the stand-in atmosphere, built once per process."""
     from skytorch.skyglow import SkyglowModel
 
     key = tuple(sorted(kwargs.items()))

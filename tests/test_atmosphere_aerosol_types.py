@@ -1,6 +1,8 @@
-"""Named aerosol types (OPAC, stratospheric sulfate) and the Martian dust table: names,
-ranges, and the physics the Mie tables must show (absorbing soot lowers the albedo,
-coarse sea salt flattens the spectrum, Martian dust absorbs in the blue)."""
+"""Named aerosol types (OPAC, stratospheric sulfate) and the Martian dust table.
+
+Names, ranges, and the physics the Mie tables must show (absorbing soot lowers the albedo, coarse
+sea salt flattens the spectrum, Martian dust absorbs in the blue).
+"""
 
 import math
 
@@ -55,8 +57,11 @@ def test_sulfate_type_is_the_stratospheric_table():
 
 
 def test_soot_lowers_the_albedo():
-    """At 550 nm: urban (130000 soot cm^-3) < continental polluted < continental average
-    < continental clean (no soot); urban below 0.85, clean above 0.95."""
+    """Soot orders the single-scattering albedo of the continental types at 550 nm.
+
+    Urban (130000 soot cm^-3) < continental polluted < continental average < continental
+    clean (no soot); urban below 0.85, clean above 0.95.
+    """
     wavelength = torch.tensor([550.0], dtype=F64)
     albedo = [float(aerosol_type_properties(name, wavelength)[1][0]) for name in
               ("urban", "continental_polluted", "continental_average", "continental_clean")]
@@ -65,8 +70,11 @@ def test_soot_lowers_the_albedo():
 
 
 def test_coarse_particles_flatten_the_spectrum():
-    """Ångström exponent 440/870 nm: maritime clean (sea salt) and desert (mineral) below
-    0.7, continental types (fine water-soluble particles) above 1."""
+    """Ångström exponent 440/870 nm.
+
+    Maritime clean (sea salt) and desert (mineral) below 0.7, continental types (fine water-soluble
+    particles) above 1.
+    """
     assert _angstrom("maritime_clean") < 0.7
     assert _angstrom("desert") < 0.7
     assert _angstrom("continental_average") > 1.0
@@ -110,8 +118,11 @@ def test_float32_follows_float64():
 
 
 def test_mars_dust_albedo_lower_in_the_blue():
-    """Martian dust (Wolff et al. 2009 index): albedo rises monotonically (within 0.005)
-    from the UV to a plateau of 0.96-0.98 at 650-1717 nm; below 0.80 at 450 nm."""
+    """Martian dust (Wolff et al. 2009 index).
+
+    Albedo rises monotonically (within 0.005) from the UV to a plateau of 0.96-0.98 at 650-1717 nm;
+    below 0.80 at 450 nm.
+    """
     wavelength = torch.linspace(MARS_DUST_RANGE_NM[0], MARS_DUST_RANGE_NM[1], 200,
                                 dtype=F64)
     _, albedo, _ = mars_dust_properties(wavelength)
@@ -143,9 +154,11 @@ def test_default_earth_keeps_the_untyped_aerosol():
 
 @pytest.mark.parametrize("given", [{"aerosol_optical_depth": 0.3}, {"turbidity": 4.0}])
 def test_typed_aerosol_keeps_the_550_nm_depth_and_takes_the_type_spectrum(given):
-    """The vertical aerosol optical depth at 550 nm is the untyped one (turbidity or
-    aerosol_optical_depth, within 1e-12); at other wavelengths it follows the type's
-    extinction ratio; the albedo is the type's."""
+    """The vertical aerosol optical depth at 550 nm is the untyped one.
+
+    (turbidity or aerosol_optical_depth, within 1e-12); at other wavelengths it follows the type's
+    extinction ratio; the albedo is the type's.
+    """
     plain = Atmosphere.earth(**given).optical_depth(WL, per_species=True)["aerosol"]
     typed_atm = Atmosphere.earth(**given, aerosol_type="maritime")
     typed = typed_atm.optical_depth(WL, per_species=True)["aerosol"]
@@ -157,8 +170,11 @@ def test_typed_aerosol_keeps_the_550_nm_depth_and_takes_the_type_spectrum(given)
 
 
 def test_typed_phase_is_normalised_with_the_mie_asymmetry():
-    """The aerosol phase of a type integrates to 1 over 4π and its mean cosine is the
-    table's g at each wavelength (Gauss-Legendre, 400 nodes, within 1e-6)."""
+    """The aerosol phase of a type integrates to 1 over 4π, with the table's g.
+
+    Its mean cosine is the table's g at each wavelength (Gauss-Legendre, 400 nodes, within
+    1e-6).
+    """
     atm = Atmosphere.earth(aerosol_type="continental")
     assert atm.aerosol_phase_model == "henyeygreenstein1941"
     nodes, weights = np.polynomial.legendre.leggauss(400)
@@ -194,8 +210,10 @@ def test_typed_aerosol_refuses_scalar_optics_and_wavelength_free_phase():
 
 
 def test_mars_dust_albedo_depends_on_wavelength():
-    """Atmosphere.mars uses the Martian dust table (lower in the blue); a scalar albedo
-    passed explicitly replaces it."""
+    """Atmosphere.mars uses the Martian dust table (lower in the blue).
+
+    A scalar albedo passed explicitly replaces it.
+    """
     atm = Atmosphere.mars()
     wavelength = torch.tensor([450.0, 700.0], dtype=F64)
     albedo = atm.constituents(wavelength)["aerosol"].single_scattering_albedo

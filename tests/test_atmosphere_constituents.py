@@ -87,8 +87,11 @@ def test_optical_depth_is_the_constituents_of_the_columns(batched):
 
 
 def test_nonlinear_species_uses_its_law_on_the_column():
-    """A species with tau = a sqrt(u): doubling the path (air mass 2 at 60 deg on a thin
-    flat-ish layer) multiplies its optical depth by sqrt(2), not 2."""
+    """A species with tau = a sqrt(u).
+
+    Doubling the path (air mass 2 at 60 deg on a thin flat-ish layer) multiplies its optical depth
+    by sqrt(2), not 2.
+    """
     atm = Atmosphere.earth(ozone_du=0.0, aerosol_optical_depth=0.0)
 
     def build(atmosphere, wavelength, dtype, profile):

@@ -37,7 +37,7 @@ BAD = ["3", None, object(), [1.0, "x"], math.nan, math.inf, -math.inf, True]
 
 
 def numbers(low: float, high: float):
-    """Valid floats in [low, high], their edges, and the hard and bad neighbours."""
+    """Return Valid floats in [low, high], their edges, and the hard and bad neighbours."""
     return st.one_of(
         st.floats(low, high, allow_nan=False, allow_infinity=False),
         st.sampled_from([low, high, math.nan, math.inf, -math.inf, -1.0, 1e308, -1e-300]),

@@ -29,7 +29,7 @@ M = gases.PRESSURE_EXPONENT
 
 
 def _earth(**options):
-    """The isothermal exponential atmosphere (pressure known in closed form)."""
+    """Return the isothermal exponential atmosphere (pressure known in closed form)."""
     settings = {"ozone_du": 0.0, "aerosol_optical_depth": 0.0, "molecule_profile": "exponential",
                 "rayleigh_scale_height_m": H_AIR}
     settings.update(options)
@@ -37,8 +37,11 @@ def _earth(**options):
 
 
 def test_water_curve_of_growth_matches_pvlib_spectrl2():
-    """Bird & Riordan eq. 2-8 at u = W M: pvlib's water transmittance (DNI with W over DNI
-    without), at every SPECTRL2 wavelength in 300-1100 nm, to 1e-9 in optical depth."""
+    """Bird & Riordan eq. 2-8 at u = W M.
+
+    Pvlib's water transmittance (DNI with W over DNI without), at every SPECTRL2 wavelength in
+    300-1100 nm, to 1e-9 in optical depth.
+    """
     zenith = np.array([0.0, 60.0, 80.0])
     air_mass = pvlib.atmosphere.get_relative_airmass(zenith, model="kasten1966")
 
@@ -81,8 +84,10 @@ def _air_density(h):
 
 
 def _from_space(tangent_m, atm):
-    """Origin radius and direction cosine of a ray entering at the top, grazing at
-    ``tangent_m`` (impact parameter R + h_t)."""
+    """Origin radius and direction cosine of a ray entering at the top.
+
+    Grazing at ``tangent_m`` (impact parameter R + h_t).
+    """
     r = atm.top_radius_m + 1000.0
     impact = R_EARTH + tangent_m
     mu = -math.sqrt(1.0 - (impact / r) ** 2)
@@ -91,9 +96,12 @@ def _from_space(tangent_m, atm):
 
 @pytest.mark.parametrize("tangent_km", [5.0, 10.0, 15.0])
 def test_curve_of_growth_along_a_limb_path(tangent_km):
-    """Two-way limb path grazing at 5-15 km: the band optical depths of h2o and o2 are the
-    curve of growth of the pressure-scaled amount integrated independently (trapezoid),
-    and the o2o2 optical depth is linear in the trapezoid integral of n_O2^2."""
+    """Two-way limb path grazing at 5-15 km.
+
+    The band optical depths of h2o and o2 are the curve of growth of the pressure-scaled amount
+    integrated independently (trapezoid), and the o2o2 optical depth is linear in the trapezoid
+    integral of n_O2^2.
+    """
     water = 2.0
     atm = _earth(precipitable_water_cm=water)
     wavelength = torch.tensor([690.0, 720.0, 762.5, 937.0, 1065.0], dtype=torch.float64)
@@ -118,8 +126,10 @@ def test_curve_of_growth_along_a_limb_path(tangent_km):
 
 
 def test_vertical_o2o2_column_closed_form():
-    """Vertical o2o2 optical depth from the ground: k (0.2095 n0 / L)^2 H/2 (closed form of
-    the squared exponential), with n0 = p N_A / (M g H)."""
+    """Vertical o2o2 optical depth from the ground.
+
+    K (0.2095 n0 / L)^2 H/2 (closed form of the squared exponential), with n0 = p N_A / (M g H).
+    """
     atm = _earth()
     wavelength = torch.tensor([477.0, 577.0, 630.0, 1065.0], dtype=torch.float64)
     tau = atm.optical_depth(wavelength, per_species=True)["o2o2"]
@@ -132,8 +142,10 @@ def test_vertical_o2o2_column_closed_form():
 
 
 def test_zenith_water_path_is_the_precipitable_water():
-    """Overhead from sea level the scaled water amount is W (Bird & Riordan's u = W M, M = 1),
-    for both profile shapes."""
+    """Overhead from sea level the scaled water amount is W (Bird & Riordan's u = W M, M = 1).
+
+    For both profile shapes.
+    """
     wavelength = torch.tensor([720.0, 820.0, 937.0], dtype=torch.float64)
     for profile in ("exponential", "us1976"):
         atm = _earth(precipitable_water_cm=3.0, molecule_profile=profile)
@@ -143,8 +155,10 @@ def test_zenith_water_path_is_the_precipitable_water():
 
 
 def test_gradcheck_precipitable_water():
-    """d T / d W in float64 against finite differences on slant and near-horizontal paths,
-    including W = 0 (the curve of growth is smooth there)."""
+    """D T / d W in float64 against finite differences on slant and near-horizontal paths.
+
+    Including W = 0 (the curve of growth is smooth there).
+    """
     wavelength = torch.tensor([720.0, 937.0], dtype=torch.float64)
     zenith = torch.tensor([0.3, 1.45], dtype=torch.float64)
 
@@ -212,16 +226,21 @@ def test_bad_amounts_raise():
 
 
 def test_coefficients_zero_below_the_table_and_the_cia_data():
-    """242-300 nm: no band coefficients (SPECTRL2's table starts at 300 nm with zeros);
-    the O2-O2 table has no data below 336 nm."""
+    """242-300 nm: no band coefficients (SPECTRL2's table starts at 300 nm with zeros).
+
+    The O2-O2 table has no data below 336 nm.
+    """
     a_w, a_u = gases.bird_coefficients(torch.tensor([242.0, 280.0, 300.0]))
     assert float(a_w.abs().max()) == 0.0 and float(a_u.abs().max()) == 0.0
     assert float(gases.o2o2_coefficient(torch.tensor([250.0, 335.0])).abs().max()) == 0.0
 
 
 def _us1976_sounding(water):
-    """US 1976 sampled every 500 m (pressure, temperature), optionally with an h2o_vmr that
-    makes the water density exp(-h / 2 km) (vmr times the air density p/kT)."""
+    """US 1976 sampled every 500 m (pressure, temperature).
+
+    Optionally with an h2o_vmr that makes the water density exp(-h / 2 km) (vmr times the air
+    density p/kT).
+    """
     import xarray as xr
 
     from skytorch.atmosphere.profiles import us1976, us1976_pressure_ratio, us1976_temperature
@@ -240,9 +259,12 @@ def _us1976_sounding(water):
 
 @pytest.mark.parametrize("water_in_sounding", [False, True])
 def test_sounding_gives_the_us1976_gas_optical_depths(water_in_sounding):
-    """A sounding sampled from US 1976 (with or without an h2o_vmr that reproduces the 2 km
-    water profile) gives the built-in US 1976 gas optical depths, slant and near the
-    horizon, within 1 % (the sounding is interpolated log-linearly between 500 m levels)."""
+    """A sounding sampled from US 1976.
+
+    (with or without an h2o_vmr that reproduces the 2 km water profile) gives the built-in US 1976
+    gas optical depths, slant and near the horizon, within 1 % (the sounding is interpolated
+    log-linearly between 500 m levels).
+    """
     wavelength = torch.tensor([690.0, 762.5, 937.0, 1065.0], dtype=torch.float64)
     zenith = torch.tensor([0.0, 1.2, 1.5], dtype=torch.float64)
     built_in = Atmosphere.earth(precipitable_water_cm=2.0).optical_depth(

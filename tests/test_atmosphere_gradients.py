@@ -1,5 +1,8 @@
-"""Gradients w.r.t. every continuous atmosphere parameter (float64 gradcheck, small cases)
-through optical_depth and sky_radiance, and both float32 and float64 inputs."""
+"""Gradients w.r.t. every continuous atmosphere parameter.
+
+(float64 gradcheck, small cases) through optical_depth and sky_radiance, and both float32 and
+float64 inputs.
+"""
 
 from __future__ import annotations
 

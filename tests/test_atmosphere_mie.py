@@ -1,7 +1,9 @@
-"""Mie theory behind the aerosol tables, against independent references: the published
-test cases of Du (2004), van de Hulst's anomalous diffraction, OPAC's own Mie results for
-its aerosol components, convergence of the size integrals, and every shipped type table
-against a fresh run of its generator."""
+"""Mie theory behind the aerosol tables, against independent references.
+
+The published test cases of Du (2004), van de Hulst's anomalous diffraction, OPAC's own Mie results
+for its aerosol components, convergence of the size integrals, and every shipped type table against
+a fresh run of its generator.
+"""
 
 import importlib.util
 import math
@@ -53,8 +55,10 @@ DU_2004_TABLE_1 = [
 
 @pytest.mark.parametrize(("x", "n", "k", "q_ext", "q_sca"), DU_2004_TABLE_1)
 def test_single_sphere_matches_du_2004_table_1(x, n, k, q_ext, q_sca):
-    """Q_ext and Q_sca of single spheres within 5e-6 relative (the table has 7 digits;
-    miepython's sign convention has absorption as a negative imaginary part)."""
+    """Q_ext and Q_sca of single spheres within 5e-6 relative.
+
+    The table has 7 digits; miepython's sign convention has absorption as a negative imaginary part.
+    """
     result = miepython.efficiencies_mx(complex(n, -k), x)
     assert float(result[0]) == pytest.approx(q_ext, rel=5e-6)
     assert float(result[1]) == pytest.approx(q_sca, rel=5e-6)
@@ -62,9 +66,11 @@ def test_single_sphere_matches_du_2004_table_1(x, n, k, q_ext, q_sca):
 
 @pytest.mark.parametrize(("m", "x"), [(1.01, 1000.0), (1.01, 5000.0), (1.05, 5000.0)])
 def test_anomalous_diffraction_for_index_near_one(m, x):
-    """van de Hulst (1957) anomalous diffraction, Q = 2 - (4/p) sin p + (4/p^2)(1 - cos p),
-    p = 2x(m - 1), the limit m -> 1, x -> infinity: within 1 % (its edge-term error at
-    these x is 0.4-0.8 %)."""
+    """Van de Hulst (1957) anomalous diffraction, Q = 2 - (4/p) sin p + (4/p^2)(1 - cos p).
+
+    P = 2x(m - 1), the limit m -> 1, x -> infinity: within 1 % (its edge-term error at these x is
+    0.4-0.8 %).
+    """
     q_ext = float(miepython.efficiencies_mx(complex(m, 0.0), x)[0])
     p = 2.0 * x * (m - 1.0)
     adt = 2.0 - 4.0 / p * math.sin(p) + 4.0 / p ** 2 * (1.0 - math.cos(p))
@@ -78,11 +84,13 @@ OPAC_CHECK_NM = (300.0, 550.0, 1000.0)
 @pytest.mark.parametrize("component", ["inso", "waso", "soot", "ssam", "sscm", "minm",
                                        "miam", "micm", "mitr", "suso"])
 def test_components_match_opac_mie(gen, opac, component):
-    """Size-averaged extinction, albedo and asymmetry of each OPAC component (same
-    refractive index and truncated lognormal) against OPAC's own Mie code (Hess et al.
-    1998, the values in its data files): extinction within 0.5 %, albedo within 2e-3, g
-    within 0.015 (OPAC writes g with 3 decimals; measured worst over 250-2000 nm: 0.26 %,
-    8e-4, 0.0094)."""
+    """Size-averaged extinction.
+
+    Albedo and asymmetry of each OPAC component (same refractive index and truncated lognormal)
+    against OPAC's own Mie code (Hess et al. 1998, the values in its data files): extinction within
+    0.5 %, albedo within 2e-3, g within 0.015 (OPAC writes g with 3 decimals; measured worst over
+    250-2000 nm: 0.26 %, 8e-4, 0.0094).
+    """
     data = opac[component]
     rows = np.isin(data["wavelength_nm"], OPAC_CHECK_NM)
     c_ext, c_sca, g = gen.component_averages(component, data["wavelength_nm"][rows],
@@ -95,10 +103,12 @@ def test_components_match_opac_mie(gen, opac, component):
 
 
 def test_continental_polluted_matches_opac_type_output(gen):
-    """The OPAC 3.1 output for the continental polluted type at 80 % relative humidity,
+    """The OPAC 3.1 output for the continental polluted type at 80 % relative humidity.
+
     550 nm (inso 0.6, waso 15700, soot 34300 cm^-3; forge.ipsl.jussieu.fr/ether, file
-    ``trunk/hftp/iasi/aerosol/opac_calc/copo``): extinction 0.1746 km^-1 within 0.5 %,
-    albedo 0.8925 within 1e-3, g 0.6977 within 3e-3 (measured: 1e-4 and 3e-4)."""
+    ``trunk/hftp/iasi/aerosol/opac_calc/copo``): extinction 0.1746 km^-1 within 0.5 %, albedo 0.8925
+    within 1e-3, g 0.6977 within 3e-3 (measured: 1e-4 and 3e-4).
+    """
     ext, sca, g = gen.type_averages("continental_polluted", np.array([550.0]))
     assert float(ext[0]) * 1e-3 == pytest.approx(0.1746, rel=5e-3)
     assert float(sca[0] / ext[0]) == pytest.approx(0.8925, abs=1e-3)
@@ -111,9 +121,11 @@ def test_continental_polluted_matches_opac_type_output(gen):
     ("desert", (550.0,)),
 ])
 def test_lognormal_integrals_converged(gen, name, wavelength):
-    """Doubling the nodes of every size integral changes the extinction at each
-    wavelength, the albedo and g by < 1e-4 (relative, absolute, absolute); all
-    wavelengths and the ln r span: experiments/aerosol_mie_accuracy_cost.py."""
+    """Doubling the nodes of every size integral changes the extinction at each wavelength.
+
+    The albedo and g by < 1e-4 (relative, absolute, absolute); all wavelengths and the ln r span:
+    experiments/aerosol_mie_accuracy_cost.py.
+    """
     coarse = gen.type_averages(name, np.array(wavelength))
     fine = gen.type_averages(name, np.array(wavelength), node_scale=2.0)
     assert np.all(np.abs(coarse[0] / fine[0] - 1.0) < 1e-4)
@@ -122,11 +134,13 @@ def test_lognormal_integrals_converged(gen, name, wavelength):
 
 
 def test_sea_salt_integral_limited_by_the_ripple_structure(gen):
-    """Nearly non-absorbing sea salt (k ~ 1e-7 to 1e-8): the ripple and resonance
-    structure of Q_ext(x) is not resolved by any affordable node count, and doubling the
-    nodes of maritime clean changes its extinction at 1000 nm by 1e-4 to 1e-3 (measured
-    2.1e-4 at 600 -> 1200 nodes of the accumulation mode), its albedo by < 1e-5: bounded
-    here at 1e-3 and 1e-5; the measured values are in docs/accuracy.md."""
+    """Nearly non-absorbing sea salt (k ~ 1e-7 to 1e-8).
+
+    The ripple and resonance structure of Q_ext(x) is not resolved by any affordable node count, and
+    doubling the nodes of maritime clean changes its extinction at 1000 nm by 1e-4 to 1e-3 (measured
+    2.1e-4 at 600 -> 1200 nodes of the accumulation mode), its albedo by < 1e-5: bounded here at
+    1e-3 and 1e-5; the measured values are in docs/accuracy.md.
+    """
     coarse = gen.type_averages("maritime_clean", np.array([1000.0]))
     fine = gen.type_averages("maritime_clean", np.array([1000.0]), node_scale=2.0)
     assert abs(float(coarse[0][0] / fine[0][0]) - 1.0) < 1e-3
@@ -139,10 +153,12 @@ def test_sea_salt_integral_limited_by_the_ripple_structure(gen):
                                   "maritime_clean", "maritime_polluted",
                                   "maritime_tropical", "arctic", "antarctic"])
 def test_shipped_type_table_matches_generator(gen, name):
-    """Each shipped type table equals a fresh run of the generator at two of its
-    wavelengths (870 and 1600 nm, where the size parameters are small and the run fast):
-    albedo and g within 1e-6 (8 decimals written), the extinction ratio between the two
-    wavelengths within 1e-6 relative."""
+    """Each shipped type table equals a fresh run of the generator at two of its wavelengths.
+
+    (870 and 1600 nm, where the size parameters are small and the run fast): albedo and g within
+    1e-6 (8 decimals written), the extinction ratio between the two wavelengths within 1e-6
+    relative.
+    """
     wavelength = np.array([870.0, 1600.0])
     ext, sca, g = gen.type_averages(name, wavelength)
     shipped = aerosol_type_properties(name, torch.tensor(wavelength, dtype=torch.float64))
@@ -153,8 +169,10 @@ def test_shipped_type_table_matches_generator(gen, name):
 
 
 def test_opac_inputs_cover_the_table_wavelengths(gen, opac):
-    """Every component has OPAC's 18 wavelengths 250-2000 nm, a positive absorption index
-    and a mode radius inside its size bounds."""
+    """Every component has OPAC's 18 wavelengths 250-2000 nm.
+
+    A positive absorption index and a mode radius inside its size bounds.
+    """
     for name in gen.OPAC_COMPONENTS:
         data = opac[name]
         r_min, r_max, sigma, r_mod = data["size"]

@@ -42,7 +42,7 @@ def _f64(*values):
 
 
 def _csv(name):
-    """A shipped table as an array, without its comment lines and column names."""
+    """Return a shipped table as an array, without its comment lines and column names."""
     with open(data_path(name), encoding="utf-8") as handle:
         rows = [line for line in handle if not line.startswith("#")][1:]
     return np.loadtxt(rows, delimiter=",")

@@ -20,8 +20,10 @@ BOLTZMANN = 1.380649e-23
 
 
 def us1976_sounding(step_m=1000.0, top_m=100e3, ozone=False, water=False):
-    """The built-in US 1976 standard sampled every ``step_m`` (its own pressure and
-    temperature, an independent evaluation of the standard's defining layers)."""
+    """Return the built-in US 1976 standard sampled every ``step_m``.
+
+    Its own pressure and temperature, an independent evaluation of the standard's defining layers.
+    """
     altitude = np.arange(0.0, top_m + step_m / 2, step_m)
     h = torch.tensor(altitude, dtype=torch.float64)
     variables = {

@@ -1,4 +1,4 @@
-"""Refracted rays: astronomical refraction, bent optical depth, grazing rays, deviation table.
+r"""Refracted rays: astronomical refraction, bent optical depth, grazing rays, deviation table.
 
 References used (independent of the code under test):
 
@@ -6,7 +6,7 @@ References used (independent of the code under test):
   model's sea-level refractivity;
 * Kasten & Young 1989 relative air mass;
 * the small-refractivity asymptote of the bending of a grazing ray through an exponential
-  atmosphere, :math:`\\delta \\approx \\nu(h_p)\\sqrt{2\\pi r_p/H}`;
+  atmosphere, :math:`\delta \approx \nu(h_p)\sqrt{2\pi r_p/H}`;
 * RK4 ray tracing of the eikonal equation (an algorithm sharing no formula with the
   Bouguer integrals), converged at small steps.
 """
@@ -76,10 +76,12 @@ def standard_air():
 
 
 def test_any_object_with_the_attributes_works(air):
-    """The functions use only planet_radius_m, top_altitude_m, refractivity and
-    extinction_coefficient: a plain object gives the Atmosphere's results (whose path
-    columns are split at its species' breakpoints: the plain object is given them as its
-    quadrature levels)."""
+    """The functions use only planet_radius_m, top_altitude_m.
+
+    Refractivity and extinction_coefficient: a plain object gives the Atmosphere's results (whose
+    path columns are split at its species' breakpoints: the plain object is given them as its
+    quadrature levels).
+    """
     plain = ExponentialAir(beta550=None)
     plain.extinction_coefficient = air.extinction_coefficient
     elevation = _deg([20.0, 0.0, -0.3])
@@ -103,8 +105,10 @@ def _deg(values, dtype=torch.float64):
 
 @pytest.mark.parametrize("profile", ["air", "default_air"])
 def test_bouguer_matches_rk4_observer(profile, request):
-    """RK4 ray tracing (steps ending at the US 1976 layer bases) against the Bouguer
-    integrals, for the exponential and the default (US 1976) refractivity."""
+    """RK4 ray tracing (steps ending at the US 1976 layer bases) against the Bouguer integrals.
+
+    For the exponential and the default (US 1976) refractivity.
+    """
     air = request.getfixturevalue(profile)
     elevation = _deg([60.0, 20.0, 5.0, 1.0, 0.0])
     bouguer = rf.refraction_angle(air, elevation)
@@ -149,8 +153,11 @@ def _bennett_scale(nu_sea_level):
 
 
 def _bennett(elevation_deg, improved=False):
-    """Bennett 1982 [arcmin -> rad]; ``improved`` adds his -0.06' sin(14.7 R + 13 deg) term
-    (accuracy 0.015' instead of 0.07'; Meeus 1998, ch. 16)."""
+    """Bennett 1982 [arcmin -> rad].
+
+    ``improved`` adds his -0.06' sin(14.7 R + 13 deg) term (accuracy 0.015' instead of 0.07'; Meeus
+    1998, ch. 16).
+    """
     h = torch.as_tensor(elevation_deg, dtype=torch.float64)
     minutes = 1.0 / torch.tan((h + 7.31 / (h + 4.4)) * DEGREE)
     if improved:
@@ -160,10 +167,12 @@ def _bennett(elevation_deg, improved=False):
 
 @pytest.mark.parametrize("profile", ["air", "default_air"])
 def test_refraction_vs_bennett(profile, request):
-    """Bennett's improved formula is accurate to 0.015' in absolute terms, i.e. to better than
-    2 % only up to ~60 degrees; above, its absolute accuracy is the test (and the Laplace
-    expansion below checks the relative accuracy). The plain formula carries a systematic
-    +0.06' sin(14.7 R + 13 deg) error (0.06' at 10-20 degrees), hence the improved one."""
+    """Bennett's improved formula is accurate to 0.015' in absolute terms.
+
+    i.e. to better than 2 % only up to ~60 degrees; above, its absolute accuracy is the test (and
+    the Laplace expansion below checks the relative accuracy). The plain formula carries a
+    systematic +0.06' sin(14.7 R + 13 deg) error (0.06' at 10-20 degrees), hence the improved one.
+    """
     air = request.getfixturevalue(profile)
     elevation = torch.tensor([10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 80.0], dtype=torch.float64)
     model = rf.refraction_angle(air, elevation * DEGREE)
@@ -176,8 +185,11 @@ def test_refraction_vs_bennett(profile, request):
 
 
 def test_refraction_vs_laplace_expansion(air):
-    """R = A tan z - B tan^3 z with A = nu0 (1 - H/R), B = nu0 (H/R - nu0/2) for an
-    exponential atmosphere (Laplace; Smart 1977, ch. III), valid for z <= 30 degrees."""
+    """R = A tan z - B tan^3 z with A = nu0 (1 - H/R).
+
+    B = nu0 (H/R - nu0/2) for an exponential atmosphere (Laplace; Smart 1977, ch. III), valid for z
+    <= 30 degrees.
+    """
     zenith = torch.tensor([1.0, 10.0, 20.0, 30.0], dtype=torch.float64)
     model = rf.refraction_angle(air, (90.0 - zenith) * DEGREE)
     ratio = SCALE_HEIGHT_M / EARTH_RADIUS_M
@@ -187,8 +199,11 @@ def test_refraction_vs_laplace_expansion(air):
 
 
 def test_horizon_refraction_vs_bennett():
-    """At Bennett's conditions (1010 hPa, 10 degC) with the U.S. Standard Atmosphere 1976
-    profile the apparent horizon is refracted by 33'-36' (Bennett: 34.5')."""
+    """At Bennett's conditions.
+
+    (1010 hPa, 10 degC) with the U.S. Standard Atmosphere 1976 profile the apparent horizon is
+    refracted by 33'-36' (Bennett: 34.5').
+    """
     from skytorch.atmosphere import Atmosphere
 
     bennett_air = Atmosphere.earth(turbidity=1.0, ozone_du=0.0, molecule_profile="us1976",
@@ -201,9 +216,11 @@ def test_horizon_refraction_vs_bennett():
 
 
 def test_us1976_quadrature_panels(standard_air):
-    """The U.S. 1976 profile has kinks in dn/dr: the quadrature is split there and
-    converges at once (the independent checks of this profile are the Bennett horizon and
-    Kasten-Young air-mass tests)."""
+    """The U.S. 1976 profile has kinks in dn/dr.
+
+    The quadrature is split there and converges at once (the independent checks of this profile are
+    the Bennett horizon and Kasten-Young air-mass tests).
+    """
     elevation = _deg([45.0, 10.0, 2.0, 0.0])
     coarse = rf.refraction_angle(standard_air, elevation, n_nodes=16)
     fine = rf.refraction_angle(standard_air, elevation, n_nodes=128)
@@ -217,8 +234,10 @@ def _kasten_young(zenith_deg):
 
 @pytest.mark.parametrize("profile", ["air", "standard_air"])
 def test_air_mass_along_refracted_rays_vs_kasten_young(profile, request):
-    """Rayleigh air mass along refracted rays at the apparent zenith angle (as pvlib
-    applies Kasten & Young 1989)."""
+    """Rayleigh air mass along refracted rays at the apparent zenith angle.
+
+    As pvlib applies Kasten & Young 1989.
+    """
     atm = request.getfixturevalue(profile)
     zenith = torch.tensor([0.0, 60.0, 80.0, 85.0, 90.0], dtype=torch.float64)
     tau = rf.bent_optical_depth(atm, [550.0], zenith * DEGREE, per_species=True)["rayleigh"][..., 0]
@@ -232,9 +251,11 @@ def test_air_mass_along_refracted_rays_vs_kasten_young(profile, request):
 
 
 def test_refracted_species_match_straight_rays_at_the_zenith():
-    """Every species of the constituents, the gas bands with their curve of growth
-    included, has at the zenith (where the ray does not bend) the optical depth of the
-    straight-ray integrator (its adaptive quadrature: an independent rule, converged)."""
+    """Every species of the constituents, the gas bands with their curve of growth included.
+
+    Has at the zenith (where the ray does not bend) the optical depth of the straight-ray integrator
+    (its adaptive quadrature: an independent rule, converged).
+    """
     from skytorch.atmosphere import Atmosphere
 
     atm = Atmosphere.earth(turbidity=2.0)
@@ -250,10 +271,13 @@ def test_refracted_species_match_straight_rays_at_the_zenith():
 
 
 def test_band_law_takes_the_whole_limb_column():
-    """A ray grazing the limb (no refractivity: a straight chord) has the optical depth of
-    the column of both halves of the chord through the curve of growth -- the straight-ray
-    columns from the tangent point outwards, doubled, as the independent reference --
-    which in the bands is smaller than twice the optical depth of one half (saturation)."""
+    """A ray grazing the limb.
+
+    (no refractivity: a straight chord) has the optical depth of the column of both halves of the
+    chord through the curve of growth -- the straight-ray columns from the tangent point outwards,
+    doubled, as the independent reference -- which in the bands is smaller than twice the optical
+    depth of one half (saturation).
+    """
     from skytorch.atmosphere import Atmosphere
 
     atm = Atmosphere.earth(reference_refractivity=0.0)
@@ -512,9 +536,11 @@ def test_apparent_altitude_gradient(air):
 
 
 def test_rays_hitting_the_ground_bouguer_vs_rk4(air):
-    """Below the horizon from 20 km: rays that hit the ground and, continued through the
-    planet of constant index, come out again (RK4 lands on the ground and crosses the
-    planet on a straight chord)."""
+    """Below the horizon from 20 km.
+
+    Rays that hit the ground and, continued through the planet of constant index, come out again
+    (RK4 lands on the ground and crosses the planet on a straight chord).
+    """
     elevation = _deg([-4.5, -6.0, -10.0])
     bouguer = rf.refraction_angle(air, elevation, 20e3)
     rk4 = rf.refraction_angle(air, elevation, 20e3, method="rk4", step_m=10e3)
@@ -533,9 +559,12 @@ def _edlen_refractivity(wavelength_nm):
 
 
 def test_dispersion_of_refraction(default_air):
-    """Wavelength-dependent refraction: 589.3 nm is the grey model; at 45 degrees, where R
-    is proportional to n - 1 (Laplace), R(400) - R(700) = R (n400 - n700)/(n589 - 1) with
-    Edlén's dispersion (measured 1.43"); RK4 agrees at the horizon (400-700 nm: 53.9")."""
+    """Wavelength-dependent refraction: 589.3 nm is the grey model.
+
+    At 45 degrees, where R is proportional to n - 1 (Laplace), R(400) - R(700) = R (n400 -
+    n700)/(n589 - 1) with Edlén's dispersion (measured 1.43"); RK4 agrees at the horizon (400-700
+    nm: 53.9").
+    """
     elevation = _deg([0.0, 5.0, 45.0])
     grey = rf.refraction_angle(default_air, elevation)
     assert torch.equal(rf.refraction_angle(default_air, elevation, wavelength_nm=589.3), grey)

@@ -66,18 +66,23 @@ def test_us1976_refractivity_gives_bennett_horizon_refraction():
 
 
 def _saemundsson_arcmin(true_altitude_deg, pressure_hpa, temperature_c):
-    """Saemundsson 1986 (Sky Tel. 72, 70; Meeus 1998 eq. 16.4): refraction of an object at
-    true altitude h, R = 1.02' cot(h + 10.3/(h + 5.11)), times (P/1010)(283/(273 + T))."""
+    """Saemundsson 1986 (Sky Tel. 72, 70; Meeus 1998 eq. 16.4).
+
+    Refraction of an object at true altitude h, R = 1.02' cot(h + 10.3/(h + 5.11)), times
+    (P/1010)(283/(273 + T)).
+    """
     h = torch.as_tensor(true_altitude_deg, dtype=torch.float64)
     cot = 1.0 / torch.tan(torch.deg2rad(h + 10.3 / (h + 5.11)))
     return 1.02 * cot * (pressure_hpa / 1010.0) * (283.0 / (273.0 + temperature_c))
 
 
 def test_default_inverse_refraction_vs_saemundsson():
-    """Apparent altitude of objects at true altitudes 0-60 degrees, default Earth at
-    1013.25 hPa, 15 degC, against Saemundsson's formula (consistent with Bennett's plain
-    formula to 0.1'; measured: -0.68' at the true horizon (28.57' vs 27.89'), -0.17' at
-    10 degrees, -0.05' at 45 degrees)."""
+    """Apparent altitude of objects at true altitudes 0-60 degrees, default Earth at 1013.25 hPa.
+
+    15 degC, against Saemundsson's formula (consistent with Bennett's plain formula to 0.1';
+    measured: -0.68' at the true horizon (28.57' vs 27.89'), -0.17' at 10 degrees, -0.05' at 45
+    degrees).
+    """
     atm = Atmosphere.earth(turbidity=1.0, ozone_du=0.0)
     true = torch.tensor([0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 45.0, 60.0], dtype=torch.float64)
     model = (atm.apparent_altitude(torch.deg2rad(true)) - torch.deg2rad(true)) / ARCMINUTE

@@ -1,6 +1,9 @@
-"""Reliability of the atmosphere package: batched atmospheres on every path, thread
-safety, gradients at hard cases against finite differences, table provenance checks,
-the verified disk cache, the ozone range and the docstring examples."""
+"""Reliability of the atmosphere package.
+
+Batched atmospheres on every path, thread safety, gradients at hard cases against finite
+differences, table provenance checks, the verified disk cache, the ozone range and the docstring
+examples.
+"""
 
 from __future__ import annotations
 

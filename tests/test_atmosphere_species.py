@@ -77,8 +77,11 @@ US1976_SEA_LEVEL_DENSITY = 1.2250
 
 
 def test_default_refractivity_follows_the_us1976_table():
-    """The default Earth refractivity is n - 1 = 2.77e-4 at the ground (Schneegans 2025)
-    scaled by the U.S. Standard Atmosphere 1976 density ratio (5-digit table values)."""
+    """The default Earth refractivity is n - 1 = 2.77e-4 at the ground.
+
+    (Schneegans 2025) scaled by the U.S. Standard Atmosphere 1976 density ratio (5-digit table
+    values).
+    """
     atm = Atmosphere.earth()
     assert atm.refractivity_profile == "us1976"
     altitude = torch.tensor([0.0, *US1976_TABLE_DENSITY], dtype=torch.float64)
@@ -89,9 +92,11 @@ def test_default_refractivity_follows_the_us1976_table():
 
 
 def test_reference_extinction_gives_vertical_optical_depths():
-    """Reference coefficients times each profile's height integral are the vertical optical
-    depths: Rayleigh vs Bodhaine et al. 1999 eq. 30 (0.0971 at 550 nm, 1 %), aerosol vs the
-    Preetham/Angstrom closed form, and their refracted-path integrals add up to the total."""
+    """Reference coefficients times each profile's height integral are the vertical optical depths.
+
+    Rayleigh vs Bodhaine et al. 1999 eq. 30 (0.0971 at 550 nm, 1 %), aerosol vs the
+    Preetham/Angstrom closed form, and their refracted-path integrals add up to the total.
+    """
     atm = Atmosphere.earth(turbidity=3.0, ozone_du=300.0)
     wavelength = torch.tensor([550.0], dtype=torch.float64)
     k = atm.reference_extinction(wavelength)

@@ -127,8 +127,10 @@ def _spectrl2_transmittance(zenith_deg=ZENITH_DEG, water_cm=0.0, aod_500=AOD_500
 
 def _skytorch_transmittance(wavelength_nm, zenith_deg=ZENITH_DEG, water_cm=0.0,
                             aod_500=AOD_500, ozone_du=OZONE_DU):
-    """skytorch's direct transmittance without O2-O2 absorption, which SPECTRL2 lacks
-    (its own check is in tests/test_atmosphere_gases.py)."""
+    """Skytorch's direct transmittance without O2-O2 absorption.
+
+    Which SPECTRL2 lacks (its own check is in tests/test_atmosphere_gases.py).
+    """
     atm = Atmosphere.earth(aerosol_optical_depth=aod_500 * (550.0 / 500.0) ** -ALPHA,
                            angstrom_alpha=ALPHA, ozone_du=ozone_du,
                            precipitable_water_cm=water_cm)
@@ -164,7 +166,7 @@ def thin_layer_air_mass(zenith_rad, height_km):
 
 def error_budget(wavelength_nm, kasten_air_mass, ozone_coefficient, zenith_deg=ZENITH_DEG,
                  aod_500=AOD_500, ozone_atm_cm=OZONE_ATM_CM):
-    """Allowed |ln(T_skytorch / T_SPECTRL2)| (zenith, wavelength) [1] (module docstring)."""
+    """Return allowed |ln(T_skytorch / T_SPECTRL2)| (zenith, wavelength) [1] (module docstring)."""
     z = np.radians(zenith_deg)[:, None]
     m = kasten_air_mass[:, None]
     tau_b = bodhaine_rayleigh_optical_depth(wavelength_nm)
@@ -264,16 +266,22 @@ def grid_case(request):
 
 
 def _gas_air_mass_allowance(air_mass, tau):
-    """Bound on |d ln T| from the gases' air mass: SPECTRL2 gives water and O2 the air's
-    Kasten air mass; their own (2 km water, 5.3 km pressure-scaled O2) lies between it and
-    the plane-parallel sec z, and d ln(tau)/d ln(u) <= 1 on the curve of growth."""
+    """Bound on |d ln T| from the gases' air mass.
+
+    SPECTRL2 gives water and O2 the air's Kasten air mass; their own (2 km water, 5.3 km
+    pressure-scaled O2) lies between it and the plane-parallel sec z, and d ln(tau)/d ln(u) <= 1 on
+    the curve of growth.
+    """
     secant = 1.0 / np.cos(np.radians(GRID_ZENITH_DEG))
     return np.log(secant / air_mass)[:, None] * tau
 
 
 def test_continuum_matches_spectrl2_over_the_grid(grid_case):
-    """400-1100 nm outside the band cores, zenith 0-85 deg: within the module's error budget
-    plus the gas air-mass bound on SPECTRL2's water optical depth there (e.g. 593 nm)."""
+    """400-1100 nm outside the band cores, zenith 0-85 deg.
+
+    Within the module's error budget plus the gas air-mass bound on SPECTRL2's water optical depth
+    there (e.g. 593 nm).
+    """
     c = grid_case
     water, aod, ozone = c["case"]
     outside = ~np.any([(c["wavelength"] >= lo) & (c["wavelength"] <= hi)
@@ -293,9 +301,12 @@ def test_continuum_matches_spectrl2_over_the_grid(grid_case):
 
 
 def test_band_averages_match_spectrl2_over_the_grid(grid_case):
-    """685-695, 755-770, 925-965 nm, averaged over SPECTRL2's points in each window (its
-    native resolution): the band transmittance relative to the continuum either side within
-    5 % (plus the gas air-mass bound), and the plain band average within 5 % at 0-60 deg."""
+    """685-695, 755-770, 925-965 nm.
+
+    Averaged over SPECTRL2's points in each window (its native resolution): the band transmittance
+    relative to the continuum either side within 5 % (plus the gas air-mass bound), and the plain
+    band average within 5 % at 0-60 deg.
+    """
     c = grid_case
     wavelength, model, reference = c["wavelength"], c["model"], c["reference"]
     ratio = model / reference

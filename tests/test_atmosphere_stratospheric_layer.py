@@ -1,7 +1,9 @@
-"""Stratospheric aerosol layer of Atmosphere: a Gaussian in altitude (width = standard
-deviation) whose column from the ground to the top is the requested optical depth at
-550 nm. References: the closed form of the truncated Gaussian (erf), scipy quad of the
-layer along the straight limb chord, bit-identity of the default, gradcheck."""
+"""Stratospheric aerosol layer of Atmosphere.
+
+A Gaussian in altitude (width = standard deviation) whose column from the ground to the top is the
+requested optical depth at 550 nm. References: the closed form of the truncated Gaussian (erf),
+scipy quad of the layer along the straight limb chord, bit-identity of the default, gradcheck.
+"""
 
 import math
 
@@ -29,9 +31,11 @@ def _closed_form_column(center, width, top):
 
 
 def _limb_reference(atm, tangent_m, aod=AOD, center=CENTER, width=WIDTH, ratio=1.0):
-    """Optical depth of the layer along the full straight chord through the tangent
-    altitude, integrated with scipy quad over the path length (independent of the
-    model's quadrature and of its profile code)."""
+    """Optical depth of the layer along the full straight chord through the tangent altitude.
+
+    Integrated with scipy quad over the path length (independent of the model's quadrature and of
+    its profile code).
+    """
     radius, top = atm.planet_radius_m, atm.top_altitude_m
     k = aod * ratio / _closed_form_column(center, width, top)
     rt = radius + tangent_m
@@ -48,8 +52,10 @@ def _limb_reference(atm, tangent_m, aod=AOD, center=CENTER, width=WIDTH, ratio=1
 
 
 def _limb_model(atm, tangent_m):
-    """The model's optical depth along the full chord, from an observer at the top
-    looking down through the tangent point."""
+    """Return the model's optical depth along the full chord.
+
+    From an observer at the top looking down through the tangent point.
+    """
     radius, top = atm.planet_radius_m, atm.top_altitude_m
     zenith = math.pi - math.asin((radius + tangent_m) / (radius + top))
     return atm.optical_depth(WL, _f64(zenith), _f64(top),
@@ -63,8 +69,10 @@ def test_species_listed():
 @pytest.mark.parametrize(("center", "width"), [(20e3, 3e3), (2e3, 3e3), (95e3, 4e3),
                                                (30e3, 10e3)])
 def test_vertical_column_equals_requested_aod(center, width):
-    """Vertical optical depth at 550 nm from the ground equals the requested AOD to
-    1e-6 relative, also where the Gaussian is cut by the ground or the top."""
+    """Vertical optical depth at 550 nm from the ground equals the requested AOD to 1e-6 relative.
+
+    Also where the Gaussian is cut by the ground or the top.
+    """
     atm = Atmosphere.earth(stratospheric_aerosol_optical_depth=AOD,
                            stratospheric_aerosol_altitude_m=center,
                            stratospheric_aerosol_width_m=width)
@@ -89,8 +97,11 @@ def test_limb_path_at_20_km_matches_chord_integral():
 
 
 def test_layer_absent_from_limb_path_at_35_km():
-    """Tangent at 35 km (5 widths above the peak): < 1e-4 of the 20 km value, and the
-    model agrees with the chord integral there too (absolute 1e-9)."""
+    """Tangent at 35 km (5 widths above the peak).
+
+    < 1e-4 of the 20 km value, and the model agrees with the chord integral there too (absolute
+    1e-9).
+    """
     atm = Atmosphere.earth(stratospheric_aerosol_optical_depth=AOD)
     high = float(_limb_model(atm, 35e3))
     low = float(_limb_model(atm, 20e3))
@@ -132,8 +143,10 @@ def test_phase_function_normalised():
 
 
 def test_default_is_bit_identical():
-    """Defaults given explicitly or omitted: identical optical depths (also per species,
-    slant, batched) and extinction coefficients."""
+    """Defaults given explicitly or omitted.
+
+    Identical optical depths (also per species, slant, batched) and extinction coefficients.
+    """
     plain = Atmosphere.earth(turbidity=3.0)
     explicit = Atmosphere.earth(turbidity=3.0, stratospheric_aerosol_optical_depth=0.0,
                                 stratospheric_aerosol_altitude_m=20e3,
@@ -206,8 +219,11 @@ def test_bad_types_and_typos_refused():
 
 
 def test_refracted_per_species_includes_the_layer():
-    """Refracted rays report the layer too: at the zenith (no bending) its optical depth
-    is the AOD (1e-6), and the species add up to the refracted total."""
+    """Refracted rays report the layer too.
+
+    At the zenith (no bending) its optical depth is the AOD (1e-6), and the species add up to the
+    refracted total.
+    """
     atm = Atmosphere.earth(stratospheric_aerosol_optical_depth=AOD)
     parts = atm.optical_depth(WL, _f64(0.0, 1.2), refraction=True, per_species=True)
     assert float(parts["stratospheric_aerosol"][0, 0]) == pytest.approx(AOD, rel=1e-6)
@@ -216,10 +232,11 @@ def test_refracted_per_species_includes_the_layer():
 
 
 def test_single_scattering_of_a_thin_layer():
-    """Sky radiance at the zenith, no molecules or other aerosol, optically thin layer
-    (tau = 1e-4): the single-scattering closed form omega tau P_HG(theta) times the
-    attenuation to first order, 1 - tau/2 (1 + 1/mu_sun) (half the layer lies above
-    the mean scatterer), within 2e-5 relative."""
+    """Sky radiance at the zenith, no molecules or other aerosol, optically thin layer (tau = 1e-4).
+
+    The single-scattering closed form omega tau P_HG(theta) times the attenuation to first order, 1
+    - tau/2 (1 + 1/mu_sun) (half the layer lies above the mean scatterer), within 2e-5 relative.
+    """
     from skytorch.atmosphere.aerosol import sulfate_mie_properties
 
     tau, sun_zenith = 1e-4, 0.8

@@ -1,6 +1,8 @@
-"""Mie table of the stratospheric sulfate aerosol: miepython against van de Hulst's
-anomalous diffraction, convergence of the lognormal size integral, the shipped table
-against its generator, and the interpolation's range check."""
+"""Mie table of the stratospheric sulfate aerosol.
+
+Miepython against van de Hulst's anomalous diffraction, convergence of the lognormal size integral,
+the shipped table against its generator, and the interpolation's range check.
+"""
 
 import importlib.util
 import math
@@ -24,8 +26,10 @@ def _generator():
 
 
 def test_single_sphere_matches_anomalous_diffraction_at_large_size():
-    """Q_ext of one sphere (x = 200, m = 1.43) vs van de Hulst 1957 anomalous
-    diffraction Q = 2 - (4/p) sin p + (4/p^2)(1 - cos p), p = 2x(m-1): within 2 %."""
+    """Q_ext of one sphere (x = 200, m = 1.43) vs van de Hulst 1957 anomalous diffraction Q = 2 -.
+
+    (4/p) sin p + (4/p^2)(1 - cos p), p = 2x(m-1): within 2 %.
+    """
     x, m = 200.0, 1.43
     qext = float(miepython.efficiencies_mx(complex(m, -1e-8), x)[0])
     p = 2.0 * x * (m - 1.0)
@@ -55,9 +59,12 @@ def test_shipped_table_matches_generator():
 
 
 def test_small_particle_limit_of_the_spectrum():
-    """Sub-micron droplets: extinction falls with wavelength (Angstrom exponent between
-    1 and 4, the Rayleigh limit), nearly conservative scattering (1 - albedo < 1e-5 for
-    k = 1e-8) and forward-peaked, 0 < g < 1, with g decreasing towards the infrared."""
+    """Sub-micron droplets: extinction falls with wavelength.
+
+    (Angstrom exponent between 1 and 4, the Rayleigh limit), nearly conservative scattering (1 -
+    albedo < 1e-5 for k = 1e-8) and forward-peaked, 0 < g < 1, with g decreasing towards the
+    infrared.
+    """
     ratio, albedo, g = sulfate_mie_properties(torch.tensor([550.0, 1000.0],
                                                            dtype=torch.float64))
     alpha = -math.log(float(ratio[1] / ratio[0])) / math.log(1000.0 / 550.0)

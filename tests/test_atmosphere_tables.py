@@ -157,11 +157,12 @@ def test_radius_nodes_put_profile_kinks_on_nodes(atmosphere):
 
 
 def test_ground_rays_through_band_absorbers_use_the_columns():
-    """O2 B and A bands and the 940 nm water band follow a curve of growth of the path
-    amount: optical depths are not additive along a path, columns are. From 10 km down
-    to the ground the table (columns differenced, then the laws) matches direct
-    integration to 1e-4; differencing the tabulated optical depths instead is off by
-    5-21 % (measured)."""
+    """O2 B and A bands and the 940 nm water band follow a curve of growth of the path amount.
+
+    Optical depths are not additive along a path, columns are. From 10 km down to the ground the
+    table (columns differenced, then the laws) matches direct integration to 1e-4; differencing the
+    tabulated optical depths instead is off by 5-21 % (measured).
+    """
     atm = Atmosphere.earth(turbidity=2.0)
     wavelength = torch.tensor([690.0, 762.0, 940.0], dtype=torch.float64)
     table = TransmittanceTable.build(atm, wavelength)  # 256 x 64: measured 1.3e-5

@@ -17,8 +17,11 @@ WAVELENGTH = torch.tensor([450.0, 550.0, 700.0], dtype=torch.float64)
 
 
 def _tasks():
-    """Calls of mixed geometry shapes (scalars, vectors, grids broadcasting with the
-    parameters' batch shape (2, 2)) and kinds (straight optical depth, sky radiance)."""
+    """Return calls of mixed geometry shapes.
+
+    (scalars, vectors, grids broadcasting with the parameters' batch shape (2, 2)) and kinds
+    (straight optical depth, sky radiance).
+    """
     zenith = torch.linspace(0.1, 1.5, 5, dtype=torch.float64)
     return [
         ("optical_depth", (WAVELENGTH, 0.3), {}),

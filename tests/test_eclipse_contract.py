@@ -42,7 +42,7 @@ bad = st.sampled_from(bad_values() + [-1.0, "abc", [[1.0], [2.0, 3.0]]])
 
 
 def _as(value, kind):
-    """A number as float, int tensor, float32 tensor or float64 tensor of shape (2,)."""
+    """Return a number as float, int tensor, float32 tensor or float64 tensor of shape (2,)."""
     if kind == "float":
         return value
     if kind == "int":
@@ -102,7 +102,7 @@ def test_sun_visible_fraction_valid_inputs(geometry, dtype, u, gradient):
 
 @SETTINGS
 @given(st.data())
-def test_sun_visible_fraction_bad_and_mixed_inputs(data):
+def test_sun_visible_fraction_bad_and_mixed_inputs(data):  # noqa: C901 (one check per input kind)
     names = ("sun_radius_rad", "occluder_radius_rad", "separation_rad", "limb_darkening",
              "law", "n_nodes")
     # integer tensors are drawn where an integer is valid: 1 rad occluder, zero separation
@@ -159,7 +159,7 @@ def airless():
 
 @SETTINGS
 @given(st.data())
-def test_shadow_relative_illuminance(airless, data):
+def test_shadow_relative_illuminance(airless, data):  # noqa: C901 (one check per input kind)
     names = ("distance_m", "offset_m", "wavelength_nm", "sun_distance_m")
     distance = data.draw(st.one_of(_number(3e7, 1.5e9), st.just(MOON_DISTANCE)))
     offset = data.draw(st.one_of(_number(0.0, 3e7), st.just(0.0)))
@@ -257,7 +257,7 @@ def table(airless):
 
 @SETTINGS
 @given(st.data())
-def test_shadow_table_lookup(table, data):
+def test_shadow_table_lookup(table, data):  # noqa: C901 (one check per input kind)
     names = ("distance_m", "offset_m", "sun_distance_m", "wavelength_nm")
     args = {"distance_m": data.draw(_number(3e7, 1.5e9)),
             "offset_m": data.draw(_number(0.0, 3e7))}

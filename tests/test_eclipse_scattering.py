@@ -49,8 +49,10 @@ def _gauss(n, a, b):
 
 
 def _optical_depth(start, direction, planet, top, species, n=40):
-    """sum_s k_s int rho_s along start + t d (t >= 0) to the top; inf where it meets the
-    planet. Gauss nodes on both sides of the periapsis, clustered towards it."""
+    """Return sum_s k_s int rho_s along start + t d (t >= 0) to the top.
+
+    Inf where it meets the planet. Gauss nodes on both sides of the periapsis, clustered towards it.
+    """
     along = (start * direction).sum(-1)
     r0_sq = (start * start).sum(-1)
     t_p = torch.clamp(-along, min=0.0)
@@ -70,8 +72,10 @@ def _optical_depth(start, direction, planet, top, species, n=40):
 
 def _brute_force(atmosphere, distance_m, separation_rad, rayleigh_height, aerosol_height,
                  asymmetry=0.8, n_r=40, n_chi=300, n_phi=1, half_width_deg=22.0):
-    """E_sca / E_sun at P = (0, 0, L) for a point Sun at ``separation`` from the centre:
-    int dV sum_i beta_i P_i(Theta) T_sun T_view / |P - S|^2 (exponential species)."""
+    """E_sca / E_sun at P = (0, 0, L) for a point Sun at ``separation`` from the centre.
+
+    Int dV sum_i beta_i P_i(Theta) T_sun T_view / |P - S|^2 (exponential species).
+    """
     planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
     zero = torch.zeros(1, dtype=torch.float64)
     scat = atmosphere.scattering_coefficients(zero, WAVELENGTH)
@@ -169,8 +173,10 @@ def test_optically_thin_closed_form():
 
 
 def test_collinear_closed_form_optically_thick():
-    """Far on the axis the two legs make up the whole chord: K = tau_R exp(-tau); for one
-    conservative exponential scatterer int tau e^-tau db = H (1 - exp(-tau_0))."""
+    """Far on the axis the two legs make up the whole chord: K = tau_R exp(-tau).
+
+    For one conservative exponential scatterer int tau e^-tau db = H (1 - exp(-tau_0)).
+    """
     atm = _earth()
     distance = 100.0 * MOON_DISTANCE_M
     got = _module(_profile(atm), distance, 0.0)
@@ -186,11 +192,13 @@ def test_collinear_closed_form_optically_thick():
 
 
 def test_energy_plane_behind_the_occluder():
-    """Thin conservative Henyey–Greenstein haze: the scattered flux through a disc of radius
-    rho behind the Earth cannot exceed the power scattered out of the ring rays into the cone
-    the disc subtends (closed-form fraction F of the phase function) plus all the power
-    scattered on the day side; and it is a sizeable part of the cone's share (the brute-force
-    tests check the value itself)."""
+    """Thin conservative Henyey–Greenstein haze.
+
+    The scattered flux through a disc of radius rho behind the Earth cannot exceed the power
+    scattered out of the ring rays into the cone the disc subtends (closed-form fraction F of the
+    phase function) plus all the power scattered on the day side; and it is a sizeable part of the
+    cone's share (the brute-force tests check the value itself).
+    """
     g = 0.8
     atm = _earth(pressure_factor=1e-6, aerosol_optical_depth=1e-5,
                  aerosol_single_scattering_albedo=1.0, aerosol_asymmetry=g,
@@ -243,8 +251,10 @@ def test_batched_atmospheres_equal_member_loop():
 
 
 def test_scattering_adds_light_and_float32_gradients(dtype):
-    """Scattering only adds light (most in the deep volcanic umbra); float32 follows float64;
-    gradients with respect to the position are finite and match finite differences."""
+    """Scattering only adds light (most in the deep volcanic umbra); float32 follows float64.
+
+    Gradients with respect to the position are finite and match finite differences.
+    """
     from skytorch.eclipse.lunar import volcanic_atmosphere
 
     atm = volcanic_atmosphere()
@@ -273,8 +283,11 @@ def test_scattering_adds_light_and_float32_gradients(dtype):
 
 
 def test_shadow_table_and_lunar_eclipse_with_scattering():
-    """The (u, v) table and lunar_eclipse accept a scattering shadow; the table matches the
-    direct evaluation at the Moon's distance and the eclipsed Moon is brighter with it."""
+    """The (u, v) table and lunar_eclipse accept a scattering shadow.
+
+    The table matches the direct evaluation at the Moon's distance and the eclipsed Moon is brighter
+    with it.
+    """
     from skytorch.eclipse.lunar import lunar_eclipse, volcanic_atmosphere
     from skytorch.eclipse.shadow_table import ShadowTable
 

@@ -1,6 +1,7 @@
-"""The import structure of skytorch: every module imports on its own, the package's module
-import graph has no cycles, the library never imports the command line, and no module
-reaches into another package's private names.
+"""The import structure of skytorch.
+
+Every module imports on its own, the package's module import graph has no cycles, the library never
+imports the command line, and no module reaches into another package's private names.
 
 The graph is read from the source (the ASTs), not from ``sys.modules``: it holds the
 imports at the top of modules and those inside functions (a loop hidden inside a function
@@ -92,8 +93,8 @@ def _in_function(node: ast.AST, parents: dict) -> bool:
     return False
 
 
-def scan(module: str) -> dict:
-    """Imports of skytorch modules in ``module``'s source.
+def scan(module: str) -> dict:  # noqa: C901 (one branch per AST node kind)
+    """Return imports of skytorch modules in ``module``'s source.
 
     Returns a dict with ``edges`` (list of (imported module, line, inside a function)) and
     ``private`` (list of (imported module, private name, line)): names starting with one
@@ -145,7 +146,7 @@ def graph(skip=()) -> dict[str, set[str]]:
             for name in MODULES}
 
 
-def cycles(g: dict[str, set[str]]) -> list[list[str]]:
+def cycles(g: dict[str, set[str]]) -> list[list[str]]:  # noqa: C901 (iterative Tarjan)
     """Strongly connected components of more than one module (Tarjan, iterative)."""
     index, low, stack, on_stack, out = {}, {}, [], set(), []
     counter = 0
@@ -257,8 +258,10 @@ def _ancestors(module: str) -> list[str]:
 
 
 def loaded_with(module: str) -> set[str]:
-    """Modules that importing ``module`` loads: its parent packages and what they and it
-    import at the top, recursively."""
+    """Modules that importing ``module`` loads.
+
+    Its parent packages and what they and it import at the top, recursively.
+    """
     seen, todo = set(), [module, *_ancestors(module)]
     while todo:
         name = todo.pop()
@@ -271,9 +274,10 @@ def loaded_with(module: str) -> set[str]:
 
 
 def test_no_needless_function_level_imports():
-    """An import inside a function is for a module that importing this one does not load
-    anyway (an optional or costly dependency, imported when first needed); one of a module
-    that is loaded already saves nothing and only hides the dependency (or a loop).
+    """An import inside a function is for a module that importing this one does not load anyway.
+
+    (an optional or costly dependency, imported when first needed); one of a module that is loaded
+    already saves nothing and only hides the dependency (or a loop).
 
     The late imports left are of other packages and of optional dependencies (matplotlib,
     zarr, dask, tqdm, miepython). Measured: ``import skytorch.scene`` takes about 0.05 s

@@ -267,8 +267,10 @@ def test_render_contract(kwargs):
 
 
 def test_natural_gradient_carries_gradients_and_refuses_observers_above_the_layer():
-    """The one tensor function of the scene's composition that the Notes call
-    differentiable: its zenith derivative against finite differences."""
+    """The one tensor function of the scene's composition that the Notes call differentiable.
+
+    Its zenith derivative against finite differences.
+    """
     natural_gradient = importlib.import_module("skytorch.scene.render").natural_gradient
     zenith = torch.tensor([0.0, 0.7, 1.5, math.pi / 2], dtype=torch.float64,
                           requires_grad=True)

@@ -36,8 +36,10 @@ def _camera_scene(**kwargs):
 
 
 def _shadow_axis():
-    """Topocentric GCRS vectors to the shadow axis at the Moon's distance and to the Moon,
-    and the Danjon umbra radius [m], from skyfield."""
+    """Topocentric GCRS vectors to the shadow axis at the Moon's distance and to the Moon.
+
+    And the Danjon umbra radius [m], from skyfield.
+    """
     from skyfield.api import wgs84
 
     from skytorch.eclipse import shadow_radii
@@ -99,9 +101,11 @@ def test_disc_shows_the_umbra_edge(partial):
 
 
 def test_subpixel_moon_carries_the_disc_averaged_shadow(partial):
-    """The Moon in a coarse fisheye (smaller than a pixel) has the flux of the resolved
-    disc of the camera image: two integrations over the disc (pixel centres vs polar
-    quadrature) agree."""
+    """The Moon in a coarse fisheye.
+
+    (smaller than a pixel) has the flux of the resolved disc of the camera image: two integrations
+    over the disc (pixel centres vs polar quadrature) agree.
+    """
     scene, view, ds = partial
     moon = ds["component_radiance"].sel(component="moon").values  # (y, x, wl)
     solid = view.solid_angle_sr.numpy()[..., None]
@@ -122,8 +126,11 @@ def test_subpixel_moon_carries_the_disc_averaged_shadow(partial):
 
 
 def test_float32_disc_shading_matches_float64():
-    """The per-pixel shadow in a float32 scene: finite, non-negative and within 1e-4 of the
-    float64 image (the geometry and shadow model run in float64, the image is cast)."""
+    """The per-pixel shadow in a float32 scene.
+
+    Finite, non-negative and within 1e-4 of the float64 image (the geometry and shadow model run in
+    float64, the image is cast).
+    """
     import torch
 
     images = {}

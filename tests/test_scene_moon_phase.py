@@ -52,8 +52,11 @@ MISCLASSIFIED_SHARE = 0.5 * PERCENT
 
 
 def _skyfield(time):
-    """Topocentric apparent Sun and Moon from skyfield: horizontal vectors (north, east,
-    up) [m], hour angle, right ascension and declination of date [rad]."""
+    """Topocentric apparent Sun and Moon from skyfield.
+
+    Horizontal vectors (north, east, up) [m], hour angle, right ascension and declination of date
+    [rad].
+    """
     from skyfield.api import wgs84
 
     from skytorch.ephemeris import load_ephemeris, skyfield_time
@@ -102,9 +105,11 @@ def _disc_masks(view, ds, moon_vector):
 
 
 def test_dark_limb_faces_away_from_the_sun(phase):
-    """The centroid of the lit pixels lies towards the bright limb: Meeus' position angle
-    from skyfield's Sun and Moon, turned to the camera's zenith-up frame by the parallactic
-    angle, and the Sun's own direction projected on the image agree with it."""
+    """The centroid of the lit pixels lies towards the bright limb.
+
+    Meeus' position angle from skyfield's Sun and Moon, turned to the camera's zenith-up frame by
+    the parallactic angle, and the Sun's own direction projected on the image agree with it.
+    """
     time, scene, view, ds, sky = phase
     _, disc, lit, _ = _disc_masks(view, ds, sky["moon"]["vector"])
     x = np.tan(np.radians(ds["camera_x"].values))[None, :].repeat(SIZE, 0)
@@ -151,7 +156,8 @@ def _sunlit_pixels(view, moon, sun):
     """Pixels whose line of sight meets a sunlit point of skyfield's Moon (ray-sphere).
 
     The camera is centred on the refracted Moon, so the lines of sight are first turned
-    by the rotation from that centre to skyfield's unrefracted Moon."""
+    by the rotation from that centre to skyfield's unrefracted Moon.
+    """
     centre = view.frame[0].numpy()
     moon_dir = moon / np.linalg.norm(moon)
     axis = np.cross(centre, moon_dir)
@@ -168,9 +174,11 @@ def _sunlit_pixels(view, moon, sun):
 
 
 def test_lit_fraction_is_the_illuminated_fraction(phase):
-    """The solid-angle share of lit disc pixels is k = (1 + cos i)/2 of skyfield's
-    topocentric phase angle within the pixel-quantisation bound, and the lit pixels are
-    those whose line of sight meets a sunlit point of skyfield's Moon."""
+    """The solid-angle share of lit disc pixels is k =.
+
+    (1 + cos i)/2 of skyfield's topocentric phase angle within the pixel-quantisation bound, and the
+    lit pixels are those whose line of sight meets a sunlit point of skyfield's Moon.
+    """
     time, scene, view, ds, sky = phase
     _, disc, lit, radius = _disc_masks(view, ds, sky["moon"]["vector"])
     moon, sun = sky["moon"]["vector"], sky["sun"]["vector"]
@@ -212,10 +220,12 @@ def _extinction(scene, altitude_rad, wavelength):
 
 @pytest.mark.parametrize("earthshine", [False, True])
 def test_disc_flux_is_the_moon_magnitude(dtype, earthshine):
-    """Summed over the shaded disc pixels, the Moon's flux (moonlit sky subtracted,
-    extinction removed) is st.moon.magnitude of skyfield's topocentric geometry, with and
-    without earthshine, in float32 and float64; so is the flux of a sub-pixel Moon in an
-    all-sky image."""
+    """Summed over the shaded disc pixels.
+
+    The Moon's flux (moonlit sky subtracted, extinction removed) is st.moon.magnitude of skyfield's
+    topocentric geometry, with and without earthshine, in float32 and float64; so is the flux of a
+    sub-pixel Moon in an all-sky image.
+    """
     from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM
 
     time = INSTANTS[1]  # a crescent: earthshine adds 0.008 mag
@@ -255,9 +265,11 @@ def test_disc_flux_is_the_moon_magnitude(dtype, earthshine):
 
 
 def test_earthshine_lights_the_dark_side():
-    """With earthshine the pixels on the night side of the crescent carry the earthshine
-    flux of st.moon.magnitude (with minus without earthshine); without it they are dark
-    (only the faint moonlit sky)."""
+    """With earthshine the night side of the crescent carries the earthshine flux.
+
+    Its pixels carry the earthshine flux of st.moon.magnitude (with minus without
+    earthshine); without it they are dark (only the faint moonlit sky).
+    """
     from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM
 
     time = INSTANTS[1]
@@ -288,9 +300,12 @@ def test_earthshine_lights_the_dark_side():
 
 
 def test_crescent_narrower_than_the_pixels():
-    """A day-old crescent (phase angle 174°, lit width 0.005 of the radius) on a disc
-    about 6 pixels across, no pixel centre on its lit part: its whole flux
-    (st.moon.magnitude) lands in one pixel on the Sun's side of the disc centre."""
+    """A crescent narrower than the pixels puts its whole flux in one pixel.
+
+    A day-old crescent (phase angle 174°, lit width 0.005 of the radius) on a disc about 6
+    pixels across, no pixel centre on its lit part: its whole flux (st.moon.magnitude) lands
+    in one pixel on the Sun's side of the disc centre.
+    """
     from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM
 
     time = "2015-10-12T11:00"
@@ -322,10 +337,12 @@ def test_crescent_narrower_than_the_pixels():
 
 @pytest.mark.parametrize("phase_deg", [0.0, 90.0, 180.0])
 def test_moon_at_the_zenith_and_extreme_phases(phase_deg):
-    """Hard cases of the disc frame: the Moon exactly at the zenith (no vertical to
-    orient the disc by; north is used) at full, quarter and new Moon. The shading is finite
-    and non-negative; at quarter the sunlit half (μ0 > 0 of the normal towards the Sun,
-    placed due north) is exactly the northern half of the disc."""
+    """Hard cases of the disc frame.
+
+    The Moon exactly at the zenith (no vertical to orient the disc by; north is used) at full,
+    quarter and new Moon. The shading is finite and non-negative; at quarter the sunlit half (μ0 > 0
+    of the normal towards the Sun, placed due north) is exactly the northern half of the disc.
+    """
     from skytorch.scene.geometry import Geometry
     from skytorch.scene.render import MoonDisc
 

@@ -68,8 +68,11 @@ def test_netcdf_round_trip(stacked, tmp_path):
 
 
 def test_netcdf_round_trip_is_exact(stacked, tmp_path):
-    """Every variable comes back with its dtype and values, the planner's strings included
-    (they were object arrays in memory and fixed-width strings from the file)."""
+    """Every variable comes back with its dtype and values.
+
+    The planner's strings included (they were object arrays in memory and fixed-width strings from
+    the file).
+    """
     from skytorch.dataset import open_dataset, to_netcdf
 
     back = open_dataset(to_netcdf(stacked, tmp_path / "observers.nc"))

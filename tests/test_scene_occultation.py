@@ -22,8 +22,10 @@ PIXEL_DEG = FOV_DEG / SIZE
 
 
 def _skyfield_places(time):
-    """Aldebaran's and the Moon's topocentric apparent places from skyfield: separation
-    and the Moon's radius [degree], the star's refracted altitude and azimuth [rad]."""
+    """Aldebaran's and the Moon's topocentric apparent places from skyfield.
+
+    Separation and the Moon's radius [degree], the star's refracted altitude and azimuth [rad].
+    """
     from skyfield.api import Star, wgs84
 
     from skytorch.ephemeris import load_ephemeris, skyfield_time

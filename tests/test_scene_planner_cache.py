@@ -1,5 +1,8 @@
-"""The planner's per-(time, site) geometry: cached without changing a decision, and the
-cheap ephemeris path against skyfield's full apparent-place pipeline."""
+"""The planner's per-(time, site) geometry.
+
+Cached without changing a decision, and the cheap ephemeris path against skyfield's full
+apparent-place pipeline.
+"""
 
 import dataclasses
 import math
@@ -96,7 +99,7 @@ def test_moon_flux_table_matches_the_magnitude():
 
 
 def _direct_sky_flux(scene, sun_altitude_deg):
-    """The planner's 9-direction sky-flux estimate evaluated directly (no table)."""
+    """Return the planner's 9-direction sky-flux estimate evaluated directly (no table)."""
     from skytorch.moon.sky import radiance_to_mag_arcsec2
 
     atm = scene.atmosphere()
@@ -125,8 +128,10 @@ def test_sky_flux_table_matches_direct_estimate(altitude):
 
 @pytest.mark.parametrize("offset_km", [0.0, 2_000.0, 4_400.0, 5_000.0, 6_000.0, 8_000.0])
 def test_eclipse_bound_shortcut_agrees_with_the_visible_fraction(offset_km):
-    """Inside the umbra of the opaque sphere the shortcut returns 0, as the limb-darkened
-    visible fraction (Sun fully hidden) does; outside, the fraction itself."""
+    """Inside the umbra of the opaque sphere the shortcut returns 0.
+
+    As the limb-darkened visible fraction (Sun fully hidden) does; outside, the fraction itself.
+    """
     from skytorch.constants import EARTH_MEAN_RADIUS_M, EARTH_TOP_OF_ATMOSPHERE_M, SUN_RADIUS_M
     from skytorch.eclipse import sun_visible_fraction
     from skytorch.eclipse.shadow import shadow_angles

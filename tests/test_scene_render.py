@@ -69,9 +69,11 @@ def test_night_sky_without_lights_reaches_the_natural_background():
 
 @pytest.mark.parametrize(("fraction", "height_m"), [(0.6, 90e3), (1.0, 130e3)])
 def test_natural_background_follows_van_rhijn(fraction, height_m):
-    """Garstang (1989, eq. 29) / Patat (2003, eq. C.1): b(z) = b0 [(1 - f) + f X] with the
-    van Rhijn (1921) path factor X = (1 - (R / (R + h))^2 sin^2 z)^(-1/2); Garstang's
-    0.96 is h = 130 km."""
+    """Garstang (1989, eq. 29) / Patat (2003, eq. C.1).
+
+    b(z) = b0 [(1 - f) + f X] with the van Rhijn (1921) path factor X = (1 - (R / (R + h))^2 sin^2
+    z)^(-1/2); Garstang's 0.96 is h = 130 km.
+    """
     ds = _dark_night(natural_model="vanrhijn1921", airglow_fraction=fraction,
                      airglow_height_m=height_m).render()
     zenith = np.radians(90.0 - np.asarray(ALTITUDES))
@@ -94,13 +96,14 @@ NATURAL_HORIZON_TOLERANCE = 0.02 * MAG
 
 @pytest.mark.parametrize("turbidity", [2.0, 3.0])
 def test_natural_background_is_dimmed_by_extinction(turbidity, dtype):
-    """Garstang (1989) / Krisciunas & Schaefer (1991, eq. 2) / Patat (2003): b(z) =
-    b0 [(1 - f) + f V(z)] 10^(-0.4 k (X - 1)) with the observed zenith value b0 = 22.0
-    mag/arcsec^2, k the atmosphere's V-band zenith extinction (st.stars.extinction_coefficient)
-    and X Kasten & Young's (1989) air mass, down to 10° altitude; near the horizon, where
-    Kasten & Young's air mass no longer fits the aerosol's thin layer, the V-band
-    magnitude loss of a solar spectrum along the straight path through the atmosphere
-    (Atmosphere.transmittance) instead."""
+    """Garstang (1989) / Krisciunas & Schaefer (1991, eq. 2) / Patat (2003).
+
+    b(z) = b0 [(1 - f) + f V(z)] 10^(-0.4 k (X - 1)) with the observed zenith value b0 = 22.0
+    mag/arcsec^2, k the atmosphere's V-band zenith extinction (st.stars.extinction_coefficient) and
+    X Kasten & Young's (1989) air mass, down to 10° altitude; near the horizon, where Kasten &
+    Young's air mass no longer fits the aerosol's thin layer, the V-band magnitude loss of a solar
+    spectrum along the straight path through the atmosphere (Atmosphere.transmittance) instead.
+    """
     from skytorch.atmosphere.optical_depth import kasten_young_air_mass
     from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM
     from skytorch.spectrum import solar_irradiance, spectrum_to_magnitude

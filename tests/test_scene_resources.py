@@ -48,7 +48,7 @@ EXPECTED = {"day": {"sky", "sun"}, "twilight": {"sky"}, "moonlit": {"moon"},
 
 @pytest.fixture(autouse=True)
 def _small_private_cache(tmp_path, monkeypatch):
-    """An empty cache folder, and a skyglow model coarser than the "fast" preset."""
+    """Return an empty cache folder, and a skyglow model coarser than the "fast" preset."""
     monkeypatch.setenv("SKYTORCH_CACHE_DIR", str(tmp_path))
     monkeypatch.setitem(FIDELITY["fast"], "skyglow", {
         "n_azimuth": 16, "n_elevation": 4, "n_distance": 8, "n_components": 3,

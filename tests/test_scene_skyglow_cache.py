@@ -33,7 +33,7 @@ SAME_BRIGHTNESS_MAG = 1e-9
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
-    """A private cache folder, an empty in-memory cache and a count of the builds."""
+    """Return a private cache folder, an empty in-memory cache and a count of the builds."""
     monkeypatch.setenv("SKYTORCH_CACHE_DIR", str(tmp_path))
     # a coarser model than the "fast" preset: every corruption below costs a rebuild
     monkeypatch.setitem(FIDELITY["fast"], "skyglow", {
@@ -58,8 +58,10 @@ def _scene(turbidity=2.0):
 
 
 def _zenith_mag(scene) -> float:
-    """V surface brightness of the skyglow alone at the zenith [mag arcsec^-2], through the
-    cache (fresh resources hold no model in memory, so the disk file is read)."""
+    """V surface brightness of the skyglow alone at the zenith [mag arcsec^-2].
+
+    Through the cache (fresh resources hold no model in memory, so the disk file is read).
+    """
     from skytorch.moon.sky import radiance_to_mag_arcsec2
 
     resources = SceneResources.for_scene(scene)

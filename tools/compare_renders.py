@@ -55,7 +55,7 @@ SCENES = {
 
 
 def make_scene(name: str):
-    """The :class:`skytorch.Scene` called ``name`` in :data:`SCENES`."""
+    """Return the :class:`skytorch.Scene` called ``name`` in :data:`SCENES`."""
     import torch
 
     import skytorch as st
@@ -73,8 +73,10 @@ def make_scene(name: str):
 
 
 def flatten(name: str, dataset) -> dict[str, np.ndarray]:
-    """``{"<scene>/<kind>/<name>": array}`` for the variables, coordinates and attributes
-    (wall times and creation time left out) of a rendered Dataset."""
+    """``{"<scene>/<kind>/<name>": array}`` for the variables.
+
+    Coordinates and attributes (wall times and creation time left out) of a rendered Dataset.
+    """
     out = {}
     for key, value in dataset.data_vars.items():
         out[f"{name}/var/{key}"] = np.asarray(value.values)

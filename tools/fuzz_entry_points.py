@@ -119,7 +119,7 @@ def mutations(entry: EntryPoint):
 
 
 def entry_points() -> list[EntryPoint]:
-    """The fuzzed entry points (phase angles are signed: [-pi, pi] is valid)."""
+    """Return the fuzzed entry points (phase angles are signed: [-pi, pi] is valid)."""
     import skytorch as st
     from skytorch.atmosphere import Atmosphere
     from skytorch.eclipse import danjon_l, shadow_radii, sun_visible_fraction
