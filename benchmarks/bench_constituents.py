@@ -1,5 +1,7 @@
-"""Performance targets of the atmosphere issue (one vertical structure, all absorbers,
-aerosol layers), today's model and a reference tree side by side in one run.
+"""Performance targets of the atmosphere issue, side by side in one run.
+
+One vertical structure, all absorbers, aerosol layers: today's model and a reference tree side by
+side in one run.
 
 Rows (medians of ``--repeat`` timed runs per tree, after one warm-up run except for the
 shadow table, which builds a fresh shadow model every run):

@@ -1,4 +1,4 @@
-"""Regenerate the aerosol Mie tables ``data/aerosol_mie_*.csv`` (development time only).
+r"""Regenerate the aerosol Mie tables ``data/aerosol_mie_*.csv`` (development time only).
 
 skytorch never runs this at run time; it reads the tables this script writes. Run with
 ``python data/make_aerosol_tables.py`` (needs ``miepython``, pinned in constraints.txt);
@@ -11,34 +11,34 @@ Model
 Stratospheric sulfate droplets (75 % H2SO4 by weight) with a lognormal number size
 distribution
 
-.. math:: \\frac{dN}{d\\ln r} = \\frac{N}{\\sqrt{2\\pi}\\ln\\sigma_g}
-          \\exp\\left[-\\frac{(\\ln r - \\ln r_g)^2}{2\\ln^2\\sigma_g}\\right],
+.. math:: \frac{dN}{d\ln r} = \frac{N}{\sqrt{2\pi}\ln\sigma_g}
+          \exp\left[-\frac{(\ln r - \ln r_g)^2}{2\ln^2\sigma_g}\right],
 
-median radius :math:`r_g = 0.08\\,\\mu m` and geometric standard deviation
-:math:`\\sigma_g = 1.8`, the unimodal fit to the background/moderately perturbed
+median radius :math:`r_g = 0.08\,\mu m` and geometric standard deviation
+:math:`\sigma_g = 1.8`, the unimodal fit to the background/moderately perturbed
 stratospheric layer of the Laramie balloon record (Deshler et al. 2003, ref. 1; Jäger &
 Deshler 2002, ref. 2). The refractive index is that of 75 % H2SO4 in the visible,
 :math:`m = 1.43 + 10^{-8} i` (Palmer & Williams 1975, ref. 3), held constant over
 230–1690 nm: the dispersion of the real part (a few 0.01 over this range) and the rise of
 the imaginary part in the near infrared are NOT represented.
 
-Per wavelength the script integrates, over :math:`\\ln r` (trapezoid rule on ±6
-:math:`\\ln\\sigma_g`, ``N_NODES`` nodes), the Mie efficiencies of ``miepython``
+Per wavelength the script integrates, over :math:`\ln r` (trapezoid rule on ±6
+:math:`\ln\sigma_g`, ``N_NODES`` nodes), the Mie efficiencies of ``miepython``
 (:math:`Q_{ext}, Q_{sca}, g`) weighted by the geometric cross-section
-:math:`\\pi r^2 dN/d\\ln r`:
+:math:`\pi r^2 dN/d\ln r`:
 
-* ``extinction_550``: :math:`\\langle C_{ext}\\rangle(\\lambda)/\\langle C_{ext}
-  \\rangle(550\\,nm)`;
-* ``single_scattering_albedo``: :math:`\\langle C_{sca}\\rangle/\\langle C_{ext}\\rangle`;
-* ``asymmetry``: :math:`\\langle g\\,C_{sca}\\rangle/\\langle C_{sca}\\rangle`.
+* ``extinction_550``: :math:`\langle C_{ext}\rangle(\lambda)/\langle C_{ext}
+  \rangle(550\,nm)`;
+* ``single_scattering_albedo``: :math:`\langle C_{sca}\rangle/\langle C_{ext}\rangle`;
+* ``asymmetry``: :math:`\langle g\,C_{sca}\rangle/\langle C_{sca}\rangle`.
 
 Tropospheric aerosol types (OPAC)
 ---------------------------------
 The types of Hess et al. 1998 (OPAC, ref. 4, Table 4), external mixtures of lognormal
 components with the number densities :math:`N_i` [cm^-3] of :data:`AEROSOL_TYPES`.
 Each component (OPAC file name in brackets) has a number size distribution
-:math:`dN/d\\ln r` of mode radius :math:`r_{mod}`, geometric standard deviation
-:math:`\\sigma`, truncated to :math:`[r_{min}, r_{max}]`, and a refractive index per
+:math:`dN/d\ln r` of mode radius :math:`r_{mod}`, geometric standard deviation
+:math:`\sigma`, truncated to :math:`[r_{min}, r_{max}]`, and a refractive index per
 wavelength: insoluble (inso00), water-soluble (waso80), soot (soot00), sea salt
 accumulation and coarse (ssam80, sscm80), mineral nucleation, accumulation, coarse and
 transported (minm00, miam00, micm00, mitr00), sulfate droplets (suso80). The hygroscopic
@@ -52,12 +52,12 @@ the tests as an independent Mie code). Between OPAC's wavelengths n and k are li
 wavelength; the tables are on a 10 nm grid 250-1000 nm and a 50 nm grid 1000-2000 nm.
 
 Per component the size integral is the trapezoid rule on :func:`component_nodes` nodes
-(:data:`N_NODES_COMPONENT`, 600 to 2400) uniform in :math:`\\ln r` over
+(:data:`N_NODES_COMPONENT`, 600 to 2400) uniform in :math:`\ln r` over
 :math:`[r_{min}, r_{max}]` of the normalised lognormal (the truncated tails are not
 renormalised, as in OPAC). A type sums the components:
-:math:`C_{ext} = \\sum N_i C_{ext,i}`, :math:`\\omega = \\sum N_i C_{sca,i} / C_{ext}`,
-:math:`g = \\sum N_i g_i C_{sca,i} / \\sum N_i C_{sca,i}`; the table has the extinction
-relative to 550 nm, :math:`\\omega` and :math:`g`.
+:math:`C_{ext} = \sum N_i C_{ext,i}`, :math:`\omega = \sum N_i C_{sca,i} / C_{ext}`,
+:math:`g = \sum N_i g_i C_{sca,i} / \sum N_i C_{sca,i}`; the table has the extinction
+relative to 550 nm, :math:`\omega` and :math:`g`.
 
 OPAC source: the OPAC data files as redistributed in github.com/aubema/illumina,
 commit cadadca86beaed20d8569147a968be27089ec27d, folder ``Aerosol_optics/OPAC_data/``
@@ -76,10 +76,10 @@ index, ``photochem_clima_data/data/aerosol_xsections/marsdust/mie_marsdust.h5`` 
 github.com/Nicholaswogan/photochem_clima_data, commit
 cba05ffaae3ab7ef11e27bb40570807014d718c0 (GPL-3; SHA-256 :data:`MARS_SHA256`), averaged
 over a lognormal with the effective radius 1.5 um and effective variance 0.3 of Wolff et
-al. 2009 (:math:`\\ln^2\\sigma_g = \\ln(1 + v_{eff})`, :math:`r_g = r_{eff}
-\\exp(-2.5\\ln^2\\sigma_g)`), trapezoid on the source's 50 log-spaced radii (needs h5py)::
+al. 2009 (:math:`\ln^2\sigma_g = \ln(1 + v_{eff})`, :math:`r_g = r_{eff}
+\exp(-2.5\ln^2\sigma_g)`), trapezoid on the source's 50 log-spaced radii (needs h5py)::
 
-    git -C <photochem_clima_data git dir> show cba05ffa:photochem_clima_data/data/\\
+    git -C <photochem_clima_data git dir> show cba05ffa:photochem_clima_data/data/\
         aerosol_xsections/marsdust/mie_marsdust.h5 > mie_marsdust.h5
     python data/make_aerosol_tables.py --mars-src mie_marsdust.h5 --only mars
 
@@ -135,7 +135,7 @@ def size_averages(wavelength_nm, *, n_nodes: int = N_NODES,
                   median_radius_um: float = MEDIAN_RADIUS_UM,
                   geometric_sigma: float = GEOMETRIC_SIGMA,
                   refractive_index: complex = REFRACTIVE_INDEX):
-    """Size-averaged cross-sections of the lognormal distribution.
+    r"""Size-averaged cross-sections of the lognormal distribution.
 
     Parameters
     ----------
@@ -147,7 +147,7 @@ def size_averages(wavelength_nm, *, n_nodes: int = N_NODES,
     Returns
     -------
     tuple of array (n,)
-        :math:`\\langle C_{ext}\\rangle`, :math:`\\langle C_{sca}\\rangle` [um^2 per
+        :math:`\langle C_{ext}\rangle`, :math:`\langle C_{sca}\rangle` [um^2 per
         particle] and the asymmetry parameter :math:`g` [1].
     """
     import miepython
@@ -241,8 +241,10 @@ def _sha256(path: Path) -> str:
 
 
 def _parse_opac(path: Path):
-    """Size distribution (r_min, r_max, sigma, r_mod wet) and the optical rows of one
-    OPAC file: wavelength [um], ext, sca, abs [km^-1], albedo, g, ext.nor, n, -k."""
+    """Size distribution (r_min, r_max, sigma, r_mod wet) and the optical rows of one OPAC file.
+
+    Wavelength [um], ext, sca, abs [km^-1], albedo, g, ext.nor, n, -k.
+    """
     import re
 
     header, rows = {}, []
@@ -293,9 +295,12 @@ def extract_opac(source: Path) -> None:
 
 
 def opac_inputs() -> dict:
-    """The shipped OPAC inputs per component: ``size`` (r_min, r_max, sigma_g, r_mod)
-    [um, um, 1, um] and the arrays ``wavelength_nm``, ``n_real``, ``n_imag`` and OPAC's
-    ``extinction_per_km``, ``single_scattering_albedo``, ``asymmetry``."""
+    """Return the shipped OPAC inputs per component.
+
+    ``size`` (r_min, r_max, sigma_g, r_mod) [um, um, 1, um] and the arrays ``wavelength_nm``,
+    ``n_real``, ``n_imag`` and OPAC's ``extinction_per_km``, ``single_scattering_albedo``,
+    ``asymmetry``.
+    """
     table = np.genfromtxt(OPAC_INPUTS, delimiter=",", comments="#", skip_header=5,
                           dtype=None, encoding="ascii")
     out = {}
@@ -315,7 +320,7 @@ def opac_inputs() -> dict:
 def lognormal_averages(wavelength_nm, refractive_index, *, mode_radius_um: float,
                        geometric_sigma: float, r_min_um: float, r_max_um: float,
                        n_nodes: int):
-    """Per-particle cross-sections of a lognormal number distribution on [r_min, r_max].
+    r"""Per-particle cross-sections of a lognormal number distribution on [r_min, r_max].
 
     Parameters
     ----------
@@ -333,7 +338,7 @@ def lognormal_averages(wavelength_nm, refractive_index, *, mode_radius_um: float
     Returns
     -------
     tuple of array (n,)
-        :math:`\\langle C_{ext}\\rangle`, :math:`\\langle C_{sca}\\rangle` [um^2] and
+        :math:`\langle C_{ext}\rangle`, :math:`\langle C_{sca}\rangle` [um^2] and
         :math:`g` [1].
     """
     import miepython
@@ -365,9 +370,11 @@ def component_nodes(name: str, node_scale: float = 1.0) -> int:
 
 def component_averages(name: str, wavelength_nm, *, node_scale: float = 1.0,
                        span_scale: float = 1.0, inputs: dict | None = None):
-    """:func:`lognormal_averages` of the OPAC component ``name`` (n, k linear in
-    wavelength between OPAC's wavelengths) on :func:`component_nodes` nodes;
-    ``span_scale`` < 1 shrinks the ln r interval about ln r_mod (accuracy-cost study)."""
+    """Return :func:`lognormal_averages` of the OPAC component ``name``.
+
+    With n, k linear in wavelength between OPAC's wavelengths, on :func:`component_nodes` nodes;
+    ``span_scale`` < 1 shrinks the ln r interval about ln r_mod (accuracy-cost study).
+    """
     data = (inputs or opac_inputs())[name]
     r_min, r_max, sigma, r_mod = data["size"]
     wavelength_nm = np.atleast_1d(np.asarray(wavelength_nm, dtype=float))
@@ -385,8 +392,10 @@ def component_averages(name: str, wavelength_nm, *, node_scale: float = 1.0,
 
 
 def mix(name: str, components: dict):
-    """Extinction and scattering coefficients [um^2 cm^-3] and g [1] of the OPAC type
-    ``name`` from per-component (C_ext, C_sca, g) of :func:`component_averages`."""
+    """Return extinction, scattering [um^2 cm^-3] and g [1] of the OPAC type ``name``.
+
+    Mixed from the per-component (C_ext, C_sca, g) of :func:`component_averages`.
+    """
     ext = sca = gsca = 0.0
     for component, number in AEROSOL_TYPES[name].items():
         c_ext, c_sca, g = components[component]

@@ -1,11 +1,13 @@
-"""Aerosol optical properties: Ångström law, Preetham turbidity, Mars dust, the
-stratospheric sulfate layer and named aerosol types with Mie optics.
+r"""Aerosol optical properties.
+
+Ångström law, Preetham turbidity, Mars dust, the stratospheric sulfate layer and named aerosol types
+with Mie optics.
 
 The aerosol optical depth follows the Ångström law
-:math:`\\tau_a(\\lambda) = \\beta (\\lambda / 1\\,\\mu m)^{-\\alpha}` (ref. 1). From
-Preetham's turbidity :math:`T` (ref. 2): :math:`\\beta = 0.04608 T - 0.04586`,
-:math:`\\alpha = 1.3`; :math:`T = 1` is (nearly) aerosol-free (:math:`\\beta = 2.2\\times
-10^{-4}`, :math:`\\tau_a(550) = 5\\times10^{-4}`); :math:`\\beta` is clamped at zero.
+:math:`\tau_a(\lambda) = \beta (\lambda / 1\,\mu m)^{-\alpha}` (ref. 1). From
+Preetham's turbidity :math:`T` (ref. 2): :math:`\beta = 0.04608 T - 0.04586`,
+:math:`\alpha = 1.3`; :math:`T = 1` is (nearly) aerosol-free (:math:`\beta = 2.2\times
+10^{-4}`, :math:`\tau_a(550) = 5\times10^{-4}`); :math:`\beta` is clamped at zero.
 
 References
 ----------
@@ -142,24 +144,24 @@ MARS_DUST = {
 
 
 def preetham_angstrom_beta(turbidity) -> torch.Tensor:
-    """Ångström :math:`\\beta` from Preetham's turbidity, :math:`0.04608 T - 0.04586`.
+    r"""Ångström :math:`\beta` from Preetham's turbidity, :math:`0.04608 T - 0.04586`.
 
     Parameters
     ----------
     turbidity : Tensor (...)
-        Turbidity :math:`T \\ge 1` [1].
+        Turbidity :math:`T \ge 1` [1].
 
     Returns
     -------
     Tensor (...)
-        :math:`\\beta` [1], clamped at 0.
+        :math:`\beta` [1], clamped at 0.
     """
     turbidity = as_tensor("turbidity", turbidity)
     return torch.clamp(0.04608 * turbidity - 0.04586, min=0.0)
 
 
 def angstrom_optical_depth(wavelength_nm, beta, alpha) -> torch.Tensor:
-    """Vertical aerosol optical depth :math:`\\beta (\\lambda/1\\,\\mu m)^{-\\alpha}`.
+    r"""Vertical aerosol optical depth :math:`\beta (\lambda/1\,\mu m)^{-\alpha}`.
 
     Parameters
     ----------
@@ -181,8 +183,11 @@ def angstrom_optical_depth(wavelength_nm, beta, alpha) -> torch.Tensor:
 
 @lru_cache(maxsize=16)
 def _table(filename: str, low: float, high: float) -> np.ndarray:
-    """Rows (wavelength_nm, extinction ratio, single_scattering_albedo, asymmetry) of a
-    shipped Mie table, checked to span [low, high] nm in increasing order."""
+    """Return the rows of a shipped Mie table, checked to span [low, high] nm.
+
+    Rows (wavelength_nm, extinction ratio, single_scattering_albedo, asymmetry), checked to
+    span [low, high] nm in increasing order.
+    """
     path = data_path(filename)
     with open(path, encoding="utf-8") as handle:
         header = 1 + sum(1 for line in handle if line.startswith("#"))  # + column names
@@ -238,8 +243,10 @@ def sulfate_mie_properties(wavelength_nm):
 
 
 def resolve_aerosol_type(aerosol_type: str) -> str:
-    """Canonical name of an aerosol type (:data:`AEROSOL_TYPES`, or an alias of
-    :data:`AEROSOL_TYPE_ALIASES`); ValueError naming the valid names otherwise.
+    """Return the canonical name of an aerosol type.
+
+    A name of :data:`AEROSOL_TYPES`, or an alias of :data:`AEROSOL_TYPE_ALIASES`; ValueError naming
+    the valid names otherwise.
 
     Examples
     --------
@@ -332,7 +339,7 @@ def mars_dust_properties(wavelength_nm):
 
 
 def gaussian_layer(altitude_m, center_m, width_m) -> torch.Tensor:
-    """Gaussian layer :math:`\\exp[-(h - h_c)^2 / (2 w^2)]`, 1 at the peak.
+    r"""Gaussian layer :math:`\exp[-(h - h_c)^2 / (2 w^2)]`, 1 at the peak.
 
     Parameters
     ----------
@@ -351,10 +358,10 @@ def gaussian_layer(altitude_m, center_m, width_m) -> torch.Tensor:
 
 
 def gaussian_layer_column(center_m, width_m, top_m) -> torch.Tensor:
-    """:math:`\\int_0^{h_{top}}` of :func:`gaussian_layer` [m], truncated at ground and top.
+    r""":math:`\int_0^{h_{top}}` of :func:`gaussian_layer` [m], truncated at ground and top.
 
-    :math:`w\\sqrt{\\pi/2}\\,[\\mathrm{erf}((h_{top} - h_c)/(\\sqrt2 w))
-    + \\mathrm{erf}(h_c/(\\sqrt2 w))]`.
+    :math:`w\sqrt{\pi/2}\,[\mathrm{erf}((h_{top} - h_c)/(\sqrt2 w))
+    + \mathrm{erf}(h_c/(\sqrt2 w))]`.
 
     Parameters
     ----------

@@ -82,7 +82,7 @@ class _Rays:
                                     torch.zeros_like(self.h_p))
 
     def slope_ratio(self, altitude, nu, slope):
-        """m = (u(h) - b) / (h - h_p) without cancellation, for h >= h_p."""
+        """Return m = (u(h) - b) / (h - h_p) without cancellation, for h >= h_p."""
         top = self.geometry.top
         inner = torch.clamp(altitude, 0.0, top) - self.q
         dd = _divided_difference(nu, self.nu_p, slope, self.slope_q, inner)
@@ -131,8 +131,10 @@ class _Rays:
 
 
 def _observer_rays(atm, apparent_altitude_rad, altitude_m, dtype, levels=()):
-    """Geometry, rays and the signed start parameter t_0 for observer rays (``levels``:
-    further altitudes where the quadrature is split [m])."""
+    """Geometry, rays and the signed start parameter t_0 for observer rays.
+
+    ``levels``: further altitudes where the quadrature is split [m].
+    """
     elevation = _check_elevation("apparent_altitude_rad", apparent_altitude_rad, dtype)
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
     # the rays carry the atmosphere's batch dims: quadrature nodes lead, so every ray
@@ -211,10 +213,12 @@ def _integrate_where(rays, mask, t_low, t_high, n_nodes, *, bending=True, coeffi
 
 def _observer_optical_depth(atm, elevation, height, dtype, n_nodes, coefficient_of,
                             levels=()):
-    """Optical depth (..., n) from observers to space (to the ground for rays that hit it)
-    along the bent rays; ``coefficient_of(atm)`` gives the extinction (or the species'
-    densities) as a function of altitude (see :func:`_integrate_where`); the quadrature
-    is also split at ``levels`` [m]."""
+    """Optical depth (..., n) from observers to space along the bent rays.
+
+    To the ground for rays that hit it; ``coefficient_of(atm)`` gives the extinction (or the
+    species' densities) as a function of altitude (see :func:`_integrate_where`); the quadrature is
+    also split at ``levels`` [m].
+    """
     coefficient = coefficient_of(atm)
     geometry, rays, elevation, _, t0 = _observer_rays(atm, elevation, height, dtype, levels)
     down = t0 < 0.0
@@ -238,12 +242,13 @@ def _observer_optical_depth(atm, elevation, height, dtype, n_nodes, coefficient_
 
 def _trace_grazing_bouguer(atm, coefficient_of, dtype, n_nodes, *, impact_altitude_m,
                            periapsis_altitude_m, levels=()):
-    """Rays from space through the limb (the outputs of
-    :func:`skytorch.atmosphere.refraction.trace_grazing_rays`): one of
-    ``impact_altitude_m`` and ``periapsis_altitude_m`` is given (the other None);
-    ``optical_depth`` is the path integral of ``coefficient_of(atm)`` (None: none), its
-    quadrature also split at ``levels`` [m] (the bending keeps the refractivity's
-    panels)."""
+    """Rays from space through the limb.
+
+    The outputs of :func:`skytorch.atmosphere.refraction.trace_grazing_rays`: one of
+    ``impact_altitude_m`` and ``periapsis_altitude_m`` is given (the other None); ``optical_depth``
+    is the path integral of ``coefficient_of(atm)`` (None: none), its quadrature also split at
+    ``levels`` [m] (the bending keeps the refractivity's panels).
+    """
     radius = float(atm.planet_radius_m)
     geometry = _Geometry(atm, dtype)
     if periapsis_altitude_m is not None:

@@ -1,8 +1,8 @@
-"""Water vapour and oxygen absorption: band model with a curve of growth, O2–O2 CIA.
+r"""Water vapour and oxygen absorption: band model with a curve of growth, O2–O2 CIA.
 
 Band model (ref. 1, SPECTRL2; coefficients of Leckner, ref. 2): the absorption
-coefficients :math:`a_w(\\lambda)` of water vapour [cm^-1, per cm of precipitable
-water] and :math:`a_u(\\lambda)` of the uniformly mixed gases (the O2 A band at
+coefficients :math:`a_w(\lambda)` of water vapour [cm^-1, per cm of precipitable
+water] and :math:`a_u(\lambda)` of the uniformly mixed gases (the O2 A band at
 762.5–767.5 nm and B band at 690 nm in 242–1100 nm) [cm^-1] are shipped as
 SPECTRL2's 122-point table (``data/gas_absorption_bird1986.csv``, from pvlib 0.16.1,
 BSD-3) and interpolated linearly in wavelength. **Spectral resolution: that of the
@@ -18,13 +18,13 @@ Curve of growth (ref. 1, eqs. 2-8 and 2-9) of the absorber amount along the actu
 
 .. math::
 
-    \\tau_w = \\frac{0.2385\\, a_w u_w}{(1 + 20.07\\, a_w u_w/\\tilde p)^{0.45}},
-    \\qquad
-    \\tau_u = \\frac{1.41\\, a_u u_m}{(1 + 118.93\\, a_u u_m/\\tilde p)^{0.45}}
+    \tau_w = \frac{0.2385\, a_w u_w}{(1 + 20.07\, a_w u_w/\tilde p)^{0.45}},
+    \qquad
+    \tau_u = \frac{1.41\, a_u u_m}{(1 + 118.93\, a_u u_m/\tilde p)^{0.45}}
 
 * In an :class:`~skytorch.atmosphere.Atmosphere` (species ``"h2o"``, ``"o2"``) the amounts
-  are **pressure-scaled** path columns, :math:`u = \\int n\\,(p/p_0)^m\\,ds / u_{ref}`
-  with :math:`m` = :data:`PRESSURE_EXPONENT` = 0.5 and :math:`\\tilde p = 1`;
+  are **pressure-scaled** path columns, :math:`u = \int n\,(p/p_0)^m\,ds / u_{ref}`
+  with :math:`m` = :data:`PRESSURE_EXPONENT` = 0.5 and :math:`\tilde p = 1`;
   :math:`u_{ref}` makes the vertical path from sea level give ref. 1's amounts:
   :math:`u_w = W M` in cm of precipitable water and :math:`u_m = M p/p_0` in standard
   vertical columns (:data:`STANDARD_AIR_COLUMN_M2`). Both are integrals along the path
@@ -35,16 +35,16 @@ Curve of growth (ref. 1, eqs. 2-8 and 2-9) of the absorber amount along the actu
   paths is measured in ``experiments/gas_resolution_accuracy_cost.py``: up to 3e-3 mag in
   V grazing at 5 km). Along sea-level paths :math:`m` hardly matters (the normalisation
   absorbs it).
-* :func:`curve_of_growth` also takes :math:`\\tilde p = \\bar p / \\bar p_{ref}`, the
+* :func:`curve_of_growth` also takes :math:`\tilde p = \bar p / \bar p_{ref}`, the
   absorber-weighted (Curtis–Godson) mean pressure of the path over that of the reference
   path, refs. 3, 4, for use with unscaled amounts: linear in :math:`k u` in the weak
-  limit, :math:`(k u)^{0.55}\\,\\tilde p^{0.45}` when saturated.
+  limit, :math:`(k u)^{0.55}\,\tilde p^{0.45}` when saturated.
 * The temperature dependence of the line widths and strengths is not modelled.
 * 118.93 is the published constant of ref. 1; pvlib and NREL's ``spectrl2_2.c`` use
-  118.3 (0.25 % in :math:`\\tau_u` at 5 air masses in the A band).
+  118.3 (0.25 % in :math:`\tau_u` at 5 air masses in the A band).
 
-O2–O2 collision-induced absorption (HITRAN, ref. 5): :math:`\\tau = k(\\lambda)
-\\int n_{O_2}^2\\,ds` with the binary coefficient :math:`k` [m^5] (used in
+O2–O2 collision-induced absorption (HITRAN, ref. 5): :math:`\tau = k(\lambda)
+\int n_{O_2}^2\,ds` with the binary coefficient :math:`k` [m^5] (used in
 amagat units, :func:`o2o2_coefficient`) shipped as 1 nm bin
 means (``data/o2o2_cia_hitran.csv``; bands at 344–630, 690, 760, 920, 1065 nm, each
 measured at 287–296 K; no temperature dependence is applied), zero below 336 nm,
@@ -159,8 +159,11 @@ def _cia_table() -> np.ndarray:
 
 @lru_cache(maxsize=4)
 def _tensor(name: str, dtype: torch.dtype) -> tuple[torch.Tensor, ...]:
-    """Contiguous columns of a table: ``"bird"`` (wavelength, a_w, a_u), ``"cia"``
-    (wavelength, k [m^-1 amagat^-2], converted from m^5 in float64)."""
+    """Contiguous columns of a table.
+
+    ``"bird"`` (wavelength, a_w, a_u), ``"cia"`` (wavelength, k [m^-1 amagat^-2], converted from m^5
+    in float64).
+    """
     if name == "bird":
         table = _bird_table()
     else:
@@ -258,7 +261,7 @@ def o2o2_coefficient(wavelength_nm) -> torch.Tensor:
 
 def curve_of_growth(coefficient, amount, pressure_ratio=1.0, *, curve=WATER_CURVE
                     ) -> torch.Tensor:
-    """Band optical depth :math:`A k u/(1 + C k u/\\tilde p)^a` (module docstring).
+    r"""Band optical depth :math:`A k u/(1 + C k u/\tilde p)^a` (module docstring).
 
     Parameters
     ----------
@@ -268,7 +271,7 @@ def curve_of_growth(coefficient, amount, pressure_ratio=1.0, *, curve=WATER_CURV
         Absorber amount along the path :math:`u`, ``>= 0``.
     pressure_ratio : float or Tensor (...)
         Curtis–Godson mean pressure of the path over that of the reference path
-        :math:`\\tilde p`, ``> 0`` (1: Bird & Riordan's law).
+        :math:`\tilde p`, ``> 0`` (1: Bird & Riordan's law).
     curve : tuple of float
         :math:`(A, C, a)`: :data:`WATER_CURVE` or :data:`MIXED_GAS_CURVE`.
 
@@ -289,7 +292,7 @@ def curve_of_growth(coefficient, amount, pressure_ratio=1.0, *, curve=WATER_CURV
 
 def water_vapour_optical_depth(wavelength_nm, water_path_cm, pressure_ratio=1.0
                                ) -> torch.Tensor:
-    """Water vapour band optical depth (Bird & Riordan eq. 2-8, Curtis–Godson).
+    r"""Water vapour band optical depth (Bird & Riordan eq. 2-8, Curtis–Godson).
 
     Parameters
     ----------
@@ -300,7 +303,7 @@ def water_vapour_optical_depth(wavelength_nm, water_path_cm, pressure_ratio=1.0
         against ``wavelength_nm[..., None]``-style shapes by torch rules (give a trailing
         singleton dimension to sweep a batch against a spectrum).
     pressure_ratio : float or Tensor
-        :math:`\\tilde p_w` (module docstring), ``> 0``.
+        :math:`\tilde p_w` (module docstring), ``> 0``.
 
     Returns
     -------
@@ -312,7 +315,7 @@ def water_vapour_optical_depth(wavelength_nm, water_path_cm, pressure_ratio=1.0
 
 
 def mixed_gas_optical_depth(wavelength_nm, air_path, pressure_ratio=1.0) -> torch.Tensor:
-    """Uniformly mixed gas (O2) band optical depth (Bird & Riordan eq. 2-9, Curtis–Godson).
+    r"""Uniformly mixed gas (O2) band optical depth (Bird & Riordan eq. 2-9, Curtis–Godson).
 
     Parameters
     ----------
@@ -321,7 +324,7 @@ def mixed_gas_optical_depth(wavelength_nm, air_path, pressure_ratio=1.0) -> torc
     air_path : float or Tensor
         Air along the path in standard vertical columns (:math:`M p/p_0`), ``>= 0``.
     pressure_ratio : float or Tensor
-        :math:`\\tilde p_m` (module docstring), ``> 0``.
+        :math:`\tilde p_m` (module docstring), ``> 0``.
 
     Returns
     -------
@@ -333,14 +336,14 @@ def mixed_gas_optical_depth(wavelength_nm, air_path, pressure_ratio=1.0) -> torc
 
 
 def o2o2_optical_depth(wavelength_nm, o2_squared_path) -> torch.Tensor:
-    """O2–O2 collision-induced optical depth :math:`k(\\lambda) \\int (n_{O_2}/L)^2 ds`.
+    r"""O2–O2 collision-induced optical depth :math:`k(\lambda) \int (n_{O_2}/L)^2 ds`.
 
     Parameters
     ----------
     wavelength_nm : Tensor
         Wavelength [nm], in [242, 1100] nm.
     o2_squared_path : float or Tensor
-        :math:`\\int (n_{O_2}/L)^2\\,ds` [amagat^2 m], ``>= 0`` (about 160 for the
+        :math:`\int (n_{O_2}/L)^2\,ds` [amagat^2 m], ``>= 0`` (about 160 for the
         vertical path from sea level).
 
     Returns
@@ -358,7 +361,7 @@ def o2o2_optical_depth(wavelength_nm, o2_squared_path) -> torch.Tensor:
 
 def water_vapour_density(altitude_m, scale_height_m=WATER_VAPOUR_SCALE_HEIGHT_M
                          ) -> torch.Tensor:
-    """Relative water vapour density :math:`\\exp(-h/H_w)` [1].
+    r"""Relative water vapour density :math:`\exp(-h/H_w)` [1].
 
     Parameters
     ----------
@@ -426,8 +429,10 @@ def _us1976_air(altitude_m, exponent, power):
 
 @lru_cache(maxsize=16)
 def _us1976_column_height(kind: str, exponent: float, top_m: float) -> float:
-    """Vertical integral [m] of a US 1976 profile from the ground to ``top_m`` (trapezoid,
-    1 m steps below 20 km, 10 m above)."""
+    """Vertical integral [m] of a US 1976 profile from the ground to ``top_m``.
+
+    Trapezoid, 1 m steps below 20 km, 10 m above.
+    """
     low = torch.arange(0.0, min(top_m, 20e3) + 0.5, 1.0, dtype=torch.float64)
     high = torch.arange(20e3, max(top_m, 20e3) + 5.0, 10.0, dtype=torch.float64)
     total = 0.0
@@ -453,9 +458,11 @@ def _air_shape(atm) -> str:
 
 
 def _sounding_air(atm, dtype):
-    """The sounding's air density and pressure relative to 0 m, as functions of altitude
-    (log-linear between its levels, continued above with the top layer's scale height),
-    and its levels inside the atmosphere."""
+    """Return the sounding's air density and pressure relative to 0 m.
+
+    As functions of altitude (log-linear between its levels, continued above with the top layer's
+    scale height), and its levels inside the atmosphere.
+    """
     sounding = atm.sounding
     nodes = sounding["altitude_m"].to(torch.float64)
     zero = torch.zeros((), dtype=torch.float64)
@@ -477,8 +484,10 @@ def _sounding_air(atm, dtype):
 
 
 def _vertical_integral(function, top_m: float, dtype) -> torch.Tensor:
-    """:math:`\\int_0^{top} f(h)\\,dh` [m] by the trapezoid rule (1 m steps below 20 km,
-    10 m above), in float64, cast to ``dtype``."""
+    r""":math:`\int_0^{top} f(h)\,dh` [m] by the trapezoid rule (1 m steps below 20 km, 10 m above).
+
+    In float64, cast to ``dtype``.
+    """
     low = torch.arange(0.0, min(top_m, 20e3) + 0.5, 1.0, dtype=torch.float64)
     pieces = [low]
     if top_m > 20e3:
@@ -488,8 +497,10 @@ def _vertical_integral(function, top_m: float, dtype) -> torch.Tensor:
 
 
 def _sounding_water_profile(atm, dtype, m: float):
-    """h2o with a sounding: its h2o_vmr shape (or the 2 km exponential without one) times
-    (p/p_s)^m."""
+    """Return the h2o profile of a sounding.
+
+    Its h2o_vmr shape (or the 2 km exponential without one) times (p/p_s)^m.
+    """
     _, pressure, levels = _sounding_air(atm, torch.float64)
     given = atm.water_vapour_profile(torch.float64)
     if given is None:
@@ -515,9 +526,11 @@ def _sounding_water_profile(atm, dtype, m: float):
 
 
 def water_vapour_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXPONENT):
-    """:class:`~skytorch.atmosphere.constituents.Profile` of ``"h2o"``: the water vapour
-    density times :math:`(p/p_s)^m` (``exponent``, default :data:`PRESSURE_EXPONENT`),
-    relative to the ground."""
+    """:class:`~skytorch.atmosphere.constituents.Profile` of ``"h2o"``.
+
+    The water vapour density times :math:`(p/p_s)^m` (``exponent``, default
+    :data:`PRESSURE_EXPONENT`), relative to the ground.
+    """
     m = float(exponent)
     height_w = torch.tensor(WATER_VAPOUR_SCALE_HEIGHT_M, dtype=dtype)
     if _air_shape(atm) == "sounding":
@@ -583,8 +596,10 @@ def _pressure_factor(atm, dtype, exponent: float) -> torch.Tensor:
 
 def water_vapour_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSURE_EXPONENT,
                          name: str = "h2o"):
-    """Species ``"h2o"``: the curve of growth of eq. 2-8 of the scaled water amount
-    :math:`u_w = W (p_s/p_0)^m \\int\\rho\\,ds / \\int\\rho\\,dz` [cm]."""
+    r"""Return the species ``"h2o"``: the curve of growth of eq. 2-8.
+
+    Of the scaled water amount :math:`u_w = W (p_s/p_0)^m \int\rho\,ds / \int\rho\,dz` [cm].
+    """
     water = atm.precipitable_water_cm.to(dtype)
     if _water_absent(atm):
         a_w = torch.zeros_like(wavelength_nm)
@@ -601,8 +616,11 @@ def water_vapour_species(atm, wavelength_nm, dtype, profile, exponent: float = P
 
 def oxygen_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSURE_EXPONENT,
                    name: str = "o2"):
-    """Species ``"o2"``: the curve of growth of eq. 2-9 of the scaled air amount
-    :math:`u_m = (N/N_0)(p_s/p_0)^m \\int\\rho\\,ds / \\int\\rho\\,dz` [standard columns]."""
+    r"""Return the species ``"o2"``: the curve of growth of eq. 2-9.
+
+    Of the scaled air amount :math:`u_m = (N/N_0)(p_s/p_0)^m \int\rho\,ds / \int\rho\,dz`
+    [standard columns].
+    """
     if _oxygen_absent(atm):
         a_u = torch.zeros_like(wavelength_nm)
     else:
@@ -620,8 +638,10 @@ def oxygen_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSUR
 
 
 def o2o2_species(atm, wavelength_nm, dtype, profile):
-    """Species ``"o2o2"`` (linear): :math:`k\\,(n_{O_2}(0)/L)^2` times the path column of
-    the squared relative density [1/m]."""
+    r"""Species ``"o2o2"`` (linear).
+
+    :math:`k\,(n_{O_2}(0)/L)^2` times the path column of the squared relative density [1/m].
+    """
     wide = wavelength_nm.to(torch.float64)
     column = atm.molecular_column_m2(torch.float64)
     shape = _air_shape(atm)
@@ -648,8 +668,9 @@ def _oxygen_absent(atm) -> bool:
 
 
 def species_builders(exponent: float = PRESSURE_EXPONENT, suffix: str = "") -> tuple:
-    """The :class:`~skytorch.atmosphere.constituents.SpeciesBuilder` of each species of
-    :data:`GAS_SPECIES`, in order.
+    """Return the species builders of :data:`GAS_SPECIES`, in order.
+
+    One :class:`~skytorch.atmosphere.constituents.SpeciesBuilder` per species.
 
     Parameters
     ----------

@@ -1,5 +1,7 @@
-r"""Ray geometry shared by the refraction algorithms: the refractive-index profile of an
-atmosphere and the checks and adapters every ray computation goes through.
+r"""Ray geometry shared by the refraction algorithms.
+
+The refractive-index profile of an atmosphere and the checks and adapters every ray computation goes
+through.
 
 :class:`_Geometry` holds the planet radius, the top of the atmosphere and the profile
 :math:`\nu(h) = n(h) - 1` continued as a constant below the ground and above the top (the
@@ -46,8 +48,10 @@ METHODS = ("bouguer", "rk4")
 
 
 def _needs_grad(atm) -> bool:
-    """Whether any tensor held by the atmosphere (parameters, buffers, attributes) requires
-    gradients, in which case derivatives are propagated to it."""
+    """Whether any tensor held by the atmosphere requires gradients.
+
+    Any of its parameters, buffers and attributes; derivatives are then propagated to it.
+    """
     if isinstance(atm, _Dispersive):
         return atm.factor.requires_grad or _needs_grad(atm.wrapped)
     if isinstance(atm, torch.nn.Module):
@@ -90,16 +94,20 @@ def _check_atmosphere(atm, *attributes: str) -> None:
 
 
 def _batch_shape(atm) -> tuple[int, ...]:
-    """Batch shape of the atmosphere's parameters (a dispersive wrapper's wavelengths
-    count as batch dims); () for plain objects."""
+    """Batch shape of the atmosphere's parameters; () for plain objects.
+
+    A dispersive wrapper's wavelengths count as batch dims.
+    """
     if isinstance(atm, _Dispersive):
         return tuple(broadcast_shape(_batch_shape(atm.wrapped), atm.factor.shape))
     return tuple(getattr(atm, "batch_shape", ()))
 
 
 def _ray_shape(atm, **named) -> tuple[int, ...]:
-    """Broadcast shape of the named ray inputs and the atmosphere's batch shape
-    (ValueError naming every input and its shape, before any arithmetic)."""
+    """Broadcast shape of the named ray inputs and the atmosphere's batch shape.
+
+    ValueError naming every input and its shape, before any arithmetic.
+    """
     shapes = {name: tuple(value.shape) for name, value in named.items()}
     batch = _batch_shape(atm)
     try:
@@ -111,9 +119,10 @@ def _ray_shape(atm, **named) -> tuple[int, ...]:
 
 
 def _map_parameters(atm, transform):
-    """The atmosphere with every parameter buffer replaced by ``transform(buffer)``
-    (dispersive wrappers: the wrapped atmosphere's; plain objects are returned as they
-    are)."""
+    """Return the atmosphere with every parameter buffer replaced by ``transform(buffer)``.
+
+    Dispersive wrappers: the wrapped atmosphere's; plain objects are returned as they are.
+    """
     if isinstance(atm, _Dispersive):
         clone = copy.copy(atm)
         clone.wrapped = _map_parameters(atm.wrapped, transform)
@@ -126,8 +135,10 @@ def _map_parameters(atm, transform):
 
 
 def _per_ray(atm, shape: tuple[int, ...]):
-    """The atmosphere with its parameters laid out like the flattened rays of ``shape``
-    (N,), or None when it has no batch dims (then every ray shares the parameters)."""
+    """Return the atmosphere with its parameters laid out like the flattened rays of ``shape`` (N,).
+
+    Or None when it has no batch dims (then every ray shares the parameters).
+    """
     if _batch_shape(atm) == ():
         return None
     count = math.prod(shape)
@@ -170,26 +181,30 @@ class _Geometry:
                 "with r")
 
     def restricted(self, atm) -> _Geometry:
-        """The same geometry with the profile of ``atm`` (a per-ray view of the
-        atmosphere for a subset of the rays; nothing is recomputed)."""
+        """Return the same geometry with the profile of ``atm``.
+
+        A per-ray view of the atmosphere for a subset of the rays; nothing is recomputed.
+        """
         clone = copy.copy(self)
         clone.atm = atm
         return clone
 
     def with_levels(self, levels) -> _Geometry:
-        """The same geometry with the Bouguer quadrature also split at ``levels`` [m]
-        (e.g. the breakpoints of the species' profiles, for their path columns)."""
+        """Return the same geometry with the Bouguer quadrature also split at ``levels`` [m].
+
+        e.g. the breakpoints of the species' profiles, for their path columns.
+        """
         own = [] if self.breakpoints is None else self.breakpoints.tolist()
         clone = copy.copy(self)
         clone.breakpoints = _inside(sorted(set(own) | set(levels)), self.top, self.dtype)
         return clone
 
     def refractivity(self, altitude_m: torch.Tensor) -> torch.Tensor:
-        """:math:`\\nu(h)` with the constant continuation outside [0, top]."""
+        r""":math:`\nu(h)` with the constant continuation outside [0, top]."""
         return self.atm.refractivity(torch.clamp(altitude_m, 0.0, self.top)).to(self.dtype)
 
     def refractivity_and_slope(self, altitude_m: torch.Tensor):
-        """:math:`\\nu(h)` and :math:`\\mathrm{d}\\nu/\\mathrm{d}h` (0 outside [0, top]).
+        r""":math:`\nu(h)` and :math:`\mathrm{d}\nu/\mathrm{d}h` (0 outside [0, top]).
 
         The slope comes from autograd through ``atm.refractivity`` (exact for any
         differentiable profile); with gradients enabled it keeps its own graph so that
@@ -218,7 +233,7 @@ class _Geometry:
         return nu, slope
 
     def periapsis_altitude(self, impact_altitude: torch.Tensor) -> torch.Tensor:
-        """Altitude :math:`h_p` where :math:`u(h_p) = b`, given :math:`\\beta = b - R`.
+        r"""Altitude :math:`h_p` where :math:`u(h_p) = b`, given :math:`\beta = b - R`.
 
         Closed forms below the ground and above the top (constant index there), Newton
         iterations in between (from above the root: u is increasing and, for the usual
@@ -257,8 +272,10 @@ _METHOD_ALIASES = {"gauss": "bouguer"}
 
 
 def _check_method(method: str, n_nodes, n_steps=None) -> tuple[str, int | None]:
-    """Checked ``method`` and its Gauss–Legendre node count (``n_steps`` overrides
-    ``n_nodes``; validated only for ``"bouguer"``, None for ``"rk4"``)."""
+    """Return checked ``method`` and its Gauss–Legendre node count.
+
+    ``n_steps`` overrides ``n_nodes``; validated only for ``"bouguer"``, None for ``"rk4"``.
+    """
     method = check_choice("method", _METHOD_ALIASES.get(method, method), METHODS)
     if method != "bouguer":
         return method, None
@@ -306,19 +323,24 @@ def _extinction_of(wavelength):
 
 
 def _constituents(atm, wavelength, dtype):
-    """``atm.constituents(wavelength, dtype)`` (an
-    :class:`~skytorch.atmosphere.Atmosphere`: every species, with its optical-depth law),
-    or None for an object without constituents (its ``extinction_coefficient`` is then
-    integrated along the path)."""
+    """Return ``atm.constituents(wavelength, dtype)``, or None without constituents.
+
+    For an :class:`~skytorch.atmosphere.Atmosphere`: every species, with its optical-depth law; None
+    for an object without constituents (its ``extinction_coefficient`` is then integrated along the
+    path).
+    """
     if not hasattr(atm, "constituents"):
         return None
     return atm.constituents(wavelength, dtype)
 
 
 def _species_levels(constituents) -> tuple[float, ...]:
-    """Absolute breakpoints of the species' profiles [m] (kinks, layer edges and peaks;
-    every member of a batched atmosphere), where the quadrature of their path columns is
-    split; profiles with breakpoints relative to the path (smooth exponentials) add none."""
+    """Return the absolute breakpoints of the species' profiles [m].
+
+    Kinks, layer edges and peaks of every member of a batched atmosphere, where the quadrature of
+    their path columns is split; profiles with breakpoints relative to the path (smooth
+    exponentials) add none.
+    """
     levels = set()
     for profile in constituents.profiles.values():
         if profile.breakpoints_m is not None:
@@ -327,14 +349,18 @@ def _species_levels(constituents) -> tuple[float, ...]:
 
 
 def _integrated_species(constituents) -> tuple[str, ...]:
-    """Names of the species whose path columns are integrated (the absent ones,
-    ``vanishes``, have zero columns)."""
+    """Names of the species whose path columns are integrated.
+
+    The absent ones, ``vanishes``, have zero columns.
+    """
     return tuple(s.name for s in constituents.species if not s.vanishes)
 
 
 def _profile_densities(atm, names, dtype):
-    """Relative densities of the species ``names`` (``atm.profiles(dtype)``) stacked on a
-    trailing dimension, (..., n_species), as a function of altitude."""
+    """Return the relative densities of the species ``names`` as a function of altitude.
+
+    From ``atm.profiles(dtype)``, stacked on a trailing dimension, (..., n_species).
+    """
     profiles = atm.profiles(dtype)
     chosen = [profiles[name] for name in names]
 
@@ -354,9 +380,11 @@ def _profile_densities_of(names, dtype):
 
 
 def _columns_optical_depth(constituents, names, columns, per_species: bool):
-    """Optical depth from the path columns (..., len(names)) [m] of the species ``names``
-    (the others' columns are zero) through :meth:`Constituents.optical_depth`, the one
-    place where columns become optical depths (nonlinear laws included)."""
+    """Optical depth from the path columns (..., len(names)) [m] of the species ``names``.
+
+    The others' columns are zero; through :meth:`Constituents.optical_depth`, the one place where
+    columns become optical depths (nonlinear laws included).
+    """
     zero = columns.new_zeros(columns.shape[:-1])
     by_name = {name: columns[..., names.index(name)] if name in names else zero
                for name in constituents.names}

@@ -56,14 +56,14 @@ _KINK_OVERSHOOT_M = 1e-3
 
 
 def _rk4_resolution(step_m, max_dh_m) -> tuple[float, float]:
-    """Checked RK4 step along the ray and altitude-change limit per step [m]."""
+    """Return checked RK4 step along the ray and altitude-change limit per step [m]."""
     step_m = check_range("step_m", step_m, low=0.0, low_inclusive=False, unit=" m")
     max_dh_m = check_range("max_dh_m", max_dh_m, low=0.0, low_inclusive=False, unit=" m")
     return float(step_m), float(max_dh_m)
 
 
 
-def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max_length,
+def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max_length,  # noqa: C901 (one RK4 loop with its stops)
                stop_at_ground=False, per_ray=None):
     """Trace rays in the plane with RK4 until they leave the atmosphere upwards.
 
@@ -200,8 +200,9 @@ def _rk4_trace(geometry, position, direction, coefficient, step_m, max_dh_m, max
 
 
 def _distance_to_spheres(position, velocity, gradient, radii):
-    """Path length [m] to the first crossing of any sphere r = ``radii`` (K,) farther than
-    :data:`_KINK_OVERSHOOT_M` (inf when none), (N,).
+    """Path length [m] to the first crossing of any sphere r = ``radii`` (K,).
+
+    Only crossings farther than :data:`_KINK_OVERSHOOT_M` count; inf when none; shape (N,).
 
     The estimate never lies beyond the crossing, so that a step of that length ends
     before the sphere (or within :data:`_KINK_OVERSHOOT_M` past it) and the next steps
@@ -308,8 +309,10 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coe
 
 
 def _trace_grazing_rk4(atm, beta_geo, coefficient_of, dtype, step_m, max_dh_m):
-    """RK4 rays from space through the limb; ``optical_depth`` is the path integral of
-    ``coefficient_of(atm)`` (None: none)."""
+    """RK4 rays from space through the limb.
+
+    ``optical_depth`` is the path integral of ``coefficient_of(atm)`` (None: none).
+    """
     step_m, max_dh_m = _rk4_resolution(step_m, max_dh_m)
     shape = _ray_shape(atm, impact_altitude_m=beta_geo)
     beta_geo = beta_geo.expand(shape)

@@ -215,10 +215,9 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
 def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth,
                          altitude, *, n_samples: int = 128, table=None,
                          sun_steps: int | None = None) -> torch.Tensor:
-    r"""Single-scattering radiance :math:`L/E_\odot`.
+    r"""Single-scattering radiance :math:`L/E_\odot` (..., wavelength) [sr^-1] of constituents.
 
-    (..., wavelength) [sr^-1] of :class:`~skytorch.atmosphere.constituents.Constituents` (checked
-    inputs).
+    Of :class:`~skytorch.atmosphere.constituents.Constituents` (checked inputs).
 
     The kernel behind :func:`single_scattering_radiance`: every species that scatters
     contributes its scattering coefficient and phase function; the view-path optical

@@ -176,7 +176,7 @@ class _SunMoon:
         self.half_window_s = half_window_s
 
     def subset(self, rows: torch.Tensor) -> _SunMoon:
-        """The same series for the windows ``rows`` only."""
+        """Return the same series for the windows ``rows`` only."""
         new = object.__new__(_SunMoon)
         new.sun, new.moon = self.sun[rows], self.moon[rows]
         new.npb, new.gast = self.npb[rows], self.gast[rows]
@@ -203,7 +203,7 @@ def _norm(vector: torch.Tensor) -> torch.Tensor:
 
 
 def _axis(sun: torch.Tensor, moon: torch.Tensor):
-    """Unit shadow-axis direction (Sun to Moon) and the axis point closest to Earth's centre."""
+    """Return the unit shadow-axis direction (Sun to Moon) and its point nearest Earth's centre."""
     direction = moon - sun
     direction = direction / _norm(direction)[..., None]
     closest = moon - (moon * direction).sum(-1, keepdim=True) * direction
@@ -347,7 +347,7 @@ def _greatest(geometry: _SunMoon, low: torch.Tensor, high: torch.Tensor) -> torc
 
 
 def _central_ends(geometry: _SunMoon, central: torch.Tensor) -> torch.Tensor:
-    """Times [s from the centre] where the axis starts and ends meeting the ellipsoid."""
+    """Return times [s from the centre] where the axis starts and ends meeting the ellipsoid."""
     n = len(central)
     start = torch.zeros(n, 2, dtype=torch.float64)
 

@@ -290,10 +290,10 @@ class MoonDisc:
             if eclipse else None
 
     def normals(self, directions: torch.Tensor) -> torch.Tensor:
-        """Disc-frame normals (n, 3) of the surface points seen along apparent directions (n, 3).
+        """Disc-frame normals (n, 3) of the surface points seen along directions (n, 3).
 
-        (unit, horizontal frame); a line that misses the sphere takes its point of closest approach
-        (a limb normal).
+        The apparent directions are unit vectors in the horizontal frame; a line that misses the
+        sphere takes its point of closest approach (a limb normal).
         """
         outward = moon_surface_points(self.geometry, self.rotate(directions)) - self.centre
         outward = outward / torch.linalg.vector_norm(outward, dim=-1, keepdim=True)
@@ -312,17 +312,18 @@ class MoonDisc:
                              distance_m=g.moon_distance_m, earthshine=self.earthshine)
 
     def points(self, normals: torch.Tensor) -> torch.Tensor:
-        """Lunar surface points (n, 3) [m] from the observer.
+        """Lunar surface points (n, 3) [m] at disc-frame normals (n, 3).
 
-        (horizontal frame) at disc-frame normals (n, 3).
+        From the observer, in the horizontal frame.
         """
         return self.centre + MOON_RADIUS_M * (normals @ self.axes)
 
     def __call__(self, directions):
-        """Relative radiance (n, wl) and shadow factor (n, wl).
+        """Relative radiance (n, wl) and shadow factor (n, wl) of pixels.
 
-        (``None`` without eclipse) of pixels with apparent directions (n, 3); for ``None``, the
-        factor (wl,) of a disc smaller than a pixel (the disc-averaged shadow) or ``None``.
+        Of pixels with apparent directions (n, 3); the factor is ``None`` without eclipse. For
+        ``None``, the factor (wl,) of a disc smaller than a pixel (the disc-averaged shadow) or
+        ``None``.
         """
         if directions is None:
             return self.mean_shadow
@@ -348,10 +349,10 @@ class MoonDisc:
 
 
 def eclipse_factor(resources, geometry, wavelength, n_disc: int = 8, disc=None) -> torch.Tensor:
-    """Relative illuminance of the Earth's shadow averaged over the Moon's visible disc.
+    """Relative illuminance (n_wavelength,) of the Earth's shadow over the Moon's disc.
 
-    (n_wavelength,), weighted by the uneclipsed radiance of the disc (the flux-weighted mean over
-    :func:`skytorch.moon.disc_grid` points, 8 × 16 polar nodes by default).
+    Averaged over the Moon's visible disc, weighted by the uneclipsed radiance of the disc (the
+    flux-weighted mean over :func:`skytorch.moon.disc_grid` points, 8 × 16 polar nodes by default).
 
     ``disc`` is the scene's :class:`MoonDisc` (its phase and earthshine set the weights);
     without it the disc is weighted by area.
@@ -650,7 +651,7 @@ def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tens
 def stars_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
     """Catalogue stars at their apparent places with extincted magnitudes.
 
-    (tensor layer of :func:`skytorch.stars.observe`: positions, refraction and extinction tables
+    The tensor layer of :func:`skytorch.stars.observe` (positions, refraction and extinction tables
     from the resources); stars behind the Moon's disc (:func:`occulted`) are left out.
     """
     from skytorch.ephemeris import parse_times

@@ -264,10 +264,9 @@ class SceneResources:
                 self.extinction_table(elevation_m, refraction))
 
     def refracted_altitude(self, elevation_m: float, true_altitude_rad: float) -> float:
-        """Apparent altitude [rad] of a true altitude [rad].
+        """Apparent altitude [rad] of a true altitude [rad] at an observer height [m].
 
-        (below −1° taken at −1°) at an observer height [m], from the refraction table (ray-traced
-        refraction).
+        Below −1° taken at −1°; from the refraction table (ray-traced refraction).
         """
         from skytorch.stars import refract
 
@@ -474,8 +473,8 @@ class SceneResources:
     def skyglow_model(self, settings: dict):
         """Return the skyglow model of the atmosphere with ``settings``.
 
-        (keywords of :meth:`skytorch.skyglow.SkyglowModel.precompute`), cached on disk and kept
-        here.
+        ``settings`` are keywords of :meth:`skytorch.skyglow.SkyglowModel.precompute`; the model is
+        cached on disk and kept here.
 
         The file is written with :func:`skytorch._cache.write_verified` (a record of its
         SHA-256 and of the parameter hash beside it) and read with
