@@ -154,9 +154,9 @@ def test_default_earth_keeps_the_untyped_aerosol():
 
 @pytest.mark.parametrize("given", [{"aerosol_optical_depth": 0.3}, {"turbidity": 4.0}])
 def test_typed_aerosol_keeps_the_550_nm_depth_and_takes_the_type_spectrum(given):
-    """The vertical aerosol optical depth at 550 nm is the untyped one.
+    """The vertical aerosol optical depth at 550 nm of a type is the untyped one.
 
-    (turbidity or aerosol_optical_depth, within 1e-12); at other wavelengths it follows the type's
+    Turbidity or aerosol_optical_depth, within 1e-12; at other wavelengths it follows the type's
     extinction ratio; the albedo is the type's.
     """
     plain = Atmosphere.earth(**given).optical_depth(WL, per_species=True)["aerosol"]

@@ -259,11 +259,10 @@ def _us1976_sounding(water):
 
 @pytest.mark.parametrize("water_in_sounding", [False, True])
 def test_sounding_gives_the_us1976_gas_optical_depths(water_in_sounding):
-    """A sounding sampled from US 1976.
+    """A sounding sampled from US 1976 gives the built-in US 1976 gas optical depths.
 
-    (with or without an h2o_vmr that reproduces the 2 km water profile) gives the built-in US 1976
-    gas optical depths, slant and near the horizon, within 1 % (the sounding is interpolated
-    log-linearly between 500 m levels).
+    With or without an h2o_vmr that reproduces the 2 km water profile; slant and near the horizon,
+    within 1 % (the sounding is interpolated log-linearly between 500 m levels).
     """
     wavelength = torch.tensor([690.0, 762.5, 937.0, 1065.0], dtype=torch.float64)
     zenith = torch.tensor([0.0, 1.2, 1.5], dtype=torch.float64)

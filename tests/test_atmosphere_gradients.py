@@ -1,6 +1,6 @@
 """Gradients w.r.t. every continuous atmosphere parameter.
 
-(float64 gradcheck, small cases) through optical_depth and sky_radiance, and both float32 and
+By float64 gradcheck on small cases, through optical_depth and sky_radiance, and both float32 and
 float64 inputs.
 """
 

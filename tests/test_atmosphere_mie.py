@@ -84,12 +84,11 @@ OPAC_CHECK_NM = (300.0, 550.0, 1000.0)
 @pytest.mark.parametrize("component", ["inso", "waso", "soot", "ssam", "sscm", "minm",
                                        "miam", "micm", "mitr", "suso"])
 def test_components_match_opac_mie(gen, opac, component):
-    """Size-averaged extinction.
+    """Size-averaged extinction, albedo and asymmetry of each OPAC component.
 
-    Albedo and asymmetry of each OPAC component (same refractive index and truncated lognormal)
-    against OPAC's own Mie code (Hess et al. 1998, the values in its data files): extinction within
-    0.5 %, albedo within 2e-3, g within 0.015 (OPAC writes g with 3 decimals; measured worst over
-    250-2000 nm: 0.26 %, 8e-4, 0.0094).
+    Same refractive index and truncated lognormal, against OPAC's own Mie code (Hess et al. 1998,
+    the values in its data files): extinction within 0.5 %, albedo within 2e-3, g within 0.015 (OPAC
+    writes g with 3 decimals; measured worst over 250-2000 nm: 0.26 %, 8e-4, 0.0094).
     """
     data = opac[component]
     rows = np.isin(data["wavelength_nm"], OPAC_CHECK_NM)
@@ -155,7 +154,7 @@ def test_sea_salt_integral_limited_by_the_ripple_structure(gen):
 def test_shipped_type_table_matches_generator(gen, name):
     """Each shipped type table equals a fresh run of the generator at two of its wavelengths.
 
-    (870 and 1600 nm, where the size parameters are small and the run fast): albedo and g within
+    At 870 and 1600 nm, where the size parameters are small and the run fast: albedo and g within
     1e-6 (8 decimals written), the extinction ratio between the two wavelengths within 1e-6
     relative.
     """
@@ -169,9 +168,10 @@ def test_shipped_type_table_matches_generator(gen, name):
 
 
 def test_opac_inputs_cover_the_table_wavelengths(gen, opac):
-    """Every component has OPAC's 18 wavelengths 250-2000 nm.
+    """Every component has OPAC's wavelengths, a positive k and a mode radius in bounds.
 
-    A positive absorption index and a mode radius inside its size bounds.
+    OPAC's 18 wavelengths 250-2000 nm, a positive absorption index and a mode radius inside its size
+    bounds.
     """
     for name in gen.OPAC_COMPONENTS:
         data = opac[name]

@@ -76,11 +76,11 @@ def standard_air():
 
 
 def test_any_object_with_the_attributes_works(air):
-    """The functions use only planet_radius_m, top_altitude_m.
+    """The functions use only four attributes of the atmosphere.
 
-    Refractivity and extinction_coefficient: a plain object gives the Atmosphere's results (whose
-    path columns are split at its species' breakpoints: the plain object is given them as its
-    quadrature levels).
+    planet_radius_m, top_altitude_m, refractivity and extinction_coefficient: a plain object gives
+    the Atmosphere's results (whose path columns are split at its species' breakpoints: the plain
+    object is given them as its quadrature levels).
     """
     plain = ExponentialAir(beta550=None)
     plain.extinction_coefficient = air.extinction_coefficient
@@ -185,10 +185,10 @@ def test_refraction_vs_bennett(profile, request):
 
 
 def test_refraction_vs_laplace_expansion(air):
-    """R = A tan z - B tan^3 z with A = nu0 (1 - H/R).
+    """Laplace's refraction R = A tan z - B tan^3 z for an exponential atmosphere.
 
-    B = nu0 (H/R - nu0/2) for an exponential atmosphere (Laplace; Smart 1977, ch. III), valid for z
-    <= 30 degrees.
+    A = nu0 (1 - H/R), B = nu0 (H/R - nu0/2) (Laplace; Smart 1977, ch. III), valid for z <= 30
+    degrees.
     """
     zenith = torch.tensor([1.0, 10.0, 20.0, 30.0], dtype=torch.float64)
     model = rf.refraction_angle(air, (90.0 - zenith) * DEGREE)
@@ -199,10 +199,9 @@ def test_refraction_vs_laplace_expansion(air):
 
 
 def test_horizon_refraction_vs_bennett():
-    """At Bennett's conditions.
+    """At Bennett's conditions the apparent horizon is refracted by 33'-36'.
 
-    (1010 hPa, 10 degC) with the U.S. Standard Atmosphere 1976 profile the apparent horizon is
-    refracted by 33'-36' (Bennett: 34.5').
+    At 1010 hPa, 10 degC, with the U.S. Standard Atmosphere 1976 profile (Bennett: 34.5').
     """
     from skytorch.atmosphere import Atmosphere
 
@@ -251,10 +250,11 @@ def test_air_mass_along_refracted_rays_vs_kasten_young(profile, request):
 
 
 def test_refracted_species_match_straight_rays_at_the_zenith():
-    """Every species of the constituents, the gas bands with their curve of growth included.
+    """Every species has the straight-ray optical depth at the zenith.
 
-    Has at the zenith (where the ray does not bend) the optical depth of the straight-ray integrator
-    (its adaptive quadrature: an independent rule, converged).
+    Every species of the constituents, the gas bands with their curve of growth included, has at the
+    zenith (where the ray does not bend) the optical depth of the straight-ray integrator (its
+    adaptive quadrature: an independent rule, converged).
     """
     from skytorch.atmosphere import Atmosphere
 
@@ -271,9 +271,9 @@ def test_refracted_species_match_straight_rays_at_the_zenith():
 
 
 def test_band_law_takes_the_whole_limb_column():
-    """A ray grazing the limb.
+    """A ray grazing the limb without refractivity has the curve-of-growth chord depth.
 
-    (no refractivity: a straight chord) has the optical depth of the column of both halves of the
+    A straight chord (no refractivity) has the optical depth of the column of both halves of the
     chord through the curve of growth -- the straight-ray columns from the tangent point outwards,
     doubled, as the independent reference -- which in the bands is smaller than twice the optical
     depth of one half (saturation).

@@ -77,11 +77,11 @@ def _saemundsson_arcmin(true_altitude_deg, pressure_hpa, temperature_c):
 
 
 def test_default_inverse_refraction_vs_saemundsson():
-    """Apparent altitude of objects at true altitudes 0-60 degrees, default Earth at 1013.25 hPa.
+    """Apparent altitude of objects at true altitudes 0-60 degrees against Saemundsson.
 
-    15 degC, against Saemundsson's formula (consistent with Bennett's plain formula to 0.1';
-    measured: -0.68' at the true horizon (28.57' vs 27.89'), -0.17' at 10 degrees, -0.05' at 45
-    degrees).
+    Default Earth at 1013.25 hPa, 15 degC, against Saemundsson's formula (consistent with Bennett's
+    plain formula to 0.1'; measured: -0.68' at the true horizon (28.57' vs 27.89'), -0.17' at 10
+    degrees, -0.05' at 45 degrees).
     """
     atm = Atmosphere.earth(turbidity=1.0, ozone_du=0.0)
     true = torch.tensor([0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 45.0, 60.0], dtype=torch.float64)

@@ -77,10 +77,10 @@ US1976_SEA_LEVEL_DENSITY = 1.2250
 
 
 def test_default_refractivity_follows_the_us1976_table():
-    """The default Earth refractivity is n - 1 = 2.77e-4 at the ground.
+    """The default Earth refractivity is n - 1 = 2.77e-4 at the ground, scaled with density.
 
-    (Schneegans 2025) scaled by the U.S. Standard Atmosphere 1976 density ratio (5-digit table
-    values).
+    The ground value is Schneegans 2025; it is scaled by the U.S. Standard Atmosphere 1976 density
+    ratio (5-digit table values).
     """
     atm = Atmosphere.earth()
     assert atm.refractivity_profile == "us1976"

@@ -26,9 +26,9 @@ def _generator():
 
 
 def test_single_sphere_matches_anomalous_diffraction_at_large_size():
-    """Q_ext of one sphere (x = 200, m = 1.43) vs van de Hulst 1957 anomalous diffraction Q = 2 -.
+    """Q_ext of one sphere (x = 200, m = 1.43) vs van de Hulst 1957 anomalous diffraction.
 
-    (4/p) sin p + (4/p^2)(1 - cos p), p = 2x(m-1): within 2 %.
+    Q = 2 - (4/p) sin p + (4/p^2)(1 - cos p), p = 2x(m-1): within 2 %.
     """
     x, m = 200.0, 1.43
     qext = float(miepython.efficiencies_mx(complex(m, -1e-8), x)[0])
@@ -61,7 +61,7 @@ def test_shipped_table_matches_generator():
 def test_small_particle_limit_of_the_spectrum():
     """Sub-micron droplets: extinction falls with wavelength.
 
-    (Angstrom exponent between 1 and 4, the Rayleigh limit), nearly conservative scattering (1 -
+    Angstrom exponent between 1 and 4, the Rayleigh limit; nearly conservative scattering (1 -
     albedo < 1e-5 for k = 1e-8) and forward-peaked, 0 < g < 1, with g decreasing towards the
     infrared.
     """

@@ -17,10 +17,10 @@ WAVELENGTH = torch.tensor([450.0, 550.0, 700.0], dtype=torch.float64)
 
 
 def _tasks():
-    """Return calls of mixed geometry shapes.
+    """Return calls of mixed geometry shapes and kinds.
 
-    (scalars, vectors, grids broadcasting with the parameters' batch shape (2, 2)) and kinds
-    (straight optical depth, sky radiance).
+    Shapes: scalars, vectors, grids broadcasting with the parameters' batch shape (2, 2); kinds:
+    straight optical depth, sky radiance.
     """
     zenith = torch.linspace(0.1, 1.5, 5, dtype=torch.float64)
     return [

@@ -274,10 +274,11 @@ def loaded_with(module: str) -> set[str]:
 
 
 def test_no_needless_function_level_imports():
-    """An import inside a function is for a module that importing this one does not load anyway.
+    """An import inside a function is for a module that importing this one does not load.
 
-    (an optional or costly dependency, imported when first needed); one of a module that is loaded
-    already saves nothing and only hides the dependency (or a loop).
+    Such a module is an optional or costly dependency, imported when first needed; a function-level
+    import of a module that is loaded already saves nothing and only hides the dependency (or a
+    loop).
 
     The late imports left are of other packages and of optional dependencies (matplotlib,
     zarr, dask, tqdm, miepython). Measured: ``import skytorch.scene`` takes about 0.05 s

@@ -1,6 +1,7 @@
-"""The public API contract of DESIGN.md ("Public API", "Datasets") for ephemeris, stars, moon.
+"""The public API contract of DESIGN.md ("Public API", "Datasets").
 
-Sweeps and Dataset I/O: names, signatures, dimensions, units, CF metadata and the netCDF round trip.
+For ephemeris, stars, moon, sweeps and Dataset I/O: names, signatures, dimensions, units, CF
+metadata and the netCDF round trip.
 
 References for the numbers checked here (independent of the code):
 

@@ -101,10 +101,10 @@ def test_disc_shows_the_umbra_edge(partial):
 
 
 def test_subpixel_moon_carries_the_disc_averaged_shadow(partial):
-    """The Moon in a coarse fisheye.
+    """The Moon in a coarse fisheye has the flux of the resolved disc of the camera image.
 
-    (smaller than a pixel) has the flux of the resolved disc of the camera image: two integrations
-    over the disc (pixel centres vs polar quadrature) agree.
+    The Moon is smaller than a pixel there; two integrations over the disc (pixel centres vs polar
+    quadrature) agree.
     """
     scene, view, ds = partial
     moon = ds["component_radiance"].sel(component="moon").values  # (y, x, wl)

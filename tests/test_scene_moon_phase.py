@@ -174,10 +174,10 @@ def _sunlit_pixels(view, moon, sun):
 
 
 def test_lit_fraction_is_the_illuminated_fraction(phase):
-    """The solid-angle share of lit disc pixels is k =.
+    """The solid-angle share of lit disc pixels is k = (1 + cos i)/2.
 
-    (1 + cos i)/2 of skyfield's topocentric phase angle within the pixel-quantisation bound, and the
-    lit pixels are those whose line of sight meets a sunlit point of skyfield's Moon.
+    With the phase angle i of skyfield's topocentric Moon, within the pixel-quantisation bound, and
+    the lit pixels are those whose line of sight meets a sunlit point of skyfield's Moon.
     """
     time, scene, view, ds, sky = phase
     _, disc, lit, radius = _disc_masks(view, ds, sky["moon"]["vector"])
@@ -220,11 +220,11 @@ def _extinction(scene, altitude_rad, wavelength):
 
 @pytest.mark.parametrize("earthshine", [False, True])
 def test_disc_flux_is_the_moon_magnitude(dtype, earthshine):
-    """Summed over the shaded disc pixels.
+    """The Moon's flux summed over its disc pixels is st.moon.magnitude's.
 
-    The Moon's flux (moonlit sky subtracted, extinction removed) is st.moon.magnitude of skyfield's
-    topocentric geometry, with and without earthshine, in float32 and float64; so is the flux of a
-    sub-pixel Moon in an all-sky image.
+    Summed over the shaded disc pixels, the Moon's flux (moonlit sky subtracted, extinction removed)
+    is st.moon.magnitude of skyfield's topocentric geometry, with and without earthshine, in float32
+    and float64; so is the flux of a sub-pixel Moon in an all-sky image.
     """
     from skytorch.moon.brightness import V_BAND_WAVELENGTHS_NM
 

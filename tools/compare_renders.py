@@ -73,9 +73,9 @@ def make_scene(name: str):
 
 
 def flatten(name: str, dataset) -> dict[str, np.ndarray]:
-    """``{"<scene>/<kind>/<name>": array}`` for the variables.
+    """Return the variables, coordinates and attributes of a rendered Dataset.
 
-    Coordinates and attributes (wall times and creation time left out) of a rendered Dataset.
+    As ``{"<scene>/<kind>/<name>": array}``; wall times and creation time left out.
     """
     out = {}
     for key, value in dataset.data_vars.items():

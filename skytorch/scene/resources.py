@@ -398,9 +398,9 @@ class SceneResources:
             10.0 ** (-0.4 * self.catalogue(limit_magnitude)["vmag"].values))))
 
     def star_vectors(self, limit_magnitude: float):
-        """Catalogue vectors (:func:`skytorch.stars.star_vectors`), V.
+        """Return the catalogue vectors, V, B−V and epoch [Julian year] to a V limit.
 
-        B−V and the epoch [Julian year] of the catalogue to a V limit.
+        Vectors of :func:`skytorch.stars.star_vectors`, for the catalogue to a V limit.
         """
         limit_magnitude = float(limit_magnitude)
 

@@ -311,9 +311,10 @@ def _scalar(name: str, value, low: float | None = None, high: float | None = Non
 
 
 def _wavelengths(value):
-    """Return a preset name of :func:`skytorch.spectrum.wavelength_grid`.
+    """Return a wavelength preset name or a tuple of increasing wavelengths [nm].
 
-    Or a tuple of increasing wavelengths [nm] inside :data:`skytorch.spectrum.VISIBLE_RANGE_NM`.
+    A preset name of :func:`skytorch.spectrum.wavelength_grid`, or a tuple of increasing wavelengths
+    [nm] inside :data:`skytorch.spectrum.VISIBLE_RANGE_NM`.
     """
     from skytorch.spectrum import VISIBLE_RANGE_NM, WAVELENGTH_PRESETS
 
