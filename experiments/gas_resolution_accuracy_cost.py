@@ -76,10 +76,12 @@ def _optical_depths(atm, wavelength, r, mu, extra_species=()):
 
 
 def _extinction_mag(transmittance, fine, solar):
-    """Extinction in B, V, R, I [mag] of transmittance (path, wavelength) on the fine grid:
-    -2.5 log10 of the solar- and passband-weighted mean transmittance, trapezoid rule on
-    the fine grid itself (``spectrum_to_magnitude`` samples spectra at whole nanometres,
-    which would hide sub-nanometre structure)."""
+    """Extinction in B, V, R, I [mag] of transmittance (path, wavelength) on the fine grid.
+
+    -2.5 log10 of the solar- and passband-weighted mean transmittance, trapezoid rule on the fine
+    grid itself (``spectrum_to_magnitude`` samples spectra at whole nanometres, which would hide
+    sub-nanometre structure).
+    """
     out = {}
     for band, response in RESPONSES.items():
         weight = solar * response(fine)

@@ -395,7 +395,7 @@ def i_band_response(wavelength_nm) -> torch.Tensor:
 
 
 def band_grid(band: str, dtype: torch.dtype = torch.float64) -> torch.Tensor:
-    """The 1-nm grid on which :func:`spectrum_to_magnitude` integrates a passband.
+    """Return the 1-nm grid on which :func:`spectrum_to_magnitude` integrates a passband.
 
     Parameters
     ----------
@@ -468,8 +468,10 @@ def _hat_weights(wavelength: torch.Tensor, fine: torch.Tensor) -> torch.Tensor:
 
 
 def _fine_response(response: str) -> torch.Tensor:
-    """Response functions (n_fine, k) on the 1-nm grid of ``response``: ``"xyz"`` (k = 3)
-    or a band of :data:`BANDS` (k = 1)."""
+    """Response functions (n_fine, k) on the 1-nm grid of ``response``.
+
+    ``"xyz"`` (k = 3) or a band of :data:`BANDS` (k = 1).
+    """
     if response == "xyz":
         return _table("cie1931_2deg_cmf.csv")[:, 1:4]
     band_table = _band_table(response)

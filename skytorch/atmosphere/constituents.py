@@ -1,4 +1,4 @@
-"""The constituents of an atmosphere at given wavelengths: the one interface to every kernel.
+r"""The constituents of an atmosphere at given wavelengths: the one interface to every kernel.
 
 :meth:`skytorch.atmosphere.Atmosphere.constituents` returns a :class:`Constituents`, an
 immutable value object holding, per species by name (a :class:`Species`):
@@ -6,13 +6,13 @@ immutable value object holding, per species by name (a :class:`Species`):
 * its vertical **profile** (a :class:`Profile`): the density relative to a reference
   density as a pure function of altitude, callable on tensors, with the quadrature
   **breakpoints** (profile kinks, layer peaks) and the column height
-  :math:`\\int_0^{top}\\rho\\,dh`;
+  :math:`\int_0^{top}\rho\,dh`;
 * its **extinction** and **scattering** coefficients at the reference density
   (``(*batch, wavelength)`` [1/m], batched over the atmosphere's parameters), hence its
   **single-scattering albedo**;
 * a **phase-function** handle (``None`` for pure absorbers);
-* an optional **nonlinear law** :math:`\\tau = f(u)` of its path column :math:`u` (band
-  models with a curve of growth); linear species have :math:`\\tau = k\\,u`.
+* an optional **nonlinear law** :math:`\tau = f(u)` of its path column :math:`u` (band
+  models with a curve of growth); linear species have :math:`\tau = k\,u`.
 
 Every optical depth in skytorch is computed from per-species PATH COLUMNS through one
 method, :meth:`Constituents.optical_depth`: straight rays
@@ -47,7 +47,7 @@ becomes a float64 buffer, ``atmosphere.<name>``, batched like the others; read i
 to ``dtype``). Nothing else changes: every kernel (optical depth, refraction, single
 scattering, shadow, skyglow) sees the species through :class:`Constituents`. Worked
 example: a uniformly mixed absorber following the molecules with a curve-of-growth law
-:math:`\\tau = S(\\lambda)\\sqrt{u}` of its column :math:`u = N_{ref}\\int\\rho\\,ds`
+:math:`\tau = S(\lambda)\sqrt{u}` of its column :math:`u = N_{ref}\int\rho\,ds`
 [m^-2] (a nonlinear law: only the path column is used, so it is right along refracted
 paths as well):
 
@@ -142,7 +142,7 @@ def _frozen(mapping: Mapping[str, torch.Tensor]) -> Mapping[str, torch.Tensor]:
 
 @dataclass(frozen=True)
 class Profile:
-    """A vertical profile: relative density as a pure function of altitude.
+    r"""A vertical profile: relative density as a pure function of altitude.
 
     Parameters
     ----------
@@ -159,7 +159,7 @@ class Profile:
         profiles: multiples of the scale height, so that the relative accuracy does not
         depend on the observer's altitude). Exactly one of the two is given.
     column_height_m : Tensor (*B)
-        :math:`\\int_0^{top}\\rho(h)\\,dh` [m]: a vertical column of the species is its
+        :math:`\int_0^{top}\rho(h)\,dh` [m]: a vertical column of the species is its
         reference density times this height.
     truncate : bool
         The last breakpoint ends the path integrals (negligible density above).
@@ -187,6 +187,7 @@ class Profile:
     from_state: Callable[..., torch.Tensor] | None = None
 
     def __post_init__(self):
+        """Check that exactly one kind of breakpoints is given."""
         if (self.breakpoints_m is None) == (self.relative_breakpoints_m is None):
             raise ValueError("a Profile takes exactly one of breakpoints_m and "
                              "relative_breakpoints_m")
@@ -204,8 +205,10 @@ class Profile:
         return self.function(altitude_m, **parameters)
 
     def _evaluate(self, altitude_m: torch.Tensor, extra: int, states: dict) -> torch.Tensor:
-        """:meth:`__call__`, taking the state from (or adding it to) ``states``, a dict by
-        state function of the states already evaluated at this ``altitude_m``."""
+        """:meth:`__call__`, taking the state from (or adding it to) ``states``.
+
+        A dict by state function of the states already evaluated at this ``altitude_m``.
+        """
         if self.state is None:
             return self(altitude_m, extra)
         state = states.get(self.state)
@@ -216,8 +219,10 @@ class Profile:
         return self.from_state(state, **parameters)
 
     def _same_quadrature(self, other: Profile) -> bool:
-        """Same pieces along every path: equal breakpoints (constants, not needing a
-        gradient), ``truncate`` and ``support``."""
+        """Return same pieces along every path.
+
+        Equal breakpoints (constants, not needing a gradient), ``truncate`` and ``support``.
+        """
         if (self.truncate, self.support) != (other.truncate, other.support):
             return False
         for mine, theirs in ((self.breakpoints_m, other.breakpoints_m),
@@ -245,7 +250,7 @@ class Profile:
 
 @dataclass(frozen=True)
 class Species:
-    """One constituent: profile, spectral coefficients, phase function, optical-depth law.
+    r"""One constituent: profile, spectral coefficients, phase function, optical-depth law.
 
     Parameters
     ----------
@@ -268,7 +273,7 @@ class Species:
     law : callable, optional
         ``law(column, extra)``: with the path column ``column`` (*B', *extra) [m] the
         optical depth (*B', *extra, wavelength) [1]. ``None``: linear,
-        :math:`\\tau = k_{ext}\\,u`.
+        :math:`\tau = k_{ext}\,u`.
     vanishes : bool
         The species is exactly absent (a zero amount that needs no gradient): its
         columns are zero without integration.
@@ -283,6 +288,7 @@ class Species:
     vanishes: bool = False
 
     def __post_init__(self):
+        """Check the species' fields (TypeError/ValueError naming the field)."""
         if not isinstance(self.name, str) or not self.name:
             raise TypeError(f"a species name must be a non-empty string; got {self.name!r}")
         if self.scattering is not None and self.phase is None:
@@ -290,8 +296,10 @@ class Species:
 
     @property
     def single_scattering_albedo(self) -> torch.Tensor:
-        """Scattering over extinction (*B, wavelength) [1] (0 for pure absorbers and where
-        the extinction is zero)."""
+        """Scattering over extinction (*B, wavelength) [1].
+
+        0 for pure absorbers and where the extinction is zero.
+        """
         if self.scattering is None:
             return torch.zeros_like(self.extinction)
         safe = torch.where(self.extinction > 0, self.extinction,
@@ -334,7 +342,7 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
                      n_steps: int | None = None, rtol: float = 1e-9, extra: int = 0,
                      vanishing: tuple[str, ...] = (), batch_shape: tuple = ()
                      ) -> dict[str, torch.Tensor]:
-    """Path columns :math:`\\int\\rho_s\\,ds` [m] of each profile along straight rays.
+    r"""Path columns :math:`\int\rho_s\,ds` [m] of each profile along straight rays.
 
     Parameters
     ----------
@@ -395,8 +403,10 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
 
 
 def _fits(total: torch.Tensor, *shapes, dtype: torch.dtype) -> bool:
-    """Whether terms of ``shapes`` and ``dtype`` add into ``total`` in place (they broadcast
-    to its shape and do not promote its dtype)."""
+    """Whether terms of ``shapes`` and ``dtype`` add into ``total`` in place.
+
+    They broadcast to its shape and do not promote its dtype.
+    """
     if torch.promote_types(total.dtype, dtype) != total.dtype:
         return False
     try:
@@ -458,6 +468,7 @@ class Constituents:
     batch_shape: torch.Size = field(default_factory=torch.Size)
 
     def __post_init__(self):
+        """Store the species as a tuple of unique names and the batch shape as a Size."""
         species = tuple(self.species)
         names = [s.name for s in species]
         if len(set(names)) != len(names):
@@ -473,19 +484,23 @@ class Constituents:
 
     @property
     def dtype(self) -> torch.dtype:
+        """Floating dtype of the wavelengths and the results."""
         return self.wavelength_nm.dtype
 
     @property
     def top_altitude_m(self) -> float:
+        """Altitude of the top of the atmosphere [m]."""
         return self.top_radius_m - self.planet_radius_m
 
     def __getitem__(self, name: str) -> Species:
+        """Return the species called ``name`` (KeyError listing the species otherwise)."""
         for species in self.species:
             if species.name == name:
                 return species
         raise KeyError(f"no species {name!r}; species: {', '.join(self.names)}")
 
     def __contains__(self, name) -> bool:
+        """Whether a species is called ``name``."""
         return name in self.names
 
     @property
@@ -494,34 +509,38 @@ class Constituents:
         return {s.name: s.profile for s in self.species}
 
     def scatterers(self) -> tuple[Species, ...]:
-        """The species that scatter (``scattering`` not None)."""
+        """Return the species that scatter (``scattering`` not None)."""
         return tuple(s for s in self.species if s.scattering is not None)
 
     # ------------------------------------------------------------------ columns
     def column_integrals(self, r, mu, *, method: str = "gauss", n_steps: int | None = None,
                          rtol: float = 1e-9, extra: int = 0) -> dict[str, torch.Tensor]:
-        """Path columns [m] of every species along straight rays from radius ``r`` [m]
-        with zenith cosine ``mu`` (*B', *extra) (see :func:`column_integrals`)."""
+        """Path columns [m] of every species along straight rays from radius ``r`` [m].
+
+        With zenith cosine ``mu`` (*B', *extra) (see :func:`column_integrals`).
+        """
         return column_integrals(self.profiles, r, mu, self.planet_radius_m, self.top_radius_m,
                                 method=method, n_steps=n_steps, rtol=rtol, extra=extra,
                                 vanishing=tuple(s.name for s in self.species if s.vanishes),
                                 batch_shape=self.batch_shape)
 
     def densities(self, altitude_m: torch.Tensor, extra: int = 0) -> dict[str, torch.Tensor]:
-        """Relative density of every species at ``altitude_m`` (*B', *extra, n_sample)
-        (a :attr:`Profile.state` shared by several species evaluated once)."""
+        """Relative density of every species at ``altitude_m`` (*B', *extra, n_sample).
+
+        A :attr:`Profile.state` shared by several species evaluated once.
+        """
         states = {}
         return {s.name: s.profile._evaluate(altitude_m, extra, states) for s in self.species}
 
     # ------------------------------------------------------------------ optical depth
     def optical_depth(self, columns: Mapping[str, torch.Tensor], *, per_species: bool = False,
                       extra: int = 0):
-        """Optical depth of per-species path columns: the one place where columns become τ.
+        r"""Optical depth of per-species path columns: the one place where columns become τ.
 
         Parameters
         ----------
         columns : mapping of str to Tensor (*B', *extra)
-            Path column :math:`\\int\\rho_s\\,ds` [m] of every species (straight,
+            Path column :math:`\int\rho_s\,ds` [m] of every species (straight,
             refracted or partial paths alike).
         per_species : bool
             Return a dict by species name instead of the total.
@@ -565,17 +584,21 @@ class Constituents:
     # ------------------------------------------------------------------ local coefficients
     def extinction_coefficients(self, altitude_m: torch.Tensor, extra: int = 0
                                 ) -> dict[str, torch.Tensor]:
-        """Local extinction coefficient of every species (*B', *extra, n_sample, wavelength)
-        [1/m] at ``altitude_m`` (*B', *extra, n_sample) (the linear coefficient times the
-        density; a species with a nonlinear law contributes its ``extinction``)."""
+        """Local extinction coefficient of every species (*B', *extra, n_sample, wavelength) [1/m].
+
+        At ``altitude_m`` (*B', *extra, n_sample): the linear coefficient times the density; a
+        species with a nonlinear law contributes its ``extinction``.
+        """
         states = {}
         return {s.name: s.profile._evaluate(altitude_m, extra, states)[..., None]
                 * insert_dims(s.extinction, extra + 1, 1) for s in self.species}
 
     def scattering_coefficients(self, altitude_m: torch.Tensor, extra: int = 0
                                 ) -> dict[str, torch.Tensor]:
-        """Local scattering coefficient of every scattering species (*B', *extra, n_sample,
-        wavelength) [1/m]."""
+        """Local scattering coefficient of the scattering species [1/m].
+
+        Shape (*B', *extra, n_sample, wavelength).
+        """
         states = {}
         return {s.name: s.profile._evaluate(altitude_m, extra, states)[..., None]
                 * insert_dims(s.scattering, extra + 1, 1) for s in self.scatterers()}

@@ -1,8 +1,8 @@
-"""The :class:`Atmosphere` module: constituents, their profiles and spectral coefficients.
+r"""The :class:`Atmosphere` module: constituents, their profiles and spectral coefficients.
 
 An atmosphere is a spherical shell between ``planet_radius_m`` and ``top_radius_m``
-holding three constituents, each a dimensionless density profile :math:`\\rho_s(h)`
-times a spectral extinction coefficient at the reference level :math:`k_s(\\lambda)`:
+holding three constituents, each a dimensionless density profile :math:`\rho_s(h)`
+times a spectral extinction coefficient at the reference level :math:`k_s(\lambda)`:
 
 * molecules (Rayleigh scattering; :mod:`skytorch.atmosphere.rayleigh`), exponential or
   U.S. Standard Atmosphere 1976 profile; the column of molecules is that of a
@@ -17,9 +17,9 @@ times a spectral extinction coefficient at the reference level :math:`k_s(\\lamb
   column given in Dobson units.
 
 The refractivity :math:`n - 1` is proportional to the gas density,
-:math:`(n-1)(h) = (n-1)_{ref}\\,(p/p_{ref})(T_{ref}/T)\\,\\rho(h)` (2.77e-4 at
+:math:`(n-1)(h) = (n-1)_{ref}\,(p/p_{ref})(T_{ref}/T)\,\rho(h)` (2.77e-4 at
 1013.25 hPa, 288.15 K on Earth; 3.38e-6 at 610 Pa, 215 K on Mars, ref. 1), with
-:math:`\\rho` the molecular profile or, with ``refractivity_profile="us1976"`` (the
+:math:`\rho` the molecular profile or, with ``refractivity_profile="us1976"`` (the
 default of :meth:`Atmosphere.earth`), the U.S. Standard Atmosphere 1976 density (a
 realistic lapse rate for refraction near the horizon, while optical depths keep the
 molecular profile).
@@ -173,8 +173,10 @@ WAVELENGTH_RANGE_NM = _rayleigh.WAVELENGTH_RANGE_NM
 
 
 class _FromProfile:
-    """Default of a keyword taken from the sounding when one is given (otherwise the
-    documented standard value); ``None`` stays an invalid value."""
+    """Default of a keyword taken from the sounding when one is given.
+
+    Otherwise the documented standard value; ``None`` stays an invalid value.
+    """
 
     def __repr__(self) -> str:
         return "<standard value, or the sounding's>"
@@ -186,7 +188,7 @@ FROM_PROFILE = _FromProfile()
 
 def _check_parameter(name: str, value, *, low=None, high=None, low_inclusive=None,
                      unit=None) -> torch.Tensor:
-    """A constructor parameter as a float64 tensor, within :data:`PARAMETER_RANGES`.
+    """Return a constructor parameter as a float64 tensor, within :data:`PARAMETER_RANGES`.
 
     Booleans are refused (``True`` is not a pressure); integer tensors are promoted.
     """
@@ -248,7 +250,7 @@ def _parameter_batch_shape(values: dict) -> torch.Size:
 
 @lru_cache(maxsize=1)
 def _us1976_column_height_m() -> float:
-    """:math:`\\int_0^\\infty \\rho_{US1976}(h)\\,dh` [m] by fine trapezoid (0–200 km)."""
+    r""":math:`\int_0^\infty \rho_{US1976}(h)\,dh` [m] by fine trapezoid (0–200 km)."""
     altitude = torch.linspace(0.0, 200e3, 200_001, dtype=torch.float64)
     return float(torch.trapezoid(_profiles.us1976(altitude), altitude))
 
@@ -369,7 +371,7 @@ class Atmosphere(nn.Module):
     torch.Size([3])
     """
 
-    def __init__(self, *, planet_radius_m: float, top_altitude_m: float,
+    def __init__(self, *, planet_radius_m: float, top_altitude_m: float,  # noqa: C901 (a flat list of parameter checks)
                  surface_pressure_pa=FROM_PROFILE,
                  surface_temperature_k=FROM_PROFILE,
                  gravity_m_s2=EARTH_GRAVITY_M_S2,
@@ -482,8 +484,7 @@ class Atmosphere(nn.Module):
     @classmethod
     def earth(cls, turbidity=None, ozone_du=FROM_PROFILE, *, aerosol_optical_depth=None,
               angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA, **options) -> Atmosphere:
-        """Earth: air, U.S. Standard Atmosphere 1976 molecules, Preetham aerosols, ozone
-        tent.
+        r"""Earth: air, U.S. Standard Atmosphere 1976 molecules, Preetham aerosols, ozone tent.
 
         One vertical structure: optical depths, scattering and the refractive index all
         follow the U.S. Standard Atmosphere 1976 density (``molecule_profile="us1976"``;
@@ -496,8 +497,8 @@ class Atmosphere(nn.Module):
         ----------
         turbidity : float or Tensor, optional
             Preetham turbidity :math:`T` in :data:`TURBIDITY_RANGE` = [1, 64] (1:
-            practically no aerosols, 10: hazy); :math:`\\beta = 0.04608 T - 0.04586`,
-            :math:`\\alpha = 1.3` (ref. 3). Default 2 unless ``aerosol_optical_depth`` is
+            practically no aerosols, 10: hazy); :math:`\beta = 0.04608 T - 0.04586`,
+            :math:`\alpha = 1.3` (ref. 3). Default 2 unless ``aerosol_optical_depth`` is
             given.
         ozone_du : float or Tensor, optional
             Ozone column [DU]; default 300, or the column of the sounding's
@@ -613,6 +614,7 @@ class Atmosphere(nn.Module):
         return result
 
     def extra_repr(self) -> str:
+        """Return the parameters as JSON, for the module's repr."""
         return json.dumps(self.parameters_dict())
 
     def _p(self, key: str, dtype: torch.dtype, trailing: int = 0) -> torch.Tensor:
@@ -629,12 +631,14 @@ class Atmosphere(nn.Module):
         return value.reshape(tuple(value.shape) + (1,) * trailing)
 
     def with_parameters(self, transform) -> Atmosphere:
-        """A shallow copy whose parameter buffers are ``transform(buffer)`` (e.g. laid out
-        like a flat list of rays; the transformed buffers keep their autograd graph)."""
+        """Return a shallow copy whose parameter buffers are ``transform(buffer)``.
+
+        e.g. laid out like a flat list of rays; the transformed buffers keep their autograd graph.
+        """
         return self._with_parameters(transform)
 
     def _with_parameters(self, transform) -> Atmosphere:
-        """A shallow copy whose parameter buffers are ``transform(buffer)``.
+        """Return a shallow copy whose parameter buffers are ``transform(buffer)``.
 
         Used to lay the parameters out like a flat list of rays (ray tracing that
         follows each ray separately); the copy shares everything else, the transformed
@@ -648,8 +652,9 @@ class Atmosphere(nn.Module):
 
     # ------------------------------------------------------------------ species
     def profiles(self, dtype: torch.dtype = torch.float64) -> dict[str, Profile]:
-        """The vertical profile of every species, by name (see
-        :class:`skytorch.atmosphere.constituents.Profile`).
+        """Return the vertical profile of every species.
+
+        By name (see :class:`skytorch.atmosphere.constituents.Profile`).
 
         Parameters
         ----------
@@ -721,8 +726,11 @@ class Atmosphere(nn.Module):
                    * self._p("gravity_m_s2", dtype, extra)))
 
     def _shape_profile(self, kind: str, dtype: torch.dtype):
-        """The molecular density shape ``kind`` ("exponential", "us1976", "sounding") as a
-        function of altitude with a trailing sample dim (refractivity)."""
+        """Return the molecular density shape ``kind`` as a function of altitude.
+
+        ``kind`` is "exponential", "us1976" or "sounding"; the function has a trailing sample dim
+        (refractivity).
+        """
         if kind == "sounding":
             return _sounding_molecules(self, dtype)[0]
         if kind == "us1976":
@@ -732,8 +740,11 @@ class Atmosphere(nn.Module):
 
     @staticmethod
     def _ozone_temperature(given, values: dict, sounding=None) -> torch.Tensor:
-        """``ozone_temperature_k`` checked, or by default the US 1976 tent average [K]
-        (with a sounding that gives ozone: its ozone-weighted temperature)."""
+        """Return ``ozone_temperature_k`` checked, or its default [K].
+
+        By default the US 1976 tent average (with a sounding that gives ozone: its ozone-weighted
+        temperature).
+        """
         if given is not None:
             return _check_parameter("ozone_temperature_k", given)
         if sounding is not None and "ozone_number_density_m3" in sounding:
@@ -766,7 +777,7 @@ class Atmosphere(nn.Module):
         return not ozone.requires_grad and not bool(ozone.detach().any())
 
     def reference_extinction(self, wavelength_nm) -> dict[str, torch.Tensor]:
-        """Extinction coefficient of each species where its relative density is 1.
+        r"""Extinction coefficient of each species where its relative density is 1.
 
         The extinction coefficient of species ``s`` at altitude ``h`` is
         ``relative_density(s, h) * reference_extinction(wavelength_nm)[s]``, so the
@@ -789,10 +800,10 @@ class Atmosphere(nn.Module):
 
         Notes
         -----
-        Rayleigh: :math:`N_{col}\\,\\sigma_R(\\lambda)/\\int\\rho\\,dh` (the profile's
+        Rayleigh: :math:`N_{col}\,\sigma_R(\lambda)/\int\rho\,dh` (the profile's
         ``column_height_m``); aerosol:
-        :math:`\\beta\\,(\\lambda/1000\\,\\mathrm{nm})^{-\\alpha}/H_a`; ozone:
-        :math:`\\mathrm{DU}\\,N_{DU}\\,\\sigma_{O_3}(\\lambda)/w` (tent half width
+        :math:`\beta\,(\lambda/1000\,\mathrm{nm})^{-\alpha}/H_a`; ozone:
+        :math:`\mathrm{DU}\,N_{DU}\,\sigma_{O_3}(\lambda)/w` (tent half width
         :math:`w`).
 
         Examples
@@ -843,7 +854,7 @@ class Atmosphere(nn.Module):
 
     # ------------------------------------------------------------------ local coefficients
     def _local(self, altitude_m, wavelength_nm):
-        """The constituents and each species' local extinction (..., wavelength) [1/m]."""
+        """Return the constituents and each species' local extinction (..., wavelength) [1/m]."""
         dtype = common_dtype(altitude_m, wavelength_nm)
         constituents = self._constituents(wavelength_tensor(wavelength_nm, dtype))
         altitude = altitude_tensor(altitude_m, dtype)
@@ -869,8 +880,10 @@ class Atmosphere(nn.Module):
         return sum(self._local(altitude_m, wavelength_nm)[2].values())
 
     def scattering_coefficients(self, altitude_m, wavelength_nm) -> dict[str, torch.Tensor]:
-        """Scattering coefficients ``{"rayleigh", "aerosol", "stratospheric_aerosol"}``
-        (..., wavelength) [1/m] (every species that scatters)."""
+        """Scattering coefficients (..., wavelength) [1/m] of every species that scatters.
+
+        A dict with keys ``{"rayleigh", "aerosol", "stratospheric_aerosol"}``.
+        """
         constituents, altitude, _ = self._local(altitude_m, wavelength_nm)
         local = constituents.scattering_coefficients(altitude[..., None])
         return {key: value[..., 0, :] for key, value in local.items()}
@@ -939,7 +952,7 @@ class Atmosphere(nn.Module):
 
     @property
     def refractivity_kinks_m(self) -> tuple[float, ...]:
-        """Altitudes where :math:`\\mathrm{d}n/\\mathrm{d}h` jumps [m].
+        r"""Altitudes where :math:`\mathrm{d}n/\mathrm{d}h` jumps [m].
 
         The U.S. Standard Atmosphere 1976 layer bases (its lapse rate jumps there); empty
         for the exponential profile. The bending of a ray whose lowest point lies just
@@ -957,14 +970,15 @@ class Atmosphere(nn.Module):
 
     # ------------------------------------------------------------------ state of the gas
     def temperature_k(self, altitude_m) -> torch.Tensor:
-        """Temperature of the gas [K] at ``altitude_m`` (...) [m], shape broadcast with the
-        parameters.
+        r"""Temperature of the gas [K] at ``altitude_m`` (...) [m].
+
+        Shape broadcast with the parameters.
 
         ``"us1976"``: the standard's temperature times ``surface_temperature_k / 288.15``;
         ``"exponential"``: isothermal at ``surface_temperature_k``; ``"sounding"``: the
         sounding's temperature interpolated linearly (held above its top), scaled to
         ``surface_temperature_k`` at 0 m. With :meth:`pressure_pa` it gives the molecular
-        number density shape, :math:`p/(kT) \\propto \\rho(h)`.
+        number density shape, :math:`p/(kT) \propto \rho(h)`.
         """
         dtype = common_dtype(altitude_m)
         altitude = altitude_tensor(altitude_m, dtype)
@@ -980,8 +994,9 @@ class Atmosphere(nn.Module):
                                                                      above=None)
 
     def pressure_pa(self, altitude_m) -> torch.Tensor:
-        """Pressure of the gas [Pa] at ``altitude_m`` (...) [m], shape broadcast with the
-        parameters.
+        """Pressure of the gas [Pa] at ``altitude_m`` (...) [m].
+
+        Shape broadcast with the parameters.
 
         ``surface_pressure_pa`` times the profile's pressure ratio: U.S. Standard
         Atmosphere 1976, :math:`e^{-h/H}` (exponential), or the sounding's pressure
@@ -1003,7 +1018,7 @@ class Atmosphere(nn.Module):
         return surface / zero.to(dtype) * _profiles.log_linear(altitude, nodes, log_p)
 
     def water_vapour_profile(self, dtype: torch.dtype = torch.float64) -> Profile | None:
-        """The sounding's water-vapour number density relative to its maximum, or None.
+        """Return the sounding's water-vapour number density relative to its maximum, or None.
 
         ``h2o_vmr`` times :math:`p/(kT)` at the levels, interpolated linearly, zero above
         the top level; breakpoints at the levels; ``column_height_m`` its integral from
@@ -1018,7 +1033,7 @@ class Atmosphere(nn.Module):
                        torch.trapezoid(relative, nodes), breakpoints_m=nodes, support=True)
 
     def refractivity(self, altitude_m, wavelength_nm=None) -> torch.Tensor:
-        """Refractivity :math:`n - 1` of the gas at ``altitude_m``.
+        r"""Refractivity :math:`n - 1` of the gas at ``altitude_m``.
 
         Parameters
         ----------
@@ -1031,7 +1046,7 @@ class Atmosphere(nn.Module):
         Returns
         -------
         Tensor (...) or (..., wavelength)
-            :math:`(n-1)_{ref} (p/p_{ref})(T_{ref}/T) \\rho(h)` [1], :math:`\\rho` the
+            :math:`(n-1)_{ref} (p/p_{ref})(T_{ref}/T) \rho(h)` [1], :math:`\rho` the
             ``refractivity_profile`` normalised to 1 at the ground.
         """
         dtype = common_dtype(altitude_m, wavelength_nm)
@@ -1054,7 +1069,7 @@ class Atmosphere(nn.Module):
     def column_integrals(self, zenith_rad=0.0, altitude_m=0.0, *, method: str = "gauss",
                          n_steps: int | None = None, rtol: float = 1e-9,
                          dtype: torch.dtype | None = None) -> dict[str, torch.Tensor]:
-        """Path integrals :math:`\\int \\rho_s\\,ds` [m] of each species' profile.
+        r"""Path integrals :math:`\int \rho_s\,ds` [m] of each species' profile.
 
         Parameters
         ----------
@@ -1095,7 +1110,7 @@ class Atmosphere(nn.Module):
                       per_species: bool = False, refraction: bool = False,
                       rtol: float = 1e-9, n_nodes: int | None = None,
                       step_m: float | None = None, max_dh_m: float | None = None):
-        """Slant optical depth along a straight (or refracted) ray to space or the ground.
+        r"""Slant optical depth along a straight (or refracted) ray to space or the ground.
 
         Parameters
         ----------
@@ -1132,7 +1147,7 @@ class Atmosphere(nn.Module):
 
         Notes
         -----
-        :math:`\\tau(\\lambda) = \\sum_s k_s(\\lambda)\\int \\rho_s(h(s))\\,ds`: the path
+        :math:`\tau(\lambda) = \sum_s k_s(\lambda)\int \rho_s(h(s))\,ds`: the path
         integrals are computed per species (3) and multiplied by the spectral
         coefficients, so the cost does not grow with the number of wavelengths.
         """
@@ -1164,8 +1179,11 @@ class Atmosphere(nn.Module):
 
     def _optical_depth(self, wavelength, zenith, altitude, *, method="gauss", n_steps=None,
                        rtol=1e-9, per_species=False, extra: int = 0):
-        """Straight-ray optical depth of checked inputs; ``extra`` geometry dims follow the
-        parameters' batch dims (e.g. samples along a view ray), before the wavelength."""
+        """Straight-ray optical depth of checked inputs.
+
+        ``extra`` geometry dims follow the parameters' batch dims (e.g. samples along a view ray),
+        before the wavelength.
+        """
         constituents = self._constituents(wavelength)
         columns = constituents.column_integrals(self.planet_radius_m + altitude,
                                                 torch.cos(zenith), method=method,
@@ -1174,8 +1192,9 @@ class Atmosphere(nn.Module):
 
     def transmittance(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, **options
                       ) -> torch.Tensor:
-        """Direct transmittance :math:`e^{-\\tau}` (..., wavelength) [1]; exactly 0 when
-        :math:`\\tau` is huge (use :meth:`optical_depth` for log-transmittance).
+        r"""Direct transmittance :math:`e^{-\tau}` (..., wavelength) [1].
+
+        Exactly 0 when :math:`\tau` is huge (use :meth:`optical_depth` for log-transmittance).
 
         ``options`` are the keywords of :meth:`optical_depth` (an unknown one raises
         TypeError); ``per_species`` is not one of them.
@@ -1263,20 +1282,22 @@ class Atmosphere(nn.Module):
         return _refraction.refraction_angle(self, apparent_altitude_rad, altitude_m, **options)
 
     def apparent_altitude(self, true_altitude_rad, altitude_m=0.0, **options) -> torch.Tensor:
-        """Apparent altitude of a source at ``true_altitude_rad`` [rad] (inverse of
-        :meth:`refraction`); delegates to :mod:`skytorch.atmosphere.refraction`."""
+        """Apparent altitude of a source at ``true_altitude_rad`` [rad].
+
+        The inverse of :meth:`refraction`; delegates to :mod:`skytorch.atmosphere.refraction`.
+        """
         from skytorch.atmosphere import refraction as _refraction
 
         return _refraction.apparent_altitude(self, true_altitude_rad, altitude_m, **options)
 
     def forward(self, wavelength_nm, zenith_rad=0.0, altitude_m=0.0, **options
                 ) -> torch.Tensor:
-        """Same as :meth:`transmittance`."""
+        """Return same as :meth:`transmittance`."""
         return self.transmittance(wavelength_nm, zenith_rad, altitude_m, **options)
 
 
 def wavelength_tensor(wavelength_nm, dtype: torch.dtype | None = None) -> torch.Tensor:
-    """Checked wavelengths as a 1-D tensor (n_wavelength,) [nm].
+    """Return checked wavelengths as a 1-D tensor (n_wavelength,) [nm].
 
     Parameters
     ----------
@@ -1311,7 +1332,7 @@ def wavelength_tensor(wavelength_nm, dtype: torch.dtype | None = None) -> torch.
 
 
 def altitude_tensor(altitude_m, dtype: torch.dtype | None = None) -> torch.Tensor:
-    """Checked observer altitudes (>= 0) [m], cast to ``dtype`` after the check.
+    """Return checked observer altitudes (>= 0) [m], cast to ``dtype`` after the check.
 
     Checked in the input's own precision (-1e-300 is below the ground even though it
     rounds to -0.0 in float32); ValueError below the surface.
@@ -1348,7 +1369,7 @@ def _sounding_surface(sounding) -> tuple[float, float]:
 
 
 def _sounding_ozone_du(sounding, top_m: float) -> float:
-    """The ozone column of the sounding from 0 m to the top [DU] (0 without ozone)."""
+    """Return the ozone column of the sounding from 0 m to the top [DU] (0 without ozone)."""
     if sounding is None or "ozone_number_density_m3" not in sounding:
         return 0.0
     nodes, relative, peak = _sounding_ozone(sounding, top_m, torch.float64)
@@ -1356,8 +1377,10 @@ def _sounding_ozone_du(sounding, top_m: float) -> float:
 
 
 def _sounding_ozone(sounding, top_m: float, dtype):
-    """Ozone levels clipped to [0, top] [m], density relative to its maximum there, and
-    that maximum [m^-3]."""
+    """Return the ozone levels clipped to [0, top] [m], the relative density, its maximum.
+
+    The density is relative to its maximum there; the maximum is in [m^-3].
+    """
     altitude = sounding["altitude_m"]
     density = sounding["ozone_number_density_m3"]
     inside = altitude[(altitude > 0.0) & (altitude < top_m)]
@@ -1381,8 +1404,10 @@ def _sounding_digest(sounding) -> str | None:
 
 
 def _sounding_molecules(atm, dtype):
-    """The sounding's molecular shape p/(kT) relative to 0 m: (function, breakpoints,
-    column height)."""
+    """Return the sounding's molecular shape p/(kT) relative to 0 m.
+
+    As (function, breakpoints, column height).
+    """
     sounding = atm.sounding
     nodes = sounding["altitude_m"]
     log_density = torch.log(sounding["number_density_m3"])
@@ -1399,7 +1424,7 @@ def _sounding_molecules(atm, dtype):
 
 
 def _us1976_density(state) -> torch.Tensor:
-    """The density ratio of a :func:`skytorch.atmosphere.profiles.us1976_state`."""
+    """Return the density ratio of a :func:`skytorch.atmosphere.profiles.us1976_state`."""
     return state[1]
 
 
@@ -1458,8 +1483,11 @@ def _aerosol_species(atm, wavelength, dtype, profile) -> Species:
 
 
 def _typed_aerosol_species(atm, wide, dtype, profile) -> Species:
-    """The aerosol of a named type: the Ångström law's extinction at 550 nm times the
-    type's Mie spectrum relative to 550 nm; Mie albedo; phase with the Mie g(λ)."""
+    """Return the aerosol of a named type.
+
+    The Ångström law's extinction at 550 nm times the type's Mie spectrum relative to 550 nm; Mie
+    albedo; phase with the Mie g(λ).
+    """
     ratio, albedo, asymmetry = _aerosol.aerosol_type_properties(atm.aerosol_type, wide)
     at_550 = (atm._p("angstrom_beta", torch.float64, 1)
               * (550.0 / _aerosol.ANGSTROM_REFERENCE_NM)
@@ -1545,7 +1573,7 @@ SPECIES_BUILDERS = (
 
 
 def _check_flag(name: str, value) -> bool:
-    """A boolean option (TypeError for anything else, e.g. a string "False")."""
+    """Return a boolean option (TypeError for anything else, e.g. a string "False")."""
     if not isinstance(value, bool):
         raise TypeError(f"{name} must be True or False; got {value!r}")
     return value
@@ -1565,7 +1593,7 @@ def _check_vertical(species: str, vertical: torch.Tensor, altitude_m) -> None:
 
 
 def _check_quadrature(method, n_steps, rtol) -> None:
-    """Checked straight-ray quadrature options (before any arithmetic)."""
+    """Return checked straight-ray quadrature options (before any arithmetic)."""
     check_choice("method", method, _od.METHODS)
     if n_steps is not None:
         check_int("n_steps", n_steps, 1)

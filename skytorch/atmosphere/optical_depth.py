@@ -1,9 +1,9 @@
-"""Column integrals of density profiles along straight rays, and the Chapman function.
+r"""Column integrals of density profiles along straight rays, and the Chapman function.
 
 The optical depth of a species whose extinction coefficient is
-:math:`k(\\lambda)\\,\\rho(h)` (a spectral coefficient times a dimensionless density
-profile) is :math:`\\tau(\\lambda) = k(\\lambda) \\int \\rho(h(s))\\,ds`. The path integral
-:math:`I = \\int \\rho\\,ds` [m] does not depend on wavelength, so it is computed once per
+:math:`k(\lambda)\,\rho(h)` (a spectral coefficient times a dimensionless density
+profile) is :math:`\tau(\lambda) = k(\lambda) \int \rho(h(s))\,ds`. The path integral
+:math:`I = \int \rho\,ds` [m] does not depend on wavelength, so it is computed once per
 species and ray, and the spectral dimension costs one multiplication.
 
 Along a ray with impact parameter :math:`p`, parametrised by the signed distance
@@ -25,7 +25,7 @@ Methods (``METHODS``):
     falls below ``rtol`` (or 128 nodes).
 
 For an exponential profile the integral from an observer at radius :math:`r_0` to
-infinity is :math:`\\rho(h_0) H\\,\\mathrm{Ch}(r_0/H, z)` with the Chapman function
+infinity is :math:`\rho(h_0) H\,\mathrm{Ch}(r_0/H, z)` with the Chapman function
 (ref. 1); :func:`chapman` gives Chapman's closed-form asymptotic expression and
 :func:`chapman_horizontal` the exact closed form at :math:`z = 90°` (ref. 2).
 
@@ -89,8 +89,11 @@ Density = Callable[[torch.Tensor], torch.Tensor]
 
 
 def check_rtol(rtol) -> float:
-    """The relative tolerance of ``"adaptive"`` as a float in (0, 1] (ValueError naming
-    ``rtol`` for NaN, inf, zero, negative or larger values; TypeError for non-numbers)."""
+    """Return the relative tolerance of ``"adaptive"`` as a float in (0, 1].
+
+    ValueError naming ``rtol`` for NaN, inf, zero, negative or larger values; TypeError for
+    non-numbers.
+    """
     if isinstance(rtol, bool) or (isinstance(rtol, torch.Tensor) and rtol.numel() != 1):
         raise TypeError(f"rtol must be a number; got {rtol!r}")
     return float(check_range("rtol", as_tensor("rtol", rtol), 0.0, 1.0, low_inclusive=False))
@@ -108,7 +111,7 @@ def _altitude(c_lo, lo, u, planet_radius):
 
 
 def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, torch.Tensor]]:
-    """The ascending and descending legs of a ray inside the atmosphere.
+    """Return the ascending and descending legs of a ray inside the atmosphere.
 
     Each leg is monotonic in altitude and described in :math:`|t|` by its lower end
     ``lo`` [m], ``c_lo`` :math:`= r_{lo}^2 - R^2` [m^2] and ``length`` [m]; endpoint values
@@ -225,7 +228,7 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
                     levels_m: torch.Tensor, *, method: str = "gauss",
                     n_steps: int | None = None, rtol: float = 1e-9,
                     truncate: bool = False, support: bool = False) -> torch.Tensor:
-    """Path integral :math:`\\int \\rho(h(s))\\,ds` of a density profile along a straight ray.
+    r"""Path integral :math:`\int \rho(h(s))\,ds` of a density profile along a straight ray.
 
     Parameters
     ----------
@@ -315,7 +318,7 @@ def _as_tuple(value):
 
 
 def _empty(density, r, zero):
-    """The zero column(s) of paths that do not cross the atmosphere (one per density)."""
+    """Return the zero column(s) of paths that do not cross the atmosphere (one per density)."""
     probe = density(r.new_zeros(*zero.shape, 1))
     if isinstance(probe, (tuple, list)):
         return tuple(zero for _ in probe)
@@ -323,7 +326,7 @@ def _empty(density, r, zero):
 
 
 def chapman_horizontal(x) -> torch.Tensor:
-    """Exact Chapman function at zenith angle 90°, :math:`x e^x K_1(x)` (ref. 2).
+    r"""Exact Chapman function at zenith angle 90°, :math:`x e^x K_1(x)` (ref. 2).
 
     Parameters
     ----------
@@ -333,16 +336,16 @@ def chapman_horizontal(x) -> torch.Tensor:
     Returns
     -------
     Tensor (...)
-        :math:`\\mathrm{Ch}(x, \\pi/2)` [1].
+        :math:`\mathrm{Ch}(x, \pi/2)` [1].
     """
     x = check_range("x", x, 0.0, low_inclusive=False)
     return _chapman_horizontal(x)
 
 
 def _chapman_horizontal(x: torch.Tensor) -> torch.Tensor:
-    """:func:`chapman_horizontal` of a checked tensor.
+    r""":func:`chapman_horizontal` of a checked tensor.
 
-    Below x = 1e-30 the value is its limit 1 (:math:`x e^x K_1(x) = 1 + O(x^2 \\ln x)`;
+    Below x = 1e-30 the value is its limit 1 (:math:`x e^x K_1(x) = 1 + O(x^2 \ln x)`;
     :math:`K_1` itself overflows for subnormal x).
     """
     small = x < 1e-30
@@ -357,7 +360,7 @@ _CHAPMAN_NODES = 12
 
 
 def _chapman_exact_upward(x, y):
-    """Exact Ch(x, z) for z <= 90 deg from :math:`y = \\sqrt{x/2}\\cos z` (see chapman)."""
+    r"""Exact Ch(x, z) for z <= 90 deg from :math:`y = \sqrt{x/2}\cos z` (see chapman)."""
     nodes, weights = unit_nodes(_CHAPMAN_NODES, y.dtype)
     levels = torch.tensor((0.0, *_CHAPMAN_LEVELS), dtype=y.dtype)
     y_ = y[..., None]
@@ -374,7 +377,7 @@ def _chapman_exact_upward(x, y):
 
 
 def chapman(x, zenith_rad, *, exact: bool = False) -> torch.Tensor:
-    """Chapman grazing-incidence function, closed-form asymptotic or exact (refs. 1, 2).
+    r"""Chapman grazing-incidence function, closed-form asymptotic or exact (refs. 1, 2).
 
     Parameters
     ----------
@@ -390,31 +393,31 @@ def chapman(x, zenith_rad, *, exact: bool = False) -> torch.Tensor:
     Returns
     -------
     Tensor (...)
-        :math:`\\mathrm{Ch}(x, z)` [1]: the column from the origin to infinity in units of
+        :math:`\mathrm{Ch}(x, z)` [1]: the column from the origin to infinity in units of
         the vertical column, for an exponential atmosphere.
 
     Notes
     -----
-    For :math:`z \\le 90°`, with :math:`y = \\sqrt{x/2}\\,\\cos z`, Chapman's leading-order
-    form :math:`\\mathrm{Ch} \\approx \\sqrt{\\pi x/2}\\; e^{y^2}\\mathrm{erfc}(y)`, times a
-    correction :math:`1 + (c - 1)\\sin^2 z` with :math:`c = \\mathrm{Ch}(x, 90°) /
-    \\sqrt{\\pi x/2}` from the exact horizontal value, so that it is exact at 90°; the
+    For :math:`z \le 90°`, with :math:`y = \sqrt{x/2}\,\cos z`, Chapman's leading-order
+    form :math:`\mathrm{Ch} \approx \sqrt{\pi x/2}\; e^{y^2}\mathrm{erfc}(y)`, times a
+    correction :math:`1 + (c - 1)\sin^2 z` with :math:`c = \mathrm{Ch}(x, 90°) /
+    \sqrt{\pi x/2}` from the exact horizontal value, so that it is exact at 90°; the
     relative error elsewhere is :math:`O(1/x)`, at most 2e-3 for the Earth (tested against
-    quadrature). For :math:`z > 90°`: :math:`\\mathrm{Ch}(x, z) = 2 e^{x - x\\sin z}
-    \\mathrm{Ch}(x \\sin z, 90°) - \\mathrm{Ch}(x, \\pi - z)` (ref. 2).
+    quadrature). For :math:`z > 90°`: :math:`\mathrm{Ch}(x, z) = 2 e^{x - x\sin z}
+    \mathrm{Ch}(x \sin z, 90°) - \mathrm{Ch}(x, \pi - z)` (ref. 2).
 
     Exact form: with the altitude :math:`h` (in units of :math:`H`) as the path variable,
 
     .. math::
 
-        \\mathrm{Ch}(x, z) = \\sqrt{x/2}\\int_0^\\infty
-        \\frac{e^{-h}\\,(1 + h/x)}{\\sqrt{y^2 + h + h^2/(2x)}}\\,\\mathrm{d}h
-        = \\sqrt{2x}\\int_0^\\infty e^{-u}\\,
-        \\frac{1 + u/x}{\\sqrt{1 + u^2/(2x\\,(y + v)^2)}}\\,\\mathrm{d}v,
-        \\qquad u = v\\,(v + 2y),
+        \mathrm{Ch}(x, z) = \sqrt{x/2}\int_0^\infty
+        \frac{e^{-h}\,(1 + h/x)}{\sqrt{y^2 + h + h^2/(2x)}}\,\mathrm{d}h
+        = \sqrt{2x}\int_0^\infty e^{-u}\,
+        \frac{1 + u/x}{\sqrt{1 + u^2/(2x\,(y + v)^2)}}\,\mathrm{d}v,
+        \qquad u = v\,(v + 2y),
 
     (the first factor of the integrand alone gives Chapman's leading-order form); the
-    substitution :math:`\\sqrt{y^2 + h} = y + v` removes the :math:`h^{-1/2}` singularity
+    substitution :math:`\sqrt{y^2 + h} = y + v` removes the :math:`h^{-1/2}` singularity
     of horizontal rays, and the smooth integrand is integrated by 12-node Gauss–Legendre
     on 14 panels between :math:`u` = 0, 0.25, 0.5, 1, 2, ..., 45.
     """
@@ -459,9 +462,9 @@ def chapman(x, zenith_rad, *, exact: bool = False) -> torch.Tensor:
 
 
 def kasten_young_air_mass(zenith_rad) -> torch.Tensor:
-    """Relative optical air mass of Kasten & Young (ref. 3).
+    r"""Relative optical air mass of Kasten & Young (ref. 3).
 
-    :math:`m = 1/(\\cos z + 0.50572 (96.07995° - z)^{-1.6364})`, :math:`z` in degrees in
+    :math:`m = 1/(\cos z + 0.50572 (96.07995° - z)^{-1.6364})`, :math:`z` in degrees in
     the second term; includes refraction (apparent zenith angle, in [0, π/2] [rad]: the
     fit ends at the horizon).
     """

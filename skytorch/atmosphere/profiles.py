@@ -1,4 +1,4 @@
-"""Vertical density profiles of atmospheric constituents (dimensionless shapes).
+r"""Vertical density profiles of atmospheric constituents (dimensionless shapes).
 
 Each profile returns the number density relative to a reference value as a function of
 altitude above the planet's surface. Profiles are pure functions on tensors, broadcast
@@ -7,13 +7,13 @@ their arguments by torch rules and are differentiable.
 Available shapes (``PROFILES``):
 
 ``"exponential"``
-    :math:`\\rho(h) = \\exp(-h / H)` with scale height :math:`H`.
+    :math:`\rho(h) = \exp(-h / H)` with scale height :math:`H`.
 ``"us1976"``
-    Density ratio :math:`\\rho(h)/\\rho(0)` of the U.S. Standard Atmosphere 1976,
+    Density ratio :math:`\rho(h)/\rho(0)` of the U.S. Standard Atmosphere 1976,
     computed from its defining temperature layers (ref. 1) by the hydrostatic equation
     up to 84.852 km geopotential altitude, continued isothermally above.
 ``"tent"``
-    Ozone-like layer :math:`\\max(0, 1 - |h - h_c| / w)` peaking at :math:`h_c` with
+    Ozone-like layer :math:`\max(0, 1 - |h - h_c| / w)` peaking at :math:`h_c` with
     half-width :math:`w` (ref. 2: 10–40 km, peak 25 km).
 
 References
@@ -66,7 +66,7 @@ US1976_SCALE_HEIGHT_M = 8_000.0
 
 
 def _us1976_layers() -> tuple[list[float], list[float], list[float]]:
-    """Base temperature [K] and log density ratio at each layer base (ref. 1)."""
+    """Return base temperature [K] and log density ratio at each layer base (ref. 1)."""
     g_over_r = _US1976_G0 * _US1976_MOLAR_MASS / _US1976_GAS_CONSTANT
     temperatures = [_US1976_T0]
     log_pressures = [0.0]
@@ -95,7 +95,7 @@ US1976_KINK_ALTITUDES_M = tuple(_US1976_EARTH_RADIUS_M * h / (_US1976_EARTH_RADI
 
 
 def exponential(altitude_m, scale_height_m) -> torch.Tensor:
-    """Exponential profile :math:`\\exp(-h/H)`.
+    r"""Exponential profile :math:`\exp(-h/H)`.
 
     Parameters
     ----------
@@ -114,7 +114,7 @@ def exponential(altitude_m, scale_height_m) -> torch.Tensor:
 
 
 def tent(altitude_m, center_m, half_width_m) -> torch.Tensor:
-    """Tent (triangular) layer :math:`\\max(0, 1 - |h - h_c|/w)`.
+    r"""Tent (triangular) layer :math:`\max(0, 1 - |h - h_c|/w)`.
 
     Parameters
     ----------
@@ -123,7 +123,7 @@ def tent(altitude_m, center_m, half_width_m) -> torch.Tensor:
     center_m : float or Tensor (...)
         Altitude of the peak :math:`h_c` [m].
     half_width_m : float or Tensor (...)
-        Half width :math:`w` [m]; the layer spans :math:`h_c \\pm w` and its integral
+        Half width :math:`w` [m]; the layer spans :math:`h_c \pm w` and its integral
         over altitude is :math:`w`.
 
     Returns
@@ -136,7 +136,7 @@ def tent(altitude_m, center_m, half_width_m) -> torch.Tensor:
 
 
 def us1976(altitude_m) -> torch.Tensor:
-    """Density ratio :math:`\\rho(z)/\\rho(0)` of the U.S. Standard Atmosphere 1976.
+    r"""Density ratio :math:`\rho(z)/\rho(0)` of the U.S. Standard Atmosphere 1976.
 
     Parameters
     ----------
@@ -153,9 +153,9 @@ def us1976(altitude_m) -> torch.Tensor:
     Notes
     -----
     In a layer with base :math:`H_b`, temperature :math:`T_b` and lapse rate
-    :math:`L \\ne 0`: :math:`T = T_b + L (H - H_b)`,
+    :math:`L \ne 0`: :math:`T = T_b + L (H - H_b)`,
     :math:`p/p_b = (T/T_b)^{-g_0 M / (R L)}`; with :math:`L = 0`:
-    :math:`p/p_b = \\exp(-g_0 M (H - H_b)/(R T_b))`. Density ratio
+    :math:`p/p_b = \exp(-g_0 M (H - H_b)/(R T_b))`. Density ratio
     :math:`(p/p_0)(T_0/T)`. Geopotential altitude :math:`H = r_0 z/(r_0 + z)`.
     """
     log_p, temperature = _us1976_state(as_tensor("altitude_m", altitude_m))
@@ -163,20 +163,25 @@ def us1976(altitude_m) -> torch.Tensor:
 
 
 def us1976_temperature(altitude_m) -> torch.Tensor:
-    """Temperature of the U.S. Standard Atmosphere 1976 [K] at geometric altitude [m]
-    (same layers and continuations as :func:`us1976`)."""
+    """Temperature of the U.S. Standard Atmosphere 1976 [K] at geometric altitude [m].
+
+    Same layers and continuations as :func:`us1976`.
+    """
     return _us1976_state(as_tensor("altitude_m", altitude_m))[1]
 
 
 def us1976_pressure_ratio(altitude_m) -> torch.Tensor:
-    """Pressure of the U.S. Standard Atmosphere 1976 relative to sea level [1] at
-    geometric altitude [m] (same layers and continuations as :func:`us1976`)."""
+    """Pressure of the U.S. Standard Atmosphere 1976 relative to sea level [1].
+
+    At geometric altitude [m] (same layers and continuations as :func:`us1976`).
+    """
     return torch.exp(_us1976_state(as_tensor("altitude_m", altitude_m))[0])
 
 
 def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """One evaluation of the U.S. Standard Atmosphere 1976, shared by the profiles that
-    follow it (:attr:`skytorch.atmosphere.constituents.Profile.state`).
+    r"""One evaluation of the U.S. Standard Atmosphere 1976.
+
+    Shared by the profiles that follow it (:attr:`skytorch.atmosphere.constituents.Profile.state`).
 
     Parameters
     ----------
@@ -187,7 +192,7 @@ def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, 
     -------
     altitude_m, density_ratio, pressure_ratio : Tensor (...)
         The altitude itself [m], :func:`us1976` [1] and the pressure ratio as the density
-        ratio times :math:`T(\\max(z, 0))/T_0` [1] (below the ground the density is
+        ratio times :math:`T(\max(z, 0))/T_0` [1] (below the ground the density is
         continued and the temperature held at its ground value, as the gas profiles of
         :mod:`skytorch.atmosphere.gases` do).
 
@@ -208,19 +213,21 @@ def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, 
 
 
 def us1976_air_from_state(state, exponent, power) -> torch.Tensor:
-    """:math:`\\rho^{power}\\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
+    r""":math:`\rho^{power}\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
     return _power(state[1], power) * _power(state[2], exponent)
 
 
 def us1976_water_from_state(state, scale_height_m, exponent) -> torch.Tensor:
-    """:math:`e^{-z/H_w}\\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
+    r""":math:`e^{-z/H_w}\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
     return torch.exp(-state[0] / scale_height_m) * _power(state[2], exponent)
 
 
 def _power(base: torch.Tensor, exponent) -> torch.Tensor:
-    """``base ** exponent`` of a positive ``base``, by a multiplication or a square root
-    for a constant exponent of 0, 1/2, 1 or 2 (equal to the power within rounding; a
-    general power costs an exponential and a logarithm per element)."""
+    """Return ``base ** exponent`` of a positive ``base``.
+
+    By a multiplication or a square root for a constant exponent of 0, 1/2, 1 or 2 (equal to the
+    power within rounding; a general power costs an exponential and a logarithm per element).
+    """
     if isinstance(exponent, torch.Tensor) and (exponent.requires_grad or exponent.numel() != 1):
         return base ** exponent
     value = float(exponent)
@@ -277,8 +284,8 @@ SOUNDING_UNITS = {
 _BOLTZMANN = 1.380649e-23
 
 
-def check_sounding(profile) -> dict[str, torch.Tensor]:
-    """A user sounding as checked float64 tensors.
+def check_sounding(profile) -> dict[str, torch.Tensor]:  # noqa: C901 (one check per sounding column)
+    """Return a user sounding as checked float64 tensors.
 
     Parameters
     ----------
@@ -382,7 +389,7 @@ def _segment(altitude_m, nodes_m):
 
 
 def log_linear(altitude_m, nodes_m, log_values) -> torch.Tensor:
-    """:math:`\\exp` of the linear interpolation of ``log_values`` at ``altitude_m``.
+    r""":math:`\exp` of the linear interpolation of ``log_values`` at ``altitude_m``.
 
     Piecewise exponential between the nodes (exact for isothermal layers); below the
     first and above the last node the end intervals continue (above the top: the
@@ -429,7 +436,7 @@ def piecewise_linear(altitude_m, nodes_m, values, above: float | None = 0.0) -> 
 
 
 def log_linear_column(nodes_m, log_values, start_m: float = 0.0) -> torch.Tensor:
-    """:math:`\\int_{start}^{\\infty}` of :func:`log_linear` [m x value] in closed form.
+    r""":math:`\int_{start}^{\infty}` of :func:`log_linear` [m x value] in closed form.
 
     The top interval's exponential continues to infinity (it must decay).
     """

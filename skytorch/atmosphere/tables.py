@@ -1,23 +1,23 @@
-"""Transmittance look-up table (Bruneton parametrisation) with a disk cache.
+r"""Transmittance look-up table (Bruneton parametrisation) with a disk cache.
 
 The table stores the optical depth from a point at radius :math:`r` along direction
-cosine :math:`\\mu` to the top of the atmosphere, for rays that do not meet the ground,
+cosine :math:`\mu` to the top of the atmosphere, for rays that do not meet the ground,
 on the texture coordinates of Bruneton (ref. 1, ``GetTransmittanceTextureUvFromRMu``):
 
 .. math::
 
-    H = \\sqrt{R_t^2 - R^2},\\quad \\rho = \\sqrt{r^2 - R^2},\\quad x_r = \\rho / H,
+    H = \sqrt{R_t^2 - R^2},\quad \rho = \sqrt{r^2 - R^2},\quad x_r = \rho / H,
 
-    d_{min} = R_t - r,\\quad d_{max} = \\rho + H,\\quad
-    x_\\mu = (d - d_{min})/(d_{max} - d_{min}),
+    d_{min} = R_t - r,\quad d_{max} = \rho + H,\quad
+    x_\mu = (d - d_{min})/(d_{max} - d_{min}),
 
 with :math:`d` the distance to the top. Samples lie on the unit range, including both
-ends; along :math:`x_\\mu` they are uniform (:math:`x = k/(n-1)`). Along :math:`x_r` they
+ends; along :math:`x_\mu` they are uniform (:math:`x = k/(n-1)`). Along :math:`x_r` they
 have nodes at the altitudes where a density profile has a kink (the ozone tent's base,
 peak and top) and are graded towards the kink above them (:func:`radius_nodes`): below
 a kink the column of near-horizontal rays behaves like :math:`(h_k - h)^{3/2}`, and
 uniform samples interpolated it with 20 % errors at 256 x 64 (ozone at 595 nm, 40 km).
-Look-ups interpolate bilinearly in :math:`(x_r, x_\\mu)`. Optical depths between two
+Look-ups interpolate bilinearly in :math:`(x_r, x_\mu)`. Optical depths between two
 points, and to the ground, follow from differences of two look-ups (ref. 1,
 ``GetTransmittance``). Because the per-species path integrals do not depend on
 wavelength, the table's cost is that of ``n_r * n_mu`` rays times three species.
@@ -126,7 +126,7 @@ _KINK_GRADING = 1.7
 
 
 def radius_nodes(atmosphere, n_r: int) -> torch.Tensor:
-    """The :math:`x_r = \\rho/H` samples of a table (n_r,), kinks of the profiles on nodes.
+    r"""Return the :math:`x_r = \rho/H` samples of a table (n_r,), kinks of the profiles on nodes.
 
     The unit range is cut at the :math:`x_r` of every profile kink inside the atmosphere
     (the ozone tent's base, peak and top); the ``n_r - 1`` intervals are shared among the
@@ -190,7 +190,7 @@ def table_key(atmosphere, wavelength_nm, n_mu: int, n_r: int, method: str,
 
 
 def _check_build(atmosphere, wavelength_nm, n_mu, n_r, method, n_steps):
-    """Checked arguments of a table build (TypeError/ValueError naming the parameter)."""
+    """Return checked arguments of a table build (TypeError/ValueError naming the parameter)."""
     from skytorch.atmosphere.model import Atmosphere, wavelength_tensor
 
     if not isinstance(atmosphere, Atmosphere):
@@ -213,7 +213,7 @@ def _check_build(atmosphere, wavelength_nm, n_mu, n_r, method, n_steps):
 
 def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int = 64,
                         method: str = "gauss", n_steps: int | None = None):
-    """Compute the transmittance table as a Dataset.
+    r"""Compute the transmittance table as a Dataset.
 
     Parameters
     ----------
@@ -222,7 +222,7 @@ def transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_r: int 
     wavelength_nm : Tensor (wavelength,)
         Wavelengths [nm].
     n_mu, n_r : int
-        Samples along :math:`x_\\mu` and :math:`x_r` (Bruneton: 256 x 64), >= 2.
+        Samples along :math:`x_\mu` and :math:`x_r` (Bruneton: 256 x 64), >= 2.
     method, n_steps
         Quadrature of the column integrals (:meth:`Atmosphere.optical_depth`).
 
@@ -305,7 +305,7 @@ def cached_transmittance_table(atmosphere, wavelength_nm, *, n_mu: int = 256, n_
                                method: str = "gauss", n_steps: int | None = None,
                                cache_dir: str | os.PathLike | None = None,
                                progress: bool | None = None):
-    """The transmittance table from the disk cache, computed and stored if absent or bad.
+    """Return the transmittance table from the disk cache, computed and stored if absent or bad.
 
     The file is written with :func:`skytorch._cache.write_verified` (a record of its
     SHA-256 and of the parameter hash beside it) and read with
@@ -392,7 +392,7 @@ class TransmittanceTable(nn.Module):
         See ``columns``.
     """
 
-    def __init__(self, optical_depth, wavelength_nm, planet_radius_m: float,
+    def __init__(self, optical_depth, wavelength_nm, planet_radius_m: float,  # noqa: C901 (a flat list of argument checks)
                  top_radius_m: float, x_r=None, *, atmosphere_sha256: str | None = None,
                  columns=None, constituents=None):
         super().__init__()
@@ -446,7 +446,7 @@ class TransmittanceTable(nn.Module):
 
     @property
     def n_mu(self) -> int:
-        """Samples along :math:`x_\\mu`."""
+        r"""Samples along :math:`x_\mu`."""
         return int(self.table.shape[1])
 
     @property
@@ -535,8 +535,10 @@ class TransmittanceTable(nn.Module):
                         f"{atmosphere_hash(atmosphere)[:12]}...): build a table for it")
 
     def _lookup(self, altitude, mu, table=None):
-        """Bilinear interpolation of ``table`` (default: the optical depths) at (altitude,
-        mu) (rays missing the ground) -> (..., last dim of the table)."""
+        """Bilinear interpolation of ``table`` at (altitude, mu) -> (..., last dim of the table).
+
+        ``table`` defaults to the optical depths; for rays missing the ground.
+        """
         x_r, x_mu = _texture_coordinates(altitude, mu, self.planet_radius_m,
                                          self.top_radius_m)
         x_r, x_mu = torch.clamp(x_r, 0.0, 1.0), torch.clamp(x_mu, 0.0, 1.0)
@@ -559,7 +561,7 @@ class TransmittanceTable(nn.Module):
 
     def optical_depth(self, zenith_rad, altitude_m=0.0, *, wavelength_nm=None
                       ) -> torch.Tensor:
-        """Optical depth from the observer to the top or to the ground (..., wavelength).
+        r"""Optical depth from the observer to the top or to the ground (..., wavelength).
 
         Parameters
         ----------
@@ -574,8 +576,8 @@ class TransmittanceTable(nn.Module):
 
         Notes
         -----
-        Rays meeting the ground at :math:`(R, \\mu_g)`:
-        :math:`\\tau = \\tau_{top}(R, -\\mu_g) - \\tau_{top}(r, -\\mu)` (ref. 1).
+        Rays meeting the ground at :math:`(R, \mu_g)`:
+        :math:`\tau = \tau_{top}(R, -\mu_g) - \tau_{top}(r, -\mu)` (ref. 1).
         """
         dtype = common_dtype(zenith_rad, altitude_m)
         zenith = check_zenith(zenith_rad, dtype=dtype)
@@ -592,8 +594,10 @@ class TransmittanceTable(nn.Module):
         return self.lookup(zenith, altitude)
 
     def lookup(self, zenith, altitude) -> torch.Tensor:
-        """:meth:`optical_depth` of checked tensors (``altitude`` in [0, top] [m], finite
-        ``zenith`` [rad], same dtype), without the checks (..., wavelength)."""
+        """Return :meth:`optical_depth` (..., wavelength) of checked tensors, without the checks.
+
+        ``altitude`` in [0, top] [m], finite ``zenith`` [rad], same dtype.
+        """
         r = self.planet_radius_m + altitude
         mu = torch.cos(zenith)
         r, mu = torch.broadcast_tensors(r, mu)
@@ -615,6 +619,6 @@ class TransmittanceTable(nn.Module):
 
     def transmittance(self, zenith_rad, altitude_m=0.0, *, wavelength_nm=None
                       ) -> torch.Tensor:
-        """:math:`e^{-\\tau}` of :meth:`optical_depth` (..., wavelength) [1]."""
+        r""":math:`e^{-\tau}` of :meth:`optical_depth` (..., wavelength) [1]."""
         return torch.exp(-self.optical_depth(zenith_rad, altitude_m,
                                              wavelength_nm=wavelength_nm))
