@@ -371,7 +371,7 @@ class Atmosphere(nn.Module):
     torch.Size([3])
     """
 
-    def __init__(self, *, planet_radius_m: float, top_altitude_m: float,  # noqa: C901 (a flat list of parameter checks)
+    def __init__(self, *, planet_radius_m: float, top_altitude_m: float,  # noqa: C901 (parameter checks and defaults)
                  surface_pressure_pa=FROM_PROFILE,
                  surface_temperature_k=FROM_PROFILE,
                  gravity_m_s2=EARTH_GRAVITY_M_S2,
