@@ -274,6 +274,52 @@ def directions_view(altitude_deg, azimuth_deg, dtype=torch.float64) -> View:
                 torch.ones(n, dtype=torch.bool), 0.0)
 
 
+def _view_keywords(view: dict, kwargs: dict) -> None:
+    """Move the keys of a TOML ``[view]`` table into Scene keywords ``kwargs``.
+
+    ``kind`` becomes ``view``, ``size`` stays, a camera's keys become ``camera`` and the
+    altitude and azimuth lists ``directions``; unknown keys stay in ``view``.
+    """
+    if "kind" in view:
+        kwargs["view"] = view.pop("kind")
+    if "size" in view:
+        kwargs["size"] = view.pop("size")
+    if kwargs.get("view") == "camera":
+        kwargs["camera"] = {k: view.pop(k) for k in CAMERA_KEYS if k in view}
+    if "altitude_deg" in view or "azimuth_deg" in view:
+        kwargs["directions"] = {k: view.pop(k) for k in DIRECTION_KEYS if k in view}
+
+
+def _lights_keywords(lights: dict, base_dir: Path | None, kwargs: dict) -> None:
+    """Move the keys of a TOML ``[lights]`` table into Scene keywords ``kwargs``.
+
+    ``file`` (relative to ``base_dir``) is opened as the light map, ``synthetic_city`` builds
+    one with :func:`skytorch.skyglow.citymap.synthetic_city`; ``observer_xy`` and ``lamp``
+    stay; unknown keys stay in ``lights``.
+    """
+    if "file" in lights:
+        path = Path(lights.pop("file"))
+        if base_dir is not None and not path.is_absolute():
+            path = base_dir / path
+        if not path.exists():
+            raise ValueError(f"scene: [lights] file {str(path)!r} does not exist")
+        kwargs["light_map"] = open_dataset(path)
+    if "synthetic_city" in lights:
+        from skytorch.skyglow.citymap import synthetic_city
+
+        options = lights.pop("synthetic_city")
+        if not isinstance(options, Mapping):
+            raise TypeError("scene: [lights] synthetic_city must be a table of keywords of "
+                            f"skytorch.skyglow.citymap.synthetic_city; got {options!r:.60}")
+        options = dict(options)
+        if "centre_xy" in options:
+            options["centre_xy"] = tuple(options["centre_xy"])
+        kwargs["light_map"] = synthetic_city(**options)
+    for key in ("observer_xy", "lamp"):
+        if key in lights:
+            kwargs[key] = lights.pop(key)
+
+
 def _not_differentiable(name: str, value) -> None:
     """Refuse a tensor that asks for gradients rather than detach it silently.
 
@@ -804,7 +850,7 @@ class Scene:
 
     # ------------------------------------------------------------------ TOML
     @classmethod
-    def from_dict(cls, config: Mapping, base_dir: Path | None = None) -> Scene:  # noqa: C901 (a branch per TOML key)
+    def from_dict(cls, config: Mapping, base_dir: Path | None = None) -> Scene:
         """Build a scene from a mapping (the TOML scene format, see ``docs/scene.md``).
 
         Tables ``[observer]`` (lat_deg, lon_deg, elevation_m), ``[view]`` (kind, size,
@@ -833,40 +879,12 @@ class Scene:
 
         kwargs.update(table("observer"))
         view = table("view")
-        if "kind" in view:
-            kwargs["view"] = view.pop("kind")
-        if "size" in view:
-            kwargs["size"] = view.pop("size")
-        if kwargs.get("view") == "camera":
-            kwargs["camera"] = {k: view.pop(k) for k in CAMERA_KEYS if k in view}
-        if "altitude_deg" in view or "azimuth_deg" in view:
-            kwargs["directions"] = {k: view.pop(k) for k in DIRECTION_KEYS if k in view}
+        _view_keywords(view, kwargs)
         no_leftovers("view", view)
         kwargs.update(table("atmosphere"))
         kwargs.update(table("planner"))
         lights = table("lights")
-        if "file" in lights:
-            path = Path(lights.pop("file"))
-            if base_dir is not None and not path.is_absolute():
-                path = base_dir / path
-            if not path.exists():
-                raise ValueError(f"scene: [lights] file {str(path)!r} does not exist")
-            kwargs["light_map"] = open_dataset(path)
-        if "synthetic_city" in lights:
-            from skytorch.skyglow.citymap import synthetic_city
-
-            options = lights.pop("synthetic_city")
-            if not isinstance(options, Mapping):
-                raise TypeError("scene: [lights] synthetic_city must be a table of keywords of "
-                                f"skytorch.skyglow.citymap.synthetic_city; got {options!r:.60}")
-            options = dict(options)
-            if "centre_xy" in options:
-                options["centre_xy"] = tuple(options["centre_xy"])
-            kwargs["light_map"] = synthetic_city(**options)
-        if "observer_xy" in lights:
-            kwargs["observer_xy"] = lights.pop("observer_xy")
-        if "lamp" in lights:
-            kwargs["lamp"] = lights.pop("lamp")
+        _lights_keywords(lights, base_dir, kwargs)
         no_leftovers("lights", lights)
         if "dtype" in config:
             kwargs["dtype"] = {"float64": torch.float64, "float32": torch.float32}[
