@@ -245,28 +245,38 @@ def _power(base: torch.Tensor, exponent) -> torch.Tensor:
 def _us1976_state(z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Log pressure ratio and temperature [K] of the standard at geometric altitude z."""
     geopotential = _US1976_EARTH_RADIUS_M * z / (_US1976_EARTH_RADIUS_M + z)
-    g_over_r = _US1976_G0 * _US1976_MOLAR_MASS / _US1976_GAS_CONSTANT
     # the constants of each point's layer, gathered once (the lowest layer is continued
     # below the ground, the highest above 84.852 km)
     tables = _us1976_tables(geopotential.dtype, geopotential.device)
     layer = torch.clamp(torch.bucketize(geopotential.detach(), tables["base"][1:], right=True),
                         0, len(_US1976_BASE_HEIGHT_M) - 1)
-    base, lapse, t_base, log_p_base = (tables[key][layer] for key in
-                                       ("base", "lapse", "temperature", "log_pressure"))
+    base, lapse, t_base, log_p_base, per_log, per_height = (
+        tables[key].take(layer) for key in ("base", "lapse", "temperature", "log_pressure",
+                                            "per_log_temperature", "per_height"))
     dh = geopotential - base
-    isothermal = lapse == 0.0
-    safe_lapse = torch.where(isothermal, torch.ones_like(lapse), lapse)
     temperature = torch.clamp(t_base + lapse * dh, min=1.0)
-    log_p = log_p_base - g_over_r * torch.where(
-        isothermal, dh / t_base, torch.log(temperature / t_base) / safe_lapse)
+    # log p = log p_b - g M/(R L) log(T/T_b) in a layer with a lapse rate L, and
+    # log p_b - g M (H - H_b)/(R T_b) in an isothermal one (the other coefficient is 0)
+    log_p = log_p_base - (per_log * torch.log(temperature / t_base) + per_height * dh)
     return log_p, temperature
 
 
 @functools.lru_cache(maxsize=8)
 def _us1976_tables(dtype: torch.dtype, device: torch.device) -> dict[str, torch.Tensor]:
-    """Layer bases [m], lapse rates [K/m], base temperatures [K] and log pressure ratios."""
+    """Constants of the standard's layers.
+
+    Bases [m], lapse rates [K/m], base temperatures [K], log pressure ratios and the
+    coefficients of the log pressure: g M/(R L) [1] of log(T/T_b) where L != 0,
+    g M/(R T_b) [1/m] of H - H_b where L = 0 (each zero in the other kind of layer).
+    """
+    g_over_r = _US1976_G0 * _US1976_MOLAR_MASS / _US1976_GAS_CONSTANT
     values = {"base": _US1976_BASE_HEIGHT_M, "lapse": _US1976_LAPSE_K_PER_M,
-              "temperature": _US1976_TEMPERATURE, "log_pressure": _US1976_LOG_PRESSURE}
+              "temperature": _US1976_TEMPERATURE, "log_pressure": _US1976_LOG_PRESSURE,
+              "per_log_temperature": tuple(0.0 if lapse == 0.0 else g_over_r / lapse
+                                           for lapse in _US1976_LAPSE_K_PER_M),
+              "per_height": tuple(g_over_r / t_base if lapse == 0.0 else 0.0
+                                  for lapse, t_base in zip(_US1976_LAPSE_K_PER_M,
+                                                           _US1976_TEMPERATURE, strict=True))}
     return {key: torch.tensor(value, dtype=dtype, device=device)
             for key, value in values.items()}
 
