@@ -72,7 +72,7 @@ def _angle(numerator, denominator):
     return 2 * mp.asin(mp.sqrt(h))
 
 
-def reference(rho_s, rho_o, d, limb_darkening=0.6, law="linear"):  # noqa: C901 (closed-form cases)
+def reference(rho_s, rho_o, d, limb_darkening=0.6, law="linear"):  # noqa: C901 (mpmath quadrature, one branch per overlap case)
     """Visible fraction and its gradient.
 
     Returns ``(f, {"d": df/dd, "rho_o": df/drho_o, "rho_s": df/drho_s, "u": df/du})``
