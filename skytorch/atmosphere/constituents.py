@@ -219,9 +219,10 @@ class Profile:
         return self.from_state(state, **parameters)
 
     def _same_quadrature(self, other: Profile) -> bool:
-        """Return same pieces along every path.
+        """Whether ``other`` has the same quadrature pieces along every path.
 
-        Equal breakpoints (constants, not needing a gradient), ``truncate`` and ``support``.
+        Same pieces: equal breakpoints (constants, not needing a gradient), ``truncate`` and
+        ``support``.
         """
         if (self.truncate, self.support) != (other.truncate, other.support):
             return False

@@ -704,7 +704,7 @@ def _broadcast_batch(values: torch.Tensor, batch_shape: tuple[int, ...]) -> torc
 
 
 def _check_wavelength(wavelength_nm, dtype) -> torch.Tensor:
-    """Wavelengths as a 1-D tensor.
+    """Return the wavelengths as a checked 1-D tensor [nm].
 
     Finite and within the atmosphere's range [nm]
     (:data:`skytorch.atmosphere.rayleigh.WAVELENGTH_RANGE_NM`, also for an airless occluder, so that

@@ -341,9 +341,10 @@ def _shape(value) -> tuple[int, ...]:
 
 def _scalar(name: str, value, low: float | None = None, high: float | None = None, *,
             unit: str = "") -> float:
-    """Return a finite Python float (in ``[low, high]``) from a number.
+    """Return a finite Python float (in ``[low, high]``) from a number-like value.
 
-    Numpy scalar or one-element tensor; ``TypeError``/``ValueError`` naming ``name`` otherwise.
+    From a number, numpy scalar or one-element tensor; ``TypeError``/``ValueError`` naming
+    ``name`` otherwise.
     """
     if isinstance(value, bool) or value is None or isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be a number; got {value!r}")
