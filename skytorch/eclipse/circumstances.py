@@ -52,6 +52,7 @@ from skytorch._validate import check_choice
 from skytorch.constants import ARCSECOND, ASTRONOMICAL_UNIT_M, EARTH_EQUATORIAL_RADIUS_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
 from skytorch.eclipse.cone import ENLARGEMENTS, _cone
+from skytorch.ephemeris import TIME_MAX, TIME_MIN, parse_times, skyfield_time, sun_moon_vectors
 
 __all__ = [
     "CONTACTS",
@@ -92,8 +93,6 @@ def _search_range() -> tuple[np.datetime64, np.datetime64]:
     :data:`_RANGE_MARGIN` at each end: every time the search evaluates lies within
     ``1.85`` days of the range.
     """
-    from skytorch.ephemeris import TIME_MAX, TIME_MIN
-
     return TIME_MIN + _RANGE_MARGIN, TIME_MAX - _RANGE_MARGIN
 
 
@@ -147,8 +146,6 @@ class _Geometry:
     """Shadow geometry of every candidate as a function of time (batched)."""
 
     def __init__(self, centres: np.ndarray, enlargement: str):
-        from skytorch.ephemeris import sun_moon_vectors
-
         nodes, to_coefficients = _chebyshev_nodes(_N_NODES)
         offsets = (nodes * _HALF_WINDOW_S * 1e9).astype("timedelta64[ns]")
         times = (centres[:, None] + offsets[None, :]).reshape(-1)
@@ -308,8 +305,6 @@ def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
     >>> ds.kind.values.tolist(), [round(float(m), 3) for m in ds.umbral_magnitude]
     (['total', 'total'], [1.414, 1.359])
     """
-    from skytorch.ephemeris import parse_times, skyfield_time
-
     check_choice("enlargement", enlargement, ENLARGEMENTS)
     start_time, end_time = (_parse_one(name, value, parse_times)
                             for name, value in (("start", start), ("end", end)))

@@ -76,6 +76,7 @@ from skytorch.eclipse.shadow import (
     shadow_angles,
 )
 from skytorch.eclipse.shadow_table import ShadowTable
+from skytorch.ephemeris import parse_times, sun_moon_vectors
 
 __all__ = [
     "DANJON_ANCHORS",
@@ -163,8 +164,6 @@ def nearest_eclipse(date, enlargement: str = "danjon"):
     Returns the one-eclipse :func:`skytorch.eclipse.lunar_eclipses` Dataset (dimension
     ``eclipse`` of length 1); raises ValueError when no eclipse is that near.
     """
-    from skytorch.ephemeris import parse_times
-
     check_choice("enlargement", enlargement, ENLARGEMENTS)
     moment = _parse_one("time_or_date", date, parse_times)
     window = np.timedelta64(SEARCH_DAYS, "D")
@@ -341,7 +340,6 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     shadow's atmosphere leading) and the :class:`_Run` the Dataset and images of
     :func:`lunar_eclipse` are built from.
     """
-    from skytorch.ephemeris import sun_moon_vectors
     from skytorch.moon.disc import disc_grid, disc_radiance
     from skytorch.spectrum import spectrum_to_magnitude, wavelength_grid
 

@@ -28,135 +28,27 @@ import torch
 import xarray as xr
 
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
+from skytorch.eclipse.circumstances import _parse_one
+from skytorch.eclipse.occlusion import sun_visible_fraction
 from skytorch.eclipse.solar import (
+    _GRID_STEP_S,
     _N_NARROW_NODES,
     _NARROW_HALF_S,
     _SPAN_S,
+    LOCAL_CONTACTS,
     MOON_RADIUS_PENUMBRAL,
     MOON_RADIUS_UMBRAL,
+    _local_maximum_and_contacts,
+    _observer_itrs,
+    _state,
     _SunMoon,
     _to_times,
-    _topocentric,
     _up,
+    solar_eclipses,
 )
+from skytorch.ephemeris import check_observer, parse_times
 
 __all__ = ["LOCAL_CONTACTS", "solar_eclipse_local"]
-
-#: contact names, in time order
-LOCAL_CONTACTS = ("c1", "c2", "c3", "c4")
-_GRID_STEP_S = 360.0
-
-
-def _observer_itrs(lat_deg, lon_deg, elevation_m):
-    from skytorch.ephemeris import geodetic_to_itrs
-
-    return geodetic_to_itrs(torch.deg2rad(lat_deg), torch.deg2rad(lon_deg), elevation_m)
-
-
-def _state(geometry: _SunMoon, seconds: torch.Tensor, points: torch.Tensor):
-    """Topocentric radii, separation and the Sun's direction at ``seconds`` (n, m)."""
-    sun, moon = geometry.itrs(seconds)
-    s, m_pen, sigma, to_sun = _topocentric(sun, moon, points, MOON_RADIUS_PENUMBRAL)
-    m_umb = m_pen * (MOON_RADIUS_UMBRAL / MOON_RADIUS_PENUMBRAL)
-    return s, m_pen, m_umb, sigma, to_sun
-
-
-def _illinois(function, a, b, fa, fb, iterations: int = 7):
-    """Batched Illinois (modified regula falsi) root of ``function`` in [a, b] (fa fb <= 0)."""
-    for _ in range(iterations):
-        denominator = fb - fa
-        safe = denominator != 0
-        c = torch.where(safe, (a * fb - b * fa) / torch.where(safe, denominator, 1.0), b)
-        fc = function(c)
-        opposite = fc * fb < 0
-        a, fa = torch.where(opposite, b, a), torch.where(opposite, fb, 0.5 * fa)
-        b, fb = c, fc
-    return b
-
-
-def _parabola_vertex(t, h, f_minus, f_zero, f_plus):
-    """Vertex of the parabola through (t - h, t, t + h), limited to +-1.5 h."""
-    curvature = f_plus - 2.0 * f_zero + f_minus
-    step = torch.where(curvature > 0, 0.5 * h * (f_minus - f_plus)
-                       / torch.where(curvature > 0, curvature, 1.0), 0.0)
-    return t + torch.clamp(step, -1.5 * h, 1.5 * h)
-
-
-def _local_maximum_and_contacts(geometry: _SunMoon, centre_s: torch.Tensor,
-                                points: torch.Tensor) -> dict:
-    """Maximum and contacts [s from the window centre] for observers ``points`` (n, m, 3).
-
-    ``centre_s`` (n,) is the time around which to search (greatest eclipse) for the ``m``
-    observers of each window. The Sun and Moon are evaluated once on a grid shared by the
-    observers of a window; maximum eclipse is refined by parabolas through the squared
-    separation (steps 6 min, 20 s, 1 s), each contact by the Illinois method in the grid
-    cell where its level is crossed (or between that cell and maximum).
-    """
-    n, m = points.shape[:2]
-    offsets = torch.arange(-_SPAN_S, _SPAN_S + 0.5, _GRID_STEP_S, dtype=torch.float64)
-    grid = centre_s[:, None] + offsets  # (n, g)
-    sun, moon = geometry.itrs(grid)
-    s, m_pen, sigma, _ = _topocentric(sun[:, None], moon[:, None], points[:, :, None],
-                                      MOON_RADIUS_PENUMBRAL)  # (n, m, g)
-    m_umb = m_pen * (MOON_RADIUS_UMBRAL / MOON_RADIUS_PENUMBRAL)
-    index = sigma.argmin(-1).clamp(1, len(offsets) - 2)
-    times = grid[:, None, :].expand(n, m, -1)
-
-    def pick(values, i):
-        return torch.gather(values, 2, i[..., None])[..., 0]
-
-    triple = points.repeat(1, 3, 1)
-
-    def separation2(seconds):  # (n, 3 m)
-        return _state(geometry, seconds, triple)[3] ** 2
-
-    best = pick(times, index)
-    best = _parabola_vertex(best, _GRID_STEP_S, pick(sigma, index - 1) ** 2,
-                            pick(sigma, index) ** 2, pick(sigma, index + 1) ** 2)
-    for h in (20.0, 1.0):
-        both = separation2(torch.cat((best - h, best, best + h), dim=1))
-        best = _parabola_vertex(best, h, both[:, :m], both[:, m:2 * m], both[:, 2 * m:])
-    maximum = best
-
-    levels = {"c1": s + m_pen, "c4": s + m_pen, "c2": torch.abs(m_umb - s),
-              "c3": torch.abs(m_umb - s)}
-    at_max = _state(geometry, maximum, points)
-    at_levels = {"c1": at_max[0] + at_max[1], "c2": torch.abs(at_max[2] - at_max[0])}
-    at_levels["c4"], at_levels["c3"] = at_levels["c1"], at_levels["c2"]
-    result = {"maximum": maximum}
-    for name in LOCAL_CONTACTS:
-        umbral, after = name in ("c2", "c3"), name in ("c3", "c4")
-        f_grid = sigma - levels[name]  # (n, m, g)
-        f_max = at_max[3] - at_levels[name]
-        outside = f_grid >= 0
-        beyond = (times > maximum[..., None]) if after else (times < maximum[..., None])
-        candidates = outside & beyond
-        g = len(offsets)
-        positions = torch.arange(g).expand_as(candidates)
-        if after:
-            k = torch.where(candidates, positions, g).amin(-1)  # first outside after max
-            found = (k < g) & (f_max < 0)
-            k = k.clamp(max=g - 1)
-            inner = (k - 1).clamp(min=0)
-            inner_time = torch.maximum(pick(times, inner), maximum)
-        else:
-            k = torch.where(candidates, positions, -1).amax(-1)  # last outside before max
-            found = (k >= 0) & (f_max < 0)
-            k = k.clamp(min=0)
-            inner = (k + 1).clamp(max=g - 1)
-            inner_time = torch.minimum(pick(times, inner), maximum)
-        use_max = inner_time == maximum
-        f_inner = torch.where(use_max, f_max, pick(f_grid, inner))
-
-        def excess(seconds, umbral=umbral):
-            s_, m_pen_, m_umb_, sigma_, _ = _state(geometry, seconds, points)
-            level = torch.abs(m_umb_ - s_) if umbral else s_ + m_pen_
-            return sigma_ - level
-
-        root = _illinois(excess, pick(times, k), inner_time, pick(f_grid, k), f_inner)
-        result[name] = torch.where(found, root, torch.nan)
-    return result
-
 
 def _refracted(altitude_deg: torch.Tensor) -> torch.Tensor:
     """Apparent altitude [deg] from the true one (Saemundsson, Meeus eq. 16.4)."""
@@ -197,10 +89,6 @@ for _name in (*LOCAL_CONTACTS, "maximum"):
 
 def _find_eclipse(time_or_date) -> np.datetime64:
     """Greatest eclipse (UTC) of the solar eclipse nearest ``time_or_date`` within 2 days."""
-    from skytorch.eclipse.circumstances import _parse_one
-    from skytorch.eclipse.solar import solar_eclipses
-    from skytorch.ephemeris import parse_times
-
     when = _parse_one("time_or_date", time_or_date, parse_times)
     window = np.timedelta64(2, "D")
     try:
@@ -247,9 +135,6 @@ def solar_eclipse_local(time_or_date, lat_deg, lon_deg, elevation_m=0.0,
     >>> str(ds.kind.values), int(ds.central_duration)
     ('total', 231)
     """
-    from skytorch.eclipse.occlusion import sun_visible_fraction
-    from skytorch.ephemeris import check_observer
-
     if not isinstance(refraction, bool):
         raise TypeError(f"refraction must be a bool; got {type(refraction).__name__}")
     lat, lon, height = check_observer(lat_deg, lon_deg, elevation_m)

@@ -35,6 +35,8 @@ import xarray as xr
 from skytorch._validate import check_range
 from skytorch.constants import EARTH_EQUATORIAL_RADIUS_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
+from skytorch.eclipse.circumstances import _parse_one
+from skytorch.eclipse.occlusion import sun_visible_fraction
 from skytorch.eclipse.solar import (
     _N_NARROW_NODES,
     _NARROW_HALF_S,
@@ -51,6 +53,8 @@ from skytorch.eclipse.solar import (
     _topocentric,
     _up,
 )
+from skytorch.eclipse.solar_local import _find_eclipse
+from skytorch.ephemeris import geodetic_to_itrs, parse_times
 
 __all__ = ["obscuration_map", "solar_eclipse_path"]
 
@@ -91,10 +95,6 @@ def obscuration_map(time, lat_deg=None, lon_deg=None) -> xr.Dataset:
     >>> round(float(ds.obscuration[0, 0]), 3)
     1.0
     """
-    from skytorch.eclipse.circumstances import _parse_one
-    from skytorch.eclipse.occlusion import sun_visible_fraction
-    from skytorch.ephemeris import geodetic_to_itrs, parse_times
-
     instant = _parse_one("time", time, parse_times)
     lat = _grid(lat_deg, "lat_deg", -90.0, 90.0, np.arange(-89.875, 90.0, 0.25))
     lon = _grid(lon_deg, "lon_deg", -180.0, 360.0, np.arange(-179.875, 180.0, 0.25))
@@ -217,8 +217,6 @@ def solar_eclipse_path(time_or_date, step_s: float = 60.0) -> xr.Dataset:
     >>> bool((ds.moon_sun_ratio > 1).all())
     True
     """
-    from skytorch.eclipse.solar_local import _find_eclipse
-
     step = float(check_range("step_s", step_s, 1.0, 3600.0, unit=" s"))
     greatest = _find_eclipse(time_or_date)
     geometry = _SunMoon(np.array([greatest]), _NARROW_HALF_S, _N_NARROW_NODES)
