@@ -51,7 +51,6 @@ from skytorch.scene.planner import Plan
 from skytorch.scene.planner import plan as make_plan
 from skytorch.scene.presets import FIDELITY, HORIZON_REFRACTION_RAD, RESOLVED_DISC_PIXELS
 from skytorch.scene.resources import SceneResources
-from skytorch.scene.scene import Scene
 
 logger = logging.getLogger(__name__)
 
@@ -759,8 +758,14 @@ def render_components(resources: SceneResources, plan: Plan, view, wavelength,
     return components, seconds
 
 
+#: the interface of :class:`skytorch.scene.Scene` the renderers use (checked by interface:
+#: this module sits below ``scene.py``, whose ``Scene.render`` calls it)
+_SCENE_METHODS = ("resources", "plan", "make_view", "replace")
+
+
 def _check_scene(scene) -> None:
-    if not isinstance(scene, Scene):
+    """Raise TypeError unless ``scene`` has the interface of a :class:`skytorch.Scene`."""
+    if not all(callable(getattr(scene, name, None)) for name in _SCENE_METHODS):
         raise TypeError(f"scene must be a skytorch.Scene; got {type(scene).__name__}")
 
 

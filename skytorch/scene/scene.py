@@ -50,6 +50,7 @@ from skytorch._validate import as_tensor, check_choice, check_finite, check_int,
 from skytorch.dataset import open_dataset
 from skytorch.scene.planner import plan as make_plan
 from skytorch.scene.presets import EFFECTS, FIDELITY_PRESETS
+from skytorch.scene.render import render as render_scene
 from skytorch.scene.resources import SceneResources, SceneSpec
 
 #: view kinds of a scene
@@ -845,9 +846,7 @@ class Scene:
 
         With its own resources or the given ones (``ValueError`` when their spec differs).
         """
-        from skytorch.scene.render import render
-
-        return render(self, plan, resources)
+        return render_scene(self, plan, resources)
 
     # ------------------------------------------------------------------ TOML
     @classmethod
