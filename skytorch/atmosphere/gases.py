@@ -542,7 +542,8 @@ def water_vapour_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXP
                                        "exponent": torch.tensor(m, dtype=dtype)},
                        torch.tensor(column, dtype=dtype),
                        relative_breakpoints_m=scale * torch.tensor(_LEVELS, dtype=dtype),
-                       truncate=True)
+                       truncate=True, state=_profiles.us1976_state,
+                       from_state=_profiles.us1976_water_from_state)
     air = atm.rayleigh_scale_height_m.to(dtype)
     scale = 1.0 / (1.0 / height_w + m / air)
     return Profile(_exponential_water, {"scale_height_m": height_w + 0.0 * air,
@@ -570,7 +571,9 @@ def _air_profile(atm, dtype: torch.dtype, exponent: float, power: float):
         return Profile(_us1976_air, {"exponent": torch.tensor(exponent, dtype=dtype),
                                      "power": torch.tensor(power, dtype=dtype)},
                        torch.tensor(column, dtype=dtype),
-                       breakpoints_m=torch.tensor(_US1976_LEVELS_M, dtype=dtype))
+                       breakpoints_m=torch.tensor(_US1976_LEVELS_M, dtype=dtype),
+                       state=_profiles.us1976_state,
+                       from_state=_profiles.us1976_air_from_state)
     air = atm.rayleigh_scale_height_m.to(dtype)
     rate = power + exponent
     height = air / rate
@@ -606,12 +609,8 @@ def water_vapour_species(atm, wavelength_nm, dtype, profile, exponent: float = P
     else:
         a_w, _ = bird_coefficients(wavelength_nm)
     per_m = water * _pressure_factor(atm, dtype, float(exponent)) / profile.column_height_m
-
-    def law(column, extra):
-        amount = column * insert_dims(per_m, extra, 0)
-        return curve_of_growth(a_w, amount[..., None], curve=WATER_CURVE)
-
-    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_w), law=law)
+    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_w),
+                   law=_band_law(a_w, per_m, WATER_CURVE))
 
 
 def oxygen_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSURE_EXPONENT,
@@ -629,12 +628,29 @@ def oxygen_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSUR
     # parameter ranges (the ratio does not)
     columns = (atm.molecular_column_m2(torch.float64) / STANDARD_AIR_COLUMN_M2).to(dtype)
     per_m = columns * _pressure_factor(atm, dtype, float(exponent)) / profile.column_height_m
+    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_u),
+                   law=_band_law(a_u, per_m, MIXED_GAS_CURVE))
+
+
+def _band_law(coefficient, per_m, curve):
+    """Return the optical-depth law of a band species.
+
+    The law is the curve of growth of the amount ``column * per_m``, evaluated at the
+    wavelengths inside the band only (where the band coefficient is zero the optical
+    depth is exactly zero).
+    """
+    inside = torch.nonzero(coefficient > 0).reshape(-1)
+    everywhere = inside.numel() == coefficient.numel()
+    band = coefficient if everywhere else coefficient[inside]
 
     def law(column, extra):
-        amount = column * insert_dims(per_m, extra, 0)
-        return curve_of_growth(a_u, amount[..., None], curve=MIXED_GAS_CURVE)
+        amount = (column * insert_dims(per_m, extra, 0))[..., None]
+        tau = curve_of_growth(band, amount, curve=curve)
+        if everywhere:
+            return tau
+        return tau.new_zeros(*tau.shape[:-1], coefficient.numel()).index_copy(-1, inside, tau)
 
-    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_u), law=law)
+    return law
 
 
 def o2o2_species(atm, wavelength_nm, dtype, profile):
