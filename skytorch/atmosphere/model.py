@@ -77,6 +77,7 @@ from skytorch.atmosphere import ozone as _ozone
 from skytorch.atmosphere import profiles as _profiles
 from skytorch.atmosphere import rayleigh as _rayleigh
 from skytorch.atmosphere.constituents import Constituents, Profile, Species, SpeciesBuilder
+from skytorch.atmosphere.inputs import altitude_tensor, wavelength_tensor
 from skytorch.atmosphere.ozone import ozone_cross_section
 from skytorch.atmosphere.scattering import PHASE_FUNCTIONS, phase_function, rayleigh_phase
 from skytorch.constants import (
@@ -1294,52 +1295,6 @@ class Atmosphere(nn.Module):
                 ) -> torch.Tensor:
         """Return same as :meth:`transmittance`."""
         return self.transmittance(wavelength_nm, zenith_rad, altitude_m, **options)
-
-
-def wavelength_tensor(wavelength_nm, dtype: torch.dtype | None = None) -> torch.Tensor:
-    """Return checked wavelengths as a 1-D tensor (n_wavelength,) [nm].
-
-    Parameters
-    ----------
-    wavelength_nm : float, sequence or Tensor (wavelength,)
-        Wavelength [nm], in :data:`WAVELENGTH_RANGE_NM`; a scalar becomes shape (1,).
-    dtype : torch.dtype, optional
-        Cast to this dtype after the check (the check is done in the input's own
-        precision, so that a value outside the range cannot slip in by rounding).
-
-    Returns
-    -------
-    Tensor (wavelength,)
-
-    Raises
-    ------
-    ValueError
-        A wavelength outside the range, NaN, or more than one dimension.
-
-    Examples
-    --------
-    >>> import torch
-    >>> wavelength_tensor(torch.tensor(550.0))
-    tensor([550.])
-    """
-    low, high = WAVELENGTH_RANGE_NM
-    wavelength = check_range("wavelength_nm", wavelength_nm, low, high, unit=" nm")
-    wavelength = wavelength if dtype is None else wavelength.to(dtype)
-    if wavelength.ndim > 1:
-        raise ValueError("wavelength_nm must be a scalar or a 1-D tensor (n_wavelength,); "
-                         f"got shape {tuple(wavelength.shape)}")
-    return wavelength.reshape(-1)
-
-
-def altitude_tensor(altitude_m, dtype: torch.dtype | None = None) -> torch.Tensor:
-    """Return checked observer altitudes (>= 0) [m], cast to ``dtype`` after the check.
-
-    Checked in the input's own precision (-1e-300 is below the ground even though it
-    rounds to -0.0 in float32); ValueError below the surface.
-    """
-    altitude = check_range("altitude_m", altitude_m, 0.0, unit=" m (observer inside the "
-                           "planet?)")
-    return altitude if dtype is None else altitude.to(dtype)
 
 
 def _floating_dtype(dtype, *tensors) -> torch.dtype:

@@ -117,7 +117,7 @@ from skytorch.atmosphere.deviation_tables import (
     deviation_table,
     lookup_deviation,
 )
-from skytorch.atmosphere.model import Atmosphere, wavelength_tensor
+from skytorch.atmosphere.inputs import wavelength_tensor
 from skytorch.atmosphere.optical_depth import check_rtol
 from skytorch.atmosphere.ray_geometry import (
     METHODS,
@@ -423,7 +423,7 @@ def bent_optical_depth(
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
     _ray_shape(atm, zenith_rad=zenith, altitude_m=height)
     wavelength = _wavelengths(wavelength_nm, dtype)
-    if isinstance(atm, Atmosphere):  # its spectral range
+    if hasattr(atm, "constituents"):  # an Atmosphere: its spectral range
         wavelength = wavelength_tensor(wavelength, dtype)
     elevation = torch.clamp(0.5 * math.pi - zenith, -0.5 * math.pi, 0.5 * math.pi)
     constituents = _constituents(atm, wavelength, dtype)
@@ -543,7 +543,7 @@ def trace_grazing_rays(
                             dtype=dtype)
         impact_altitude_m = b_geo - radius
     wavelength = None if wavelength_nm is None else _wavelengths(wavelength_nm, dtype)
-    if wavelength is not None and isinstance(atm, Atmosphere):
+    if wavelength is not None and hasattr(atm, "constituents"):  # an Atmosphere
         wavelength = wavelength_tensor(wavelength, dtype)
     constituents = None if wavelength is None else _constituents(atm, wavelength, dtype)
     if constituents is not None:  # path columns of the species

@@ -37,6 +37,7 @@ from skytorch._validate import (
 )
 from skytorch.atmosphere.constituents import insert_dims
 from skytorch.atmosphere.geometry import _distance_to_ground, _distance_to_top, _ray_hits_ground
+from skytorch.atmosphere.inputs import altitude_tensor, check_atmosphere, wavelength_tensor
 
 __all__ = [
     "PHASE_FUNCTIONS",
@@ -177,11 +178,7 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     :math:`T(0 \to s)` integrated along the view ray (trapezoid on the samples) and
     :math:`T_\odot(s) = 0` where the ray to the Sun meets the planet (its shadow).
     """
-    from skytorch.atmosphere.model import Atmosphere, altitude_tensor, wavelength_tensor
-
-    if not isinstance(atmosphere, Atmosphere):
-        raise TypeError("atmosphere must be a skytorch.atmosphere.Atmosphere; got "
-                        f"{type(atmosphere).__name__}")
+    check_atmosphere("atmosphere", atmosphere)
     n_samples = check_int("n_samples", n_samples, 2)
     if sun_steps is not None:
         sun_steps = check_int("sun_steps", sun_steps, 1)

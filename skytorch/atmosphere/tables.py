@@ -83,6 +83,7 @@ from skytorch.atmosphere.geometry import (
     _texture_coordinates,
     _texture_rays,
 )
+from skytorch.atmosphere.inputs import check_atmosphere, wavelength_tensor
 from skytorch.atmosphere.optical_depth import METHODS
 from skytorch.dataset import (
     VariableSpec,
@@ -191,11 +192,7 @@ def table_key(atmosphere, wavelength_nm, n_mu: int, n_r: int, method: str,
 
 def _check_build(atmosphere, wavelength_nm, n_mu, n_r, method, n_steps):
     """Return checked arguments of a table build (TypeError/ValueError naming the parameter)."""
-    from skytorch.atmosphere.model import Atmosphere, wavelength_tensor
-
-    if not isinstance(atmosphere, Atmosphere):
-        raise TypeError("atmosphere must be a skytorch.atmosphere.Atmosphere; got "
-                        f"{type(atmosphere).__name__}")
+    check_atmosphere("atmosphere", atmosphere)
     n_mu = check_int("n_mu", n_mu, 2)
     n_r = check_int("n_r", n_r, 2)
     check_choice("method", method, METHODS)
