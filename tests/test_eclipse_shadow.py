@@ -297,3 +297,25 @@ def test_mars_shadow_at_phobos_and_deimos():
         distance, torch.zeros(2, dtype=torch.float64), RGB)
     assert bool((airless == 0).all())
     assert bool((value >= 0).all()) and bool(torch.isfinite(value).all())
+
+
+def test_straight_ray_shadow_sees_every_species():
+    """refraction=False traces straight rays through the same species as refracted ones.
+
+    Reference: an Atmosphere whose refractivity is 1e-30 (no bending) traced by the
+    refraction module directly; before the straight-ray wrapper forwarded the species, the
+    O2 A band and the 940 nm water band were missing (limb optical depth at 762 nm 1.38
+    instead of 3.74 for a ray grazing at 5 km).
+    """
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.atmosphere.refraction import trace_grazing_rays
+    from skytorch.eclipse.shadow import _NoRefraction
+
+    wavelength = torch.tensor([550.0, 762.0, 940.0], dtype=torch.float64)
+    impact = torch.tensor([5e3, 10e3, 20e3], dtype=torch.float64)
+    straight = trace_grazing_rays(_NoRefraction(Atmosphere.earth()), wavelength_nm=wavelength,
+                                  impact_altitude_m=impact)["optical_depth"]
+    flat = Atmosphere.earth(reference_refractivity=1e-30)
+    reference = trace_grazing_rays(flat, wavelength_nm=wavelength,
+                                   impact_altitude_m=impact)["optical_depth"]
+    torch.testing.assert_close(straight, reference, rtol=1e-9, atol=0.0)

@@ -729,12 +729,21 @@ class _NoRefraction:
         self.planet_radius_m = atmosphere.planet_radius_m
         self.top_altitude_m = atmosphere.top_altitude_m
         self.top_radius_m = atmosphere.top_radius_m
+        self.batch_shape = getattr(atmosphere, "batch_shape", torch.Size())
 
     def refractivity(self, altitude_m, wavelength_nm=None):
         return torch.zeros_like(torch.as_tensor(altitude_m))
 
     def extinction_coefficient(self, altitude_m, wavelength_nm):
         return self._atmosphere.extinction_coefficient(altitude_m, wavelength_nm)
+
+    def constituents(self, wavelength_nm, dtype=None):
+        # the straight rays' optical depths from the species' path columns, as for the
+        # refracted ones (band laws of the gases on the whole path)
+        return self._atmosphere.constituents(wavelength_nm, dtype)
+
+    def profiles(self, dtype=torch.float64):
+        return self._atmosphere.profiles(dtype)
 
 
 def _atmosphere_gradients(atmosphere) -> list[str]:
