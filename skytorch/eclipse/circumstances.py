@@ -270,6 +270,25 @@ def _parse_one(name: str, value, parse_times) -> np.datetime64:
     return times[0]
 
 
+def _check_search_range(start, end) -> tuple[np.datetime64, np.datetime64]:
+    """Return ``start`` and ``end`` parsed (UTC), ordered and inside the search range.
+
+    Shared by the lunar and solar eclipse searches (ValueError naming ``start``/``end``).
+    """
+    start_time, end_time = (_parse_one(name, value, parse_times)
+                            for name, value in (("start", start), ("end", end)))
+    if not end_time > start_time:
+        raise ValueError(f"end must be after start; got start={start_time}, end={end_time}")
+    low, high = _search_range()
+    for name, value in (("start", start_time), ("end", end_time)):
+        if not low <= value <= high:
+            raise ValueError(
+                f"{name} must be within {np.datetime_as_string(low, 'm')} .. "
+                f"{np.datetime_as_string(high, 'm')} UTC (the DE421 ephemeris range less "
+                f"two days at each end); got {np.datetime_as_string(value, 's')}")
+    return start_time, end_time
+
+
 def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
     """Every lunar eclipse whose greatest eclipse lies in ``[start, end)``.
 
@@ -306,17 +325,7 @@ def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
     (['total', 'total'], [1.414, 1.359])
     """
     check_choice("enlargement", enlargement, ENLARGEMENTS)
-    start_time, end_time = (_parse_one(name, value, parse_times)
-                            for name, value in (("start", start), ("end", end)))
-    if not end_time > start_time:
-        raise ValueError(f"end must be after start; got start={start_time}, end={end_time}")
-    low, high = _search_range()
-    for name, value in (("start", start_time), ("end", end_time)):
-        if not low <= value <= high:
-            raise ValueError(
-                f"{name} must be within {np.datetime_as_string(low, 'm')} .. "
-                f"{np.datetime_as_string(high, 'm')} UTC (the DE421 ephemeris range less "
-                f"two days at each end); got {np.datetime_as_string(value, 's')}")
+    start_time, end_time = _check_search_range(start, end)
 
     centres, node_distance = _mean_full_moons(start_time, end_time)
     # greatest eclipse lies within the window of its mean full moon: candidates farther

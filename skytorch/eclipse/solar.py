@@ -67,12 +67,11 @@ from skytorch.eclipse.circumstances import (
     _bisect,
     _chebyshev_nodes,
     _chebyshev_values,
+    _check_search_range,
     _golden_minimum,
-    _parse_one,
-    _search_range,
     _sun_radius_m,
 )
-from skytorch.ephemeris import geodetic_to_itrs, parse_times, skyfield_time, sun_moon_vectors
+from skytorch.ephemeris import geodetic_to_itrs, skyfield_time, sun_moon_vectors
 
 __all__ = [
     "EARTH_ROTATION_RATE_RAD_S",
@@ -436,21 +435,6 @@ _SPECS = {
 }
 
 
-def _check_range(start, end) -> tuple[np.datetime64, np.datetime64]:
-    start_time, end_time = (_parse_one(name, value, parse_times)
-                            for name, value in (("start", start), ("end", end)))
-    if not end_time > start_time:
-        raise ValueError(f"end must be after start; got start={start_time}, end={end_time}")
-    low, high = _search_range()
-    for name, value in (("start", start_time), ("end", end_time)):
-        if not low <= value <= high:
-            raise ValueError(
-                f"{name} must be within {np.datetime_as_string(low, 'm')} .. "
-                f"{np.datetime_as_string(high, 'm')} UTC (the DE421 ephemeris range less "
-                f"two days at each end); got {np.datetime_as_string(value, 's')}")
-    return start_time, end_time
-
-
 def _greatest(geometry: _SunMoon, low: torch.Tensor, high: torch.Tensor) -> torch.Tensor:
     def distance(seconds):
         sun, moon = geometry.itrs(seconds)
@@ -514,7 +498,7 @@ def solar_eclipses(start, end) -> xr.Dataset:
     >>> ds.kind.values.tolist(), [round(float(g), 4) for g in ds.gamma]
     (['total', 'annular'], [0.3431, -0.3509])
     """
-    start_time, end_time = _check_range(start, end)
+    start_time, end_time = _check_search_range(start, end)
     centres, lunations = _candidates(start_time, end_time)
     logger.info("%d new moons near a node between %s and %s", len(centres), start_time,
                 end_time)
