@@ -1,0 +1,43 @@
+"""The natural night sky: zodiacal light, airglow and the integrated light of stars.
+
+* :mod:`~skytorch.nightsky.zodiacal` — Leinert et al. 1998 Table 17 and its colour;
+* :mod:`~skytorch.nightsky.airglow` — van Rhijn layer, zenith level and solar cycle;
+* :mod:`~skytorch.nightsky.starlight` — Gaia catalogue stars fainter than a limit, as a
+  surface-brightness map (the Milky Way of the catalogue).
+
+The per-direction sum for a scene is :func:`skytorch.scene.natural_sky.natural_component`.
+"""
+
+from skytorch.nightsky.airglow import (
+    AIRGLOW_HEIGHT_M,
+    AIRGLOW_ZENITH_V_130SFU,
+    airglow_solar_factor,
+    airglow_zenith_mag,
+    van_rhijn,
+)
+from skytorch.nightsky.starlight import (
+    catalogue_starlight_map,
+    galactic_coordinates,
+    starlight_v_radiance,
+)
+from skytorch.nightsky.zodiacal import (
+    S10_W_M2_SR_NM,
+    zodiacal_brightness_500,
+    zodiacal_colour,
+    zodiacal_spectral_radiance,
+)
+
+__all__ = [
+    "AIRGLOW_HEIGHT_M",
+    "AIRGLOW_ZENITH_V_130SFU",
+    "S10_W_M2_SR_NM",
+    "airglow_solar_factor",
+    "airglow_zenith_mag",
+    "catalogue_starlight_map",
+    "galactic_coordinates",
+    "starlight_v_radiance",
+    "van_rhijn",
+    "zodiacal_brightness_500",
+    "zodiacal_colour",
+    "zodiacal_spectral_radiance",
+]

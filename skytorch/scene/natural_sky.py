@@ -1,0 +1,163 @@
+r"""The natural night sky per view direction: zodiacal light, airglow and starlight.
+
+:func:`natural_component` has the signature of the renderer's components
+(:mod:`skytorch.scene.render`) and returns the spectral radiance image
+``(*view, wavelength)`` [W m^-2 sr^-1 nm^-1] of three sources:
+
+* zodiacal light — :func:`skytorch.nightsky.zodiacal_spectral_radiance` at each pixel's
+  helio-ecliptic longitude and ecliptic latitude for the scene's instant (Sun from the
+  scene geometry; J2000 mean obliquity), above the atmosphere;
+* airglow — flat in f_λ across the visible, its observed zenith V level
+  :func:`skytorch.nightsky.airglow_zenith_mag` for the solar flux
+  ``knobs.solar_flux_sfu`` (130 sfu when the knobs carry none), brightened towards the
+  horizon by the van Rhijn factor of a layer at ``knobs.airglow_height_m``;
+* integrated starlight of the Gaia catalogue stars fainter than ``knobs.star_limit_mag``
+  (the stars the scene draws as points are brighter), with the solar spectral shape
+  (:func:`skytorch.nightsky.catalogue_starlight_map`; stars fainter than G = 10 are not
+  in it).
+
+Each is dimmed by the V-band extinction along the line of sight of a source of solar
+colour (:func:`skytorch.stars.extinction` on the scene's extinction table, refracted paths
+when ``knobs.refraction``): the zodiacal light and starlight by the whole extinction, the
+airglow relative to the zenith, as its level is an observed one. Light of the glowing
+sky scattered into the line of sight (which makes up part of that loss near the
+horizon) needs the multiple-scattering solver and is not included.
+
+References
+----------
+1. Leinert, Ch. et al. 1998, A&AS 127, 1, doi:10.1051/aas:1998105.
+2. Noll, S. et al. 2012, A&A 543, A92, doi:10.1051/0004-6361/201219040.
+3. Garstang, R. H. 1989, PASP 101, 306, doi:10.1086/132436.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+__all__ = ["DEFAULT_SOLAR_FLUX_SFU", "ecliptic_coordinates", "natural_component",
+           "view_icrs_vectors"]
+
+#: 10.7 cm solar flux used when the knobs carry none [sfu] (the ESO sky model's reference)
+DEFAULT_SOLAR_FLUX_SFU = 130.0
+#: mean obliquity of the ecliptic at J2000.0 (IAU 2006) [rad]
+OBLIQUITY_J2000_RAD = math.radians(23.439279444)
+#: B−V of a solar-colour source for the V-band extinction
+_SOLAR_BV = 0.65
+#: V-band zero-magnitude flux density (Bessell et al. 1998) [W m^-2 nm^-1]
+_V_ZERO_FLUX = 3.631e-11
+#: one square arcsecond [sr]
+_ARCSEC2_SR = (math.pi / 180.0 / 3600.0) ** 2
+
+
+def ecliptic_coordinates(icrs_unit: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Ecliptic longitude and latitude [rad] of ICRS unit vectors (..., 3), J2000 ecliptic."""
+    x, y, z = icrs_unit.unbind(-1)
+    c, s = math.cos(OBLIQUITY_J2000_RAD), math.sin(OBLIQUITY_J2000_RAD)
+    ye, ze = y * c + z * s, -y * s + z * c
+    return torch.atan2(ye, x), torch.asin(ze.clamp(-1.0, 1.0))
+
+
+def view_icrs_vectors(view, knobs) -> torch.Tensor:
+    """ICRS unit vectors (*view, 3) of the pixel directions at the scene's instant and site."""
+    return view.unit_vectors() @ view_icrs_matrix(knobs)  # u = M^T h, as rows
+
+
+def _extinction_mag(resources, view, knobs) -> tuple[torch.Tensor, torch.Tensor]:
+    """V extinction [mag] of a solar-colour source at each pixel and at the zenith."""
+    from skytorch.stars import extinction
+
+    table = resources.extinction_table(knobs.elevation_m, knobs.refraction)
+    altitude = (0.5 * math.pi - view.zenith_rad.to(torch.float64)).reshape(1, -1)
+    bv = torch.tensor([_SOLAR_BV], dtype=torch.float64)
+    delta, _ = extinction(bv, torch.cat([altitude.new_full((1, 1), 0.5 * math.pi), altitude],
+                                        dim=1), table)
+    return delta[0, 1:].reshape(view.zenith_rad.shape), delta[0, 0]
+
+
+def _v_mag(spectrum: torch.Tensor, wavelength: torch.Tensor) -> torch.Tensor:
+    from skytorch.moon.sky import radiance_to_mag_arcsec2
+
+    return radiance_to_mag_arcsec2(spectrum, wavelength)
+
+
+def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
+    r"""Zodiacal light, airglow and integrated starlight (*view, wl) [W m^-2 sr^-1 nm^-1].
+
+    Parameters
+    ----------
+    resources : SceneResources
+        Its atmosphere (planet radius) and V-band extinction table.
+    view : View
+        Pixel directions; pixels not ``view.valid`` are 0.
+    geometry : Geometry
+        The Sun's horizontal vector ``sun_horizontal_m`` at the instant.
+    wavelength : Tensor (wavelength,)
+        Scene wavelengths [nm].
+    knobs : Knobs
+        ``time``, ``lat_deg``, ``lon_deg``, ``elevation_m``, ``refraction``,
+        ``star_limit_mag``, ``airglow_height_m``, ``dtype`` and, if present,
+        ``solar_flux_sfu``.
+
+    Returns
+    -------
+    Tensor (*view, wavelength)
+
+    Notes
+    -----
+    .. math:: L = \bigl[L_{ZL} + L_\star\bigr] 10^{-0.4\,\Delta m(h)} + L_{AG,0}\,V(z)\,
+              10^{-0.4\,[\Delta m(h) - \Delta m(90°)]},
+
+    with :math:`\Delta m` the V-band extinction, :math:`V(z)` the van Rhijn factor and
+    :math:`L_{AG,0}` the observed zenith airglow.
+    """
+    from skytorch.nightsky import (
+        airglow_zenith_mag,
+        catalogue_starlight_map,
+        starlight_v_radiance,
+        van_rhijn,
+        zodiacal_spectral_radiance,
+    )
+    from skytorch.spectrum import solar_irradiance
+
+    wl = wavelength.to(torch.float64).reshape(-1)
+    zenith = view.zenith_rad.to(torch.float64)
+    icrs = view_icrs_vectors(view, knobs)
+    lon, lat = ecliptic_coordinates(icrs)
+    sun_h = torch.tensor(geometry.sun_horizontal_m, dtype=torch.float64)
+    sun_lon, _ = ecliptic_coordinates(
+        (sun_h / torch.linalg.vector_norm(sun_h)) @ view_icrs_matrix(knobs))
+    zodiacal = zodiacal_spectral_radiance(lon - sun_lon, lat, wl)
+
+    solar = solar_irradiance(wl)
+    solar_mag = _v_mag(solar, wl)
+    star_v = starlight_v_radiance(icrs, catalogue_starlight_map(float(knobs.star_limit_mag)))
+    star_mag_per_unit = -2.5 * math.log10(_ARCSEC2_SR / _V_ZERO_FLUX)  # V of 1 W m^-2 sr^-1 nm^-1
+    star_scale = 10.0 ** (-0.4 * (star_mag_per_unit - solar_mag))  # solar shape at V = 1 unit
+    starlight = (star_v * star_scale)[..., None] * solar
+
+    flux = getattr(knobs, "solar_flux_sfu", DEFAULT_SOLAR_FLUX_SFU)
+    flat = torch.ones_like(wl)
+    airglow_level = 10.0 ** (-0.4 * (airglow_zenith_mag(float(flux)) - _v_mag(flat, wl)))
+    path = van_rhijn(zenith.clamp(max=0.5 * math.pi),
+                     layer_height_m=float(knobs.airglow_height_m),
+                     planet_radius_m=float(resources.atmosphere.planet_radius_m),
+                     observer_height_m=float(knobs.elevation_m))
+
+    delta, delta_zenith = _extinction_mag(resources, view, knobs)
+    space = 10.0 ** (-0.4 * delta)
+    relative = 10.0 ** (-0.4 * (delta - delta_zenith))
+    image = ((zodiacal + starlight) * space[..., None]
+             + (airglow_level * path * relative)[..., None] * flat)
+    valid = view.valid[..., None].to(torch.float64)
+    return (image * valid).to(knobs.dtype)
+
+
+def view_icrs_matrix(knobs) -> torch.Tensor:
+    """Rotation (3, 3) from horizontal (north, east, up) rows to ICRS rows at the instant."""
+    from skytorch.ephemeris import icrs_to_horizontal_matrices
+
+    return icrs_to_horizontal_matrices(np.datetime64(knobs.time, "ns"), knobs.lat_deg,
+                                       knobs.lon_deg)[0]
