@@ -102,7 +102,7 @@ import math
 
 import torch
 
-from skytorch._validate import check_int, check_range, common_dtype
+from skytorch._validate import check_choice, check_int, check_range, common_dtype
 from skytorch.atmosphere.bouguer import (
     DEFAULT_NODES,
     TABLE_NODES,
@@ -146,6 +146,7 @@ __all__ = [
     "DEFAULT_MAX_DH_M",
     "DEFAULT_NODES",
     "DEFAULT_STEP_M",
+    "GROUND_MODES",
     "METHODS",
     "TABLE_NODES",
     "TABLE_PANEL_NODES",
@@ -154,10 +155,139 @@ __all__ = [
     "apparent_altitude",
     "bent_optical_depth",
     "deviation_table",
+    "horizon_dip",
     "lookup_deviation",
     "refraction_angle",
     "trace_grazing_rays",
 ]
+
+
+#: what the observer functions do with a ray that hits the ground (below the apparent
+#: horizon): ``"allow"`` continues it through a planet of constant index (refraction) or
+#: stops the optical depth at the ground point; ``"raise"`` raises ValueError
+GROUND_MODES = ("allow", "raise")
+
+
+def _dip_terms(atm, height, dtype):
+    r"""Geometric and apparent dip of the horizon [rad] for observer altitudes ``height``.
+
+    Closed forms of spherical symmetry (no quadrature): :math:`\cos d_g = R/(R+h)` and,
+    with Bouguer's invariant of the ray grazing the ground, :math:`\cos d_a = n(0)R /
+    (n(h)(R+h))`; both written as :math:`d = 2\arcsin\sqrt{(1-\cos d)/2}` without
+    cancellation.
+    """
+    radius = float(atm.planet_radius_m)
+    top = float(atm.top_altitude_m)
+    zero = torch.zeros((), dtype=dtype)
+    nu0 = atm.refractivity(zero).to(dtype)
+    nu_h = atm.refractivity(torch.clamp(height, 0.0, top)).to(dtype)
+    geometric = 2.0 * torch.asin(torch.sqrt(0.5 * height / (radius + height)))
+    # 1 - cos d_a = (h (1 + nu_h) - R (nu0 - nu_h)) / ((1 + nu_h) (R + h))
+    excess = height * (1.0 + nu_h) - radius * (nu0 - nu_h)
+    if bool((excess < 0.0).any()):
+        bad = float(torch.broadcast_to(height, excess.shape)[excess < 0.0].reshape(-1)[0])
+        raise ValueError(
+            f"altitude_m={bad!r} m: the refractive index falls faster with altitude than "
+            "1/r between the ground and the observer (n(0) R > n(h) (R + h), a duct), so no "
+            "ray from the observer grazes the ground; valid: profiles with "
+            "n(h) (R + h) >= n(0) R")
+    ratio = excess / ((1.0 + nu_h) * (radius + height))
+    apparent = 2.0 * torch.asin(torch.sqrt(torch.clamp(0.5 * ratio, min=0.0)))
+    return geometric, apparent
+
+
+def _check_above_ground(atm, elevation, height, dtype, ground, name, value):
+    """Raise for rays below the apparent horizon when ``ground == "raise"``.
+
+    ``elevation``: apparent altitude of the rays at the observers [rad]; ``name`` and
+    ``value``: the user's parameter (shown in the message).
+    """
+    if check_choice("ground", ground, GROUND_MODES) == "allow":
+        return
+    _, dip = _dip_terms(atm, height.detach(), dtype)
+    below = elevation.detach() < -dip
+    if bool(below.any()):
+        shape = below.shape
+        first = int(below.reshape(-1).nonzero()[0, 0])
+
+        def pick(x):
+            return float(torch.broadcast_to(x.detach(), shape).reshape(-1)[first])
+
+        raise ValueError(
+            f"{name}={pick(value)!r} rad at altitude_m={pick(height)!r} m is below the apparent "
+            f"horizon ({int(below.sum())} ray(s)): the ray hits the ground; valid apparent "
+            f"altitudes are >= -{math.degrees(pick(dip)):.6g} deg, the apparent dip of the "
+            "horizon (horizon_dip); ground='allow' continues such rays through the planet")
+
+
+def horizon_dip(atm, altitude_m, *, n_nodes: int = DEFAULT_NODES) -> dict[str, torch.Tensor]:
+    r"""Dip of the horizon for an elevated observer: geometric and apparent (refracted).
+
+    Parameters
+    ----------
+    atm : Atmosphere or compatible
+        Needs ``planet_radius_m``, ``top_altitude_m`` and ``refractivity(altitude_m)``.
+    altitude_m : float or Tensor (...)
+        Observer altitude above the (smooth, spherical) ground, ≥ 0 [m].
+    n_nodes : int
+        Gauss–Legendre nodes of the refraction of the grazing ray (see
+        :func:`refraction_angle`).
+
+    Returns
+    -------
+    dict of Tensor (...)
+        ``geometric_dip_rad``: depression of the geometric horizon,
+        :math:`\arccos(R/(R+h))` [rad]; ``apparent_dip_rad``: depression below the
+        astronomical horizon of the apparent horizon, the ray that grazes the ground
+        [rad]; ``refraction_rad``: refraction of that grazing ray from the observer to
+        space [rad]; ``true_altitude_rad``: true altitude of a source seen on the apparent
+        horizon, −(apparent dip + refraction) [rad] — sources below it are hidden by the
+        ground. dtype of ``altitude_m``.
+
+    Notes
+    -----
+    Bouguer's invariant :math:`b = n(r)\,r\cos e` is constant along a ray, so the ray
+    that leaves the observer at apparent altitude :math:`-d_a` and touches the ground
+    horizontally satisfies
+
+    .. math:: \cos d_a = \frac{n(0)\,R}{n(h)\,(R+h)},
+
+    exact for a spherically symmetric index. For small dips,
+    :math:`d_a^2 \approx 2h/R - 2(\nu(0) - \nu(h)) = d_g^2\,(1 - \bar k)` with
+    :math:`\bar k = R(\nu(0)-\nu(h))/h` the mean terrestrial refraction coefficient of
+    the layer below the observer (ray curvature over Earth curvature, ≈ 0.13–0.17 for
+    the standard lapse rate; refs. 1, 2): the refracted dip is smaller than the
+    geometric one and the apparent horizon lies farther away. The observer functions
+    accept apparent altitudes down to :math:`-d_a` with ``ground="raise"``.
+
+    References
+    ----------
+    1. Young, A. T. 2004, "Sunset science. IV. Low-altitude refraction", Astron. J. 127,
+       3622, doi:10.1086/420806.
+    2. Bomford, G. 1980, *Geodesy*, 4th ed., Clarendon Press, Oxford (terrestrial
+       refraction coefficient from pressure, temperature and lapse rate).
+
+    Examples
+    --------
+    >>> import math, torch
+    >>> class Air:
+    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
+    ...     def refractivity(self, altitude_m, wavelength_nm=None):
+    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> dip = horizon_dip(Air(), torch.tensor(3000.0, dtype=torch.float64))
+    >>> round(math.degrees(float(dip["geometric_dip_rad"])), 3)
+    1.758
+    >>> round(math.degrees(float(dip["apparent_dip_rad"])), 3)
+    1.588
+    """
+    _check_atmosphere(atm)
+    dtype = common_dtype(altitude_m)
+    height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
+    geometric, apparent = _dip_terms(atm, height, dtype)
+    bend = refraction_angle(atm, -apparent, height, n_nodes=n_nodes)
+    geometric, apparent, bend = torch.broadcast_tensors(geometric, apparent, bend)
+    return {"geometric_dip_rad": geometric, "apparent_dip_rad": apparent,
+            "refraction_rad": bend, "true_altitude_rad": -(apparent + bend)}
 
 
 def refraction_angle(
@@ -171,6 +301,7 @@ def refraction_angle(
     max_dh_m: float = DEFAULT_MAX_DH_M,
     n_steps: int | None = None,
     wavelength_nm=None,
+    ground: str = "allow",
 ) -> torch.Tensor:
     r"""Astronomical refraction :math:`R` = apparent − true altitude [rad].
 
@@ -198,6 +329,11 @@ def refraction_angle(
         (:func:`skytorch.atmosphere.rayleigh.refractivity_dispersion`, Peck & Reeder
         1972). Default: grey (the refractivity as given, i.e. at 589.3 nm). With
         ``"rk4"`` one wavelength per call.
+    ground : {"allow", "raise"}
+        Rays that hit the ground (apparent altitude below −``apparent_dip_rad`` of
+        :func:`horizon_dip`, e.g. −1.62° at 3 km): ``"allow"`` continues them through a
+        planet of constant index (a smooth continuation, not an observable), ``"raise"``
+        raises ValueError. Elevated observers see down to the apparent dip.
 
     Returns
     -------
@@ -239,11 +375,33 @@ def refraction_angle(
                              f"of shape {tuple(wavelength.shape)}")
         atm = _Dispersive(atm, wavelength.reshape(()) if method == "rk4" else wavelength)
     _ray_shape(atm, apparent_altitude_rad=apparent_altitude_rad, altitude_m=altitude_m)
+    _check_above_ground(atm, apparent_altitude_rad, altitude_m, dtype, ground,
+                        "apparent_altitude_rad", apparent_altitude_rad)
     if method == "rk4":
         return _trace_observer_rk4(atm, apparent_altitude_rad, altitude_m, dtype, step_m,
                                    max_dh_m)["deviation_rad"]
     return _observer_bending(atm, apparent_altitude_rad, altitude_m, dtype, n_nodes)[0]
 
+
+
+def _check_visible(atm, target, height, dtype, options):
+    """Raise when a true altitude lies below the one seen on the apparent horizon."""
+    with torch.no_grad():
+        _, dip = _dip_terms(atm, height, dtype)
+        lowest = -dip - refraction_angle(atm, -dip, height, **options)
+        hidden = target < lowest
+    if bool(hidden.any()):
+        shape = hidden.shape
+        first = int(hidden.reshape(-1).nonzero()[0, 0])
+
+        def pick(x):
+            return float(torch.broadcast_to(x.detach(), shape).reshape(-1)[first])
+
+        raise ValueError(
+            f"true_altitude_rad={pick(target)!r} rad at altitude_m={pick(height)!r} m is "
+            f"hidden by the ground ({int(hidden.sum())} source(s)): valid true altitudes are "
+            f">= {math.degrees(pick(lowest)):.6g} deg, the true altitude seen on the apparent "
+            "horizon (horizon_dip)")
 
 
 def apparent_altitude(
@@ -259,6 +417,7 @@ def apparent_altitude(
     max_dh_m: float = DEFAULT_MAX_DH_M,
     n_steps: int | None = None,
     wavelength_nm=None,
+    ground: str = "allow",
 ) -> torch.Tensor:
     r"""Apparent altitude of an object at a true (unrefracted) altitude [rad].
 
@@ -280,6 +439,11 @@ def apparent_altitude(
         Newton iterations at most.
     method, n_nodes, step_m, max_dh_m, n_steps, wavelength_nm
         As for :func:`refraction_angle`.
+    ground : {"allow", "raise"}
+        ``"raise"``: a true altitude below the ``true_altitude_rad`` of
+        :func:`horizon_dip` (the source is hidden by the ground) raises ValueError;
+        ``"allow"``: the inverse of the continued refraction (see
+        :func:`refraction_angle`).
 
     Returns
     -------
@@ -309,6 +473,8 @@ def apparent_altitude(
                "n_steps": n_steps, "wavelength_nm": wavelength_nm}
     _check_method(method, n_nodes, n_steps)
     _ray_shape(atm, true_altitude_rad=target, altitude_m=height)
+    if check_choice("ground", ground, GROUND_MODES) == "raise":
+        _check_visible(atm, target, height, dtype, options)
     target, height = torch.broadcast_tensors(target, height)
     limit = math.pi / 2
     delta = 1e-6 if dtype == torch.float64 else 1e-3
@@ -348,6 +514,7 @@ def bent_optical_depth(
     n_steps: int | None = None,
     per_species: bool = False,
     rtol: float = 1e-9,
+    ground: str = "allow",
 ) -> torch.Tensor | dict[str, torch.Tensor]:
     r"""Optical depth from an observer to space along the refracted ray.
 
@@ -378,12 +545,20 @@ def bent_optical_depth(
     rtol : float
         Tolerance of the straight-ray ``"adaptive"`` integrator: checked (in (0, 1]) and
         otherwise unused here (the Gauss–Legendre rule has a fixed number of nodes).
+    ground : {"allow", "raise"}
+        Rays below the apparent horizon (zenith angle beyond π/2 + the
+        ``apparent_dip_rad`` of :func:`horizon_dip`): ``"allow"`` gives the optical depth
+        to the ground point, ``"raise"`` raises ValueError. Rays between the
+        astronomical and the apparent horizon of an elevated observer descend to their
+        periapsis and climb to space: their optical depth (and air mass) is that whole
+        path.
 
     Returns
     -------
     Tensor (..., n_wavelength) or dict of Tensor
         Optical depth [1] along the bent path to the top of the atmosphere; for rays that
-        hit the ground (below the horizon) the optical depth to the ground point.
+        hit the ground (below the apparent horizon) the optical depth to the ground
+        point.
 
     Notes
     -----
@@ -426,6 +601,7 @@ def bent_optical_depth(
     if hasattr(atm, "constituents"):  # an Atmosphere: its spectral range
         wavelength = wavelength_tensor(wavelength, dtype)
     elevation = torch.clamp(0.5 * math.pi - zenith, -0.5 * math.pi, 0.5 * math.pi)
+    _check_above_ground(atm, elevation, height, dtype, ground, "zenith_rad", zenith)
     constituents = _constituents(atm, wavelength, dtype)
     if constituents is None:
         coefficient_of = _extinction_of(wavelength)
