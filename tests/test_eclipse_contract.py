@@ -219,13 +219,14 @@ def test_shadow_constructor_rejects(keywords, name):
 
 
 def test_tables_refuse_gradients_wrt_the_atmosphere():
-    # the (u, v) table and the scattered light are tabulated without gradients: refused
+    # the (u, v) table carries the gradient (tests/test_shadow_gradients.py); the bending
+    # and the scattered light (tabulated without gradients) refuse it
     from skytorch.atmosphere import Atmosphere
 
     turbidity = torch.tensor(2.0, dtype=torch.float64, requires_grad=True)
     shadow = Shadow.earth(Atmosphere.earth(turbidity=turbidity), n_altitude=33)
-    with pytest.raises(ValueError, match="not differentiable with respect to the atmosphere"):
-        ShadowTable.compute(shadow, [550.0], n_u=4, n_v=4, progress=False)
+    table = ShadowTable.compute(shadow, [550.0], n_u=4, n_v=4, progress=False)
+    assert table.values.requires_grad
     pressure = torch.tensor(101325.0, dtype=torch.float64, requires_grad=True)
     bending = Shadow.earth(Atmosphere.earth(surface_pressure_pa=pressure), n_altitude=33)
     with pytest.raises(ValueError, match="surface_pressure_pa"):

@@ -423,11 +423,16 @@ class RingProfile:
         Optical depth along the bent path [1], per member of a batch of atmospheres.
     periapsis_altitude_m : Tensor (n,)
         Lowest altitude of each ray [m].
+    cloud_split_m : Tensor () or None
+        Impact altitude of the ray grazing the cloud tops [m], a split of the ring
+        quadrature that keeps its graph: the quadrature nodes move with it, so the
+        derivative of the ring integral with respect to the cloud-top altitude carries the
+        boundary term of the step in the ray weight (Leibniz rule) exactly.
     """
 
     def __init__(self, beta_min_m, beta_top_m, deviation_rad, optical_depth,
                  periapsis_altitude_m, terrain_height_m=None, split_betas_m=(),
-                 cloud_top_m=0.0, cloud_fraction=0.0, kink_betas_m=()):
+                 cloud_top_m=0.0, cloud_fraction=0.0, kink_betas_m=(), cloud_split_m=None):
         self.beta_min_m = float(beta_min_m)
         self.beta_top_m = float(beta_top_m)
         self.deviation_rad = deviation_rad
@@ -437,7 +442,13 @@ class RingProfile:
         self.grid = _ImpactGrid(beta_min_m, beta_top_m, int(deviation_rad.shape[0]),
                                 kink_betas_m)
         self.kink_betas_m = self.grid.kinks_m
-        self.split_betas_m = tuple(float(b) for b in split_betas_m) + self.kink_betas_m
+        fixed = tuple(float(b) for b in split_betas_m)
+        moving = () if cloud_split_m is None else (float(cloud_split_m.detach()),)
+        self.split_betas_m = fixed + moving + self.kink_betas_m
+        self._splits = ([torch.tensor(b, dtype=torch.float64) for b in fixed]
+                        + ([] if cloud_split_m is None
+                           else [cloud_split_m.to(torch.float64).reshape(())])
+                        + [torch.tensor(b, dtype=torch.float64) for b in self.kink_betas_m])
         self.cloud_top_m = float(cloud_top_m)
         self.cloud_fraction = float(cloud_fraction)
         # the optical depth is a sum over species of (profile integral) x (cross-section):
@@ -483,6 +494,13 @@ class RingProfile:
         if isinstance(beta_m, torch.Tensor):
             return self.grid.s_of_beta(beta_m)
         return float(self.grid.s_of_beta(torch.tensor(float(beta_m), dtype=torch.float64)))
+
+    def split_coordinates(self, dtype: torch.dtype) -> list[torch.Tensor]:
+        """Table coordinates ``s`` of :attr:`split_betas_m` as 0-d tensors.
+
+        The cloud split's keeps its graph (see ``cloud_split_m``).
+        """
+        return [self.grid.s_of_beta(beta.to(dtype)) for beta in self._splits]
 
     def _piecewise_spline(self, values: torch.Tensor) -> torch.Tensor:
         """:func:`_spline_coefficients` of each piece of the grid, concatenated."""
@@ -583,28 +601,31 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     tables = profile.tables(dtype)
     n_point = centre.shape[0]
     with torch.no_grad():
+        # the breakpoints of F depend on the geometry and the bending only, and the
+        # integrand is continuous there: their motion adds nothing to a derivative
         breaks = _breakpoints(profile, tables, centre, separation, sun_radius, scale, radius)
-        # pieces between the breakpoints of F: [e0, e1], [e1, e2] (zero unless the Sun
-        # covers the occluder's centre, sigma < rho_s), [e2, e3]
-        lo, hi = breaks[:, :-1], breaks[:, 1:]  # (n_point, 3)
-        for split in profile.split_betas_m:
-            cut = torch.clamp(torch.full_like(lo, profile.s_of_beta(split)), lo, hi)
-            lo, hi = torch.cat([lo, cut], dim=-1), torch.cat([cut, hi], dim=-1)
-        point, piece = torch.nonzero(hi > lo, as_tuple=True)
-        lo, hi = lo[point, piece], hi[point, piece]  # (n_pair,)
-        if n_split > 1:  # composite rule: equal sub-pieces
-            fraction = torch.arange(n_split + 1, dtype=dtype) / n_split
-            edges_s = lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * fraction
-            lo, hi = edges_s[..., :-1], edges_s[..., 1:]  # (n_pair, n_split)
-        else:
-            lo, hi = lo[:, None], hi[:, None]
-        x, w = _unit_gauss(n_ring)
-        t = torch.as_tensor(x, dtype=dtype)
-        wt = torch.as_tensor(w, dtype=dtype)
-        shape = 0.5 * (1.0 - torch.cos(math.pi * t))
-        slope = 0.5 * math.pi * torch.sin(math.pi * t) * wt
-        s = (lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * shape).flatten(1)  # (n_pair, m)
-        ds = ((hi - lo).unsqueeze(-1) * slope).flatten(1)
+    # pieces between the breakpoints of F: [e0, e1], [e1, e2] (zero unless the Sun
+    # covers the occluder's centre, sigma < rho_s), [e2, e3]; then the splits (the cloud
+    # top's keeps its graph: the nodes move with it, see RingProfile)
+    lo, hi = breaks[:, :-1], breaks[:, 1:]  # (n_point, 3)
+    for split in profile.split_coordinates(dtype):
+        cut = torch.minimum(torch.maximum(split.expand_as(lo), lo), hi)
+        lo, hi = torch.cat([lo, cut], dim=-1), torch.cat([cut, hi], dim=-1)
+    point, piece = torch.nonzero((hi > lo).detach(), as_tuple=True)
+    lo, hi = lo[point, piece], hi[point, piece]  # (n_pair,)
+    if n_split > 1:  # composite rule: equal sub-pieces
+        fraction = torch.arange(n_split + 1, dtype=dtype) / n_split
+        edges_s = lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * fraction
+        lo, hi = edges_s[..., :-1], edges_s[..., 1:]  # (n_pair, n_split)
+    else:
+        lo, hi = lo[:, None], hi[:, None]
+    x, w = _unit_gauss(n_ring)
+    t = torch.as_tensor(x, dtype=dtype)
+    wt = torch.as_tensor(w, dtype=dtype)
+    shape = 0.5 * (1.0 - torch.cos(math.pi * t))
+    slope = 0.5 * math.pi * torch.sin(math.pi * t) * wt
+    s = (lo.unsqueeze(-1) + (hi - lo).unsqueeze(-1) * shape).flatten(1)  # (n_pair, m)
+    ds = ((hi - lo).unsqueeze(-1) * slope).flatten(1)
     centre, sun_radius, separation, scale = (x.index_select(0, point)[:, None] for x in
                                              (centre, sun_radius, separation, scale))
     coefficients = tuple(c.index_select(0, point)[:, None] for c in coefficients)
@@ -759,7 +780,10 @@ def _atmosphere_gradients(atmosphere) -> list[str]:
 #: quadrature nodes do not depend on them)
 EXTINCTION_PARAMETERS = ("angstrom_beta", "angstrom_alpha", "aerosol_scale_height_m",
                          "aerosol_single_scattering_albedo", "aerosol_asymmetry", "ozone_du",
-                         "ozone_peak_altitude_m", "ozone_half_width_m", "ozone_temperature_k")
+                         "ozone_peak_altitude_m", "ozone_half_width_m", "ozone_temperature_k",
+                         "stratospheric_aerosol_optical_depth",
+                         "stratospheric_aerosol_altitude_m", "stratospheric_aerosol_width_m",
+                         "precipitable_water_cm")
 
 
 def _refuse_atmosphere_gradients(atmosphere, what: str) -> None:
@@ -801,8 +825,18 @@ class Shadow(nn.Module):
         Solar radius [m].
     refraction, extinction : bool
         Switch the bending and the optical depth of the ring on or off.
-    cloud_top_altitude_m : float
+    cloud_top_altitude_m : float or Tensor ()
         Cloud tops [m]: rays whose lowest point is below are blocked (0: the ground).
+        Given as a tensor it is a parameter of the model: the deck is then a step in the
+        ray weight (``1 - cloud_fraction`` below the tops, also for a closed deck) on a
+        ring table that starts at the ground, and the ring quadrature is split at the ray
+        grazing the tops with nodes that move with it, so :meth:`relative_illuminance`
+        (and :class:`~skytorch.eclipse.shadow_table.ShadowTable`) has the exact
+        derivative with respect to it (the boundary term of the step; a step inside the
+        integrand alone would give zero). The value is the same model as for a float
+        (a closed deck as the lower end of the table): they differ by the table's
+        interpolation only (``docs/eclipse_shadow.md``). Not differentiable at 0 (the
+        step is then at the lower end of the integral: zero gradient, one-sided).
     cloud_fraction : float
         Fraction of the limb covered by those clouds (1: a closed deck; 0.5: half the
         rays below the cloud tops pass).
@@ -871,8 +905,15 @@ class Shadow(nn.Module):
         self.refraction = bool(refraction)
         self.extinction = bool(extinction)
         top = atmosphere.top_altitude_m if atmosphere is not None else 0.0
-        self.cloud_top_altitude_m = float(check_range(
-            "cloud_top_altitude_m", cloud_top_altitude_m, 0.0, max(top, 0.0), unit=" m"))
+        cloud_top = check_range("cloud_top_altitude_m", cloud_top_altitude_m, 0.0,
+                                max(top, 0.0), unit=" m", dtype=torch.float64)
+        if cloud_top.ndim != 0:
+            raise ValueError("cloud_top_altitude_m must be a number or a 0-d tensor; got "
+                             f"shape {tuple(cloud_top.shape)}")
+        self.cloud_top_altitude_m = float(cloud_top.detach())
+        #: the cloud-top altitude as a tensor parameter (None when given as a number)
+        self.cloud_top_parameter = (cloud_top if isinstance(cloud_top_altitude_m, torch.Tensor)
+                                    else None)
         self.cloud_fraction = float(check_range("cloud_fraction", cloud_fraction, 0.0, 1.0))
         if terrain_height_m is not None:
             terrain_height_m = float(check_positive("terrain_height_m", terrain_height_m,
@@ -973,7 +1014,10 @@ class Shadow(nn.Module):
         # with atmosphere parameters that require a gradient the optical depths carry it
         # and the profile is rebuilt on every call (a cached graph would be stale)
         requiring = _atmosphere_gradients(self.atmosphere)
-        differentiable = bool(requiring)
+        cloud_parameter = self.cloud_top_parameter
+        cloud_gradient = (cloud_parameter is not None and cloud_parameter.requires_grad
+                          and torch.is_grad_enabled())
+        differentiable = bool(requiring) or cloud_gradient
         bending = [name for name in requiring if name not in EXTINCTION_PARAMETERS]
         if bending and self.refraction:
             raise ValueError(
@@ -988,7 +1032,9 @@ class Shadow(nn.Module):
 
         atm = self.atmosphere if self.refraction else _NoRefraction(self.atmosphere)
         top = float(atm.top_altitude_m)
-        closed = self.cloud_fraction >= 1.0
+        # a cloud top given as a tensor is a step in the ray weight (closed or not) with a
+        # split that keeps its graph; a number closes the table at a closed deck
+        closed = self.cloud_fraction >= 1.0 and cloud_parameter is None
         lowest_altitude = self.cloud_top_altitude_m if closed else 0.0
 
         def impact_of(periapsis):
@@ -1005,7 +1051,8 @@ class Shadow(nn.Module):
                 h_t = min(2.0 * self.terrain_height_m, top)
                 if h_t > lowest_altitude:
                     splits.append(impact_of(h_t))
-            if not closed and self.cloud_fraction > 0.0 and self.cloud_top_altitude_m > 0.0:
+            if (cloud_parameter is None and not closed and self.cloud_fraction > 0.0
+                    and self.cloud_top_altitude_m > 0.0):
                 splits.append(impact_of(self.cloud_top_altitude_m))
             # kinks of the refractivity profile (e.g. the US 1976 layer bases): table nodes
             kinks = [impact_of(h) for h in getattr(atm, "refractivity_kinks_m", ())
@@ -1041,10 +1088,26 @@ class Shadow(nn.Module):
                               self.terrain_height_m, splits,
                               cloud_top_m=0.0 if closed else self.cloud_top_altitude_m,
                               cloud_fraction=0.0 if closed else self.cloud_fraction,
-                              kink_betas_m=grid.kinks_m)
+                              kink_betas_m=grid.kinks_m,
+                              cloud_split_m=self._cloud_split(atm, top))
         if not differentiable:
             self._profiles[key] = profile
         return profile
+
+    def _cloud_split(self, atm, top: float):
+        """Impact altitude [m] of the ray grazing a cloud-top parameter, with its graph.
+
+        ``None`` without a cloud-top tensor, or for tops at the ground or the top of the
+        atmosphere (no split inside the ring).
+        """
+        cloud = self.cloud_top_parameter
+        if cloud is None or self.cloud_fraction <= 0.0 or not 0.0 < float(cloud.detach()) < top:
+            return None
+        from skytorch.atmosphere.refraction import trace_grazing_rays
+
+        rays = trace_grazing_rays(atm, periapsis_altitude_m=cloud)
+        impact = rays["impact_altitude_m"].reshape(-1)[0]
+        return impact.to(torch.float64)
 
     def scattering_profile(self, wavelength_nm):
         """Tabulated single-scattering kernel for these wavelengths (cached).
@@ -1054,6 +1117,12 @@ class Shadow(nn.Module):
         if self.atmosphere is None or not self.scattering:
             return None
         _refuse_atmosphere_gradients(self.atmosphere, "the scattered light (scattering=True)")
+        if (self.cloud_top_parameter is not None and self.cloud_top_parameter.requires_grad
+                and torch.is_grad_enabled()):
+            raise ValueError("the scattered light (scattering=True) is not differentiable "
+                             "with respect to cloud_top_altitude_m (its kernel is tabulated "
+                             "without gradients): pass the cloud top detached, or "
+                             "scattering=False")
         wavelength = _check_wavelength(wavelength_nm, torch.float64)
         key = tuple(round(float(x), 9) for x in wavelength)
         if key not in self._scattering_profiles:
@@ -1138,6 +1207,11 @@ class Shadow(nn.Module):
         ValueError
             For a point inside the occluder or its atmosphere.
         """
+        return self._relative_illuminance(distance_m, offset_m, wavelength_nm, sun_distance_m)
+
+    def _relative_illuminance(self, distance_m, offset_m, wavelength_nm, sun_distance_m=None,
+                              profile=None) -> torch.Tensor:
+        """:meth:`relative_illuminance` with a prepared ring profile (``None``: build it)."""
         dtype = common_dtype(distance_m, offset_m)
         wavelength = _check_wavelength(wavelength_nm, dtype)
         angles = self._geometry(distance_m, offset_m, sun_distance_m, dtype)
@@ -1148,7 +1222,8 @@ class Shadow(nn.Module):
         limb = self.limb_darkening.to(dtype)
         direct = sun_visible_fraction(rho_s, angles["occluder_radius_rad"], sigma, limb,
                                       self.law)
-        profile = self.ring_profile(wavelength)
+        if profile is None:
+            profile = self.ring_profile(wavelength)
         if profile is None:
             return direct.unsqueeze(-1).expand(*direct.shape, n_wl)
         coefficients = _law_coefficients(self.law, limb, dtype)

@@ -75,7 +75,6 @@ from skytorch.dataset import VariableSpec, build_dataset, coordinate, to_numpy, 
 from skytorch.eclipse.shadow import (
     Shadow,
     _check_wavelength,
-    _refuse_atmosphere_gradients,
     shadow_angles,
 )
 
@@ -330,14 +329,22 @@ class ShadowTable(nn.Module):
             Show a progress bar (only on a terminal).
         dtype : torch.dtype
             Precision of the evaluation.
+
+        Notes
+        -----
+        The table's ``values`` keep the graph of the shadow's parameters that require a
+        gradient (the atmosphere's extinction parameters, a cloud-top tensor; see
+        :class:`~skytorch.eclipse.shadow.Shadow`), so :meth:`lookup` and the light curves
+        built on it are differentiable with respect to them; the ring table is then built
+        once per call. The graph holds the ring integral's temporaries of every row: keep
+        such tables small (a light curve uses a few ``u`` rows). :meth:`to_dataset` writes
+        the values only.
         """
         from tqdm.auto import tqdm
 
         if not isinstance(shadow, Shadow):
             raise TypeError(f"shadow must be a skytorch.eclipse.Shadow; got "
                             f"{type(shadow).__name__}: {shadow!r:.60}")
-        _refuse_atmosphere_gradients(shadow.atmosphere, "ShadowTable (and the lunar-eclipse "
-                                     "light curves built on it)")
         n_u = check_int("n_u", n_u, low=2)
         n_v = check_int("n_v", n_v, low=2)
         check_choice("interpolation", interpolation, INTERPOLATIONS)
@@ -363,19 +370,22 @@ class ShadowTable(nn.Module):
         wavelength = _check_wavelength(wavelength_nm, dtype)
         position = shadow_uv_inverse(u[:, None].expand(n_u, n_v), v[None, :].expand(n_u, n_v),
                                      big_d, r_s, r_o)
-        shadow.ring_profile(wavelength)
+        # one ring table for every row (with parameters that require a gradient it is
+        # rebuilt on every call of relative_illuminance, so build it here once)
+        profile = shadow.ring_profile(wavelength)
         rows = []
         show = progress and _is_terminal()
         step = max(1, 4096 // n_v)
         batch = tuple(getattr(shadow, "batch_shape", ()))
         ones = (1,) * len(batch)
-        with torch.no_grad():
-            for start in tqdm(range(0, n_u, step), desc="shadow table", disable=not show):
-                distance = position["distance_m"][start:start + step].to(dtype)
-                offset = position["offset_m"][start:start + step].to(dtype)
-                rows.append(shadow.relative_illuminance(distance.reshape(*distance.shape, *ones),
-                                                        offset.reshape(*offset.shape, *ones),
-                                                        wavelength))
+        # no torch.no_grad: the values keep the graph of atmosphere parameters (and a
+        # cloud-top tensor) that require a gradient, for lookups that carry it
+        for start in tqdm(range(0, n_u, step), desc="shadow table", disable=not show):
+            distance = position["distance_m"][start:start + step].to(dtype)
+            offset = position["offset_m"][start:start + step].to(dtype)
+            rows.append(shadow._relative_illuminance(
+                distance.reshape(*distance.shape, *ones), offset.reshape(*offset.shape, *ones),
+                wavelength, profile=profile))
         values = torch.cat(rows).to(torch.float64)
         attrs = {"min_distance_m": low, "max_distance_m": high, "n_u": n_u, "n_v": n_v,
                  "dtype": str(dtype).replace("torch.", "")}
