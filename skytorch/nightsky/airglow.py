@@ -115,13 +115,13 @@ def van_rhijn(zenith_rad, *, layer_height_m: float = AIRGLOW_HEIGHT_M,
     -------
     torch.Tensor
         ``(...)`` :math:`[1 - ((R + h_o)/(R + h))^2 \sin^2 z]^{-1/2}`: 1 at the zenith,
-        5.97 at the horizon for 90 km on the Earth.
+        6.01 at the horizon for 90 km on the Earth.
 
     Examples
     --------
     >>> import math
     >>> round(float(van_rhijn(math.pi / 2)), 2)
-    5.97
+    6.01
     """
     zenith = as_tensor("zenith_rad", zenith_rad)
     if not 0.0 <= observer_height_m < layer_height_m:
