@@ -1,7 +1,8 @@
 """Stars: catalogue, apparent positions, photometry, scintillation and visibility.
 
 * :func:`bright_stars` — the Hipparcos 2 catalogue to a V limit (J2000.0, Johnson V);
-  :func:`read_bsc5` — a Yale Bright Star Catalogue file;
+  :func:`read_bsc5` — a Yale Bright Star Catalogue file; :func:`gaia_stars` — Gaia DR3 to
+  G = 10 (482 176 entries) in Johnson V;
 * :func:`observe` — apparent altitude/azimuth, magnitude after extinction, air mass,
   colour, relative brightness, scintillation index and visibility over ``(time, star)``;
 * tensor functions in :mod:`~skytorch.stars.positions`, :mod:`~skytorch.stars.photometry`,
@@ -15,6 +16,7 @@ from skytorch.stars.catalog import (
     propagate_space_motion,
     read_bsc5,
 )
+from skytorch.stars.gaia import gaia_g_to_johnson_v, gaia_stars
 from skytorch.stars.observation import observe, observe_tensors, refract, refraction_table
 from skytorch.stars.photometry import (
     apparent_color,
@@ -49,6 +51,8 @@ __all__ = [
     "extinction",
     "extinction_coefficient",
     "extinction_table",
+    "gaia_g_to_johnson_v",
+    "gaia_stars",
     "hipparcos_to_johnson_v",
     "horizontal_vectors",
     "limiting_magnitude",
