@@ -34,6 +34,7 @@ from skytorch._validate import (
 )
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.ephemeris import check_observer, parse_times, sun_moon
+from skytorch.moon.sky import nanolambert_to_mag_arcsec2
 from skytorch.stars.photometry import (
     apparent_color,
     apparent_color_table,
@@ -387,6 +388,10 @@ _SPECS = {
     "limiting_magnitude": VariableSpec(
         "mag", "naked-eye limiting magnitude",
         "Faintest V visible against the sky background (Schaefer 1990)."),
+    "sky_brightness": VariableSpec(
+        "mag arcsec-2", "sky surface brightness at the star",
+        "V sky background interpolated from the background Dataset at the star's "
+        "apparent altitude and azimuth."),
     "n_visible": VariableSpec("1", "number of visible stars",
                               "Stars above the horizon brighter than the limiting magnitude."),
     "day_night_factor": VariableSpec(
@@ -446,9 +451,131 @@ def _twinkle(scint: torch.Tensor, samples: int, interval_s: float, seed: int):
                                     "Seconds from its start.")))
 
 
+#: units accepted for a per-direction background: surface brightness or luminance
+BACKGROUND_UNITS = {
+    "sky_brightness": ("mag arcsec-2", "mag/arcsec^2", "mag/arcsec2", "mag arcsec^-2"),
+    "luminance": ("cd m-2", "cd/m^2", "cd/m2", "nL", "nanolambert"),
+}
+#: candela per square metre in one nanolambert: 1 L = 10⁴/π cd m⁻²
+CD_M2_PER_NANOLAMBERT = 1e-5 / math.pi
+
+
+def _background_variable(background) -> tuple[xr.DataArray, str]:
+    """Check a per-direction background Dataset; return its variable and its name."""
+    if not isinstance(background, xr.Dataset):
+        raise TypeError("background must be an xarray.Dataset with 'sky_brightness' [mag "
+                        "arcsec-2] or 'luminance' [cd m-2 or nL] over (altitude, azimuth) "
+                        f"[degree]; got {type(background).__name__}: {background!r:.60}")
+    names = [name for name in BACKGROUND_UNITS if name in background]
+    if len(names) != 1:
+        raise ValueError("background must have exactly one of the variables "
+                         f"{tuple(BACKGROUND_UNITS)}; got {sorted(background.data_vars)}")
+    name = names[0]
+    var = background[name]
+    units = str(var.attrs.get("units", ""))
+    if units not in BACKGROUND_UNITS[name]:
+        raise ValueError(f"background[{name!r}].attrs['units'] must be one of "
+                         f"{BACKGROUND_UNITS[name]}; got {units!r}")
+    extra = set(var.dims) - {"time", "altitude", "azimuth"}
+    if {"altitude", "azimuth"} - set(var.dims) or extra:
+        raise ValueError(f"background[{name!r}] must have the dimensions (altitude, azimuth) "
+                         f"and optionally time; got {var.dims}")
+    for coord, low, high in (("altitude", -90.0, 90.0), ("azimuth", 0.0, 360.0)):
+        values = np.asarray(var[coord].values, dtype=float)
+        if values.size < 2 or not np.all(np.diff(values) > 0) or values[0] < low \
+                or values[-1] > high:
+            raise ValueError(f"background coordinate {coord!r} must increase strictly "
+                             f"within [{low}, {high}] degree with at least 2 values; got "
+                             f"{values!r:.80}")
+    return var, name
+
+
+def _background_sky(background, n_time: int, altitude_rad: torch.Tensor,
+                    azimuth_rad: torch.Tensor, above: torch.Tensor) -> torch.Tensor:
+    """Sky surface brightness [mag arcsec⁻²] (time, star) where each star is in the sky.
+
+    Bilinear in (altitude, azimuth), periodic in azimuth. A star above the horizon outside
+    the background's altitudes raises; below the horizon (never visible) the nearest row.
+    """
+    var, name = _background_variable(background)
+    var = var.transpose(*[d for d in ("time", "altitude", "azimuth") if d in var.dims])
+    if "time" in var.dims and var.sizes["time"] != n_time:
+        raise ValueError(f"background has {var.sizes['time']} times; observe has {n_time}")
+    dtype = altitude_rad.dtype
+    values = torch.tensor(np.array(var.values, dtype=np.float64), dtype=dtype)
+    if "time" not in var.dims:
+        values = values.expand(n_time, *values.shape)
+    values = check_finite(f"background[{name!r}]", values)
+    if name == "luminance":
+        scale = CD_M2_PER_NANOLAMBERT if var.attrs["units"].startswith("cd") else 1.0
+        if bool((values <= 0).any()):
+            raise ValueError("background['luminance'] must be > 0 everywhere")
+        values = nanolambert_to_mag_arcsec2(values / scale)
+    alt_nodes = torch.tensor(np.array(var["altitude"].values, float), dtype=dtype)
+    az_nodes = torch.tensor(np.array(var["azimuth"].values, float), dtype=dtype)
+    # periodic azimuth: the first column again at +360°
+    az_nodes = torch.cat([az_nodes, az_nodes[:1] + 360.0])
+    values = torch.cat([values, values[..., :1]], dim=-1)
+    alt_deg, az_deg = torch.rad2deg(altitude_rad), torch.rad2deg(azimuth_rad)
+    outside = above & ((alt_deg < alt_nodes[0]) | (alt_deg > alt_nodes[-1]))
+    if bool(outside.any()):
+        raise ValueError(
+            f"background altitudes {float(alt_nodes[0])}..{float(alt_nodes[-1])} degree do "
+            f"not cover the stars above the horizon (altitudes "
+            f"{float(alt_deg[above].min()):.3f}..{float(alt_deg[above].max()):.3f} degree)")
+    alt_deg = alt_deg.clamp(float(alt_nodes[0]), float(alt_nodes[-1]))  # below the horizon
+    az_deg = torch.where(az_deg < az_nodes[0], az_deg + 360.0, az_deg)
+    i = torch.searchsorted(alt_nodes, alt_deg.contiguous()).clamp(1, alt_nodes.numel() - 1)
+    j = torch.searchsorted(az_nodes, az_deg.contiguous()).clamp(1, az_nodes.numel() - 1)
+    u = (alt_deg - alt_nodes[i - 1]) / (alt_nodes[i] - alt_nodes[i - 1])
+    v = (az_deg - az_nodes[j - 1]) / (az_nodes[j] - az_nodes[j - 1])
+    n_alt, n_az = values.shape[-2], values.shape[-1]
+    flat = values.reshape(n_time, n_alt * n_az)
+
+    def corner(a, b):
+        return torch.gather(flat, 1, a * n_az + b)
+
+    return ((1 - u) * ((1 - v) * corner(i - 1, j - 1) + v * corner(i - 1, j))
+            + u * ((1 - v) * corner(i, j - 1) + v * corner(i, j)))
+
+
+def _check_sky(sky_brightness_mag_arcsec2, background) -> torch.Tensor:
+    """Check the two forms of the sky background; return the scalar-per-time values."""
+    if background is not None and sky_brightness_mag_arcsec2 is not None:
+        raise ValueError("give either sky_brightness_mag_arcsec2 or background, not both")
+    if background is not None:
+        _background_variable(background)
+    return check_range("sky_brightness_mag_arcsec2",
+                       22.0 if sky_brightness_mag_arcsec2 is None
+                       else sky_brightness_mag_arcsec2,
+                       -20.0, 40.0, unit=" mag/arcsec^2", dtype=torch.float64)
+
+
+def _visibility(result: dict[str, torch.Tensor], sky_values: torch.Tensor, background,
+                visibility: str, factor: torch.Tensor | None):
+    """Return the sky [mag arcsec⁻²], limiting magnitude, visible flags and counts.
+
+    Sky and limit are (time,) for the scalar-per-time background, (time, star) for a
+    per-direction ``background`` Dataset.
+    """
+    magnitude, above = result["magnitude"], result["above_horizon"]
+    n_time = magnitude.shape[0]
+    if background is None:
+        sky = sky_values.reshape(-1).expand(n_time).to(magnitude.dtype)
+        limit = limiting_magnitude(sky)
+        visible, count = count_visible(magnitude, above, limit, visibility, factor)
+        return sky, limit, visible, count
+    sky = _background_sky(background, n_time, result["altitude"], result["azimuth"], above)
+    limit = limiting_magnitude(sky)
+    shifted = limit if factor is None else limit + 2.5 * torch.log10(factor)[:, None]
+    visible = above & (magnitude <= shifted)
+    return sky, limit, visible, visible.sum(-1)
+
+
 def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
             elevation_m: float = 0.0, atmosphere=None, refraction: bool = True, *,
-            sky_brightness_mag_arcsec2=22.0, control_magnitude: float = 6.0,
+            sky_brightness_mag_arcsec2=None, background: xr.Dataset | None = None,
+            control_magnitude: float = 6.0,
             visibility: str = "schaefer1990", aperture_m: float = 0.007,
             exposure_s: float = 0.1, twinkle_samples: int = 0,
             twinkle_interval_s: float = 0.01, seed: int = 0, reddening: bool = True,
@@ -478,8 +605,17 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         atmosphere (geometric altitudes, magnitudes above the atmosphere).
     refraction : bool
         Refract the altitudes with the atmosphere's ray-traced refraction.
-    sky_brightness_mag_arcsec2 : float or array_like (time,)
-        Sky background in V [mag arcsec⁻²] for the limiting magnitude.
+    sky_brightness_mag_arcsec2 : float or array_like (time,), optional
+        Sky background in V [mag arcsec⁻²] for the limiting magnitude, one value per time
+        (default 22.0, a dark site); not together with ``background``.
+    background : xarray.Dataset, optional
+        Sky background per direction: ``sky_brightness`` [mag arcsec⁻², units
+        ``"mag arcsec-2"``] or ``luminance`` [``"cd m-2"`` or ``"nL"``] over
+        ``(altitude, azimuth)`` [degree coordinates, increasing; azimuth from north
+        through east, periodic], optionally with a leading ``time`` of the same length as
+        ``times``. Each star's limiting magnitude is computed from the sky where it is
+        (bilinear interpolation); ``limiting_magnitude`` and ``sky_brightness`` become
+        (time, star). The altitudes must cover every star above the horizon.
     control_magnitude : float
         m_a of the relative brightness 10^(0.4 (m_a − m)) [mag].
     visibility : {"schaefer1990", "muller2012"}
@@ -544,11 +680,11 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     check_range("twinkle_interval_s", twinkle_interval_s, 1e-9, 1e6, unit=" s")
     twinkle_samples = check_int("twinkle_samples", twinkle_samples, 0, 100_000)
     check_int("seed", seed, 0, 2**63 - 1)
-    sky_values = check_range("sky_brightness_mag_arcsec2", sky_brightness_mag_arcsec2,
-                             -20.0, 40.0, unit=" mag/arcsec^2", dtype=torch.float64)
+    sky_values = _check_sky(sky_brightness_mag_arcsec2, background)
     if any(np.ndim(v) > 0 for v in (lat_deg, lon_deg, elevation_m)):
         return _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere,
                                 refraction, sky_brightness_mag_arcsec2=sky_brightness_mag_arcsec2,
+                                background=background,
                                 control_magnitude=control_magnitude, visibility=visibility,
                                 aperture_m=aperture_m, exposure_s=exposure_s,
                                 twinkle_samples=twinkle_samples,
@@ -580,12 +716,10 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         atmosphere if has_atmosphere else None, elevation, refraction)
     result = observe_tensors(stars, vmag, bv, operators, velocity, refraction_tab,
                              extinction_tab)
-    sky = sky_values.reshape(-1).expand(values.size).to(dtype)
-    limit = limiting_magnitude(sky)
     factor = (_day_night_factor(values, lat, lon, elevation, dtype)
               if visibility == "muller2012" else None)
-    visible, count = count_visible(result["magnitude"], result["above_horizon"], limit,
-                                   visibility, factor)
+    sky, limit, visible, count = _visibility(result, sky_values, background, visibility,
+                                             factor)
     brightness = relative_brightness(result["magnitude"], control_magnitude)
     brightness = brightness * result["above_horizon"]
     if factor is not None:
@@ -606,7 +740,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         "visible": variable(ts, visible, _SPECS["visible"]),
         "relative_brightness": variable(ts, brightness, _SPECS["relative_brightness"]),
         "scintillation_index": variable(ts, scint, _SPECS["scintillation_index"]),
-        "limiting_magnitude": variable("time", limit, _SPECS["limiting_magnitude"]),
+        "limiting_magnitude": variable("time" if background is None else ts, limit,
+                                       _SPECS["limiting_magnitude"]),
         "n_visible": variable("time", count, _SPECS["n_visible"]),
         "color": variable(("time", "star", "channel"), color, _SPECS["color"]),
         "color_exoatmospheric": variable(("star", "channel"), color_exo,
@@ -614,6 +749,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         "vmag": variable("star", vmag, _SPECS["vmag"]),
         "bv": variable("star", bv, _SPECS["bv"]),
     }
+    if background is not None:
+        data_vars["sky_brightness"] = variable(ts, sky, _SPECS["sky_brightness"])
     if factor is not None:
         data_vars["day_night_factor"] = variable("time", factor, _SPECS["day_night_factor"])
     coords_extra = {}
@@ -639,7 +776,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         "exposure_s": float(exposure_s), "twinkle_samples": int(twinkle_samples),
         "seed": int(seed), "reddening": bool(reddening and has_atmosphere),
         "dtype": str(dtype).replace("torch.", ""),
-        "sky_brightness_mag_arcsec2": np.asarray(sky_brightness_mag_arcsec2, float),
+        "sky_brightness_mag_arcsec2": ("background Dataset" if background is not None
+                                       else sky_values.numpy()),
         "catalog": catalog.attrs.get("title", ""),
     }
     return build_dataset(
