@@ -27,6 +27,11 @@ Examples
 from skytorch.eclipse.circumstances import lunar_eclipses  # noqa: F401
 from skytorch.eclipse.cone import ENLARGEMENTS, shadow_cone, shadow_radii  # noqa: F401
 from skytorch.eclipse.danjon import danjon_class_l, danjon_l_linear  # noqa: F401
+from skytorch.eclipse.eclipse_atmosphere import (  # noqa: F401
+    eclipse_atmosphere,
+    eclipse_shadow,
+    stratospheric_aod,
+)
 from skytorch.eclipse.observed import observed_lunar_eclipses  # noqa: F401
 from skytorch.eclipse.occlusion import (  # noqa: F401
     LIMB_DARKENING_LAWS,
@@ -45,6 +50,8 @@ __all__ = [
     "danjon_class_l",
     "danjon_l",
     "danjon_l_linear",
+    "eclipse_atmosphere",
+    "eclipse_shadow",
     "lunar_eclipse",
     "lunar_light_curve",
     "limb_darkening_profile",
@@ -56,6 +63,7 @@ __all__ = [
     "solar_eclipse_local",
     "solar_eclipse_path",
     "solar_eclipses",
+    "stratospheric_aod",
     "sun_visible_fraction",
     "volcanic_atmosphere",
 ]
