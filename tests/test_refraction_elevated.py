@@ -181,7 +181,7 @@ def test_optical_depth_below_the_horizon_against_ode(atm):
     tau = rf.bent_optical_depth(atm, [500.0], torch.tensor(0.5 * math.pi - e,
                                                             dtype=torch.float64),
                                 height, ground="raise")
-    assert float(tau.reshape(-1)[0]) == pytest.approx(tau_ode, rel=1e-5)
+    assert float(tau.reshape(-1)[0]) == pytest.approx(tau_ode, rel=1e-6)
 
 
 def test_rays_into_the_ground_raise(atm):

@@ -196,6 +196,13 @@ def _dip_terms(atm, height, dtype):
     return geometric, apparent
 
 
+def _first_flagged(mask, *tensors) -> tuple[float, ...]:
+    """Values of ``tensors`` (broadcast to ``mask``) at the first flagged element."""
+    first = int(mask.reshape(-1).nonzero()[0, 0])
+    return tuple(float(torch.broadcast_to(x.detach(), mask.shape).reshape(-1)[first])
+                 for x in tensors)
+
+
 def _check_above_ground(atm, elevation, height, dtype, ground, name, value):
     """Raise for rays below the apparent horizon when ``ground == "raise"``.
 
@@ -207,16 +214,11 @@ def _check_above_ground(atm, elevation, height, dtype, ground, name, value):
     _, dip = _dip_terms(atm, height.detach(), dtype)
     below = elevation.detach() < -dip
     if bool(below.any()):
-        shape = below.shape
-        first = int(below.reshape(-1).nonzero()[0, 0])
-
-        def pick(x):
-            return float(torch.broadcast_to(x.detach(), shape).reshape(-1)[first])
-
+        v, h, d = _first_flagged(below, value, height, dip)
         raise ValueError(
-            f"{name}={pick(value)!r} rad at altitude_m={pick(height)!r} m is below the apparent "
+            f"{name}={v!r} rad at altitude_m={h!r} m is below the apparent "
             f"horizon ({int(below.sum())} ray(s)): the ray hits the ground; valid apparent "
-            f"altitudes are >= -{math.degrees(pick(dip)):.6g} deg, the apparent dip of the "
+            f"altitudes are >= -{math.degrees(d):.6g} deg, the apparent dip of the "
             "horizon (horizon_dip); ground='allow' continues such rays through the planet")
 
 
@@ -391,16 +393,11 @@ def _check_visible(atm, target, height, dtype, options):
         lowest = -dip - refraction_angle(atm, -dip, height, **options)
         hidden = target < lowest
     if bool(hidden.any()):
-        shape = hidden.shape
-        first = int(hidden.reshape(-1).nonzero()[0, 0])
-
-        def pick(x):
-            return float(torch.broadcast_to(x.detach(), shape).reshape(-1)[first])
-
+        t, h, low = _first_flagged(hidden, target, height, lowest)
         raise ValueError(
-            f"true_altitude_rad={pick(target)!r} rad at altitude_m={pick(height)!r} m is "
+            f"true_altitude_rad={t!r} rad at altitude_m={h!r} m is "
             f"hidden by the ground ({int(hidden.sum())} source(s)): valid true altitudes are "
-            f">= {math.degrees(pick(lowest)):.6g} deg, the true altitude seen on the apparent "
+            f">= {math.degrees(low):.6g} deg, the true altitude seen on the apparent "
             "horizon (horizon_dip)")
 
 
