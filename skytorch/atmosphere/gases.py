@@ -96,7 +96,7 @@ import numpy as np
 import torch
 
 from skytorch._data import data_path
-from skytorch._validate import as_tensor, check_broadcastable, check_finite, check_range
+from skytorch._validate import as_tensor, check_broadcastable, check_range
 from skytorch.atmosphere import ozone as _ozone
 from skytorch.atmosphere import profiles as _profiles
 from skytorch.atmosphere.constituents import Profile, Species, SpeciesBuilder, insert_dims
@@ -174,17 +174,8 @@ def _tensor(name: str, dtype: torch.dtype) -> tuple[torch.Tensor, ...]:
 
 
 def _check_wavelength(wavelength_nm) -> torch.Tensor:
-    low, high = GAS_RANGE_NM
-    wavelength = check_finite("wavelength_nm", wavelength_nm)
-    with torch.no_grad():
-        outside = (wavelength < low) | (wavelength > high)
-        if bool(outside.any()):
-            bad = float(wavelength[outside].reshape(-1)[0])
-            raise ValueError(
-                f"wavelength_nm must be in [{low}, {high}] nm (the range of the shipped "
-                f"water vapour, O2 and O2-O2 tables); got {bad} nm ({int(outside.sum())} "
-                "offending element(s))")
-    return wavelength
+    return _ozone.check_wavelength_range(wavelength_nm, GAS_RANGE_NM,
+                                         "the shipped water vapour, O2 and O2-O2 tables")
 
 
 def _interp(x: torch.Tensor, xp: torch.Tensor, fp: torch.Tensor) -> torch.Tensor:

@@ -88,6 +88,26 @@ RATIO_RANGE_NM = (230.0, 1000.0)
 _NODES_K = (203.0, 223.0, 243.0, 273.0, 293.0)
 
 
+def check_wavelength_range(wavelength_nm, range_nm, source: str, hint: str = "") -> torch.Tensor:
+    """Return ``wavelength_nm`` as a finite tensor inside ``range_nm`` [nm] of a shipped table.
+
+    ValueError naming the first wavelength outside, the range, ``source`` (what covers the
+    range) and the count of offending elements, followed by ``hint``; no extrapolation.
+    Shared by the ozone cross-sections and the gas tables of
+    :mod:`skytorch.atmosphere.gases`.
+    """
+    low, high = range_nm
+    wavelength = check_finite("wavelength_nm", wavelength_nm)
+    with torch.no_grad():
+        outside = (wavelength < low) | (wavelength > high)
+        if bool(outside.any()):
+            bad = float(wavelength[outside].reshape(-1)[0])
+            raise ValueError(
+                f"wavelength_nm must be in [{low}, {high}] nm (the range of {source}); got "
+                f"{bad} nm ({int(outside.sum())} offending element(s)){hint}")
+    return wavelength
+
+
 def _read(name: str) -> np.ndarray:
     path = data_path(name)
     with open(path, encoding="utf-8") as handle:
@@ -158,16 +178,10 @@ def ozone_cross_section(wavelength_nm, temperature_k=OZONE_REFERENCE_TEMPERATURE
     TypeError
         Inputs that are not numbers.
     """
-    low, high = OZONE_RANGE_NM
-    wavelength = check_finite("wavelength_nm", wavelength_nm)
-    with torch.no_grad():
-        outside = (wavelength < low) | (wavelength > high)
-        if bool(outside.any()):
-            bad = float(wavelength[outside].reshape(-1)[0])
-            raise ValueError(
-                f"wavelength_nm must be in [{low}, {high}] nm (the range "
-                f"of the shipped ozone cross-sections); got {bad} nm ({int(outside.sum())} "
-                "offending element(s)); use an atmosphere with ozone_du=0 outside it")
+    low = OZONE_RANGE_NM[0]
+    wavelength = check_wavelength_range(
+        wavelength_nm, OZONE_RANGE_NM, "the shipped ozone cross-sections",
+        "; use an atmosphere with ozone_du=0 outside it")
     t_low, t_high = OZONE_TEMPERATURE_RANGE_K
     if isinstance(temperature_k, bool):
         raise TypeError(f"temperature_k must be a number or a tensor; got {temperature_k!r}")
