@@ -38,6 +38,11 @@ Estimates
   fraction past an opaque sphere the size of the top of the atmosphere at the disc's
   point nearest the axis, and the image total counts the Moon at that least
   illuminance (so every share is an upper bound);
+* solar_eclipse: zero unless the Moon's penumbra reaches a ball holding all the air the
+  observer sees (:func:`skytorch.scene.solar_eclipse_sky.penumbra_touches`, a geometric
+  bound). When it does, the Sun counts at its visible fraction at the observer plus the
+  corona (Baumbach's law, 1.1e-6 of the Sun), and the sky counts as zero in the image
+  total (it may be dark throughout), so every share stays an upper bound;
 * stars: half the integrated V flux of the catalogue above ``star_limit_mag``;
 * skyglow: the brightest sky measured by Falchi et al. (2016), 14.0 V mag arcsec^-2,
   over the hemisphere (a bound, since the planner cannot afford the skyglow model);
@@ -92,6 +97,12 @@ from skytorch.scene.presets import (  # noqa: F401 (the planner's constants, re-
     SUN_V_MAG,
 )
 from skytorch.scene.resources import SceneResources
+from skytorch.scene.solar_eclipse_sky import (
+    CORONA_FLUX_FRACTION,
+    penumbra_touches,
+    sight_radius_m,
+    visible_fraction_at,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -238,7 +249,20 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
     moon_total, earthshine = resources.moon_fluxes(g)
     moon = moon_total if moon_up else 0.0
     star_flux = 0.5 * resources.integrated_starlight(scene.star_limit_mag) if points else 0.0
-    total = natural + sky + sun + moon + star_flux
+    atm = resources.atmosphere
+    touches, clearance = penumbra_touches(g, sight_radius_m(atm.planet_radius_m,
+                                                            atm.top_altitude_m, elevation))
+    sun_seen = 1.0
+    if touches:
+        # bounds: the Sun at its visible fraction at the observer plus the corona; the sky
+        # counts as zero in the total (it may be dark throughout), so every share is an
+        # upper bound
+        sun_seen = float(visible_fraction_at(g, torch.zeros(3, dtype=torch.float64)))
+        corona = _flux(SUN_V_MAG) * CORONA_FLUX_FRACTION if sun_up and points else 0.0
+        total = natural + sun * sun_seen + corona + moon + star_flux
+        sun = sun * sun_seen + corona
+    else:
+        total = natural + sky + sun + moon + star_flux
 
     def share(name, value):
         shares[name] = value / total
@@ -284,6 +308,15 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
         s = share("eclipse", moon_total * (1.0 - lit))
         decided["eclipse"] = (s >= tol, f"the Earth's shadow dims the Moon by up to {s:.1e} "
                                         "of the image flux")
+    if not touches:
+        decided["solar_eclipse"] = (False, "the Moon's penumbra misses the air in sight "
+                                           f"by {clearance / 1e3:.0f} km")
+    else:
+        s = share("solar_eclipse", sky + _flux(SUN_V_MAG) * (1.0 - sun_seen)
+                  * (sun_up and points))
+        decided["solar_eclipse"] = (s >= tol, f"the Moon's penumbra reaches the air in sight "
+                                              f"(Sun {sun_seen:.3g} visible here); it dims "
+                                              f"up to {s:.1e} of the image flux")
     if not points:
         decided["stars"] = (False, "a directions view holds no point sources")
     else:

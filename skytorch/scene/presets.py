@@ -25,8 +25,8 @@ __all__ = ["BRIGHTEST_SKYGLOW_MAG_ARCSEC2", "EFFECTS", "FIDELITY", "FIDELITY_PRE
            "SKY_TABLE_STEP_DEG", "SUN_V_MAG"]
 
 #: the planner's vocabulary of effects, in composition order
-EFFECTS = ("sky", "sun", "moon", "earthshine", "eclipse", "stars", "scintillation",
-           "skyglow", "refraction")
+EFFECTS = ("sky", "sun", "moon", "earthshine", "eclipse", "solar_eclipse", "stars",
+           "scintillation", "skyglow", "refraction")
 
 #: V magnitude of the Sun above the atmosphere (Willmer 2018, ApJS 236, 47,
 #: doi:10.3847/1538-4365/aabfdf)
@@ -61,18 +61,21 @@ RESOLVED_DISC_PIXELS = 16
 #: module knobs per fidelity preset (measured error and cost in docs/scene.md)
 FIDELITY = {
     "fast": {
+        "eclipse_sky_lut": (12, 24), "eclipse_samples": 24,
         "sky_lut": (12, 13), "sky_samples": 24, "transmittance": (64, 16),
         "moon_lut": (8, 9), "moon_steps": 16, "moon_quadrature": 8,
         "moon_disc_quadrature": 12,
         "skyglow": {"n_azimuth": 32, "n_elevation": 8, "n_distance": 16, "n_components": 4,
                     "max_distance_m": 30_000.0}},
     "default": {
+        "eclipse_sky_lut": (24, 48), "eclipse_samples": 48,
         "sky_lut": (24, 25), "sky_samples": 48, "transmittance": (128, 32),
         "moon_lut": (12, 13), "moon_steps": 32, "moon_quadrature": 16,
         "moon_disc_quadrature": 24,
         "skyglow": {"n_azimuth": 64, "n_elevation": 16, "n_distance": 32, "n_components": 8,
                     "max_distance_m": 40_000.0}},
     "reference": {
+        "eclipse_sky_lut": (48, 96), "eclipse_samples": 96,
         "sky_lut": (48, 49), "sky_samples": 128, "transmittance": (256, 64),
         "moon_lut": (24, 25), "moon_steps": 64, "moon_quadrature": 32,
         "moon_disc_quadrature": 48,

@@ -78,7 +78,7 @@ class Knobs:
         UTC instant.
     lat_deg, lon_deg, elevation_m : float
         The observer [degree, degree, m].
-    refraction, earthshine, eclipse : bool
+    refraction, earthshine, eclipse, solar_eclipse : bool
         Effects the planner computes.
     star_limit_mag, natural_mag_arcsec2, natural_model, airglow_fraction, airglow_height_m
         The scene's settings of the stars and the natural background.
@@ -95,6 +95,7 @@ class Knobs:
     refraction: bool = False
     earthshine: bool = False
     eclipse: bool = False
+    solar_eclipse: bool = False
     star_limit_mag: float = 6.5
     natural_mag_arcsec2: float = 22.0
     natural_model: str = "garstang1989"
@@ -115,7 +116,8 @@ class Knobs:
         return cls(FIDELITY[scene.fidelity], scene.dtype, scene.time, float(scene.lat_deg),
                    float(scene.lon_deg), float(scene.elevation_m),
                    refraction="refraction" in computed, earthshine="earthshine" in computed,
-                   eclipse="eclipse" in computed, star_limit_mag=scene.star_limit_mag,
+                   eclipse="eclipse" in computed,
+                   solar_eclipse="solar_eclipse" in computed, star_limit_mag=scene.star_limit_mag,
                    natural_mag_arcsec2=scene.natural_mag_arcsec2,
                    natural_model=scene.natural_model, airglow_fraction=scene.airglow_fraction,
                    airglow_height_m=scene.airglow_height_m, light_map=scene.light_map,
@@ -590,8 +592,99 @@ def sun_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
             * _point_transmittance(resources, knobs, max(altitude, 0.0), wavelength))
     flux = flux * (ASTRONOMICAL_UNIT_M / geometry.sun_distance_m) ** 2
     radius = math.asin(SUN_RADIUS_M / geometry.sun_distance_m)
-    return _disc(view, altitude, math.radians(geometry.sun_azimuth_deg), radius, flux,
-                 knobs.dtype)
+    azimuth = math.radians(geometry.sun_azimuth_deg)
+    if not knobs.solar_eclipse:
+        return _disc(view, altitude, azimuth, radius, flux, knobs.dtype)
+    pattern = EclipsedSun(geometry, altitude, radius)
+    disc = _disc(view, altitude, azimuth, radius, flux, knobs.dtype, pattern)
+    if view.kind == "directions" or altitude + 10.0 * radius < 0.0:
+        return disc
+    return disc + pattern.corona(view, flux, wavelength.numel(), knobs.dtype)
+
+
+class EclipsedSun:
+    r"""The Sun's disc behind the Moon, limb-darkened, and the corona, as the observer sees them.
+
+    Parameters
+    ----------
+    geometry : Geometry
+        Sun and Moon at the observer.
+    apparent_altitude_rad : float
+        Altitude of the Sun's apparent centre [rad]; the Moon is moved by the same
+        refraction (their differential refraction, under 1 % of a radius above 10°, is
+        neglected).
+    radius_rad : float
+        Angular radius of the Sun [rad].
+    limb_darkening : float
+        Linear coefficient :math:`u` (0.6), as :func:`skytorch.eclipse.sun_visible_fraction`.
+
+    Notes
+    -----
+    ``pattern(None)`` is the visible fraction at the observer (the disc's total flux
+    factor); ``pattern(directions)`` gives the limb-darkened relative radiance
+    :math:`1 - u(1 - \mu)` at pixel centres and a 0/1 mask of the Moon's disc, as
+    :func:`_disc` expects. :meth:`corona` spreads Baumbach's corona over the pixels from a
+    polar grid of 48 × 64 cells between 1 and 8 solar radii, the cells behind the Moon
+    removed.
+    """
+
+    def __init__(self, geometry, apparent_altitude_rad: float, radius_rad: float,
+                 limb_darkening: float = 0.6):
+        from skytorch.scene.solar_eclipse_sky import visible_fraction_at
+
+        self.radius_rad, self.limb_darkening = radius_rad, limb_darkening
+        self.moon_radius_rad = geometry.moon_radius_rad
+        sun = torch.tensor(geometry.sun_horizontal_m, dtype=torch.float64)
+        moon = torch.tensor(geometry.moon_horizontal_m, dtype=torch.float64)
+        sun, moon = sun / torch.linalg.vector_norm(sun), moon / torch.linalg.vector_norm(moon)
+        azimuth = math.radians(geometry.sun_azimuth_deg)
+        self.centre = torch.tensor([math.cos(apparent_altitude_rad) * math.cos(azimuth),
+                                    math.cos(apparent_altitude_rad) * math.sin(azimuth),
+                                    math.sin(apparent_altitude_rad)], dtype=torch.float64)
+        self.moon = _rotation(sun, self.centre)(moon[None])[0]
+        self.fraction = visible_fraction_at(geometry, torch.zeros(1, 3, dtype=torch.float64),
+                                            limb_darkening=limb_darkening)
+
+    def _behind_moon(self, directions):
+        return directions @ self.moon > math.cos(self.moon_radius_rad)
+
+    def __call__(self, directions):
+        """Visible fraction (1,) for ``None``; else relative radiance (n, 1) and mask (n, 1)."""
+        if directions is None:
+            return self.fraction
+        rho = torch.acos((directions @ self.centre).clamp(-1.0, 1.0)) / self.radius_rad
+        mu = torch.sqrt((1.0 - rho * rho).clamp(min=0.0))
+        brightness = 1.0 - self.limb_darkening * (1.0 - mu)
+        mask = (~self._behind_moon(directions)).to(torch.float64)
+        return brightness[:, None], mask[:, None]
+
+    def corona(self, view, flux, n_wavelength: int, dtype, level: float = 1.0):
+        """Baumbach's corona (*view, wl) [W m^-2 sr^-1 nm^-1] for a Sun of total ``flux`` (wl,)."""
+        from skytorch.scene.solar_eclipse_sky import baumbach_corona
+
+        edges = torch.logspace(0.0, math.log10(8.0), 49, dtype=torch.float64)
+        rho = torch.sqrt(edges[1:] * edges[:-1])
+        angle = (torch.arange(64, dtype=torch.float64) + 0.5) * (2.0 * math.pi / 64)
+        # the mean radiance of the disc times the cells' solid angles (small-angle)
+        cell = (baumbach_corona(rho, level) * rho * (edges[1:] - edges[:-1])
+                * (2.0 * math.pi / 64) / math.pi)  # relative to the disc's flux
+        up = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
+        east = torch.linalg.cross(up, self.centre)
+        if float(torch.linalg.vector_norm(east)) < 1e-9:
+            east = torch.tensor([0.0, 1.0, 0.0], dtype=torch.float64)
+        east = east / torch.linalg.vector_norm(east)
+        north = torch.linalg.cross(self.centre, east)
+        offset = (rho[:, None] * self.radius_rad)[..., None]
+        d = (torch.cos(offset) * self.centre + torch.sin(offset)
+             * (torch.cos(angle)[None, :, None] * north + torch.sin(angle)[None, :, None]
+                * east)).reshape(-1, 3)
+        weight = cell[:, None].expand(-1, angle.numel()).reshape(-1)
+        weight = weight * (~self._behind_moon(d)).to(torch.float64)
+        keep = (weight > 0) & (d[:, 2] > 0)
+        altitude = torch.asin(d[keep, 2])
+        azimuth = torch.atan2(d[keep, 1], d[keep, 0])
+        cell_flux = weight[keep][:, None] * flux.to(torch.float64)[None]
+        return _splat(view, altitude, azimuth, cell_flux, n_wavelength, dtype)
 
 
 def moon_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
@@ -628,8 +721,52 @@ def moon_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor
     return disc + sky.to(knobs.dtype) * view.valid[..., None].to(knobs.dtype)
 
 
+def eclipse_sky_table(resources, geometry, knobs, wavelength):
+    """Sky during a solar eclipse on the (zenith, absolute azimuth) grid (z, a + 1, wl).
+
+    :func:`skytorch.scene.solar_eclipse_sky.eclipsed_single_scattering` times the
+    extraterrestrial spectrum on ``knobs["eclipse_sky_lut"]`` nodes (zenith as
+    :func:`_zenith_nodes`, azimuth uniform over the full circle, the first column repeated
+    after the last) [W m^-2 sr^-1 nm^-1].
+    """
+    from skytorch.scene.solar_eclipse_sky import eclipsed_single_scattering
+    from skytorch.spectrum import solar_irradiance
+
+    n_z, n_a = knobs["eclipse_sky_lut"]
+    zenith = _zenith_nodes(n_z, torch.float64)
+    azimuth = torch.linspace(0.0, 2.0 * math.pi, n_a + 1, dtype=torch.float64)[:-1]
+    z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
+    wl = wavelength.to(torch.float64)
+    table = resources.transmittance_table(*knobs["transmittance"])
+    radiance = eclipsed_single_scattering(resources.atmosphere, wl, z, a, geometry,
+                                          knobs.elevation_m, n_samples=knobs["eclipse_samples"],
+                                          table=table) * solar_irradiance(wl)
+    return torch.cat([radiance, radiance[:, :1]], dim=1)
+
+
+def _lookup_full(table: torch.Tensor, zenith: torch.Tensor, azimuth: torch.Tensor):
+    """Bilinear look-up of a (zenith node, periodic azimuth node, wl) table."""
+    n_z, n_a, n_wl = table.shape
+    u = _zenith_coordinate(zenith.reshape(-1)) * 2.0 - 1.0
+    v = torch.remainder(azimuth.reshape(-1), 2 * math.pi) / math.pi - 1.0
+    grid = torch.stack([v, u], dim=-1).to(table.dtype)[None, None]
+    image = table.permute(2, 0, 1)[None]
+    out = torch.nn.functional.grid_sample(image, grid, mode="bilinear",
+                                          padding_mode="border", align_corners=True)
+    return out[0, :, 0, :].T.reshape(*zenith.shape, n_wl)
+
+
 def sky_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
-    """Single-scattered sunlight (*view, wl) [W m^-2 sr^-1 nm^-1] from the sky table."""
+    """Single-scattered sunlight (*view, wl) [W m^-2 sr^-1 nm^-1] from the sky table.
+
+    With ``knobs.solar_eclipse`` the table holds the sky with the Sun's visible fraction at
+    every scattering point (:func:`eclipse_sky_table`).
+    """
+    if knobs.solar_eclipse:
+        table = eclipse_sky_table(resources, geometry, knobs, wavelength)
+        sky = _lookup_full(table, view.zenith_rad.to(torch.float64),
+                           view.azimuth_rad.to(torch.float64))
+        return sky.to(knobs.dtype) * view.valid[..., None].to(knobs.dtype)
     table = sky_table(resources, geometry, knobs, wavelength)
     relative = view.azimuth_rad.to(torch.float64) - math.radians(geometry.sun_azimuth_deg)
     sky = _lookup(table, view.zenith_rad.to(torch.float64), relative)
