@@ -239,12 +239,14 @@ def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
                         numerator / torch.where(full, 1.0, torch.clamp(product, min=tiny)))
     psi_max = _angle_from_haversine(ratio)
     x, w = _unit_gauss(n_nodes)
-    v = torch.as_tensor(x, dtype=alpha.dtype)
+    half_arc = torch.as_tensor(0.5 * (1.0 - x * x), dtype=alpha.dtype)  # psi / (2 psi_max)
     weight = torch.as_tensor(2.0 * x * w, dtype=alpha.dtype)
-    hav_psi = torch.sin(0.5 * psi_max.unsqueeze(-1) * (1.0 - v * v)).square()
+    hav_psi = torch.sin(psi_max.unsqueeze(-1) * half_arc).square()
     hav_gamma = torch.addcmul(hav_offset.unsqueeze(-1), product.unsqueeze(-1), hav_psi)
     scale = (4.0 / torch.sin(rho_s).square()).unsqueeze(-1)
-    mu = _safe_sqrt(1.0 - (hav_gamma - hav_gamma.square()) * scale)
+    # 1 - 4 hav(gamma) (1 - hav(gamma)) / sin^2(rho_s) = 1 - (sin(gamma) / sin(rho_s))^2
+    one = torch.ones((), dtype=alpha.dtype)
+    mu = _safe_sqrt(torch.addcmul(one, hav_gamma * (hav_gamma - 1.0), scale))
     # the weights of v sum to 1 (int_0^1 2v dv): the constant term needs no quadrature
     mean = a0 + a1 * (mu @ weight)
     if bool((a2 != 0).any()):
@@ -314,7 +316,8 @@ def _spline(coefficients: torch.Tensor, s: torch.Tensor) -> torch.Tensor:
     t = (x - i.to(x.dtype)).unsqueeze(-1)
     rows = coefficients.index_select(0, i.reshape(-1)).reshape(*i.shape, 4, -1)
     c0, c1, c2, c3 = rows.unbind(-2)
-    return c0 + t * (c1 + t * (c2 + t * c3))
+    # Horner's rule with fused multiply-adds (three passes over the gathered rows)
+    return torch.addcmul(c0, t, torch.addcmul(c1, t, torch.addcmul(c2, t, c3)))
 
 
 class _ImpactGrid:
@@ -379,6 +382,11 @@ class _ImpactGrid:
     def beta(self, s: torch.Tensor) -> torch.Tensor:
         sigma, _ = self.sigma(s)
         return self.beta_min_m + self.span * sigma * sigma
+
+    def beta_and_slope(self, s: torch.Tensor):
+        """:meth:`beta` and :meth:`dbeta_ds` from one evaluation of :meth:`sigma`."""
+        sigma, slope = self.sigma(s)
+        return self.beta_min_m + self.span * sigma * sigma, 2.0 * self.span * sigma * slope
 
     def dbeta_ds(self, s: torch.Tensor) -> torch.Tensor:
         sigma, slope = self.sigma(s)
@@ -631,12 +639,12 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     coefficients = tuple(c.index_select(0, point)[:, None] for c in coefficients)
     values = _spline(tables["all"], s)  # (n_pair, m, 2 + rank)
     deviation, periapsis = values[..., 0], values[..., 1]
-    beta = profile.beta(s)
+    beta, dbeta_ds = profile.grid.beta_and_slope(s)
     b = radius + beta
     a = torch.asin(b / centre) - scale * deviation
     arc = solar_arc_integral(a.abs(), sun_radius, separation, coefficients, n_nodes=n_arc)
     solid = b / (centre * torch.sqrt((centre - b) * (centre + b)))
-    weight = arc * solid * profile.dbeta_ds(s) * ds
+    weight = arc * solid * dbeta_ds * ds
     weight = weight * _ray_weight(periapsis, profile)
     # exp(-max(tau, 0)) in place on the (n_pair, m, n_batch, n_wl) temporary
     factors = values[..., 2:].reshape(*values.shape[:-1], profile.n_batch, profile.rank)
