@@ -21,7 +21,8 @@ from skytorch import __version__
 #: subcommand name -> (module, one-line help); modules are imported on demand
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "ephemeris": ("skytorch.commands.ephemeris", "Sun and Moon positions over time"),
-    "eclipse": ("skytorch.commands.eclipse", "lunar eclipse circumstances and light curve"),
+    "eclipse": ("skytorch.commands.eclipse",
+                "lunar eclipses (circumstances, light curve) and solar eclipses (local sky)"),
     "stars": ("skytorch.commands.stars", "apparent star positions, magnitudes and a chart"),
     "moon": ("skytorch.commands.moon",
              "phase, illumination, libration, brightness and disc images of the Moon"),

@@ -1,4 +1,4 @@
-"""``skytorch eclipse``: lunar eclipses — a table of circumstances, or one eclipse.
+"""``skytorch eclipse``: lunar eclipses (a table, or one eclipse) and solar eclipses.
 
 Examples
 --------
@@ -6,6 +6,15 @@ Examples
 
     skytorch eclipse --from 2020-01-01 --to 2030-01-01 -o eclipses.nc
     skytorch eclipse 2015-09-28 -o eclipse.nc --png eclipse.png
+    skytorch eclipse --solar 2026-08-12 --lat 42.34 --lon -3.70 --elevation 850 \
+        -o burgos.nc --map obscuration.png --sky sky.png
+
+Solar mode (``--solar DATE --lat --lon``) prints the local circumstances of the solar
+eclipse nearest DATE (:func:`skytorch.eclipse.solar_eclipse_local`) and writes them
+(``-o``, netCDF), the obscuration over the globe at the local maximum
+(:func:`skytorch.eclipse.obscuration_map`, ``--map`` PNG) and an all-sky render at the
+local maximum (:class:`skytorch.Scene`, the sky with the Sun's visible fraction at every
+scattering point; ``--sky`` PNG, its Dataset beside it as ``<sky>.nc``).
 
 Table mode (``--from/--to``) prints every eclipse with its greatest eclipse, kind,
 magnitudes, gamma and durations, and writes the :func:`skytorch.eclipse.lunar_eclipses`
@@ -38,6 +47,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="shadow enlargement convention (default danjon, as the NASA canon)")
     parser.add_argument("-o", "--output", help="netCDF file to write")
     parser.add_argument("--png", help="PNG figure to write (single-date mode with light curve)")
+    solar = parser.add_argument_group("solar eclipse (--solar DATE --lat LAT --lon LON)")
+    solar.add_argument("--solar", metavar="DATE",
+                       help="date (UTC) of a solar eclipse: local circumstances at --lat/--lon")
+    solar.add_argument("--lat", type=float, help="observer's latitude [degree north]")
+    solar.add_argument("--lon", type=float, help="observer's east longitude [degree]")
+    solar.add_argument("--elevation", type=float, default=0.0,
+                       help="observer's height above the ellipsoid [m] (default 0)")
+    solar.add_argument("--map", help="PNG of the obscuration over the globe at the maximum")
+    solar.add_argument("--sky", help="PNG of the all-sky render at the local maximum")
+    solar.add_argument("--size", type=int, default=256,
+                       help="pixels across the all-sky render (default 256)")
+    solar.add_argument("--fidelity", default="default", choices=("fast", "default", "reference"),
+                       help="fidelity preset of the render (default 'default')")
 
 
 def format_table(dataset) -> str:
@@ -143,8 +165,85 @@ def _run_circumstances(args: argparse.Namespace) -> int:
     return 0
 
 
+def _solar_summary(local) -> str:
+    """Local circumstances of one observer, one item per line."""
+    def when(name):
+        value = local[name].values
+        return "-" if np.isnat(value) else np.datetime_as_string(value, unit="s")
+
+    lines = [f"solar eclipse (greatest eclipse {local.attrs.get('greatest_eclipse')} UTC): "
+             f"{local.kind.values} here, magnitude {float(local.magnitude):.4f}, obscuration "
+             f"{float(local.obscuration):.4f}"]
+    for name, label in (("c1", "C1"), ("c2", "C2"), ("maximum_time", "maximum"),
+                        ("c3", "C3"), ("c4", "C4")):
+        lines.append(f"  {label:<8} {when(name)}")
+    duration = float(local.central_duration)
+    if not np.isnan(duration):
+        lines.append(f"  central phase {duration:.1f} s")
+    return "\n".join(lines)
+
+
+def _obscuration_png(dataset, path, observer, instant: str) -> None:
+    """Write the obscuration map (latitude, longitude) as a PNG with the observer marked."""
+    from skytorch.plot import _pyplot, savefig
+
+    plt = _pyplot()
+    figure, axes = plt.subplots(figsize=(9, 4.5))
+    shown = dataset.obscuration.where(dataset.sun_altitude > 0)
+    image = axes.pcolormesh(dataset.longitude, dataset.latitude, shown, shading="auto",
+                            vmin=0.0, vmax=1.0, cmap="magma_r")
+    axes.plot(observer[1], observer[0], "c+", markersize=12)
+    axes.set_xlabel("longitude [degree east]")
+    axes.set_ylabel("latitude [degree north]")
+    axes.set_title(f"obscuration at {instant} UTC (day side)")
+    figure.colorbar(image, ax=axes, label="obscuration")
+    savefig(figure, path)
+
+
+def _run_solar(args: argparse.Namespace) -> int:
+    """Solar mode: local circumstances, the obscuration map and the sky at the maximum."""
+    from skytorch.eclipse import obscuration_map, solar_eclipse_local
+
+    if args.lat is None or args.lon is None:
+        raise ValueError("--solar needs --lat and --lon")
+    if args.date is not None or args.start or args.end:
+        raise ValueError("give --solar DATE alone, without DATE or --from/--to")
+    local = solar_eclipse_local(args.solar, args.lat, args.lon, args.elevation)
+    print(_solar_summary(local))
+    _write(local, args.output)
+    maximum = local.maximum_time.values
+    if np.isnat(maximum):
+        if args.map or args.sky:
+            raise ValueError(f"no eclipse at latitude {args.lat}, longitude {args.lon}: "
+                             "no maximum to map or render")
+        return 0
+    instant = np.datetime_as_string(maximum, unit="s")
+    if args.map:
+        lat = np.arange(-89.75, 90.0, 0.5)
+        lon = np.arange(-179.75, 180.0, 0.5)
+        _obscuration_png(obscuration_map(instant, lat, lon), args.map, (args.lat, args.lon),
+                         instant)
+        print(f"wrote {args.map}")
+    if args.sky:
+        from pathlib import Path
+
+        from skytorch.dataset import to_netcdf
+        from skytorch.scene import Scene, scene_png
+
+        scene = Scene(time=instant, lat_deg=args.lat, lon_deg=args.lon,
+                      elevation_m=args.elevation, view="fisheye", size=args.size,
+                      fidelity=args.fidelity)
+        frame = scene.render()
+        print(f"sky at {instant} UTC: {frame.attrs['effects_computed']}")
+        print(f"wrote {scene_png(frame, args.sky, title=f'{instant} UTC')}")
+        print(f"wrote {to_netcdf(frame, Path(args.sky).with_suffix('.nc'))}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``skytorch eclipse``."""
+    if args.solar is not None:
+        return _run_solar(args)
     if args.date is not None and (args.start or args.end):
         raise ValueError("give either DATE or --from/--to, not both")
     if args.date is None:
