@@ -148,18 +148,19 @@ class _Shell:
         self.H = math.sqrt(top * top - planet * planet)
 
     def rho(self, r):
-        return torch.sqrt(torch.clamp(r * r - self.R ** 2, min=0.0))
+        # (r - R)(r + R): no cancellation of r^2 - R^2 in float32
+        return torch.sqrt(torch.clamp((r - self.R) * (r + self.R), min=0.0))
 
     def mu_horizon(self, r):
         return -self.rho(r) / r
 
     def distance_top(self, r, mu):
-        return torch.clamp(-r * mu + torch.sqrt(torch.clamp(r * r * (mu * mu - 1.0)
-                                                            + self.Rt ** 2, min=0.0)), min=0.0)
+        return torch.clamp(-r * mu + torch.sqrt(torch.clamp(
+            r * r * mu * mu + (self.Rt - r) * (self.Rt + r), min=0.0)), min=0.0)
 
     def distance_ground(self, r, mu):
-        return torch.clamp(-r * mu - torch.sqrt(torch.clamp(r * r * (mu * mu - 1.0)
-                                                            + self.R ** 2, min=0.0)), min=0.0)
+        return torch.clamp(-r * mu - torch.sqrt(torch.clamp(
+            r * r * mu * mu - (r - self.R) * (r + self.R), min=0.0)), min=0.0)
 
     # r <-> coordinate in [0, 1]
     def r_of(self, x):
@@ -450,7 +451,8 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     resolution : TableResolution, optional
         Table sizes (default :class:`TableResolution()`).
     dtype : torch.dtype
-        float64 or float32.
+        float64 or float32: the dtype of the stored tables and of the look-ups (the
+        tables are always computed in float64).
 
     Returns
     -------
@@ -477,6 +479,9 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         raise TypeError(f"resolution must be a TableResolution; got "
                         f"{type(resolution).__name__}")
     res = resolution
+    # the tables are built in float64 (the r^2 - R^2 geometry and long columns cancel in
+    # float32) and stored in ``dtype``
+    table_dtype, dtype = dtype, torch.float64
     wavelength = wavelength_tensor(wavelength_nm, dtype)
     constituents = atmosphere.constituents(wavelength, dtype)
     shape_b = constituents.batch_shape
@@ -611,10 +616,6 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         lead = k.shape[:-3]
         k = k.reshape((-1,) + tuple(k.shape[-3:])) if lead else k[None]
         operators.append(k.permute(0, 3, 2, 1))                     # (b?, λ?, n_in, n_out)
-    beta_nodes = [_flat(constituents.densities(_geometry(r_nodes - shell.R, nb))[sp.name]
-                        [..., None] * sp.scattering.reshape(tuple(sp.scattering.shape[:-1])
-                                                            + (1, n_lambda)), shape_b, 2)
-                  for sp in scatterers]                              # (b, r, λ)
     # interpolation of the table's mu axis onto the quadrature nodes at each r node
     iq, wq_ = _mu_index(shell, r_nodes[:, None].expand(-1, mu_q.shape[0]),
                         mu_q[None, :].expand(res.n_r, -1), res.n_mu)
@@ -648,15 +649,17 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         e_prev = (lq[:, 0][:, up] * (w_q[up] * mu_q[up])[None, :, None, None, None]
                   ).sum((1, 3)) * (2 * math.pi / n_full)            # (b, ms, λ)
         lin = lq.permute(0, 5, 1, 3, 2, 4).reshape(b, n_lambda, res.n_r * res.n_mu_s, n_in)
-        dens = 0.0
-        for op, beta in zip(operators, beta_nodes, strict=True):
-            j = torch.matmul(lin, op)                               # (b, λ, r*ms, n_out)
-            j = j.reshape(b, n_lambda, res.n_r, res.n_mu_s, n_out)
-            dens = dens + j * beta.permute(0, 2, 1)[..., None, None]
-        if not scatterers:
-            dens = torch.zeros((b, n_lambda, res.n_r, res.n_mu_s, n_out), dtype=dtype)
-        j_table = dens.reshape(b, n_lambda, res.n_r, res.n_mu_s, 2 * res.n_sphere_mu,
-                               res.n_phi).permute(0, 2, 4, 3, 5, 1).contiguous()
+        # per species the phase-weighted mean radiance (smooth in r); its scattering
+        # coefficient is applied at each sample's own altitude (exact vertical profile)
+        parts = [torch.matmul(lin, op).reshape(b, n_lambda, res.n_r, res.n_mu_s, n_out)
+                 for op in operators]
+        n_s = max(1, len(parts))
+        if not parts:
+            parts = [torch.zeros((b, n_lambda, res.n_r, res.n_mu_s, n_out), dtype=dtype)]
+        j_table = torch.stack(parts, 1).reshape(
+            b, n_s, n_lambda, res.n_r, res.n_mu_s, 2 * res.n_sphere_mu, res.n_phi
+        ).permute(0, 3, 5, 4, 6, 1, 2).reshape(
+            b, res.n_r, 2 * res.n_sphere_mu, res.n_mu_s, res.n_phi, n_s * n_lambda)
         nxt = []
         for i in range(res.n_r):
             mus_s = sample_sun(i)                                   # (mu, K, ms, phi)
@@ -673,6 +676,12 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
             cph = _linear(phi_s / math.pi * (res.n_phi - 1), res.n_phi)
             jv = _gather4(j_table, torch.arange(b).reshape(b, 1, 1, 1, 1),
                           [(c[0][None], c[1][None]) for c in (cr, (pos, wmu), cms, cph)])
+            jv = jv.reshape(jv.shape[:-1] + (n_s, n_lambda))
+            if beta_s:
+                beta = torch.stack([bs[:, i] for bs in beta_s], -2)[:, :, :, None, None]
+                jv = (jv * beta).sum(-2)
+            else:
+                jv = jv.sum(-2) * 0.0
             integrand = jv * (t_view[:, i] * ds[i][None, ..., None])[:, :, :, None, None, :]
             ray = integrand.sum(2)                                  # (b, mu, ms, phi, λ)
             mus_g = mus_s[:, -1]
@@ -699,6 +708,9 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     n_s = len(scatterers)
     single_flat = single.reshape(single.shape[:5] + (n_s * n_lambda,))
 
+    stored = atmosphere.constituents(wavelength.to(table_dtype), table_dtype)
+    stored_phase = {sp.name: sp for sp in stored.scatterers()}
+
     def make_phase(sp):
         def phase(nu):
             # the parameters' batch dims broadcast with the geometry (as everywhere)
@@ -706,9 +718,11 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
             return p.expand(tuple(p.shape[:-1]) + (n_lambda,))
         return phase
 
-    return ScatteringTables(shell=shell, resolution=res, wavelength_nm=wavelength,
-                            batch_shape=shape_b, single=single_flat,
-                            phases=[make_phase(sp) for sp in scatterers],
-                            cumulative=cumulative, contributions=torch.stack(contributions),
+    return ScatteringTables(shell=shell, resolution=res,
+                            wavelength_nm=wavelength.to(table_dtype),
+                            batch_shape=shape_b, single=single_flat.to(table_dtype),
+                            phases=[make_phase(stored_phase[sp.name]) for sp in scatterers],
+                            cumulative=[c.to(table_dtype) for c in cumulative],
+                            contributions=torch.stack(contributions),
                             converged=converged,
                             ground_albedo=albedo.reshape(tuple(shape_b) + (n_lambda,)))

@@ -1,0 +1,174 @@
+"""Multiple scattering by precomputed orders (skytorch.atmosphere.multiple_scattering).
+
+The single-scattering order is compared with the ray-marched single-scattering kernel
+(an independent algorithm, exact phase and columns along each ray); the higher orders
+with conservation of energy; hard cases for finiteness; gradients by gradcheck.
+"""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from skytorch.atmosphere import Atmosphere
+from skytorch.atmosphere.multiple_scattering import (
+    ScatteringTables,
+    TableResolution,
+    precompute_scattering,
+)
+
+F64 = torch.float64
+WAVELENGTH = torch.tensor([450.0, 650.0], dtype=F64)
+#: a coarse table that still resolves the day sky (about 1.5 s to build 3 orders)
+COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32, n_sphere_mu=6)
+
+
+@pytest.fixture(scope="module")
+def day_tables():
+    atm = Atmosphere.earth(turbidity=2.0)
+    return atm, precompute_scattering(atm, WAVELENGTH, scattering_orders=3,
+                                      resolution=COARSE)
+
+
+@pytest.mark.parametrize("sun_deg", [0.0, 30.0, 60.0])
+@pytest.mark.parametrize("view_deg, azimuth", [(0.0, 0.0), (60.0, 0.0), (60.0, 2.0)])
+def test_single_order_matches_ray_marched_kernel(day_tables, sun_deg, view_deg, azimuth):
+    atm, tables = day_tables
+    sun, view = math.radians(sun_deg), math.radians(view_deg)
+    order1 = tables.radiance(0.0, view, azimuth, sun, scattering_orders=1)
+    marched = atm.sky_radiance(WAVELENGTH, torch.tensor(view, dtype=F64), azimuth,
+                               torch.tensor(sun, dtype=F64), n_samples=256)
+    # the table's interpolation error on this coarse grid: a few per cent (measured
+    # <= 2.6 % at 550 nm; docs/multiple_scattering.md)
+    assert torch.allclose(order1, marched, rtol=0.04, atol=0.0), (order1, marched)
+
+
+def test_orders_converge_monotonically(day_tables):
+    _, tables = day_tables
+    sizes = tables.order_contributions
+    assert tables.orders_computed == 3 and sizes.shape == (3,)
+    assert bool((sizes[1:] < sizes[:-1]).all()), sizes
+    assert bool((sizes[1:] > 0).all())
+    geometry = (0.0, torch.tensor([0.0, 1.0, 1.5]), 0.5, 1.2)
+    previous = None
+    for n in (1, 2, 3):
+        value = tables.radiance(*geometry, scattering_orders=n)
+        if previous is not None:
+            assert bool((value > previous).all())
+        previous = value
+
+
+def test_multiple_scattering_adds_more_in_the_blue(day_tables):
+    _, tables = day_tables
+    ratio = (tables.radiance(0.0, 0.0, 0.0, 1.0)
+             / tables.radiance(0.0, 0.0, 0.0, 1.0, scattering_orders=1))
+    assert bool((ratio > 1.05).all()) and float(ratio[0]) > float(ratio[1]), ratio
+
+
+@pytest.mark.xfail(strict=True, reason="the discrete scheme gains energy on coarse tables: "
+                   "outgoing TOA flux 1.06-1.39 of the incoming at 12x32x12x6 "
+                   "(docs/multiple_scattering.md, open)")
+def test_conservation_albedo_one():
+    atm = Atmosphere.earth(turbidity=2.0, ozone_du=0.0, aerosol_single_scattering_albedo=1.0)
+    tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64), ground_albedo=1.0,
+                                   scattering_orders="converged",
+                                   resolution=TableResolution.tiny())
+    assert tables.converged
+    x, w = np.polynomial.legendre.leggauss(24)
+    mu = torch.tensor(-0.5 * (x + 1.0))
+    weight = torch.tensor(0.5 * w) * mu.abs()
+    azimuth = torch.arange(32, dtype=F64) * (2 * math.pi / 32)
+    for sun in (0.0, 0.5):
+        radiance = tables.radiance(tables.top_altitude_m, torch.acos(mu)[:, None],
+                                   azimuth[None, :], sun)[..., 0]
+        flux = float((radiance * weight[:, None]).sum()) * 2 * math.pi / 32
+        assert abs(flux / math.cos(sun) - 1.0) <= 0.005
+
+
+@pytest.mark.parametrize("altitude, view, sun", [
+    (0.0, math.pi / 2, math.pi / 2),          # Sun exactly at the horizon, tangent view
+    (0.0, 0.0, math.radians(108.0)),          # Sun 18 deg below the horizon
+    ("top", 2.5, 0.3),                        # observer at the top looking down
+    ("top", 0.2, 0.3),                        # ... looking up (empty path)
+    (5000.0, 1.75, 1.2),                      # view below the horizon from 5 km
+])
+def test_hard_geometries_finite(day_tables, altitude, view, sun):
+    _, tables = day_tables
+    altitude = tables.top_altitude_m if altitude == "top" else altitude
+    value = tables.radiance(altitude, view, 0.3, sun)
+    assert bool(torch.isfinite(value).all()) and bool((value >= 0).all())
+
+
+def test_optically_thick_haze_and_albedo_extremes():
+    atm = Atmosphere.earth(aerosol_optical_depth=5.0)
+    for albedo in (0.0, 1.0):
+        tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64),
+                                       ground_albedo=albedo, scattering_orders=4,
+                                       resolution=TableResolution.tiny())
+        value = tables.radiance(0.0, torch.tensor([0.0, 1.0, 1.55]), 0.0, 0.5)
+        assert bool(torch.isfinite(value).all()) and bool((value > 0).all())
+    # a brighter ground brightens the sky seen from the ground
+    dark = precompute_scattering(Atmosphere.earth(turbidity=2.0), WAVELENGTH,
+                                 ground_albedo=0.0, scattering_orders=3,
+                                 resolution=TableResolution.tiny())
+    bright = precompute_scattering(Atmosphere.earth(turbidity=2.0), WAVELENGTH,
+                                   ground_albedo=torch.tensor([0.3, 0.8], dtype=F64),
+                                   scattering_orders=3, resolution=TableResolution.tiny())
+    assert bool((bright.radiance(0.0, 0.0, 0.0, 0.5) > dark.radiance(0.0, 0.0, 0.0, 0.5)).all())
+
+
+def test_float32_tables_close_to_float64():
+    atm = Atmosphere.earth(turbidity=2.0)
+    results = [precompute_scattering(atm, WAVELENGTH, scattering_orders=3, dtype=dtype,
+                                     resolution=TableResolution.tiny())
+               .radiance(0.0, torch.tensor([0.0, 1.0, 1.5]), 0.4, 1.0)
+               for dtype in (torch.float32, torch.float64)]
+    assert results[0].dtype == torch.float32 and bool(torch.isfinite(results[0]).all())
+    assert torch.allclose(results[0].to(F64), results[1], rtol=1e-4, atol=0.0)
+
+
+def test_batched_atmosphere_matches_single_members():
+    turbidity = torch.tensor([2.0, 4.0], dtype=F64)
+    batched = precompute_scattering(Atmosphere.earth(turbidity=turbidity), WAVELENGTH,
+                                    scattering_orders=2, resolution=TableResolution.tiny())
+    value = batched.radiance(0.0, 0.3, 0.2, 0.8)
+    assert value.shape == (2, 2)
+    for k in range(2):
+        alone = precompute_scattering(Atmosphere.earth(turbidity=float(turbidity[k])),
+                                      WAVELENGTH, scattering_orders=2,
+                                      resolution=TableResolution.tiny())
+        assert torch.allclose(value[k], alone.radiance(0.0, 0.3, 0.2, 0.8), rtol=1e-10)
+
+
+def test_gradcheck_turbidity_ozone_albedo():
+    res = TableResolution(n_r=3, n_mu=4, n_mu_s=3, n_phi=3, n_ray=4, n_sphere_mu=2,
+                          transmittance_r=4, transmittance_mu=6)
+
+    def f(turbidity, ozone, albedo):
+        atm = Atmosphere.earth(turbidity=turbidity, ozone_du=ozone)
+        tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64),
+                                       ground_albedo=albedo, scattering_orders=2,
+                                       resolution=res)
+        return tables.radiance(0.0, torch.tensor([0.2, 1.0], dtype=F64), 0.5, 0.7)
+
+    inputs = tuple(torch.tensor(v, dtype=F64, requires_grad=True) for v in (2.5, 300.0, 0.3))
+    assert torch.autograd.gradcheck(f, inputs, eps=1e-6, atol=1e-10, rtol=1e-4)
+
+
+def test_bad_input_names_parameter_and_range(day_tables):
+    atm, tables = day_tables
+    with pytest.raises(ValueError, match="sun_zenith_rad"):
+        tables.radiance(0.0, 0.0, 0.0, math.radians(110.0))
+    with pytest.raises(ValueError, match="altitude_m"):
+        tables.radiance(-5.0, 0.0, 0.0, 0.5)
+    with pytest.raises(ValueError, match="scattering_orders"):
+        tables.radiance(0.0, 0.0, 0.0, 0.5, scattering_orders=9)
+    with pytest.raises(ValueError, match="ground_albedo"):
+        precompute_scattering(atm, WAVELENGTH, ground_albedo=1.5,
+                              resolution=TableResolution.tiny())
+    with pytest.raises(ValueError, match="scattering_orders"):
+        precompute_scattering(atm, WAVELENGTH, scattering_orders="all")
+    with pytest.raises(ValueError, match="n_mu"):
+        TableResolution(n_mu=7)
+    assert isinstance(tables, ScatteringTables)
