@@ -115,7 +115,7 @@ def visible_fraction_at(geometry, points_m, *, limb_darkening: float = 0.6,
     >>> g = Geometry(90.0, 0.0, 90.0, 0.0, 3.6e8, 1.496e11, math.pi, 0.0, 0.0, 0.0, 0.0,
     ...              sun_horizontal_m=(0.0, 0.0, 1.496e11),
     ...              moon_horizontal_m=(0.0, 0.0, 3.6e8))
-    >>> points = torch.tensor([[0.0, 0.0, 1e4], [0.0, 2e6, 1e4]], dtype=torch.float64)
+    >>> points = torch.tensor([[0.0, 0.0, 1e4], [0.0, 5e6, 1e4]], dtype=torch.float64)
     >>> [round(v, 3) for v in visible_fraction_at(g, points).tolist()]
     [0.0, 1.0]
     """
