@@ -172,3 +172,18 @@ def test_bad_input_names_parameter_and_range(day_tables):
     with pytest.raises(ValueError, match="n_mu"):
         TableResolution(n_mu=7)
     assert isinstance(tables, ScatteringTables)
+
+
+def test_sky_radiance_orders_knob(day_tables):
+    atm, tables = day_tables
+    view = torch.tensor([0.0, 1.0], dtype=F64)
+    single = atm.sky_radiance(WAVELENGTH, view, 0.0, 0.8, scattering_orders=1)
+    multiple = atm.sky_radiance(WAVELENGTH, view, 0.0, 0.8, scattering_orders=3,
+                                tables=tables)
+    assert torch.equal(multiple, tables.radiance(0.0, view, 0.0, 0.8))
+    assert bool((multiple > single).all())
+    with pytest.raises(ValueError, match="scattering_orders"):
+        atm.sky_radiance(WAVELENGTH, view, scattering_orders=0)
+    with pytest.raises(ValueError, match="wavelengths"):
+        atm.sky_radiance(torch.tensor([500.0], dtype=F64), view, scattering_orders=2,
+                         tables=tables)

@@ -1246,24 +1246,62 @@ class Atmosphere(nn.Module):
     def sky_radiance(self, wavelength_nm, view_zenith_rad, view_azimuth_rad=0.0,
                      sun_zenith_rad=0.0, sun_azimuth_rad=0.0, altitude_m=0.0, *,
                      solar_irradiance: bool = False, n_samples: int = 128, table=None,
-                     sun_steps: int | None = None) -> torch.Tensor:
-        """Single-scattering sky radiance (..., wavelength).
+                     sun_steps: int | None = None, scattering_orders=1, ground_albedo=0.0,
+                     tables=None) -> torch.Tensor:
+        """Sky radiance (..., wavelength), single or multiple scattering.
 
         Per unit solar irradiance [sr^-1], or with ``solar_irradiance=True`` times the
         extraterrestrial solar spectrum (:func:`skytorch.spectrum.solar_irradiance`)
-        [W m^-2 sr^-1 nm^-1]. See
-        :func:`skytorch.atmosphere.scattering.single_scattering_radiance` for the other
-        parameters (``table`` must have been built for this atmosphere and these
-        wavelengths).
+        [W m^-2 sr^-1 nm^-1].
+
+        ``scattering_orders=1`` over a black ground (the default) is the ray-marched
+        single-scattering kernel, :func:`skytorch.atmosphere.scattering.
+        single_scattering_radiance` (``n_samples``, ``table``, ``sun_steps`` are its
+        parameters; ``table`` must have been built for this atmosphere and these
+        wavelengths). ``scattering_orders=N`` or ``"converged"``, or a non-zero
+        ``ground_albedo`` (Lambertian, scalar or per wavelength), use the
+        multiple-scattering tables of :mod:`skytorch.atmosphere.multiple_scattering`:
+        ``tables`` (a :class:`~skytorch.atmosphere.multiple_scattering.ScatteringTables`
+        built for this atmosphere, these wavelengths and this albedo) or, without it,
+        tables built on each call by ``precompute_scattering`` at the default resolution
+        (seconds per order for a few wavelengths: pass ``tables`` when calling more than
+        once).
         """
+        from skytorch.atmosphere import multiple_scattering as _ms
         from skytorch.atmosphere.scattering import single_scattering_radiance
 
         _check_flag("solar_irradiance", solar_irradiance)
-        radiance = single_scattering_radiance(self, wavelength_nm, view_zenith_rad,
-                                              view_azimuth_rad, sun_zenith_rad,
-                                              sun_azimuth_rad, altitude_m,
-                                              n_samples=n_samples, table=table,
-                                              sun_steps=sun_steps)
+        if not (scattering_orders == "converged" or (
+                not isinstance(scattering_orders, (bool, str))
+                and isinstance(scattering_orders, int) and scattering_orders >= 1)):
+            raise ValueError("scattering_orders must be an integer >= 1 or 'converged'; "
+                             f"got {scattering_orders!r}")
+        black = (not torch.is_tensor(ground_albedo) and ground_albedo == 0.0)
+        if tables is None and scattering_orders == 1 and black:
+            radiance = single_scattering_radiance(self, wavelength_nm, view_zenith_rad,
+                                                  view_azimuth_rad, sun_zenith_rad,
+                                                  sun_azimuth_rad, altitude_m,
+                                                  n_samples=n_samples, table=table,
+                                                  sun_steps=sun_steps)
+        else:
+            dtype = _floating_dtype(None, wavelength_nm, view_zenith_rad, sun_zenith_rad)
+            wavelength = wavelength_tensor(wavelength_nm, dtype)
+            if tables is None:
+                tables = _ms.precompute_scattering(self, wavelength,
+                                                   ground_albedo=ground_albedo,
+                                                   scattering_orders=scattering_orders,
+                                                   dtype=dtype)
+            elif not isinstance(tables, _ms.ScatteringTables):
+                raise TypeError("tables must be a ScatteringTables; got "
+                                f"{type(tables).__name__}")
+            elif (tables.wavelength_nm.shape != wavelength.shape or not torch.allclose(
+                    tables.wavelength_nm.to(torch.float64), wavelength.to(torch.float64))):
+                raise ValueError("tables were built for other wavelengths: "
+                                 f"{tables.wavelength_nm.tolist()} nm, not "
+                                 f"{wavelength.tolist()} nm")
+            radiance = tables.radiance(altitude_m, view_zenith_rad, view_azimuth_rad,
+                                       sun_zenith_rad, sun_azimuth_rad,
+                                       scattering_orders=scattering_orders)
         if solar_irradiance:
             from skytorch.spectrum import solar_irradiance as irradiance
 
