@@ -29,3 +29,14 @@ def test_solar_mode_writes_circumstances_map_and_sky(tmp_path, capsys):
 def test_solar_mode_needs_a_site(capsys):
     assert main(["eclipse", "--solar", "2026-08-12", "--lat", "42.0"]) == 2
     assert "--lat and --lon" in capsys.readouterr().err
+
+
+def test_demo_solar_eclipse_panel(tmp_path):
+    from skytorch.commands.demo import PARTS, solar_eclipse_part
+
+    assert "solar eclipse" in dict(PARTS)
+    lines = solar_eclipse_part(tmp_path, True, {})
+    assert "total, obscuration 1.0000" in lines[1]
+    assert (tmp_path / "solar_eclipse.png").stat().st_size > 10_000
+    sky = xr.open_dataset(tmp_path / "solar_eclipse_sky.nc")
+    assert "solar_eclipse" in sky.attrs["effects_computed"]

@@ -14,7 +14,11 @@ The 2015-09-28 total lunar eclipse, end to end:
 6. the Moon through a telescope at the same phases (a camera view of 1.2°): the edge of
    the umbra across the disc;
 7. a 3 × 3 turbidity × ozone sweep of the Moon's colour at totality
-   (:func:`skytorch.sweep`).
+   (:func:`skytorch.sweep`);
+8. next to it, the total solar eclipse of 2026-08-12 at Burgos: local circumstances
+   (:func:`skytorch.eclipse.solar_eclipse_local`), the obscuration map at the local
+   maximum and the all-sky render there (the sky with the Sun's visible fraction at
+   every scattering point, :mod:`skytorch.scene.solar_eclipse_sky`).
 
 Every part writes netCDF and PNG files into ``--output-dir`` and one line or two of the
 summary. A part whose module cannot be imported is skipped with the reason printed.
@@ -49,6 +53,9 @@ CALBUCO_DENSITY_FACTOR = 2.0
 CALBUCO_SCALE_HEIGHT_M = 3000.0
 #: the city of the all-sky renders: centre 12 km south-east of the observer
 CITY = {"population": 1_000_000.0, "scale_length_m": 4_000.0, "centre_xy": (8_000.0, -9_000.0)}
+#: the solar-eclipse panel: Burgos, the total solar eclipse of 2026-08-12
+SOLAR_SITE = {"lat_deg": 42.34, "lon_deg": -3.70, "elevation_m": 850.0}
+SOLAR_ECLIPSE_DATE = "2026-08-12"
 #: sweep grid of the Moon's colour at totality
 #: significant digits kept in the demo's all-sky render files (see to_netcdf)
 RENDER_SIGNIFICANT_DIGITS = 7
@@ -408,6 +415,48 @@ def sweep_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
             f"B-V {bv.min():.2f} .. {bv.max():.2f}"]
 
 
+def solar_eclipse_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
+    """Show the 2026-08-12 total solar eclipse at Burgos: circumstances, map and sky."""
+    from skytorch import plot
+    from skytorch.dataset import to_netcdf
+    from skytorch.eclipse import obscuration_map, solar_eclipse_local
+    from skytorch.scene import Scene
+
+    site = SOLAR_SITE
+    local = solar_eclipse_local(SOLAR_ECLIPSE_DATE, site["lat_deg"], site["lon_deg"],
+                                site["elevation_m"])
+    to_netcdf(local, output_dir / "solar_eclipse_local.nc")
+    instant = np.datetime_as_string(local.maximum_time.values, unit="s")
+    step = 2.0 if quick else 0.5
+    lat = np.arange(-90.0 + step / 2, 90.0, step)
+    lon = np.arange(-180.0 + step / 2, 180.0, step)
+    shadow = obscuration_map(instant, lat, lon)
+    start = time.perf_counter()
+    sky = Scene(time=instant, **site, size=64 if quick else 256,
+                fidelity="fast" if quick else "default").render()
+    seconds = time.perf_counter() - start
+    to_netcdf(sky, output_dir / "solar_eclipse_sky.nc",
+              significant_digits=RENDER_SIGNIFICANT_DIGITS)
+    plt = _plt()
+    figure, axes = plt.subplots(1, 2, figsize=(11, 4.6),
+                                gridspec_kw={"width_ratios": [1.7, 1]})
+    image = axes[0].pcolormesh(lon, lat, shadow.obscuration.where(shadow.sun_altitude > 0),
+                               shading="auto", vmin=0.0, vmax=1.0, cmap="magma_r")
+    axes[0].plot(site["lon_deg"], site["lat_deg"], "c+", markersize=12)
+    axes[0].set_title(f"obscuration at {instant} UTC (day side)")
+    axes[0].set_xlabel("longitude [degree east]")
+    axes[0].set_ylabel("latitude [degree north]")
+    figure.colorbar(image, ax=axes[0], label="obscuration")
+    plot.all_sky(sky, axes[1], title=f"Burgos at maximum ({local.kind.values})")
+    png = plot.savefig(figure, output_dir / "solar_eclipse.png")
+    zenith = float(sky["v_mag_arcsec2"].sel(x=0.0, y=0.0, method="nearest"))
+    return [f"solar eclipse {SOLAR_ECLIPSE_DATE} at Burgos -> {png.name}",
+            f"  {local.kind.values}, obscuration {float(local.obscuration):.4f}, maximum "
+            f"{instant} UTC, central phase {float(local.central_duration):.1f} s",
+            f"  sky at maximum: zenith {zenith:.2f} mag/arcsec2 (single scattering), computed "
+            f"[{sky.attrs['effects_computed']}], {seconds:.1f} s"]
+
+
 PARTS = (
     ("ephemeris", ephemeris_part),
     ("circumstances", circumstances_part),
@@ -416,6 +465,7 @@ PARTS = (
     ("all-sky renders", all_sky_part),
     ("Moon close-ups", moon_camera_part),
     ("sweep", sweep_part),
+    ("solar eclipse", solar_eclipse_part),
 )
 
 
