@@ -153,10 +153,65 @@ def ingredients(quick: bool, date: str = "2015-09-28"):
     return dataset, figure, summary
 
 
+def umbral_edge(quick: bool, date: str = "2015-09-28", distance_m: float = 3.844e8):
+    """Where the modelled umbral edge falls: the steepest d log I / dr at 550 nm.
+
+    Against the geometric umbra (no enlargement), as a percentage of its radius; the
+    same for molecules only and the airless Earth (a check: 0 within the grid step), and
+    Danjon's 1/85 rule through ``shadow_radii(enlargement="danjon")``.
+    """
+    from skytorch.constants import EARTH_MEAN_RADIUS_M
+    from skytorch.eclipse import shadow_radii
+
+    shadows = {"eclipse_shadow": eclipse_shadow(date),
+               "molecules": Shadow.earth(Atmosphere.earth(aerosol_optical_depth=0.0,
+                                                          ozone_du=0.0)),
+               "airless": Shadow.earth(False)}
+    reference = shadows["airless"]
+    radii = {kind: float(shadow_radii(distance_m, reference.sun_distance_m,
+                                      reference.sun_radius_m, EARTH_MEAN_RADIUS_M,
+                                      enlargement=kind)[0]) for kind in ("none", "danjon")}
+    umbra = radii["none"]
+    f64 = torch.float64
+    offset = torch.linspace(0.85 * umbra, 1.15 * umbra, 151 if quick else 601, dtype=f64)
+    wavelength = torch.tensor([550.0], dtype=f64)
+    edges, curves = [], []
+    for shadow in shadows.values():
+        light = shadow.relative_illuminance(torch.full_like(offset, distance_m), offset,
+                                            wavelength)[..., 0]
+        slope = torch.gradient(torch.log10(light.clamp_min(1e-30)), spacing=(offset,))[0]
+        edges.append(100.0 * (float(offset[int(torch.argmax(slope))]) / umbra - 1.0))
+        curves.append(light.numpy())
+    danjon = 100.0 * (radii["danjon"] / umbra - 1.0)
+    dataset = xr.Dataset(
+        {"relative_illuminance": (("model", "offset"), np.array(curves), {"units": "1"}),
+         "umbral_enlargement": (("model",), np.array(edges),
+                                {"units": "%", "long_name": "steepest d log I / dr beyond "
+                                 "the geometric umbra"})},
+        coords={"model": list(shadows), "offset": ("offset", offset.numpy(), {"units": "m"})},
+        attrs={"title": f"Umbral edge of the modelled {date} shadow at 550 nm",
+               "geometric_umbra_radius_m": umbra, "danjon_enlargement_percent": danjon,
+               "observed_enlargement_percent": "1.7-1.9 (Vital 2004, 2008)"})
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(7, 4))
+    for name, curve in zip(shadows, curves, strict=True):
+        axis.semilogy(100.0 * (offset.numpy() / umbra - 1.0), curve, label=name)
+    axis.axvspan(1.7, 1.9, color="0.8", label="observed 1.7-1.9 %")
+    axis.axvline(danjon, color="k", ls="--", label="Danjon 1/85")
+    axis.set(xlabel="offset beyond the geometric umbra [%]", ylabel="I / I_sun (550 nm)")
+    axis.legend(fontsize=8)
+    figure.tight_layout()
+    summary = {f"edge {name} [%]": edge for name, edge in zip(shadows, edges, strict=True)}
+    summary["Danjon 1/85 [%]"] = danjon
+    return dataset, figure, summary
+
+
 def main(argv=None) -> int:
     args = parse_arguments(__doc__.splitlines()[0], argv)
     for build, stem in ((comparison, "lunar_eclipse_comparison"),
-                        (ingredients, "lunar_eclipse_ingredients")):
+                        (ingredients, "lunar_eclipse_ingredients"),
+                        (umbral_edge, "lunar_eclipse_umbral_edge")):
         dataset, figure, summary = build(args.quick)
         save_outputs(dataset, figure, args.output_dir, stem)
         for key, value in summary.items():
