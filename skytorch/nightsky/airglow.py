@@ -8,7 +8,7 @@ r"""Airglow: emission of a thin layer near 90 km, its zenith level and solar-cyc
   broad-band output); taking that zodiacal light (Leinert et al. 1998 Table 17, 77 units,
   V = 23.3) away leaves the airglow (with the model's scattered starlight and lower
   atmosphere, a few per cent):
-  :data:`AIRGLOW_ZENITH_V_130SFU` = 22.15 mag arcsec⁻², as observed (extinction included).
+  :data:`AIRGLOW_ZENITH_V_130SFU` = 22.14 mag arcsec⁻², as observed (extinction included).
 * Solar cycle: the airglow continuum of the ESO model scales as
   :math:`a + b\,S` with the monthly mean 10.7 cm solar flux :math:`S` [sfu], (a, b) =
   (0.2068, 0.006139 sfu⁻¹) for the 543 nm continuum (Noll et al. 2012, §3.4; the
@@ -26,7 +26,7 @@ References
 Examples
 --------
 >>> round(float(airglow_zenith_mag(130.0)), 2)
-22.15
+22.14
 """
 
 from __future__ import annotations
@@ -92,7 +92,7 @@ def airglow_zenith_mag(solar_flux_sfu=130.0) -> torch.Tensor:
     -------
     torch.Tensor
         ``(...)`` :data:`AIRGLOW_ZENITH_V_130SFU` − 2.5 log10 of
-        :func:`airglow_solar_factor` (22.65 at 70 sfu, 21.77 at 200 sfu).
+        :func:`airglow_solar_factor` (22.64 at 70 sfu, 21.76 at 200 sfu).
     """
     factor = airglow_solar_factor(solar_flux_sfu)
     return AIRGLOW_ZENITH_V_130SFU - 2.5 * torch.log10(factor)

@@ -5,14 +5,15 @@ against the helio-ecliptic longitude :math:`\lambda - \lambda_\odot` and the ecl
 latitude :math:`\beta` of the line of sight (shipped as
 ``data/leinert1998_zodiacal_table17.csv``); it is interpolated bilinearly in
 :math:`\log_{10}` brightness. The spectrum is the solar one reddened as Leinert et al.'s
-Table 19 (the spectrum at 90° elongation in the ecliptic) says: the ratio of that table to
-the solar spectrum, normalised at 500 nm, multiplies the solar spectrum.
+§8.1 says (a reddening linear in log wavelength, 0.9 per decade below 500 nm and 0.48
+above), checked in the tests against their Table 19 spectrum at 90° elongation.
 
 References
 ----------
 1. Leinert, Ch. et al. 1998, "The 1997 reference of diffuse night sky brightness",
    A&AS 127, 1, doi:10.1051/aas:1998105 (§2 units, §8.1 colour, Tables 17 and 19).
-2. ASTM G173-03 extraterrestrial solar spectrum (:func:`skytorch.spectrum.solar_irradiance`).
+2. Aldering, G. 2001, SNAP sky background model, LBNL report LBNL-51157.
+3. ASTM G173-03 extraterrestrial solar spectrum (:func:`skytorch.spectrum.solar_irradiance`).
 
 Examples
 --------
@@ -52,10 +53,8 @@ ZODIACAL_LONGITUDES_DEG = (0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 60, 75, 90, 105
                            150, 165, 180)
 #: ecliptic latitudes of the table's columns [degree]
 ZODIACAL_LATITUDES_DEG = (0, 5, 10, 15, 20, 25, 30, 45, 60, 75, 90)
-#: Leinert et al. 1998 Table 19: zodiacal light at 90° elongation in the ecliptic,
-#: wavelength [nm] and spectral radiance [W m^-2 sr^-1 µm^-1] (0.3–1.2 µm of the table)
-_TABLE19_NM = (300.0, 400.0, 500.0, 700.0, 900.0, 1000.0, 1200.0)
-_TABLE19 = (5.3e-7, 2.2e-6, 2.6e-6, 2.0e-6, 1.3e-6, 1.2e-6, 8.1e-7)
+#: reddening slopes per decade of wavelength below and above 500 nm (Leinert et al. 1998, §8.1)
+_COLOUR_BLUE, _COLOUR_RED = 0.9, 0.48
 #: width of the band over which the solar spectrum is averaged for the colour ratio [nm]
 _COLOUR_BAND_NM = 40.0
 
@@ -144,22 +143,22 @@ def zodiacal_colour(wavelength_nm) -> torch.Tensor:
     Parameters
     ----------
     wavelength_nm : array_like
-        ``(wavelength,)`` [nm], within the solar table's 280–4000 nm.
+        ``(wavelength,)`` [nm].
 
     Returns
     -------
     torch.Tensor
-        ``(wavelength,)`` :math:`c(\lambda) = [I_{19}(\lambda) / I_{19}(500)] /
-        [\bar E_\odot(\lambda) / \bar E_\odot(500)]`, with :math:`I_{19}` Leinert et
-        al.'s Table 19 and :math:`\bar E_\odot` the solar spectrum averaged over 40 nm;
-        linear in wavelength between the table's 300–1200 nm nodes, held at the end
-        values beyond.
+        ``(wavelength,)`` :math:`f(\lambda) = 1 + 0.9 \log_{10}(\lambda / 500)` below
+        500 nm and :math:`1 + 0.48 \log_{10}(\lambda / 500)` above (Leinert et al. 1998,
+        §8.1, the colour of the zodiacal light at 90° elongation relative to the solar
+        spectrum, fitted for 0.2–2.5 µm; the coefficients as used by Aldering 2001 for
+        the SNAP sky model).
 
     Notes
     -----
     Leinert et al. (1998, §8.1): the colour is solar from 0.2 to 2 µm "with a moderate
-    amount of reddening". Table 19 is for 90° elongation in the ecliptic; the stronger
-    reddening at small elongations is not modelled.
+    amount of reddening". The stronger reddening at small elongations is not modelled.
+    The tests compare it with Leinert et al.'s Table 19 spectrum divided by the solar one.
 
     Examples
     --------
@@ -168,19 +167,14 @@ def zodiacal_colour(wavelength_nm) -> torch.Tensor:
     >>> bool(c[0] < 1.0 < c[2]), round(float(c[1]), 6)
     (True, 1.0)
     """
-    from skytorch.spectrum import solar_irradiance
-
     wavelength = as_tensor("wavelength_nm", wavelength_nm)
     dtype = wavelength.dtype if wavelength.is_floating_point() else torch.float64
-    nodes = torch.tensor(_TABLE19_NM, dtype=torch.float64)
-    solar = solar_irradiance(nodes, bandwidth_nm=_COLOUR_BAND_NM)
-    observed = torch.tensor(_TABLE19, dtype=torch.float64)
-    reference = 2  # 500 nm
-    ratio = (observed / observed[reference]) / (solar / solar[reference])
-    x = wavelength.to(torch.float64).clamp(nodes[0], nodes[-1])
-    index = (torch.searchsorted(nodes, x.contiguous(), right=True) - 1).clamp(0, len(nodes) - 2)
-    weight = (x - nodes[index]) / (nodes[index + 1] - nodes[index])
-    return (ratio[index] * (1 - weight) + ratio[index + 1] * weight).to(dtype)
+    wl = check_finite("wavelength_nm", wavelength.to(dtype))
+    if bool((wl <= 0).any()):
+        raise ValueError(f"wavelength_nm must be > 0 nm; got {float(wl.min())} nm")
+    log_ratio = torch.log10(wl / 500.0)
+    slope = torch.where(wl < 500.0, _COLOUR_BLUE, _COLOUR_RED).to(dtype)
+    return 1.0 + slope * log_ratio
 
 
 def zodiacal_spectral_radiance(helio_ecliptic_lon_rad, ecliptic_lat_rad,

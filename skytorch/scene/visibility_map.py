@@ -13,7 +13,7 @@ Examples
 --------
 >>> import torch
 >>> [round(v, 2) for v in limiting_magnitude_map(torch.tensor([22.0, 18.0])).tolist()]
-[6.62, 4.93]
+[6.62, 4.19]
 """
 
 from __future__ import annotations
