@@ -1,0 +1,211 @@
+r"""Write the sasktran2 reference table of ground-level sky radiance (sasktran2_sky.nc).
+
+Independent radiative-transfer code: sasktran2 (Bourassa, Zawada et al., University of
+Saskatchewan), scalar mode (``num_stokes = 1``, no polarisation), no refraction.
+
+The optics are skytorch's, sampled on the sasktran2 altitude grid and handed over as
+user-defined (``Manual``) constituents, so that the comparison tests the radiative
+transfer and not the optics:
+
+- molecules: ``Atmosphere.scattering_coefficients(...)["rayleigh"]`` (U.S. 1976 density,
+  skytorch's Rayleigh cross section), phase :math:`\frac{3}{4}(1 + \cos^2\theta)`
+  (Legendre coefficients 1, 0, 1/2: the phase skytorch uses, no depolarisation term);
+- aerosol: skytorch's aerosol scattering coefficient with a Henyey-Greenstein phase
+  (Legendre coefficients :math:`(2l + 1) g^l`, 64 moments) and the given
+  single-scattering albedo;
+- absorption: the rest of skytorch's extinction (O2/O2-O2 only: ozone 0 DU, water 0 cm)
+  as a pure absorber.
+
+One extra case ("sasktran_rayleigh") uses sasktran2's own Rayleigh (Bates 1984 cross
+section and King factor, number density from skytorch's U.S. 1976 pressure and
+temperature) to show the size of the optics difference.
+
+Plane-parallel cases (``GeometryType.PlaneParallel``, discrete ordinates) stand in for
+DISORT (see README.md). sasktran2 computes only upwelling radiance in plane-parallel
+mode, so these are the radiances leaving the top of the atmosphere (observer at 100 km
+looking down at the listed nadir angles, black ground).
+
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python tests/data/ms_reference/generate_sasktran2.py``
+(about two minutes on one core).
+"""
+from __future__ import annotations
+
+import time
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+import sasktran2 as sk
+import torch
+import xarray as xr
+
+import skytorch as st
+
+HERE = Path(__file__).resolve().parent
+WAVELENGTH_NM = np.array([400.0, 550.0, 700.0])
+ALTITUDE_M = np.concatenate([np.arange(0.0, 10000.0, 250.0), np.arange(10000.0, 100001.0,
+                                                                        1000.0)])
+SUN_ZENITH_DEG = np.array([30.0, 60.0, 80.0, 85.0, 90.0, 92.0, 94.0, 96.0, 98.0, 100.0,
+                           102.0, 104.0, 106.0, 108.0])
+VIEW_ZENITH_DEG = np.array([0.0, 30.0, 60.0, 75.0, 85.0])
+RELATIVE_AZIMUTH_DEG = np.array([0.0, 90.0, 180.0])
+OBSERVER_ALTITUDE_M = 1.0
+TOA_OBSERVER_ALTITUDE_M = 100000.0
+AEROSOL = {"aerosol_optical_depth": 0.1, "angstrom_alpha": 1.3, "aerosol_asymmetry": 0.7,
+           "aerosol_single_scattering_albedo": 0.95}
+N_MOMENTS = 64
+PLANE_PARALLEL_AOD = np.array([0.05, 0.3, 1.0])
+PLANE_PARALLEL_SUN_ZENITH_DEG = np.array([30.0, 60.0])
+
+
+def skytorch_atmosphere(aod: float) -> st.Atmosphere:
+    """Build the skytorch atmosphere of the references: U.S. 1976, no ozone, no water."""
+    options = dict(AEROSOL, aerosol_optical_depth=aod)
+    return st.Atmosphere.earth(ozone_du=0.0, precipitable_water_cm=0.0,
+                               aerosol_phase_model="henyeygreenstein1941", **options)
+
+
+def manual_constituents(atm: st.Atmosphere) -> dict:
+    """Hand skytorch's optics on the sasktran2 grid over as Manual constituents."""
+    altitude = torch.tensor(ALTITUDE_M, dtype=torch.float64)
+    wavelength = torch.tensor(WAVELENGTH_NM, dtype=torch.float64)
+    scattering = atm.scattering_coefficients(altitude, wavelength)
+    extinction = atm.extinction_coefficient(altitude, wavelength).numpy()
+    rayleigh = scattering["rayleigh"].numpy()
+    aerosol_sca = scattering["aerosol"].numpy()
+    ssa = float(AEROSOL["aerosol_single_scattering_albedo"])
+    aerosol_ext = aerosol_sca / ssa
+    absorber = np.clip(extinction - rayleigh - aerosol_ext, 0.0, None)
+    shape = (N_MOMENTS, *rayleigh.shape)
+    leg_rayleigh = np.zeros(shape)
+    leg_rayleigh[0], leg_rayleigh[2] = 1.0, 0.5
+    g = float(AEROSOL["aerosol_asymmetry"])
+    leg_aerosol = np.stack([np.full(rayleigh.shape, (2 * k + 1) * g ** k)
+                            for k in range(N_MOMENTS)])
+    out = {"rayleigh": sk.constituent.Manual(rayleigh, np.ones_like(rayleigh), leg_rayleigh),
+           "absorber": sk.constituent.Manual(absorber + 1e-30, np.zeros_like(absorber),
+                                             np.zeros(shape))}
+    if aerosol_ext.max() > 0.0:
+        out["aerosol"] = sk.constituent.Manual(aerosol_ext, np.full_like(aerosol_ext, ssa),
+                                               leg_aerosol)
+    return out
+
+
+def run(constituents: dict, sun_zenith_deg: float, source, *, plane_parallel=False,
+        state=None) -> np.ndarray:
+    """Radiance (wavelength, view_zenith, relative_azimuth) per unit solar irradiance."""
+    config = sk.Config()
+    config.num_stokes = 1
+    config.num_threads = 1
+    config.multiple_scatter_source = source
+    config.num_streams = 16
+    config.num_singlescatter_moments = N_MOMENTS
+    if source == sk.MultipleScatterSource.SuccessiveOrders:
+        config.num_successive_orders_iterations = 50
+    cos_sza = float(np.cos(np.deg2rad(sun_zenith_deg)))
+    geometry = sk.Geometry1D(
+        cos_sza=cos_sza, solar_azimuth=0.0, earth_radius_m=st.Atmosphere.earth().planet_radius_m,
+        altitude_grid_m=ALTITUDE_M, interpolation_method=sk.InterpolationMethod.LinearInterpolation,
+        geometry_type=(sk.GeometryType.PlaneParallel if plane_parallel
+                       else sk.GeometryType.Spherical))
+    viewing = sk.ViewingGeometry()
+    for vz in VIEW_ZENITH_DEG:
+        for az in RELATIVE_AZIMUTH_DEG:
+            cos_view = float(np.cos(np.deg2rad(vz)))
+            viewing.add_ray(sk.SolarAnglesObserverLocation(
+                cos_sza, float(np.deg2rad(az)), -cos_view if plane_parallel else cos_view,
+                TOA_OBSERVER_ALTITUDE_M if plane_parallel else OBSERVER_ALTITUDE_M))
+    atmo = sk.Atmosphere(geometry, config, wavelengths_nm=WAVELENGTH_NM)
+    if state is not None:
+        atmo.pressure_pa, atmo.temperature_k = state
+    atmo.surface.albedo[:] = 0.0
+    for name, constituent in constituents.items():
+        atmo[name] = constituent
+    radiance = sk.Engine(config, geometry, viewing).calculate_radiance(atmo)
+    values = radiance["radiance"].values[:, :, 0]
+    return values.reshape(len(WAVELENGTH_NM), len(VIEW_ZENITH_DEG),
+                          len(RELATIVE_AZIMUTH_DEG))
+
+
+def spherical(dims) -> dict:
+    """Spherical runs: single scattering and successive orders (and DO for the day)."""
+    cases = {"rayleigh": 0.0, "rayleigh_aerosol": float(AEROSOL["aerosol_optical_depth"])}
+    single, multiple, discrete = (np.full((len(cases), len(SUN_ZENITH_DEG),
+                                           len(WAVELENGTH_NM), len(VIEW_ZENITH_DEG),
+                                           len(RELATIVE_AZIMUTH_DEG)), np.nan)
+                                  for _ in range(3))
+    for i, aod in enumerate(cases.values()):
+        constituents = manual_constituents(skytorch_atmosphere(aod))
+        for j, sza in enumerate(SUN_ZENITH_DEG):
+            single[i, j] = run(constituents, sza, sk.MultipleScatterSource.NoSource)
+            multiple[i, j] = run(constituents, sza, sk.MultipleScatterSource.SuccessiveOrders)
+            if sza < 89.0:
+                discrete[i, j] = run(constituents, sza,
+                                     sk.MultipleScatterSource.DiscreteOrdinates)
+    return xr.Dataset(
+        {"single_scattering": (dims, single), "successive_orders": (dims, multiple),
+         "discrete_ordinates": (dims, discrete)},
+        coords={"case": list(cases), "aerosol_optical_depth": ("case", list(cases.values()))})
+
+
+def own_rayleigh() -> xr.Dataset:
+    """sasktran2's own Rayleigh (Bates 1984) on skytorch's U.S. 1976 p and T."""
+    atm = skytorch_atmosphere(0.0)
+    altitude = torch.tensor(ALTITUDE_M, dtype=torch.float64)
+    state = (atm.pressure_pa(altitude).numpy(), atm.temperature_k(altitude).numpy())
+    sza = SUN_ZENITH_DEG[:2]
+    values = np.stack([run({"rayleigh": sk.constituent.Rayleigh()}, z,
+                           sk.MultipleScatterSource.SuccessiveOrders, state=state) for z in sza])
+    return xr.Dataset({"sasktran_rayleigh": (("sun_zenith_own", "wavelength", "view_zenith",
+                                              "relative_azimuth"), values)},
+                      coords={"sun_zenith_own": sza})
+
+
+def plane_parallel() -> xr.Dataset:
+    """Plane-parallel discrete ordinates (the DISORT stand-in): upwelling at the top."""
+    dims = ("aod_pp", "sun_zenith_pp", "wavelength", "view_zenith", "relative_azimuth")
+    total = np.zeros([len(PLANE_PARALLEL_AOD), len(PLANE_PARALLEL_SUN_ZENITH_DEG),
+                      len(WAVELENGTH_NM), len(VIEW_ZENITH_DEG), len(RELATIVE_AZIMUTH_DEG)])
+    single = np.zeros_like(total)
+    for i, aod in enumerate(PLANE_PARALLEL_AOD):
+        constituents = manual_constituents(skytorch_atmosphere(float(aod)))
+        for j, sza in enumerate(PLANE_PARALLEL_SUN_ZENITH_DEG):
+            total[i, j] = run(constituents, sza, sk.MultipleScatterSource.DiscreteOrdinates,
+                              plane_parallel=True)
+            single[i, j] = run(constituents, sza, sk.MultipleScatterSource.NoSource,
+                               plane_parallel=True)
+    return xr.Dataset({"plane_parallel_discrete_ordinates": (dims, total),
+                       "plane_parallel_single_scattering": (dims, single)},
+                      coords={"aod_pp": PLANE_PARALLEL_AOD,
+                              "sun_zenith_pp": PLANE_PARALLEL_SUN_ZENITH_DEG})
+
+
+def main() -> None:
+    start = time.perf_counter()
+    dims = ("case", "sun_zenith", "wavelength", "view_zenith", "relative_azimuth")
+    ds = xr.merge([spherical(dims), own_rayleigh(), plane_parallel()])
+    ds = ds.assign_coords(sun_zenith=SUN_ZENITH_DEG, wavelength=WAVELENGTH_NM,
+                          view_zenith=VIEW_ZENITH_DEG, relative_azimuth=RELATIVE_AZIMUTH_DEG)
+    for name in ds.data_vars:
+        ds[name].attrs.update(units="sr-1", long_name=f"{name} radiance per unit TOA solar "
+                              "irradiance normal to the beam (sasktran2, scalar)")
+    for name in ("sun_zenith", "view_zenith", "relative_azimuth", "sun_zenith_own",
+                 "sun_zenith_pp"):
+        ds[name].attrs["units"] = "degree"
+    ds["relative_azimuth"].attrs["description"] = "0: looking toward the Sun's azimuth"
+    ds["wavelength"].attrs["units"] = "nm"
+    ds.attrs.update(
+        title="sasktran2 reference sky radiance for skytorch multiple scattering",
+        source=f"sasktran2 {metadata.version('sasktran2')}, skytorch {st.__version__} optics",
+        observer_altitude_m=OBSERVER_ALTITUDE_M, ground_albedo=0.0,
+        altitude_grid_m=ALTITUDE_M, n_legendre_moments=N_MOMENTS, num_streams=16,
+        successive_orders_iterations=50, aerosol=repr(AEROSOL), ozone_du=0.0,
+        precipitable_water_cm=0.0, refraction="none", polarisation="none (num_stokes=1)",
+        generator="tests/data/ms_reference/generate_sasktran2.py",
+        wall_time_s=round(time.perf_counter() - start, 1))
+    ds.to_netcdf(HERE / "sasktran2_sky.nc")
+    print(f"wrote sasktran2_sky.nc in {time.perf_counter() - start:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
