@@ -19,10 +19,7 @@ References
 Examples
 --------
 >>> import torch
->>> class Air:  # any object with these attributes, e.g. Atmosphere.earth()
-...     planet_radius_m, top_altitude_m = 6.371e6, 1e5
-...     def refractivity(self, altitude_m, wavelength_nm=None):
-...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+>>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
 >>> from skytorch.atmosphere.bouguer import _observer_bending
 >>> zero = torch.zeros(1, dtype=torch.float64)
 >>> bending, rays, t0 = _observer_bending(Air(), zero, zero, torch.float64, 64)

@@ -133,10 +133,7 @@ def deviation_table(
     Examples
     --------
     >>> import torch
-    >>> class Air:
-    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
-    ...     def refractivity(self, altitude_m, wavelength_nm=None):
-    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
     >>> ds = deviation_table(Air(), 8, 4, progress=False)
     >>> ds.deviation.dims
     ('x_r', 'x_mu')
@@ -225,10 +222,7 @@ class DeviationTable(torch.nn.Module):
     Examples
     --------
     >>> import torch
-    >>> class Air:
-    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
-    ...     def refractivity(self, altitude_m, wavelength_nm=None):
-    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
     >>> table = DeviationTable(deviation_table(Air(), 16, 16, progress=False))
     >>> out = table(torch.tensor([0.0]), torch.tensor([0.5]))
     >>> sorted(out)

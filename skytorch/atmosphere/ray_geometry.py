@@ -19,10 +19,7 @@ altitude. The Bouguer integrals (:mod:`skytorch.atmosphere.bouguer`), the RK4 tr
 Examples
 --------
 >>> import torch
->>> class Air:  # any object with these attributes, e.g. Atmosphere.earth()
-...     planet_radius_m, top_altitude_m = 6.371e6, 1e5
-...     def refractivity(self, altitude_m, wavelength_nm=None):
-...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+>>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
 >>> from skytorch.atmosphere.ray_geometry import _Geometry
 >>> geometry = _Geometry(Air(), torch.float64)
 >>> h = torch.tensor(10e3, dtype=torch.float64)
@@ -41,10 +38,32 @@ import torch
 from skytorch._validate import broadcast_shape, check_choice, check_int, check_range
 from skytorch.atmosphere.rayleigh import refractivity_dispersion
 
-__all__ = ["METHODS"]
+__all__ = ["METHODS", "ExponentialAir"]
 
 #: ray-path algorithms: exact Bouguer integrals (Gauss–Legendre) or RK4 ray tracing
 METHODS = ("bouguer", "rk4")
+
+
+class ExponentialAir:
+    r"""A minimal atmosphere-like object: :math:`n - 1 = 2.77\times10^{-4}\,e^{-h/8\,km}`.
+
+    Planet radius 6 371 km, top of the atmosphere at 100 km: everything the ray functions
+    need (``planet_radius_m``, ``top_altitude_m``, ``top_radius_m``, ``refractivity``),
+    for examples and closed-form checks; any object with these attributes works, e.g.
+    ``Atmosphere.earth()``.
+
+    Examples
+    --------
+    >>> import torch
+    >>> float(ExponentialAir().refractivity(torch.tensor(0.0, dtype=torch.float64)))
+    0.000277
+    """
+
+    planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
+
+    def refractivity(self, altitude_m, wavelength_nm=None):
+        """Refractivity n - 1 at ``altitude_m`` [m] (grey: ``wavelength_nm`` unused) [1]."""
+        return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
 
 
 def _needs_grad(atm) -> bool:

@@ -21,10 +21,7 @@ References
 Examples
 --------
 >>> import torch
->>> class Air:  # any object with these attributes, e.g. Atmosphere.earth()
-...     planet_radius_m, top_altitude_m = 6.371e6, 1e5
-...     def refractivity(self, altitude_m, wavelength_nm=None):
-...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+>>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
 >>> from skytorch.atmosphere.ray_tracer import _trace_observer_rk4
 >>> zero = torch.zeros(1, dtype=torch.float64)
 >>> out = _trace_observer_rk4(Air(), zero, zero, torch.float64, 10e3, 1e3)

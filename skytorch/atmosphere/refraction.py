@@ -87,10 +87,7 @@ Examples
 --------
 >>> import torch
 >>> from skytorch.atmosphere.refraction import refraction_angle
->>> class Air:  # any object with these attributes works, e.g. Atmosphere.earth()
-...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
-...     def refractivity(self, altitude_m, wavelength_nm=None):
-...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+>>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
 >>> r = refraction_angle(Air(), torch.tensor(0.0, dtype=torch.float64))
 >>> round(float(r) * 180 / torch.pi * 60)  # arcminutes at the apparent horizon
 37
@@ -272,10 +269,7 @@ def horizon_dip(atm, altitude_m, *, n_nodes: int = DEFAULT_NODES) -> dict[str, t
     Examples
     --------
     >>> import math, torch
-    >>> class Air:
-    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
-    ...     def refractivity(self, altitude_m, wavelength_nm=None):
-    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
     >>> dip = horizon_dip(Air(), torch.tensor(3000.0, dtype=torch.float64))
     >>> round(math.degrees(float(dip["geometric_dip_rad"])), 3)
     1.758
@@ -356,10 +350,7 @@ def refraction_angle(
     Examples
     --------
     >>> import torch
-    >>> class Air:
-    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
-    ...     def refractivity(self, altitude_m, wavelength_nm=None):
-    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
     >>> e = torch.deg2rad(torch.tensor([45.0], dtype=torch.float64))
     >>> float(refraction_angle(Air(), e) * 206264.8).__round__()  # arcseconds
     57
@@ -451,10 +442,7 @@ def apparent_altitude(
     Examples
     --------
     >>> import torch
-    >>> class Air:
-    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
-    ...     def refractivity(self, altitude_m, wavelength_nm=None):
-    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
     >>> e = apparent_altitude(Air(), torch.tensor(0.0, dtype=torch.float64))
     >>> round(float(e) * 180 / torch.pi * 60)  # the Sun's centre at true altitude 0
     30
@@ -690,10 +678,7 @@ def trace_grazing_rays(
     Examples
     --------
     >>> import torch
-    >>> class Air:
-    ...     planet_radius_m, top_altitude_m, top_radius_m = 6.371e6, 1e5, 6.471e6
-    ...     def refractivity(self, altitude_m, wavelength_nm=None):
-    ...         return 2.77e-4 * torch.exp(-altitude_m / 8000.0)
+    >>> from skytorch.atmosphere.ray_geometry import ExponentialAir as Air
     >>> rays = trace_grazing_rays(Air(), periapsis_altitude_m=torch.tensor([0.0, 10e3]))
     >>> [round(v, 2) for v in torch.rad2deg(rays["deviation_rad"]).tolist()]
     [1.24, 0.33]
