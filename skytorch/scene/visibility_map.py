@@ -21,6 +21,7 @@ from __future__ import annotations
 import torch
 
 from skytorch._validate import as_tensor
+from skytorch.moon.sky import radiance_to_mag_arcsec2
 from skytorch.stars.visibility import REFERENCE_PUPIL_MM, limiting_magnitude
 
 __all__ = ["limiting_magnitude_map", "sky_mag_from_radiance", "visible_star_count"]
@@ -33,8 +34,6 @@ def sky_mag_from_radiance(spectral_radiance, wavelength_nm) -> torch.Tensor:
     40 mag arcsec^-2, the upper end of :func:`limiting_magnitude`'s range, where the
     limit is that of a black background (7.93 mag).
     """
-    from skytorch.moon.sky import radiance_to_mag_arcsec2
-
     radiance = as_tensor("spectral_radiance", spectral_radiance)
     dark = radiance.sum(-1) <= 0.0
     safe = torch.where(dark[..., None], torch.ones_like(radiance), radiance)
