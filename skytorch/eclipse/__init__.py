@@ -38,6 +38,7 @@ from skytorch.eclipse.occlusion import (  # noqa: F401
     limb_darkening_profile,
     sun_visible_fraction,
 )
+from skytorch.eclipse.retrieval import retrieve_atmosphere  # noqa: F401
 from skytorch.eclipse.solar import solar_eclipses  # noqa: F401
 from skytorch.eclipse.solar_local import solar_eclipse_local  # noqa: F401
 from skytorch.eclipse.solar_path import obscuration_map, solar_eclipse_path  # noqa: F401
@@ -58,6 +59,7 @@ __all__ = [
     "lunar_eclipses",
     "observed_lunar_eclipses",
     "obscuration_map",
+    "retrieve_atmosphere",
     "shadow_cone",
     "shadow_radii",
     "solar_eclipse_local",

@@ -1,0 +1,156 @@
+r"""Retrieval of the atmosphere of an eclipse from the Moon's observed brightness and colour.
+
+:func:`retrieve_atmosphere` fits parameters of :func:`~skytorch.eclipse.eclipse_atmosphere`
+(stratospheric and tropospheric aerosol optical depth at 550 nm, ozone column) to the
+observed V magnitude and B − V at mid-totality by minimising
+
+.. math::
+
+    \chi^2(\mathbf{x}) = \sum_j \Big(\frac{m_j(\mathbf{x}) - o_j}{\sigma_j}\Big)^2,
+    \qquad \mathbf{x} = \log \mathbf{p},
+
+with L-BFGS (strong Wolfe line search) on the autograd gradient of the modelled light
+curve (:func:`~skytorch.eclipse.lunar_light_curve`, the shadow carries gradients with
+respect to these parameters). The parameters are fitted in log space (positive). The
+uncertainties are the Laplace approximation with the Gauss–Newton Hessian
+:math:`H = 2 J^\top W J` (J the Jacobian of the modelled observables in x, W the inverse
+variances): :math:`\sigma_{x_i} = \sqrt{(2 H^{-1})_{ii}}`, and
+:math:`\sigma_{p_i} = p_i \sigma_{x_i}` to first order. With fewer observables than
+parameters the Hessian is singular and the uncertainties are infinite (reported as inf,
+with a warning in the Dataset's attributes), not regularised.
+
+The modelled value at mid-totality is the faintest V sample of the light curve (and the
+B − V at that sample).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+import xarray as xr
+
+from skytorch._validate import check_int
+
+__all__ = ["OBSERVABLES", "PARAMETERS", "retrieve_atmosphere"]
+
+#: the parameters of :func:`~skytorch.eclipse.eclipse_atmosphere` that can be fitted
+PARAMETERS = ("stratospheric_aod_550", "tropospheric_aod", "ozone_du")
+#: the observables at mid-totality [mag]
+OBSERVABLES = ("v_magnitude", "b_minus_v")
+_INITIAL = {"stratospheric_aod_550": 0.01, "tropospheric_aod": 0.12, "ozone_du": 300.0}
+
+
+def _check_observations(observations) -> dict[str, tuple[float, float]]:
+    if not isinstance(observations, dict) or not observations:
+        raise TypeError("observations must be a non-empty dict {name: (value, uncertainty)} "
+                        f"with names in {OBSERVABLES}; got {observations!r:.80}")
+    checked = {}
+    for name, pair in observations.items():
+        if name not in OBSERVABLES:
+            raise ValueError(f"observations key must be one of {OBSERVABLES}; got {name!r}")
+        value, sigma = (float(v) for v in pair)
+        if not np.isfinite(value) or not (np.isfinite(sigma) and sigma > 0):
+            raise ValueError(f"observations[{name!r}] must be a finite value and an "
+                             f"uncertainty > 0 [mag]; got {pair!r}")
+        checked[name] = (value, sigma)
+    return checked
+
+
+def _model(date, names, x, n_times, table_n_v):
+    """Modelled observables (in OBSERVABLES order) for log-parameters ``x``."""
+    from skytorch.eclipse.eclipse_atmosphere import eclipse_atmosphere
+    from skytorch.eclipse.lunar import lunar_light_curve
+
+    values = {name: torch.exp(x[i]) for i, name in enumerate(names)}
+    atmosphere = eclipse_atmosphere(date, **values)
+    curve = lunar_light_curve(date, atmosphere, n_times=n_times, table_n_v=table_n_v)
+    k = int(torch.argmax(curve["v_magnitude"].detach()))
+    return torch.stack([curve["v_magnitude"][k], curve["b_minus_v"][k]])
+
+
+def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",), *,
+                        initial=None, n_times: int = 9, table_n_v: int = 64,
+                        max_iter: int = 20) -> xr.Dataset:
+    """Fit atmosphere parameters to the observed mid-totality V (and B − V) of an eclipse.
+
+    Parameters
+    ----------
+    observations : dict
+        ``{"v_magnitude": (value, uncertainty), "b_minus_v": (value, uncertainty)}`` [mag]
+        (either or both).
+    date : str, datetime or datetime64
+        Date of the eclipse (UTC).
+    parameters : sequence of str
+        Names among :data:`PARAMETERS` to fit; the others keep the defaults of
+        :func:`~skytorch.eclipse.eclipse_atmosphere`.
+    initial : dict, optional
+        Starting values per fitted parameter (> 0); default 0.01, 0.12, 300 DU.
+    n_times, table_n_v : int
+        Light-curve samples and shadow-table rows of the model.
+    max_iter : int
+        L-BFGS iterations.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``best_fit`` and ``uncertainty`` over ``parameter`` [1, 1, DU]; ``observed``,
+        ``observed_uncertainty``, ``model`` and ``residual`` (model − observed) over
+        ``observable`` [mag]; attribute ``chi2``.
+    """
+    observed = _check_observations(observations)
+    names = tuple(parameters)
+    if not names or any(name not in PARAMETERS for name in names) or len(set(names)) != len(
+            names):
+        raise ValueError(f"parameters must be distinct names from {PARAMETERS}; got "
+                         f"{parameters!r}")
+    n_times = check_int("n_times", n_times, low=3)
+    table_n_v = check_int("table_n_v", table_n_v, low=16)
+    max_iter = check_int("max_iter", max_iter, low=1)
+    start = dict(_INITIAL)
+    for name, value in (initial or {}).items():
+        if name not in names or not float(value) > 0:
+            raise ValueError(f"initial must map fitted parameters {names} to values > 0; "
+                             f"got {name!r}: {value!r}")
+        start[name] = float(value)
+    rows = [OBSERVABLES.index(name) for name in observed]
+    target = torch.tensor([observed[n][0] for n in observed], dtype=torch.float64)
+    sigma = torch.tensor([observed[n][1] for n in observed], dtype=torch.float64)
+    x = torch.tensor([np.log(start[n]) for n in names], dtype=torch.float64,
+                     requires_grad=True)
+    optimiser = torch.optim.LBFGS([x], lr=1.0, max_iter=max_iter,
+                                  line_search_fn="strong_wolfe")
+
+    def closure():
+        optimiser.zero_grad()
+        chi2 = (((_model(date, names, x, n_times, table_n_v)[rows] - target) / sigma) ** 2
+                ).sum()
+        chi2.backward()
+        return chi2
+
+    optimiser.step(closure)
+    best = x.detach().clone()
+    jacobian = torch.autograd.functional.jacobian(
+        lambda y: _model(date, names, y, n_times, table_n_v)[rows], best)
+    with torch.no_grad():  # the fit is done: values only from here
+        model = _model(date, names, best, n_times, table_n_v)[rows]
+        weighted = jacobian / sigma[:, None]
+        hessian = 2.0 * weighted.T @ weighted
+        note = ""
+        if torch.linalg.matrix_rank(hessian) < len(names):
+            sigma_x = torch.full((len(names),), float("inf"), dtype=torch.float64)
+            note = "singular Hessian (fewer constraints than parameters): uncertainty inf"
+        else:
+            sigma_x = torch.sqrt(torch.diagonal(2.0 * torch.linalg.inv(hessian)))
+        values = torch.exp(best)
+        chi2 = float((((model - target) / sigma) ** 2).sum())
+    return xr.Dataset(
+        {"best_fit": (("parameter",), values.numpy()),
+         "uncertainty": (("parameter",), (values * sigma_x).numpy()),
+         "observed": (("observable",), target.numpy(), {"units": "mag"}),
+         "observed_uncertainty": (("observable",), sigma.numpy(), {"units": "mag"}),
+         "model": (("observable",), model.numpy(), {"units": "mag"}),
+         "residual": (("observable",), (model - target).numpy(), {"units": "mag"})},
+        coords={"parameter": list(names), "observable": list(observed)},
+        attrs={"title": "Atmosphere retrieved from a lunar eclipse", "chi2": chi2,
+               "date": str(np.datetime64(date, "D")) if isinstance(date, str) else str(date),
+               "note": note, "n_times": n_times, "table_n_v": table_n_v})
