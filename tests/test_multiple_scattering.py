@@ -66,8 +66,8 @@ def test_multiple_scattering_adds_more_in_the_blue(day_tables):
     assert bool((ratio > 1.05).all()) and float(ratio[0]) > float(ratio[1]), ratio
 
 
-@pytest.mark.xfail(strict=True, reason="the discrete scheme gains energy on coarse tables: "
-                   "outgoing TOA flux 1.06-1.39 of the incoming at 12x32x12x6 "
+@pytest.mark.xfail(strict=True, reason="the discrete scheme gains energy: outgoing TOA flux "
+                   "1.58-1.75 of the incoming on the tiny table "
                    "(docs/multiple_scattering.md, open)")
 def test_conservation_albedo_one():
     atm = Atmosphere.earth(turbidity=2.0, ozone_du=0.0, aerosol_single_scattering_albedo=1.0)

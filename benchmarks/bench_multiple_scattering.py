@@ -1,0 +1,60 @@
+"""Benchmark of the multiple-scattering tables (skytorch.atmosphere.multiple_scattering).
+
+Medians of repeated runs: precompute of 4 orders against table size and wavelength
+count, and the look-up of a 512 x 512 fisheye. ``--quick`` runs the small cases only.
+Run with OMP_NUM_THREADS set to the cores to measure (the targets are for 2 cores).
+"""
+
+import argparse
+import math
+import statistics
+import time
+
+import torch
+
+from skytorch.atmosphere import Atmosphere
+from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
+
+
+def _median(function, repeat):
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def main(quick: bool) -> None:
+    atm = Atmosphere.earth(turbidity=2.0)
+    sizes = [("tiny", TableResolution.tiny()),
+             ("8x32x16x6", TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32,
+                                           n_sphere_mu=6)),
+             ("default 16x64x24x8", TableResolution())]
+    if not quick:
+        sizes.append(("bruneton2017 32x128x32x8", TableResolution.bruneton2017()))
+    counts = (1, 3) if quick else (1, 3, 15)
+    for name, res in sizes:
+        for n in counts:
+            if name.startswith("bruneton") and n > 1:
+                continue
+            wavelength = torch.linspace(400.0, 700.0, n, dtype=torch.float64)
+            t = _median(lambda w=wavelength, r=res: precompute_scattering(
+                atm, w, scattering_orders=4, resolution=r), 1 if n > 1 else 2)
+            print(f"precompute 4 orders, {name}, {n} wavelengths: {t:.2f} s", flush=True)
+    tables = precompute_scattering(atm, torch.linspace(400.0, 700.0, 3, dtype=torch.float64),
+                                   scattering_orders=4)
+    x = torch.linspace(-1.0, 1.0, 512, dtype=torch.float64)
+    xx, yy = torch.meshgrid(x, x, indexing="ij")
+    radius = torch.sqrt(xx * xx + yy * yy)
+    inside = radius <= 1.0
+    zenith = (radius[inside] * math.pi / 2)
+    azimuth = torch.atan2(yy[inside], xx[inside])
+    t = _median(lambda: tables.radiance(0.0, zenith, azimuth, 1.0), 5)
+    print(f"512x512 fisheye look-up ({int(inside.sum())} pixels, 3 wavelengths): {t:.3f} s")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--quick", action="store_true")
+    main(parser.parse_args().quick)
