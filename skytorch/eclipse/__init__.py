@@ -8,8 +8,9 @@ its geometry and limb darkening (at tangency and containment too);
 :meth:`Shadow.relative_illuminance` carries gradients with respect to the points'
 geometry and to the atmosphere's extinction parameters (turbidity, ozone, ...: the
 optical depths of the ring keep their graph; the bending places the quadrature nodes and
-carries none). The scattered light (``scattering=True``), :class:`ShadowTable` and the
-lunar-eclipse light curves built on it are tabulated without gradients: they raise
+carries none); :class:`ShadowTable` and the lunar-eclipse light curves built on it keep
+that graph (so :func:`retrieve_atmosphere` fits the atmosphere to observed eclipses). The
+scattered light (``scattering=True``) is tabulated without gradients: it raises
 ``ValueError`` for an atmosphere whose parameters require a gradient rather than detach
 them.
 
