@@ -87,8 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         def run():
             refr, ext = refraction, extinction
             if cold:
-                observe_module._REFRACTION_CACHE.clear()
-                photometry._CACHE.clear()
+                observe_module._REFRACTION_TABLES.clear()
+                photometry._TABLES.clear()
                 refr = observe_module.refraction_table(atmosphere, ELEVATION)
                 ext = photometry.extinction_table(atmosphere, ELEVATION, refraction=True)
             stars = star_vectors(catalog.ra.values, catalog.dec.values, catalog.pm_ra.values,

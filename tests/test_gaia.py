@@ -146,3 +146,17 @@ def test_positions_without_proper_motion_keep_the_gaia_epoch(catalog):
                         ref_alt, ref_az)
     far = elongation > SUN_EXCLUSION_DEG
     assert error[far].max() < 0.05 * ARCSECOND
+
+
+def test_colour_of_few_instants_equals_the_per_star_table_path():
+    """The two-node path (few times, many stars) gives the per-star table's values."""
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.stars import apparent_color, apparent_color_table
+
+    table = apparent_color_table(Atmosphere.earth(), 0.0)
+    generator = torch.Generator().manual_seed(3)
+    bv = torch.rand(500, dtype=torch.float64, generator=generator) * 2.5 - 0.4
+    altitude = torch.rand(3, 500, dtype=torch.float64, generator=generator) * 3.3 - 1.7
+    few = apparent_color(bv, altitude, table)
+    many = apparent_color(bv, altitude.repeat(100, 1), table)[:3]  # 300 times: table path
+    torch.testing.assert_close(few, many, rtol=0.0, atol=1e-15)

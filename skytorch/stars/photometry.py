@@ -487,7 +487,10 @@ def apparent_color(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     Per star, the table is interpolated linearly in B−V, renormalised and (optionally)
     gamma-encoded once on its altitude nodes, giving (star, n_nodes, 3); per star and
     time one linear interpolation in altitude follows, gathering the three channels of a
-    node as one row (:func:`torch.index_select`) into the output.
+    node as one row (:func:`torch.index_select`) into the output. With fewer than
+    n_nodes/2 instants per star (e.g. 482 000 Gaia stars at one instant) the same
+    B−V interpolation, renormalisation and gamma are done only at the two altitude nodes
+    around each star instead (same values, O(time · star) instead of O(nodes · star)).
     On the 256-node grid this differs from the direct spectral integral by < 2e-3
     (``tests/test_stars_photometry.py``).
     """
@@ -506,6 +509,15 @@ def apparent_color(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     lower = x.detach().floor().clamp(0, n_bv - 2)
     w = (x - lower)[:, None]
     lower = lower.long()
+    index, weight = table_lookup(apparent_altitude_rad, n_nodes)
+    if 2 * index[..., 0].numel() < n_nodes:  # few times: only the two nodes each star needs
+        def node_colour(node):
+            colour = linear[node, lower + 1] * w + linear[node, lower] * (1.0 - w)
+            colour = colour / colour.amax(dim=-1, keepdim=True)
+            return srgb_transfer(colour) if gamma else colour
+
+        below = node_colour(index)
+        return torch.addcmul(below, weight[..., None], node_colour(index + 1) - below)
     per_star = linear[:, lower + 1] * w + linear[:, lower] * (1.0 - w)  # (h, star, 3)
     per_star = per_star / per_star.amax(dim=-1, keepdim=True)
     if gamma:
@@ -513,7 +525,6 @@ def apparent_color(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     values = per_star.transpose(0, 1).contiguous()  # (star, h, 3)
     slopes = torch.diff(values, dim=1, append=values[:, -1:]).reshape(-1, 3)
     values = values.reshape(-1, 3)
-    index, weight = table_lookup(apparent_altitude_rad, n_nodes)
     flat = (index + n_nodes * torch.arange(bv.numel())).reshape(-1)
     # one row gather of the three channels straight into the (time·star, 3) output
     out = torch.index_select(values, 0, flat)
