@@ -9,7 +9,9 @@ ingredient is added in turn (molecules only; + ozone; + tropospheric aerosol;
 + stratospheric aerosol; + clouds) to state what it changes.
 
 Writes ``lunar_eclipse_comparison.nc`` / ``.png`` (per-eclipse table) and
-``lunar_eclipse_ingredients.nc`` / ``.png`` (light curves of the ingredients).
+``lunar_eclipse_ingredients.nc`` / ``.png`` (light curves of the ingredients),
+``lunar_eclipse_umbral_edge`` (the modelled umbral edge) and ``lunar_eclipse_retrieval``
+(stratospheric AOD retrieved from each observed V, beside the record).
 """
 
 from __future__ import annotations
@@ -207,11 +209,55 @@ def umbral_edge(quick: bool, date: str = "2015-09-28", distance_m: float = 3.844
     return dataset, figure, summary
 
 
+def retrieval_series(quick: bool):
+    """Stratospheric AOD retrieved from each observed V, beside the record's value.
+
+    The V uncertainty is the printed one, at least 0.1 mag (0.3 mag where none is
+    printed); the other parameters keep the ``eclipse_atmosphere`` defaults.
+    """
+    from skytorch.eclipse import retrieve_atmosphere
+
+    observed = observed_lunar_eclipses()
+    observed = observed.isel(eclipse=np.flatnonzero(np.isfinite(observed.v_magnitude.values)))
+    if quick:
+        observed = observed.isel(eclipse=[0])
+    rows = []
+    for date in observed.eclipse.values:
+        day = np.datetime_as_string(date, "D")
+        printed = float(observed.v_uncertainty.sel(eclipse=date))
+        sigma = max(printed, 0.1) if np.isfinite(printed) else 0.3
+        fit = retrieve_atmosphere(
+            {"v_magnitude": (float(observed.v_magnitude.sel(eclipse=date)), sigma)}, day)
+        rows.append((float(fit.best_fit[0]), float(fit.uncertainty[0]),
+                     stratospheric_aod(day)))
+    rows = np.array(rows)
+    dims = ("eclipse",)
+    dataset = xr.Dataset(
+        {"retrieved_stratospheric_aod_550": (dims, rows[:, 0], {"units": "1"}),
+         "retrieved_uncertainty": (dims, rows[:, 1], {"units": "1"}),
+         "record_stratospheric_aod_550": (dims, rows[:, 2], {"units": "1"})},
+        coords={"eclipse": observed.eclipse.values},
+        attrs={"title": "Stratospheric AOD retrieved from observed lunar eclipses"})
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(7, 4))
+    years = observed.eclipse.dt.year.values + observed.eclipse.dt.dayofyear.values / 366
+    axis.errorbar(years, rows[:, 0], rows[:, 1], fmt="rs", label="retrieved from V")
+    axis.plot(years, rows[:, 2], "ko", label="record (data/stratospheric_aod.csv)")
+    axis.set(xlabel="year", ylabel="stratospheric AOD 550 nm")
+    axis.legend()
+    figure.tight_layout()
+    summary = {f"{str(d)[:10]} retrieved": r for d, r in
+               zip(observed.eclipse.values, rows[:, 0], strict=True)}
+    return dataset, figure, summary
+
+
 def main(argv=None) -> int:
     args = parse_arguments(__doc__.splitlines()[0], argv)
     for build, stem in ((comparison, "lunar_eclipse_comparison"),
                         (ingredients, "lunar_eclipse_ingredients"),
-                        (umbral_edge, "lunar_eclipse_umbral_edge")):
+                        (umbral_edge, "lunar_eclipse_umbral_edge"),
+                        (retrieval_series, "lunar_eclipse_retrieval")):
         dataset, figure, summary = build(args.quick)
         save_outputs(dataset, figure, args.output_dir, stem)
         for key, value in summary.items():
