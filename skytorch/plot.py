@@ -121,6 +121,33 @@ def profile(x, curves: dict, axes=None, *, xlabel: str = "", ylabel: str = "",
     return axes
 
 
+def obscuration_map(dataset, axes=None, *, observer=None, title: str | None = None):
+    """Plot the Sun's obscuration over latitude and longitude, on the day side only.
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        From :func:`skytorch.eclipse.obscuration_map` (``obscuration``, ``sun_altitude``
+        over ``latitude``, ``longitude``).
+    axes : matplotlib Axes, optional
+    observer : (float, float), optional
+        (latitude, longitude) [degree] marked with a cross.
+    title : str, optional
+    """
+    axes = _axes(axes, figsize=(9, 4.5))
+    shown = dataset.obscuration.where(dataset.sun_altitude > 0)
+    image = axes.pcolormesh(dataset.longitude, dataset.latitude, shown, shading="auto",
+                            vmin=0.0, vmax=1.0, cmap="magma_r")
+    if observer is not None:
+        axes.plot(observer[1], observer[0], "c+", markersize=12)
+    axes.set_xlabel("longitude [degree east]")
+    axes.set_ylabel("latitude [degree north]")
+    if title:
+        axes.set_title(title)
+    axes.figure.colorbar(image, ax=axes, label="obscuration")
+    return axes
+
+
 def light_curve(times, magnitudes: dict, axes=None, *, ylabel: str = "V [mag]",
                 title: str | None = None, events: dict | None = None):
     """Magnitudes ``{label: values}`` over times (inverted y axis), with event markers."""

@@ -185,18 +185,11 @@ def _solar_summary(local) -> str:
 
 def _obscuration_png(dataset, path, observer, instant: str) -> None:
     """Write the obscuration map (latitude, longitude) as a PNG with the observer marked."""
-    from skytorch.plot import _pyplot, savefig
+    from skytorch.plot import obscuration_map, savefig
 
-    plt = _pyplot()
-    figure, axes = plt.subplots(figsize=(9, 4.5))
-    shown = dataset.obscuration.where(dataset.sun_altitude > 0)
-    image = axes.pcolormesh(dataset.longitude, dataset.latitude, shown, shading="auto",
-                            vmin=0.0, vmax=1.0, cmap="magma_r")
-    axes.plot(observer[1], observer[0], "c+", markersize=12)
-    axes.set_xlabel("longitude [degree east]")
-    axes.set_ylabel("latitude [degree north]")
-    axes.set_title(f"obscuration at {instant} UTC (day side)")
-    figure.colorbar(image, ax=axes, label="obscuration")
+    axes = obscuration_map(dataset, observer=observer,
+                           title=f"obscuration at {instant} UTC (day side)")
+    figure = axes.figure
     savefig(figure, path)
 
 

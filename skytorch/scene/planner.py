@@ -97,12 +97,6 @@ from skytorch.scene.presets import (  # noqa: F401 (the planner's constants, re-
     SUN_V_MAG,
 )
 from skytorch.scene.resources import SceneResources
-from skytorch.scene.solar_eclipse_sky import (
-    CORONA_FLUX_FRACTION,
-    penumbra_touches,
-    sight_radius_m,
-    visible_fraction_at,
-)
 
 logger = logging.getLogger(__name__)
 
@@ -192,6 +186,30 @@ def _eclipse_bounds(geometry: Geometry) -> float:
                                       angles["separation_rad"]))
 
 
+def _solar_eclipse_bound(geometry: Geometry, atmosphere, elevation_m: float,
+                         sun_drawn: bool) -> tuple[bool, float, float, float]:
+    """Bound the solar eclipse's effect on a scene.
+
+    Returns whether the Moon's penumbra can touch the air in sight, its clearance [m], the
+    Sun's visible fraction at the observer and the corona's flux bound (0 unless drawn).
+    """
+    # imported here: the eclipse sky (and the atmosphere it loads) only when a plan is made
+    from skytorch.scene.solar_eclipse_sky import (
+        CORONA_FLUX_FRACTION,
+        penumbra_touches,
+        sight_radius_m,
+        visible_fraction_at,
+    )
+
+    touches, clearance = penumbra_touches(geometry, sight_radius_m(
+        atmosphere.planet_radius_m, atmosphere.top_altitude_m, elevation_m))
+    if not touches:
+        return False, clearance, 1.0, 0.0
+    sun_seen = float(visible_fraction_at(geometry, torch.zeros(3, dtype=torch.float64)))
+    corona = _flux(SUN_V_MAG) * CORONA_FLUX_FRACTION if sun_drawn else 0.0
+    return True, clearance, sun_seen, corona
+
+
 def _above_horizon(altitude_deg: float) -> bool:
     return math.radians(altitude_deg) + SEMI_DIAMETER_RAD + HORIZON_REFRACTION_RAD > 0.0
 
@@ -250,15 +268,12 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
     moon = moon_total if moon_up else 0.0
     star_flux = 0.5 * resources.integrated_starlight(scene.star_limit_mag) if points else 0.0
     atm = resources.atmosphere
-    touches, clearance = penumbra_touches(g, sight_radius_m(atm.planet_radius_m,
-                                                            atm.top_altitude_m, elevation))
-    sun_seen = 1.0
+    touches, clearance, sun_seen, corona = _solar_eclipse_bound(
+        g, atm, elevation, sun_up and points)
     if touches:
         # bounds: the Sun at its visible fraction at the observer plus the corona; the sky
         # counts as zero in the total (it may be dark throughout), so every share is an
         # upper bound
-        sun_seen = float(visible_fraction_at(g, torch.zeros(3, dtype=torch.float64)))
-        corona = _flux(SUN_V_MAG) * CORONA_FLUX_FRACTION if sun_up and points else 0.0
         total = natural + sun * sun_seen + corona + moon + star_flux
         sun = sun * sun_seen + corona
     else:

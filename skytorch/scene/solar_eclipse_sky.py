@@ -58,7 +58,7 @@ import torch
 
 from skytorch._validate import as_tensor, check_int
 from skytorch.atmosphere.constituents import insert_dims
-from skytorch.atmosphere.geometry import _distance_to_ground, _distance_to_top, _ray_hits_ground
+from skytorch.atmosphere.geometry import distance_to_ground, distance_to_top, ray_hits_ground
 from skytorch.constants import MOON_RADIUS_M, SUN_RADIUS_M
 
 __all__ = ["BAUMBACH_COEFFICIENTS", "CORONA_FLUX_FRACTION", "baumbach_corona",
@@ -291,9 +291,9 @@ def eclipsed_single_scattering(atmosphere, wavelength_nm, view_zenith_rad, view_
     cos_theta = torch.clamp(view @ sun, -1.0, 1.0)
     r0 = torch.full(view.shape[:-1], planet + float(altitude_m), dtype=dtype)
     mu_v = view[..., 2]
-    hits = _ray_hits_ground(r0, mu_v, planet)
-    length = torch.where(hits, _distance_to_ground(r0, mu_v, planet),
-                         _distance_to_top(r0, mu_v, top))
+    hits = ray_hits_ground(r0, mu_v, planet)
+    length = torch.where(hits, distance_to_ground(r0, mu_v, planet),
+                         distance_to_top(r0, mu_v, top))
     fraction = torch.linspace(0.0, 1.0, n_samples, dtype=dtype) ** 2
     s = length[..., None] * fraction  # (..., n)
     r0_ = r0[..., None]
@@ -315,7 +315,7 @@ def eclipsed_single_scattering(atmosphere, wavelength_nm, view_zenith_rad, view_
         view_columns[name] = torch.cat([torch.zeros_like(increments[..., :1]),
                                         torch.cumsum(increments, dim=-1)], dim=-1)
     tau_view = constituents.optical_depth(view_columns, extra=1)
-    shadow = _ray_hits_ground(r, mu_sun, planet)[..., None]
+    shadow = ray_hits_ground(r, mu_sun, planet)[..., None]
     sun_transmittance = torch.where(shadow, torch.zeros_like(tau_sun), torch.exp(-tau_sun))
     points = s[..., None] * view[..., None, :]  # (..., n, 3) from the observer
     visible = visible_fraction_at(geometry, points, n_nodes=n_nodes)[..., None]
