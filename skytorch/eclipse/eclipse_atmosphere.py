@@ -66,6 +66,7 @@ from skytorch._data import data_path
 from skytorch._validate import check_range
 from skytorch.atmosphere import Atmosphere
 from skytorch.eclipse.circumstances import _parse_one
+from skytorch.eclipse.shadow import Shadow
 from skytorch.ephemeris import parse_times
 
 __all__ = [
@@ -188,8 +189,6 @@ def eclipse_shadow(date, *, cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,
     -------
     skytorch.eclipse.shadow.Shadow
     """
-    from skytorch.eclipse.shadow import Shadow
-
     if atmosphere is None:
         atmosphere = eclipse_atmosphere(date)
     return Shadow.earth(atmosphere, cloud_top_altitude_m=cloud_top_altitude_m,

@@ -30,6 +30,8 @@ import torch
 import xarray as xr
 
 from skytorch._validate import check_int
+from skytorch.eclipse.eclipse_atmosphere import eclipse_atmosphere
+from skytorch.eclipse.lunar import lunar_light_curve
 
 __all__ = ["OBSERVABLES", "PARAMETERS", "retrieve_atmosphere"]
 
@@ -58,9 +60,6 @@ def _check_observations(observations) -> dict[str, tuple[float, float]]:
 
 def _model(date, names, x, n_times, table_n_v):
     """Modelled observables (in OBSERVABLES order) for log-parameters ``x``."""
-    from skytorch.eclipse.eclipse_atmosphere import eclipse_atmosphere
-    from skytorch.eclipse.lunar import lunar_light_curve
-
     values = {name: torch.exp(x[i]) for i, name in enumerate(names)}
     atmosphere = eclipse_atmosphere(date, **values)
     curve = lunar_light_curve(date, atmosphere, n_times=n_times, table_n_v=table_n_v)
