@@ -211,7 +211,7 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
 
 def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth,
                          altitude, *, n_samples: int = 128, table=None,
-                         sun_steps: int | None = None) -> torch.Tensor:
+                         sun_steps: int | None = None, source_weight=None) -> torch.Tensor:
     r"""Single-scattering radiance :math:`L/E_\odot` (..., wavelength) [sr^-1] of constituents.
 
     Of :class:`~skytorch.atmosphere.constituents.Constituents` (checked inputs).
@@ -221,6 +221,11 @@ def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, su
     depth comes from cumulative per-species path columns along the samples and the Sun's
     from straight-ray columns (or ``table``), both through
     :meth:`~skytorch.atmosphere.constituents.Constituents.optical_depth`.
+
+    ``source_weight``, when given, is a callable taking the sample points (..., n, 3) [m]
+    from the observer in its (north, east, up) frame and returning a weight (..., n) on
+    the source term there (the Sun's visible fraction during a solar eclipse:
+    :func:`skytorch.scene.solar_eclipse_sky.eclipsed_single_scattering`).
     """
     dtype = constituents.dtype
     planet = constituents.planet_radius_m
@@ -277,6 +282,9 @@ def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, su
         source = term if source is None else source + term
     if source is None:
         source = torch.zeros_like(tau_view)
+    if source_weight is not None:
+        points = s[..., None] * view[..., None, :]  # (..., n, 3) from the observer
+        source = source * source_weight(points)[..., None]
     step = step[..., None]
     integrand = source * torch.exp(-tau_view) * sun_transmittance
     return (0.5 * step * (integrand[..., 1:, :] + integrand[..., :-1, :])).sum(-2)

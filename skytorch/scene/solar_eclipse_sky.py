@@ -57,8 +57,7 @@ import math
 import torch
 
 from skytorch._validate import as_tensor, check_int
-from skytorch.atmosphere.constituents import insert_dims
-from skytorch.atmosphere.geometry import distance_to_ground, distance_to_top, ray_hits_ground
+from skytorch.atmosphere.scattering import constituent_radiance
 from skytorch.constants import MOON_RADIUS_M, SUN_RADIUS_M
 
 __all__ = ["BAUMBACH_COEFFICIENTS", "CORONA_FLUX_FRACTION", "baumbach_corona",
@@ -71,14 +70,6 @@ BAUMBACH_COEFFICIENTS = ((0.0532, 2.5), (1.425, 7.0), (2.565, 17.0))
 #: flux of that corona outside the limb relative to the Sun's:
 #: :math:`2\times10^{-6}\sum a_k/(n_k - 2)` (level 1)
 CORONA_FLUX_FRACTION = 2e-6 * sum(a / (n - 2.0) for a, n in BAUMBACH_COEFFICIENTS)
-
-
-def _direction(zenith, azimuth):
-    """Return unit vectors (..., 3) in the observer's (north, east, up) frame."""
-    zenith, azimuth = torch.broadcast_tensors(zenith, azimuth)
-    sin_z = torch.sin(zenith)
-    return torch.stack([sin_z * torch.cos(azimuth), sin_z * torch.sin(azimuth),
-                        torch.cos(zenith)], dim=-1)
 
 
 def visible_fraction_at(geometry, points_m, *, limb_darkening: float = 0.6,
@@ -283,52 +274,15 @@ def eclipsed_single_scattering(atmosphere, wavelength_nm, view_zenith_rad, view_
     view_azimuth = as_tensor("view_azimuth_rad", view_azimuth_rad).to(torch.float64)
     constituents = atmosphere.constituents(wavelength)
     dtype = constituents.dtype
-    planet = constituents.planet_radius_m
-    top = constituents.top_radius_m
-    view = _direction(view_zenith, view_azimuth).to(dtype)
-    sun_vector = torch.tensor(geometry.sun_horizontal_m, dtype=dtype)
-    sun = sun_vector / torch.linalg.vector_norm(sun_vector)
-    cos_theta = torch.clamp(view @ sun, -1.0, 1.0)
-    r0 = torch.full(view.shape[:-1], planet + float(altitude_m), dtype=dtype)
-    mu_v = view[..., 2]
-    hits = ray_hits_ground(r0, mu_v, planet)
-    length = torch.where(hits, distance_to_ground(r0, mu_v, planet),
-                         distance_to_top(r0, mu_v, top))
-    fraction = torch.linspace(0.0, 1.0, n_samples, dtype=dtype) ** 2
-    s = length[..., None] * fraction  # (..., n)
-    r0_ = r0[..., None]
-    r_sq = r0_ * r0_ + s * s + 2.0 * r0_ * s * mu_v[..., None]
-    r = torch.sqrt(r_sq)
-    height = torch.clamp((r_sq - planet ** 2) / (r + planet), 0.0,
-                         constituents.top_altitude_m)
-    mu_sun = torch.clamp((r0_ * sun[2] + s * cos_theta[..., None]) / r, -1.0, 1.0)
-    densities = constituents.densities(height)
-    if table is not None:
-        tau_sun = table.lookup(torch.acos(mu_sun), height)
-    else:
-        columns = constituents.column_integrals(planet + height, mu_sun, extra=1)
-        tau_sun = constituents.optical_depth(columns, extra=1)
-    step = s[..., 1:] - s[..., :-1]
-    view_columns = {}
-    for name, density in densities.items():
-        increments = 0.5 * step * (density[..., 1:] + density[..., :-1])
-        view_columns[name] = torch.cat([torch.zeros_like(increments[..., :1]),
-                                        torch.cumsum(increments, dim=-1)], dim=-1)
-    tau_view = constituents.optical_depth(view_columns, extra=1)
-    shadow = ray_hits_ground(r, mu_sun, planet)[..., None]
-    sun_transmittance = torch.where(shadow, torch.zeros_like(tau_sun), torch.exp(-tau_sun))
-    points = s[..., None] * view[..., None, :]  # (..., n, 3) from the observer
-    visible = visible_fraction_at(geometry, points, n_nodes=n_nodes)[..., None]
-    source = None
-    for species in constituents.scatterers():
-        if species.vanishes:
-            continue
-        term = (densities[species.name][..., None]
-                * insert_dims(species.scattering, 1, 1)
-                * species.phase(cos_theta)[..., None, :])
-        source = term if source is None else source + term
-    if source is None:
-        source = torch.zeros_like(tau_view)
-    integrand = source * visible * torch.exp(-tau_view) * sun_transmittance
-    step = step[..., None]
-    return (0.5 * step * (integrand[..., 1:, :] + integrand[..., :-1, :])).sum(-2)
+    north, east, up = geometry.sun_horizontal_m
+    sun_zenith = torch.tensor(math.atan2(math.hypot(north, east), up), dtype=dtype)
+    sun_azimuth = torch.tensor(math.atan2(east, north), dtype=dtype)
+    altitude = torch.full(torch.broadcast_shapes(view_zenith.shape, view_azimuth.shape),
+                          float(altitude_m), dtype=dtype)
+
+    def visible(points):
+        return visible_fraction_at(geometry, points, n_nodes=n_nodes)
+
+    return constituent_radiance(constituents, view_zenith.to(dtype), view_azimuth.to(dtype),
+                                sun_zenith, sun_azimuth, altitude, n_samples=n_samples,
+                                table=table, source_weight=visible)
