@@ -98,8 +98,7 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
         Scene wavelengths [nm].
     knobs : Knobs
         ``time``, ``lat_deg``, ``lon_deg``, ``elevation_m``, ``refraction``,
-        ``star_limit_mag``, ``airglow_height_m``, ``dtype`` and, if present,
-        ``solar_flux_sfu``.
+        ``star_limit_mag``, ``airglow_height_m``, ``dtype`` and ``solar_flux_sfu``.
 
     Returns
     -------
@@ -138,7 +137,7 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
     star_scale = 10.0 ** (-0.4 * (star_mag_per_unit - solar_mag))  # solar shape at V = 1 unit
     starlight = (star_v * star_scale)[..., None] * solar
 
-    flux = getattr(knobs, "solar_flux_sfu", DEFAULT_SOLAR_FLUX_SFU)
+    flux = knobs.solar_flux_sfu
     flat = torch.ones_like(wl)
     airglow_level = 10.0 ** (-0.4 * (airglow_zenith_mag(float(flux)) - _v_mag(flat, wl)))
     path = van_rhijn(zenith.clamp(max=0.5 * math.pi),

@@ -80,8 +80,10 @@ class Knobs:
         The observer [degree, degree, m].
     refraction, earthshine, eclipse, solar_eclipse : bool
         Effects the planner computes.
-    star_limit_mag, natural_mag_arcsec2, natural_model, airglow_fraction, airglow_height_m
+    star_limit_mag, natural_mag_arcsec2, natural_model, airglow_fraction
         The scene's settings of the stars and the natural background.
+    airglow_height_m, solar_flux_sfu : float
+        The airglow layer's height [m] and the 10.7 cm solar flux setting its level [sfu].
     light_map, observer_xy, lamp
         The scene's city lights.
     """
@@ -101,6 +103,7 @@ class Knobs:
     natural_model: str = "garstang1989"
     airglow_fraction: float = 0.6
     airglow_height_m: float = 90_000.0
+    solar_flux_sfu: float = 130.0
     light_map: object = None
     observer_xy: tuple = (0.0, 0.0)
     lamp: str = "white"
@@ -120,7 +123,8 @@ class Knobs:
                    solar_eclipse="solar_eclipse" in computed, star_limit_mag=scene.star_limit_mag,
                    natural_mag_arcsec2=scene.natural_mag_arcsec2,
                    natural_model=scene.natural_model, airglow_fraction=scene.airglow_fraction,
-                   airglow_height_m=scene.airglow_height_m, light_map=scene.light_map,
+                   airglow_height_m=scene.airglow_height_m,
+                   solar_flux_sfu=scene.solar_flux_sfu, light_map=scene.light_map,
                    observer_xy=tuple(scene.observer_xy), lamp=scene.lamp)
 
 
@@ -539,7 +543,9 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
     By ``knobs.natural_model``: ``"garstang1989"`` multiplies it by
     :func:`natural_gradient` and :func:`natural_extinction` (refracted paths when
     ``knobs.refraction``), ``"vanrhijn1921"`` by the gradient alone, ``"constant"`` by 1
-    (``geometry`` is not used: the background does not depend on the Sun and Moon).
+    (``geometry`` is not used: the background does not depend on the Sun and Moon);
+    ``"leinert1998"`` builds the sky per direction from zodiacal light, airglow and faint
+    starlight (:func:`skytorch.scene.natural_sky.natural_component`).
 
     Notes
     -----
@@ -561,6 +567,10 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
     2. Krisciunas, K. & Schaefer, B. E. 1991, PASP 103, 1033, doi:10.1086/132921.
     3. Patat, F. 2003, A&A 400, 1183, doi:10.1051/0004-6361:20030015.
     """
+    if knobs.natural_model == "leinert1998":
+        from skytorch.scene import natural_sky
+
+        return natural_sky.natural_component(resources, view, geometry, wavelength, knobs)
     from skytorch.moon.sky import radiance_to_mag_arcsec2
     from skytorch.spectrum import solar_irradiance
 

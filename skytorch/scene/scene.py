@@ -60,7 +60,9 @@ CAMERA_TARGETS = ("moon", "sun")
 #: outputs a scene can produce
 OUTPUTS = ("spectral", "xyz", "srgb", "v_mag")
 #: gradients of the natural background (see :func:`skytorch.scene.render.natural_gradient`)
-NATURAL_MODELS = ("garstang1989", "vanrhijn1921", "constant")
+NATURAL_MODELS = ("garstang1989", "vanrhijn1921", "constant", "leinert1998")
+#: 10.7 cm solar flux range of the airglow law [sfu] (:func:`skytorch.nightsky.airglow_zenith_mag`)
+SOLAR_FLUX_RANGE_SFU = (50.0, 400.0)
 #: keys of the ``directions`` mapping of a directions view
 DIRECTION_KEYS = ("altitude_deg", "azimuth_deg")
 #: keys of the ``camera`` mapping of a camera view
@@ -519,14 +521,21 @@ class Scene:
         Natural sky background at the zenith (airglow + zodiacal light + faint stars)
         [V mag arcsec^-2]; 22.0 after Falchi et al. (2016); in
         :data:`NATURAL_MAG_RANGE` (14–26).
-    natural_model : {"garstang1989", "vanrhijn1921", "constant"}
+    natural_model : {"garstang1989", "vanrhijn1921", "constant", "leinert1998"}
         Variation of the natural background with zenith distance (:data:`NATURAL_MODELS`,
         :func:`skytorch.scene.render.natural_component`): ``"garstang1989"`` (Garstang
         1989; Krisciunas & Schaefer 1991) brightens the airglow part towards the horizon by
         the van Rhijn (1921) factor and dims the whole by the V-band extinction of the
         atmosphere relative to the zenith (``natural_mag_arcsec2`` is the observed zenith
         value, extinction included); ``"vanrhijn1921"``, the van Rhijn factor without
-        extinction; ``"constant"``, the zenith value everywhere.
+        extinction; ``"constant"``, the zenith value everywhere; ``"leinert1998"``, the
+        sky per direction from its parts (:func:`skytorch.scene.natural_sky.natural_component`:
+        zodiacal light by ecliptic geometry, airglow at ``solar_flux_sfu``, the light of
+        catalogue stars fainter than ``star_limit_mag``; ``natural_mag_arcsec2`` and
+        ``airglow_fraction`` are not used).
+    solar_flux_sfu : float
+        10.7 cm solar flux [sfu] setting the airglow level of ``natural_model="leinert1998"``
+        (130: mean of a solar cycle), in :data:`SOLAR_FLUX_RANGE_SFU`.
     airglow_fraction : float
         Share of the zenith background emitted by the airglow layer (0.6, Garstang 1989;
         Patat 2003), in [0, 1]; the rest comes from beyond the atmosphere and is uniform.
@@ -582,6 +591,7 @@ class Scene:
     natural_model: str = "garstang1989"
     airglow_fraction: float = 0.6
     airglow_height_m: float = 90_000.0
+    solar_flux_sfu: float = 130.0
     dtype: torch.dtype = torch.float64
     #: the resources of the scene this one was copied from (``dataclasses.replace`` passes
     #: them on); kept when their spec is this scene's, else new ones are made
@@ -624,6 +634,8 @@ class Scene:
         self.airglow_fraction = _scalar("airglow_fraction", self.airglow_fraction, 0.0, 1.0)
         self.airglow_height_m = _scalar("airglow_height_m", self.airglow_height_m,
                                         *AIRGLOW_HEIGHT_RANGE_M, unit=" m")
+        self.solar_flux_sfu = _scalar("solar_flux_sfu", self.solar_flux_sfu,
+                                      *SOLAR_FLUX_RANGE_SFU, unit=" sfu")
         self._observers(atmosphere)
         self.force = _effects("force", self.force, EFFECTS)
         self.exclude = _effects("exclude", self.exclude, EFFECTS)
