@@ -34,3 +34,14 @@ def test_solar_cycle_change_against_patat_2008():
 def test_solar_flux_out_of_range_is_refused():
     with pytest.raises(ValueError, match="solar_flux_sfu"):
         Scene(time=NIGHT, size=8, natural_model="leinert1998", solar_flux_sfu=10.0, **PARANAL)
+
+
+def test_every_render_has_a_limiting_magnitude_map():
+    """Dark zenith 6.3-7.0 with Schaefer's default observer (issue 17); none by day."""
+    night = Scene(time=NIGHT, size=32, natural_model="leinert1998", solar_flux_sfu=70.0,
+                  exclude=("stars",), **PARANAL).render()
+    limit = night.limiting_magnitude
+    assert limit.dims == night.v_mag_arcsec2.dims
+    assert 6.3 <= float(limit.isel(y=16, x=16)) <= 7.0
+    day = Scene(time="2026-03-20T16:00:00", size=32, **PARANAL).render()
+    assert float(day.limiting_magnitude.isel(y=16, x=16)) < 0.0

@@ -47,6 +47,7 @@ def scene_dataset(scene, view, plan, components, total, seconds):
     """
     from skytorch.moon.sky import radiance_to_mag_arcsec2
     from skytorch.spectrum import spectrum_to_xyz
+    from skytorch.stars.visibility import limiting_magnitude
 
     wavelength = scene.wavelength_nm()
     dims = view.dims
@@ -96,6 +97,13 @@ def scene_dataset(scene, view, plan, components, total, seconds):
         data["v_mag_arcsec2"] = variable(dims, mags, VariableSpec(
             "mag arcsec-2", "V surface brightness", "Johnson V surface brightness of the "
             "sky (NaN off the sky)."))
+        limit = torch.full_like(mags, float("nan"))
+        limit[view.valid] = limiting_magnitude(mags[view.valid])
+        data["limiting_magnitude"] = variable(dims, limit, VariableSpec(
+            "mag", "naked-eye limiting magnitude", "Faintest V magnitude of a star seen "
+            "against the sky of each pixel (Schaefer 1990 with his default observer, 7 mm "
+            "pupil, F_s = 1; to compare with a star's magnitude after extinction; NaN off "
+            "the sky)."))
         stack = torch.stack(list(components.values())).to(torch.float64)
         lit = (stack > 0).any(-1) & view.valid
         component_mags = radiance_to_mag_arcsec2(stack.clamp(min=1e-300),
