@@ -4,7 +4,7 @@ The 2015-09-28 total lunar eclipse, end to end:
 
 1. ephemeris of the night from Berlin;
 2. circumstances (:func:`skytorch.eclipse.lunar_eclipses`);
-3. the Moon's light curve and colour for a typical atmosphere and a Calbuco-like
+3. the Moon's light curve and colour for a typical atmosphere and the Calbuco (2015)
    volcanic one (:func:`skytorch.eclipse.lunar_eclipse`);
 4. the Earth's shadow profile at the Moon's distance against lunar-eclipse theory:
    the geometric umbra/penumbra radii (Danjon enlargement) and the umbra centre of a
@@ -24,10 +24,10 @@ Every part writes netCDF and PNG files into ``--output-dir`` and one line or two
 summary. A part whose module cannot be imported is skipped with the reason printed.
 ``--quick`` runs everything at reduced resolution (for tests).
 
-The Calbuco-like case follows the volcanic case of ``experiments/eclipse_theory_comparison.py``:
-the typical aerosol (Preetham turbidity 2) with twice the density and a scale height of
-3 km instead of 1.2 km, i.e. five times the column (Keen 2016 reports the 2015 eclipse
-33 % dimmer than expected for a clear stratosphere after the April 2015 eruption).
+The Calbuco case is the atmosphere of the eclipse date,
+:func:`skytorch.eclipse.eclipse_atmosphere` (global-mean troposphere and ozone, and the
+stratospheric sulfate layer of 2015 after the April eruption of Calbuco; Keen 2016
+reports the 2015 eclipse 33 % dimmer than expected for a clear stratosphere).
 """
 
 from __future__ import annotations
@@ -48,9 +48,6 @@ ECLIPSE_DATE = "2015-09-28"
 #: umbra centre of a molecular atmosphere without ozone, 400–700 nm (Vollmer & Gedzelman
 #: 2008, Appl. Opt. 47, H52, doi:10.1364/AO.47.000H52)
 VG2008_UMBRA_CENTRE = 1.0 / 2400.0
-#: the volcanic case: aerosol density and scale height relative to the typical one
-CALBUCO_DENSITY_FACTOR = 2.0
-CALBUCO_SCALE_HEIGHT_M = 3000.0
 #: the city of the all-sky renders: centre 12 km south-east of the observer
 CITY = {"population": 1_000_000.0, "scale_length_m": 4_000.0, "centre_xy": (8_000.0, -9_000.0)}
 #: the solar-eclipse panel: Burgos, the total solar eclipse of 2026-08-12
@@ -124,12 +121,11 @@ def circumstances_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
 
 def _atmospheres():
     from skytorch.atmosphere import Atmosphere
-    from skytorch.eclipse import volcanic_atmosphere
+    from skytorch.eclipse import eclipse_atmosphere
 
     return {
         "typical": Atmosphere.earth(turbidity=2.0, ozone_du=300.0),
-        "calbuco": volcanic_atmosphere(2.0, 300.0, density_factor=CALBUCO_DENSITY_FACTOR,
-                                       scale_height_m=CALBUCO_SCALE_HEIGHT_M),
+        "calbuco": eclipse_atmosphere(ECLIPSE_DATE),
     }
 
 
@@ -142,7 +138,7 @@ def _eclipse_options(quick: bool) -> dict:
 
 
 def light_curve_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
-    """Light curves and colours for the typical and the Calbuco-like atmosphere."""
+    """Light curves and colours for the typical and the atmosphere of the eclipse date (Calbuco 2015)."""
     from skytorch import plot
     from skytorch.dataset import to_netcdf
     from skytorch.eclipse import lunar_eclipse
