@@ -138,7 +138,7 @@ def _eclipse_options(quick: bool) -> dict:
 
 
 def light_curve_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
-    """Light curves and colours for the typical and the atmosphere of the eclipse date (Calbuco 2015)."""
+    """Light curves and colours for the typical atmosphere and that of the eclipse date."""
     from skytorch import plot
     from skytorch.dataset import to_netcdf
     from skytorch.eclipse import lunar_eclipse
