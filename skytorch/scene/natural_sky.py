@@ -12,9 +12,11 @@ r"""The natural night sky per view direction: zodiacal light, airglow and starli
   ``knobs.solar_flux_sfu`` (130 sfu when the knobs carry none), brightened towards the
   horizon by the van Rhijn factor of a layer at ``knobs.airglow_height_m``;
 * integrated starlight of the Gaia catalogue stars fainter than ``knobs.star_limit_mag``
-  (the stars the scene draws as points are brighter), with the solar spectral shape
-  (:func:`skytorch.nightsky.catalogue_starlight_map`; stars fainter than G = 10 are not
-  in it).
+  (the stars the scene draws as points are brighter) and, beyond the catalogue (V >
+  10.15), the Pioneer 10/11 starlight and diffuse galactic light of Leinert et al. 1998
+  Table 35 less the catalogue's share, with the solar spectral shape
+  (:func:`skytorch.nightsky.catalogue_starlight_map`,
+  :func:`skytorch.nightsky.faint_starlight.faint_starlight_v_radiance`).
 
 Each is dimmed by the V-band extinction along the line of sight of a source of solar
 colour (:func:`skytorch.stars.extinction` on the scene's extinction table, refracted paths
@@ -132,7 +134,15 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
 
     solar = solar_irradiance(wl)
     solar_mag = _v_mag(solar, wl)
-    star_v = starlight_v_radiance(icrs, catalogue_starlight_map(float(knobs.star_limit_mag)))
+    from skytorch.nightsky.faint_starlight import (
+        faint_starlight_table,
+        faint_starlight_v_radiance,
+    )
+
+    # catalogue stars from the point-star limit to V = 10.15, then the Pioneer 10/11
+    # starlight fainter than the catalogue (V > 10.15 and diffuse galactic light)
+    star_v = (starlight_v_radiance(icrs, catalogue_starlight_map(float(knobs.star_limit_mag)))
+              + faint_starlight_v_radiance(icrs, faint_starlight_table()))
     star_mag_per_unit = -2.5 * math.log10(_ARCSEC2_SR / _V_ZERO_FLUX)  # V of 1 W m^-2 sr^-1 nm^-1
     star_scale = 10.0 ** (-0.4 * (star_mag_per_unit - solar_mag))  # solar shape at V = 1 unit
     starlight = (star_v * star_scale)[..., None] * solar
