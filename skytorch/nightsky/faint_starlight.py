@@ -167,6 +167,16 @@ def faint_starlight_v_radiance(icrs_unit: torch.Tensor,
     torch.Tensor, shape (...)
         Bilinear in (l, b), periodic in l; beyond the outermost rows linear in b to the
         mean of that row at the pole.
+
+    Examples
+    --------
+    In S10 at the north galactic pole and towards the galactic centre:
+
+    >>> from skytorch.nightsky.starlight import ICRS_TO_GALACTIC
+    >>> poles = torch.tensor([ICRS_TO_GALACTIC[2], ICRS_TO_GALACTIC[0]], dtype=torch.float64)
+    >>> faint = faint_starlight_v_radiance(poles, faint_starlight_table())
+    >>> [round(v) for v in (faint / S10_V_RADIANCE).tolist()]
+    [15, 224]
     """
     lat_deg, lon_deg, radiance = table
     vectors = as_tensor("icrs_unit", icrs_unit)

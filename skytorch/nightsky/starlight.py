@@ -8,10 +8,11 @@ brighter than ``fainter_than`` are the ones a scene draws as points, so nothing 
 counted twice: the split is made star by star on the same catalogue magnitudes, not by a
 star-count estimate.
 
-Stars fainter than the catalogue (G > 10) are **not** included: at visual wavelengths
-most of the integrated starlight comes from stars fainter than 10 mag (Leinert et al.
-1998, §10), so this map is a lower bound of the diffuse galactic light — it shows the
-structure of the Milky Way, not its full level (see docs/nightsky.md for the numbers).
+Stars fainter than the catalogue (G > 10) are not in this map: at visual wavelengths
+about half of all starlight comes from them (Leinert et al. 1998, §10). They, and the
+diffuse galactic light, are :mod:`skytorch.nightsky.faint_starlight` (Pioneer 10/11
+starlight less this map's share, split at the catalogue's limit V = 10.15); the scene's
+natural sky adds both (docs/nightsky.md for the numbers).
 
 G → V uses the Gaia EDR3 photometric relation of Riello et al. (2021, Table C2) at the
 mean colour of field stars, G_BP − G_RP = 0.82: V = G + 0.153 (the catalogue carries
