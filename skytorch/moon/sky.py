@@ -27,6 +27,13 @@ function), and attenuated back to the observer::
 Multiple scattering and ground reflection are neglected, so the result is a lower bound;
 docs/moon.md lists the measured gap to the K&S model.
 
+``moonlit_sky_multiple_scattering`` — single scattering as above plus the orders 2..N of
+the Moon as a point source: its irradiance above the atmosphere times the sky radiance per
+unit irradiance of precomputed multiple-scattering tables
+(:mod:`skytorch.atmosphere.multiple_scattering`) with the Moon's zenith as the source
+direction, less the tables' own first order. The lunar disc (0.5 deg) is not resolved by
+those orders, whose radiance varies over tens of degrees.
+
 References
 ----------
 1. Krisciunas, K., Schaefer, B. E. 1991, "A model of the brightness of moonlight",
@@ -72,6 +79,7 @@ __all__ = [
     "mag_arcsec2_to_nanolambert",
     "moon_illuminance_ks1991",
     "moonlit_sky_ks1991",
+    "moonlit_sky_multiple_scattering",
     "moonlit_sky_single_scattering",
     "nanolambert_to_mag_arcsec2",
     "radiance_to_mag_arcsec2",
@@ -325,6 +333,80 @@ def moonlit_sky_single_scattering(atmosphere, phase_angle_rad, moon_zenith_rad,
     irradiance = lunar_irradiance(phase_angle_rad, wl, distance_m=distance_m,
                                   n_quadrature=n_quadrature)
     return irradiance * integral
+
+
+def moonlit_sky_multiple_scattering(atmosphere, tables, phase_angle_rad, moon_zenith_rad,
+                                    view_zenith_rad, relative_azimuth_rad, *,
+                                    distance_m=MEAN_EARTH_MOON_DISTANCE_M,
+                                    altitude_m: float = 0.0, scattering_orders=None,
+                                    n_steps: int = 64, n_quadrature: int = 32) -> torch.Tensor:
+    r"""Spectral radiance of the sky lit by the Moon, orders of scattering 1..N.
+
+    Parameters
+    ----------
+    atmosphere : skytorch.atmosphere.Atmosphere
+        Atmosphere without batch dimensions (the one the tables were built for).
+    tables : skytorch.atmosphere.multiple_scattering.ScatteringTables
+        Multiple-scattering tables of ``atmosphere``; the result is at their wavelengths
+        ``tables.wavelength_nm`` [nm].
+    phase_angle_rad, moon_zenith_rad, view_zenith_rad, relative_azimuth_rad : Tensor (...)
+        As :func:`moonlit_sky_single_scattering` [rad].
+    distance_m : float or Tensor (...)
+        Observer–Moon distance [m].
+    altitude_m : float
+        Observer altitude [m].
+    scattering_orders : int or "converged", optional
+        Orders 1..N (default: every order of the tables).
+    n_steps, n_quadrature : int
+        Line-of-sight samples of the single scattering and nodes of the lunar disc
+        integral.
+
+    Returns
+    -------
+    Tensor (..., n_wavelength)
+        Spectral radiance [W m^-2 sr^-1 nm^-1].
+
+    Notes
+    -----
+    .. math:: L = L_1 + E_{moon}(\lambda)\,[R_N(\mu_m) - R_1(\mu_m)]
+
+    with :math:`L_1` the exact single scattering (:func:`moonlit_sky_single_scattering`:
+    the aureole and the band absorbers exactly, the disc integrated),
+    :math:`E_{moon}` the lunar irradiance above the atmosphere
+    (:func:`skytorch.moon.brightness.lunar_irradiance`) and :math:`R_n` the tables'
+    radiance per unit irradiance of orders 1..n for a point source at the Moon's zenith
+    angle (Bruneton & Neyret 2008). The orders >= 2 of a source of 0.5 deg differ from
+    those of a point by the variation of the diffuse field over the disc, below the
+    tables' own interpolation error. Black ground, no refraction (the tables').
+
+    References
+    ----------
+    1. Bruneton, E. & Neyret, F. 2008, Computer Graphics Forum 27, 1079,
+       doi:10.1111/j.1467-8659.2008.01245.x.
+    2. Jones, A. et al. 2013, A&A 560, A91, doi:10.1051/0004-6361/201322433 (single and
+       multiple scattering of moonlight).
+    """
+    required = ("radiance", "wavelength_nm", "orders_computed")
+    if not all(hasattr(tables, name) for name in required):
+        raise TypeError("tables must be a skytorch.atmosphere.multiple_scattering."
+                        f"ScatteringTables; got {type(tables).__name__}")
+    wl = tables.wavelength_nm
+    dtype = common_dtype(phase_angle_rad, moon_zenith_rad, view_zenith_rad,
+                         relative_azimuth_rad)
+    single = moonlit_sky_single_scattering(
+        atmosphere, phase_angle_rad, moon_zenith_rad, view_zenith_rad, relative_azimuth_rad,
+        wl.to(dtype), distance_m=distance_m, altitude_m=altitude_m, n_steps=n_steps,
+        n_quadrature=n_quadrature)
+    zm = _angle("moon_zenith_rad", moon_zenith_rad, dtype, high=_MAX_ZENITH)
+    zv = _angle("view_zenith_rad", view_zenith_rad, dtype, high=_MAX_ZENITH)
+    daz = torch.remainder(as_tensor("relative_azimuth_rad", relative_azimuth_rad, dtype=dtype),
+                          2.0 * math.pi)
+    args = (altitude_m, zv, daz, zm)
+    higher = (tables.radiance(*args, scattering_orders=scattering_orders)
+              - tables.radiance(*args, scattering_orders=1))
+    irradiance = lunar_irradiance(phase_angle_rad, wl.to(dtype), distance_m=distance_m,
+                                  n_quadrature=n_quadrature)
+    return single + irradiance * higher.to(dtype)
 
 
 def _constituent_source(constituents, altitude, s, cos_theta):

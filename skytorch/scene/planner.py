@@ -52,6 +52,22 @@ Estimates
 * scintillation: a still image records the mean flux of a twinkling star, so it is
   always skipped (twinkling sequences: ``skytorch.stars.observe(..., twinkle_samples=n)``).
 
+Orders of scattering (``Scene.scattering_orders``; ``"auto"`` is the fidelity preset's
+``scattering_orders``): with 1 the sky and the moonlit sky are single-scattered. With
+``"converged"`` the multiple-scattering tables of the resources
+(:meth:`~skytorch.scene.resources.SceneResources.scattering_tables`, all orders to
+convergence) give each order's hemisphere flux for the Sun's (Moon's) zenith angle (the
+9 directions of the sky estimate, at the table wavelength nearest 550 nm, times the
+source's V flux above the atmosphere); the sky's estimate above is raised by the orders
+>= 2, and the planner keeps the fewest orders ``n`` whose omitted orders ``> n`` are
+below ``scene.tolerance`` of that sky's own flux (a stricter test than a share of the
+image flux, which the Sun's disc dominates by day) (:attr:`Plan.scattering_orders`, the
+attributes ``sky_scattering_orders``, ``moon_scattering_orders`` and
+``scattering_orders_reason`` of the render). An integer ``N`` is used as given. The
+tables reach the Sun 18 deg below the horizon: deeper, and during a solar eclipse (whose
+sky is a single-scattering march with the Sun's visible fraction), the sky is
+single-scattered, with the reason recorded.
+
 :data:`FIDELITY` maps the presets "fast", "default", "reference" to the modules' knobs;
 their measured error and cost are in ``docs/scene.md``.
 
@@ -126,6 +142,12 @@ class Plan:
         Sun and Moon at the observer (shared with the render).
     seconds : float
         Wall time of the planning [s].
+    scattering_orders : dict
+        Orders of scattering of the sunlit sky and of the moonlit sky (``"sky"``,
+        ``"moon"``; 1 = single scattering) and the orders the tables were built with
+        (``"tables"``: an integer or ``"converged"``; 1 when none were needed).
+    scattering_reason : str
+        Why those orders (the estimated share of the omitted orders).
     """
 
     computed: tuple[str, ...]
@@ -133,15 +155,82 @@ class Plan:
     shares: dict[str, float] = field(default_factory=dict)
     geometry: Geometry | None = None
     seconds: float = 0.0
+    scattering_orders: dict = field(default_factory=lambda: {"sky": 1, "moon": 1,
+                                                             "tables": 1})
+    scattering_reason: str = "single scattering"
 
     def __contains__(self, effect: str) -> bool:
         """Whether ``effect`` is among the computed effects."""
         return effect in self.computed
 
-    def attrs(self) -> dict[str, str]:
-        """``effects_computed`` and ``effects_skipped`` as netCDF-safe strings."""
+    def attrs(self) -> dict:
+        """Return the decisions as netCDF-safe attributes.
+
+        ``effects_computed`` and ``effects_skipped`` (strings), ``sky_scattering_orders``
+        and ``moon_scattering_orders`` (integers) and ``scattering_orders_reason``.
+        """
         return {"effects_computed": ",".join(self.computed),
-                "effects_skipped": "; ".join(f"{k}: {v}" for k, v in self.skipped.items())}
+                "effects_skipped": "; ".join(f"{k}: {v}" for k, v in self.skipped.items()),
+                "sky_scattering_orders": int(self.scattering_orders["sky"]),
+                "moon_scattering_orders": int(self.scattering_orders["moon"]),
+                "scattering_orders_reason": self.scattering_reason}
+
+
+def requested_orders(scene):
+    """Orders of scattering a scene asks for: 1, an integer N or ``"converged"``.
+
+    ``scene.scattering_orders``, with ``"auto"`` replaced by its fidelity preset's
+    ``scattering_orders`` (:data:`FIDELITY`).
+    """
+    value = scene.scattering_orders
+    return FIDELITY[scene.fidelity]["scattering_orders"] if value == "auto" else value
+
+
+#: largest source zenith angle of the multiple-scattering tables [rad] (18 deg below the
+#: horizon, :data:`skytorch.atmosphere.multiple_scattering.MU_S_MIN`)
+MS_MAX_SOURCE_ZENITH_RAD = math.radians(108.0)
+
+
+def scattering_tables(scene, resources: SceneResources):
+    """Return the multiple-scattering tables of a scene's fidelity and orders (None for 1)."""
+    orders = requested_orders(scene)
+    if orders == 1:
+        return None
+    knobs = FIDELITY[scene.fidelity]
+    return resources.scattering_tables(orders, knobs["ms_tables"], knobs["ms_wavelength_nodes"])
+
+
+def order_fluxes(tables, source_zenith_rad: float, elevation_m: float) -> np.ndarray:
+    """Hemisphere flux of each order of scattering per unit source flux (orders,) [1].
+
+    The tables' radiance at the 9 directions of the sky estimate (the zenith, 60 and 85
+    deg from it at 0, 90, 180, 270 deg from the source's azimuth), averaged and times
+    2 pi sr, at the table wavelength nearest 550 nm; order ``k`` is the sum of orders
+    ``1..k`` less that of ``1..k-1``.
+    """
+    zenith = torch.tensor([0.0] + [math.radians(60.0)] * 4 + [math.radians(85.0)] * 4,
+                          dtype=torch.float64)
+    azimuth = torch.tensor([0.0] + [k * math.pi / 2 for k in range(4)] * 2,
+                           dtype=torch.float64)
+    band = int(torch.argmin((tables.wavelength_nm - 550.0).abs()))
+    source = torch.full_like(zenith, source_zenith_rad)
+    cumulative = np.array([float(tables.radiance(elevation_m, zenith, azimuth, source,
+                                                 scattering_orders=k)[..., band].mean())
+                           for k in range(1, tables.orders_computed + 1)])
+    return 2.0 * math.pi * np.diff(cumulative, prepend=0.0)
+
+
+def orders_needed(fluxes: np.ndarray, total: float, tolerance: float) -> tuple[int, float]:
+    """Fewest orders ``n`` whose omitted orders (``> n``) are below ``tolerance`` of ``total``.
+
+    ``fluxes`` (orders,) are the orders' fluxes, in the unit of ``total``; returns ``n`` and
+    the omitted share.
+    """
+    tail = np.cumsum(fluxes[::-1])[::-1]  # tail[k]: the orders k+1, k+2, ...
+    for n in range(1, fluxes.size):
+        if tail[n] / total < tolerance:
+            return n, float(tail[n] / total)
+    return int(fluxes.size), 0.0
 
 
 def _sky_flux(resources: SceneResources, elevation_m: float, geometry: Geometry) -> float:
@@ -261,6 +350,8 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
 
     natural = _surface_flux(scene.natural_mag_arcsec2)
     sky = _sky_flux(resources, elevation, g)
+    orders = _OrderEstimate(scene, resources, g, elevation)
+    sky = sky + orders.sky_higher()
     sun_up = _above_horizon(g.sun_altitude_deg)
     moon_up = _above_horizon(g.moon_altitude_deg)
     sun = _flux(SUN_V_MAG) if sun_up and points else 0.0
@@ -385,9 +476,61 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
             computed.append(name)
         else:
             skipped[name] = reason
-    result = Plan(tuple(computed), skipped, shares, g, _time.perf_counter() - start)
+    decision, reason = orders.decide(computed, tol, moon_total)
+    result = Plan(tuple(computed), skipped, shares, g, _time.perf_counter() - start,
+                  decision, reason)
     logger.info("plan: computed %s; skipped %s", result.computed, result.skipped)
     return result
+
+
+class _OrderEstimate:
+    """The planner's multiple-scattering estimates for one scene (module notes)."""
+
+    def __init__(self, scene, resources, geometry, elevation_m):
+        self.requested = requested_orders(scene)
+        self.geometry, self.elevation_m = geometry, elevation_m
+        self.sun_zenith = math.radians(90.0 - geometry.sun_altitude_deg)
+        self.sun_in_tables = self.sun_zenith <= MS_MAX_SOURCE_ZENITH_RAD
+        needed = self.requested != 1 and (self.sun_in_tables
+                                          or _above_horizon(geometry.moon_altitude_deg))
+        self.tables = scattering_tables(scene, resources) if needed else None
+        self.sun = (order_fluxes(self.tables, self.sun_zenith, elevation_m) * _flux(SUN_V_MAG)
+                    if self.tables is not None and self.sun_in_tables else None)
+
+    def sky_higher(self) -> float:
+        """V flux of the sunlit sky's orders >= 2 (0 without tables)."""
+        return 0.0 if self.sun is None else float(self.sun[1:].sum())
+
+    def _one(self, fluxes, tol) -> tuple[int, str]:
+        if self.requested != "converged":
+            return int(self.requested), f"{self.requested} orders as requested"
+        n, omitted = orders_needed(fluxes, float(fluxes.sum()), tol)
+        return n, (f"{n} of {fluxes.size} orders (omitted {omitted:.1e} of its flux; "
+                   f"tables {'converged' if self.tables.converged else 'not converged'})")
+
+    def decide(self, computed, tol, moon_flux) -> tuple[dict, str]:
+        """Orders of the sky and the moonlit sky, and the reason."""
+        tables = 1 if self.tables is None else self.requested
+        result, reasons = {"sky": 1, "moon": 1, "tables": tables}, []
+        if self.requested == 1:
+            return result, "single scattering (scattering_orders 1)"
+        if "sky" not in computed:
+            reasons.append("sky: not computed")
+        elif "solar_eclipse" in computed:
+            reasons.append("sky: single scattering (the solar-eclipse sky)")
+        elif not self.sun_in_tables:
+            reasons.append("sky: single scattering (Sun below the tables' 18 deg depression)")
+        else:
+            result["sky"], text = self._one(self.sun, tol)
+            reasons.append(f"sky: {text}")
+        moon_zenith = math.radians(90.0 - self.geometry.moon_altitude_deg)
+        if "moon" not in computed or self.tables is None or moon_zenith > 0.5 * math.pi:
+            reasons.append("moonlit sky: not computed")
+        else:
+            fluxes = order_fluxes(self.tables, moon_zenith, self.elevation_m) * moon_flux
+            result["moon"], text = self._one(fluxes, tol)
+            reasons.append(f"moonlit sky: {text}")
+        return result, "; ".join(reasons)
 
 
 def _moon_radius() -> float:

@@ -22,7 +22,7 @@ __all__ = ["BRIGHTEST_SKYGLOW_MAG_ARCSEC2", "EFFECTS", "FIDELITY", "FIDELITY_PRE
            "HEMISPHERE_ARCSEC2", "HORIZON_REFRACTION_RAD", "MOON_TABLE_DISTANCES",
            "MOON_TABLE_DISTANCE_RANGE_M", "MOON_TABLE_PHASES", "PLANNER_MOON_QUADRATURE",
            "RESOLVED_DISC_PIXELS", "SEMI_DIAMETER_RAD", "SKY_TABLE_SEGMENT_DEG",
-           "SKY_TABLE_STEP_DEG", "SUN_V_MAG"]
+           "SKY_TABLE_STEP_DEG", "SUN_V_MAG", "SCATTERING_ORDER_CHOICES"]
 
 #: the planner's vocabulary of effects, in composition order
 EFFECTS = ("sky", "sun", "moon", "earthshine", "eclipse", "solar_eclipse", "stars",
@@ -58,13 +58,27 @@ MOON_TABLE_DISTANCE_RANGE_M = (3.45e8, 4.15e8)
 #: pixels a disc must cover to be shaded pixel by pixel (fewer: the disc-averaged factor)
 RESOLVED_DISC_PIXELS = 16
 
-#: module knobs per fidelity preset (measured error and cost in docs/scene.md)
+#: values of ``Scene.scattering_orders`` besides an integer >= 1: the fidelity preset's
+#: choice ("auto") or every order to convergence ("converged")
+SCATTERING_ORDER_CHOICES = ("auto", "converged")
+
+#: multiple-scattering tables of the presets (:class:`skytorch.atmosphere.multiple_scattering.
+#: TableResolution` fields; error and cost in docs/scene.md, experiment scene_ms_accuracy_cost)
+_MS_TINY = {"n_r": 5, "n_mu": 16, "n_mu_s": 8, "n_phi": 5, "n_ray": 16, "n_sphere_mu": 4,
+            "transmittance_r": 16, "transmittance_mu": 32}
+_MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 16, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
+              "transmittance_r": 32, "transmittance_mu": 128}
+
+#: module knobs per fidelity preset (measured error and cost in docs/scene.md);
+#: ``scattering_orders`` is what ``Scene.scattering_orders="auto"`` means, ``ms_tables`` the
+#: resolution of the tables of orders >= 2 and ``ms_wavelength_nodes`` their wavelengths
 FIDELITY = {
     "fast": {
         "eclipse_sky_lut": (12, 24), "eclipse_samples": 24,
         "sky_lut": (12, 13), "sky_samples": 24, "transmittance": (64, 16),
         "moon_lut": (8, 9), "moon_steps": 16, "moon_quadrature": 8,
         "moon_disc_quadrature": 12,
+        "scattering_orders": 1, "ms_tables": _MS_TINY, "ms_wavelength_nodes": 6,
         "skyglow": {"n_azimuth": 32, "n_elevation": 8, "n_distance": 16, "n_components": 4,
                     "max_distance_m": 30_000.0}},
     "default": {
@@ -72,6 +86,7 @@ FIDELITY = {
         "sky_lut": (24, 25), "sky_samples": 48, "transmittance": (128, 32),
         "moon_lut": (12, 13), "moon_steps": 32, "moon_quadrature": 16,
         "moon_disc_quadrature": 24,
+        "scattering_orders": "converged", "ms_tables": _MS_TINY, "ms_wavelength_nodes": 6,
         "skyglow": {"n_azimuth": 64, "n_elevation": 16, "n_distance": 32, "n_components": 8,
                     "max_distance_m": 40_000.0}},
     "reference": {
@@ -79,6 +94,7 @@ FIDELITY = {
         "sky_lut": (48, 49), "sky_samples": 128, "transmittance": (256, 64),
         "moon_lut": (24, 25), "moon_steps": 64, "moon_quadrature": 32,
         "moon_disc_quadrature": 48,
+        "scattering_orders": "converged", "ms_tables": _MS_COARSE, "ms_wavelength_nodes": 8,
         "skyglow": {"n_azimuth": 128, "n_elevation": 32, "n_distance": 64,
                     "n_components": 16, "max_distance_m": 40_000.0}},
 }

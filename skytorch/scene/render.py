@@ -86,6 +86,10 @@ class Knobs:
         The airglow layer's height [m] and the 10.7 cm solar flux setting its level [sfu].
     light_map, observer_xy, lamp
         The scene's city lights.
+    scattering_orders : dict
+        The planner's orders of scattering (:attr:`skytorch.scene.planner.Plan.
+        scattering_orders`): ``"sky"``, ``"moon"`` and the orders of the tables
+        (``"tables"``).
     """
 
     fidelity: Mapping
@@ -107,6 +111,7 @@ class Knobs:
     light_map: object = None
     observer_xy: tuple = (0.0, 0.0)
     lamp: str = "white"
+    scattering_orders: Mapping = None
 
     def __getitem__(self, name: str):
         """Return the fidelity knob ``name``."""
@@ -125,7 +130,13 @@ class Knobs:
                    natural_model=scene.natural_model, airglow_fraction=scene.airglow_fraction,
                    airglow_height_m=scene.airglow_height_m,
                    solar_flux_sfu=scene.solar_flux_sfu, light_map=scene.light_map,
-                   observer_xy=tuple(scene.observer_xy), lamp=scene.lamp)
+                   observer_xy=tuple(scene.observer_xy), lamp=scene.lamp,
+                   scattering_orders=(None if plan is None
+                                      else dict(plan.scattering_orders)))
+
+    def orders(self, source: str) -> int:
+        """Orders of scattering of the ``"sky"`` or the ``"moon"`` (1 without a plan)."""
+        return 1 if self.scattering_orders is None else int(self.scattering_orders[source])
 
 
 def _zenith_nodes(n: int, dtype) -> torch.Tensor:
@@ -157,22 +168,88 @@ def _lookup(table: torch.Tensor, zenith: torch.Tensor, relative_azimuth: torch.T
     return out[0, :, 0, :].T.reshape(*zenith.shape, n_wl)
 
 
+def interpolate_wavelength(values: torch.Tensor, nodes: torch.Tensor,
+                           wavelength: torch.Tensor) -> torch.Tensor:
+    r"""Interpolate a spectrum (..., node) at increasing nodes [nm] to wavelengths [nm].
+
+    Linear in :math:`\ln` of the values between the two nodes around each wavelength
+    (linear in the values where either is not positive); the nodes span the wavelengths
+    (:meth:`~skytorch.scene.resources.SceneResources.scattering_nodes`), a wavelength
+    outside them raises ``ValueError``. Returns (..., wavelength).
+    """
+    wl = wavelength.to(nodes.dtype)
+    if bool((wl < nodes[0] - 1e-9).any() or (wl > nodes[-1] + 1e-9).any()):
+        raise ValueError(f"wavelength must lie within the nodes [{float(nodes[0])}, "
+                         f"{float(nodes[-1])}] nm; got {wl.tolist()}")
+    if nodes.numel() == 1:
+        return values[..., [0] * wl.numel()]
+    upper = torch.searchsorted(nodes, wl.contiguous()).clamp(1, nodes.numel() - 1)
+    lower = upper - 1
+    t = ((wl - nodes[lower]) / (nodes[upper] - nodes[lower]))
+    left, right = values[..., lower], values[..., upper]
+    positive = (left > 0) & (right > 0)
+    logs = torch.exp((1.0 - t) * torch.log(torch.where(positive, left, 1.0))
+                     + t * torch.log(torch.where(positive, right, 1.0)))
+    return torch.where(positive, logs, (1.0 - t) * left + t * right)
+
+
+def higher_orders(resources, knobs, source_zenith_rad: float, zenith, relative_azimuth,
+                  wavelength, orders: int) -> torch.Tensor:
+    r"""Orders 2..N of the sky per unit irradiance of a point source (..., wl) [sr^-1].
+
+    From the resources' multiple-scattering tables
+    (:meth:`~skytorch.scene.resources.SceneResources.scattering_tables`, resolution and
+    wavelength nodes of the fidelity preset): ``radiance(N) - radiance(1)`` at the
+    view zenith angles and azimuths relative to the source, for a source at
+    ``source_zenith_rad``, interpolated from the nodes to ``wavelength`` in log radiance
+    (:func:`interpolate_wavelength`).
+    """
+    tables = resources.scattering_tables(knobs.scattering_orders["tables"],
+                                         knobs["ms_tables"], knobs["ms_wavelength_nodes"])
+    source = torch.full_like(zenith, source_zenith_rad)
+    args = (knobs.elevation_m, zenith, torch.remainder(relative_azimuth, 2.0 * math.pi),
+            source)
+    higher = (tables.radiance(*args, scattering_orders=orders)
+              - tables.radiance(*args, scattering_orders=1))
+    return interpolate_wavelength(higher, tables.wavelength_nm, wavelength)
+
+
 def sky_table(resources, geometry, knobs, wavelength):
-    """Sunlit-sky spectral radiance on the (zenith, relative azimuth) grid (z, a, wl)."""
+    """Sunlit-sky spectral radiance on the (zenith, relative azimuth) grid (z, a, wl).
+
+    Single scattering (:meth:`Atmosphere.sky_radiance`) plus, when the planner keeps
+    ``knobs.orders("sky") > 1``, the orders 2..N of :func:`higher_orders` times the
+    extraterrestrial solar spectrum.
+    """
     atm = resources.atmosphere
     n_z, n_a = knobs["sky_lut"]
     zenith = _zenith_nodes(n_z, torch.float64)
     azimuth = _azimuth_nodes(n_a, torch.float64)
     z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
-    sun_zenith = torch.full_like(z, math.radians(90.0 - geometry.sun_altitude_deg))
+    sun_zenith = math.radians(90.0 - geometry.sun_altitude_deg)
     table = resources.transmittance_table(*knobs["transmittance"])
-    return atm.sky_radiance(wavelength.to(torch.float64), z, a, sun_zenith,
-                            torch.zeros_like(z), knobs.elevation_m, solar_irradiance=True,
-                            n_samples=knobs["sky_samples"], table=table)
+    wl = wavelength.to(torch.float64)
+    single = atm.sky_radiance(wl, z, a, torch.full_like(z, sun_zenith),
+                              torch.zeros_like(z), knobs.elevation_m, solar_irradiance=True,
+                              n_samples=knobs["sky_samples"], table=table)
+    if knobs.orders("sky") == 1:
+        return single
+    from skytorch.spectrum import solar_irradiance
+
+    return single + solar_irradiance(wl) * higher_orders(
+        resources, knobs, sun_zenith, z, a, wl, knobs.orders("sky"))
 
 
 def moon_table(resources, geometry, knobs, wavelength):
-    """Moonlit-sky spectral radiance on the (zenith, relative azimuth) grid (z, a, wl)."""
+    """Moonlit-sky spectral radiance on the (zenith, relative azimuth) grid (z, a, wl).
+
+    Single scattering (:func:`skytorch.moon.sky.moonlit_sky_single_scattering`) plus,
+    when the planner keeps ``knobs.orders("moon") > 1``, the orders 2..N of the Moon as a
+    point source: the Moon's irradiance above the atmosphere
+    (:func:`skytorch.moon.lunar_irradiance`) times :func:`higher_orders` for the Moon's
+    zenith angle, as :func:`skytorch.moon.sky.moonlit_sky_multiple_scattering`.
+    """
+    from skytorch.moon import lunar_irradiance
     from skytorch.moon.sky import moonlit_sky_single_scattering
 
     n_z, n_a = knobs["moon_lut"]
@@ -180,12 +257,18 @@ def moon_table(resources, geometry, knobs, wavelength):
     azimuth = _azimuth_nodes(n_a, torch.float64)
     z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
     moon_zenith = min(math.radians(90.0 - geometry.moon_altitude_deg), _MAX_MOONLIT_ZENITH)
-    return moonlit_sky_single_scattering(
-        resources.atmosphere, torch.tensor(geometry.phase_angle_rad, dtype=torch.float64),
-        torch.tensor(moon_zenith, dtype=torch.float64), z, a,
-        wavelength_nm=wavelength.to(torch.float64), distance_m=geometry.moon_distance_m,
+    phase = torch.tensor(geometry.phase_angle_rad, dtype=torch.float64)
+    wl = wavelength.to(torch.float64)
+    single = moonlit_sky_single_scattering(
+        resources.atmosphere, phase, torch.tensor(moon_zenith, dtype=torch.float64), z, a,
+        wavelength_nm=wl, distance_m=geometry.moon_distance_m,
         altitude_m=knobs.elevation_m, n_steps=knobs["moon_steps"],
         n_quadrature=knobs["moon_quadrature"])
+    if knobs.orders("moon") == 1:
+        return single
+    higher = higher_orders(resources, knobs, moon_zenith, z, a, wl, knobs.orders("moon"))
+    return single + lunar_irradiance(phase, wl, distance_m=geometry.moon_distance_m,
+                                     n_quadrature=knobs["moon_quadrature"]) * higher
 
 
 def shadow_illuminance(resources, geometry, points_m: torch.Tensor, wavelength) -> torch.Tensor:

@@ -16,6 +16,11 @@ each built on first use and kept on the instance,
   vectors, per faintest magnitude;
 * skyglow models (:class:`skytorch.skyglow.SkyglowModel`, also cached on disk with
   :mod:`skytorch._cache`), per model setting;
+* multiple-scattering tables (:func:`skytorch.atmosphere.multiple_scattering.
+  precompute_scattering`, black ground) at a few wavelength nodes spanning the spec's
+  grid, per (orders, table resolution, number of nodes); one table serves every point
+  source (Sun and Moon), since it is per unit irradiance and the source direction is an
+  argument of its look-up;
 * the fisheye and panorama views (pixel directions and solid angles) per size and dtype;
 * the Sun and Moon per (instant, site) (:func:`skytorch.scene.geometry.site_geometries`,
   the last :data:`SceneResources.GEOMETRIES_KEPT`), so that planning and rendering, and
@@ -497,6 +502,52 @@ class SceneResources:
             return model
 
         return self._get(("skyglow", json.dumps(settings, sort_keys=True)), build)
+
+    # ------------------------------------------------------------------ multiple scattering
+    def scattering_nodes(self, n_nodes: int) -> torch.Tensor:
+        """Wavelength nodes (n,) [nm] of the multiple-scattering tables, increasing.
+
+        The spec's wavelengths themselves (sorted) when there are at most ``n_nodes`` of
+        them, else ``n_nodes`` nodes uniform from the shortest to the longest.
+        """
+        n_nodes = int(n_nodes)
+        if n_nodes < 2:
+            raise ValueError(f"n_nodes must be an integer >= 2; got {n_nodes}")
+        grid = sorted(self.spec.wavelengths)
+        if len(grid) <= n_nodes:
+            return torch.tensor(grid, dtype=torch.float64)
+        return torch.linspace(grid[0], grid[-1], n_nodes, dtype=torch.float64)
+
+    def scattering_tables(self, scattering_orders, resolution: dict, n_nodes: int):
+        """Multiple-scattering tables of the atmosphere at :meth:`scattering_nodes`.
+
+        :func:`skytorch.atmosphere.multiple_scattering.precompute_scattering` with
+        ``scattering_orders`` (an integer >= 1 or ``"converged"``), the
+        :class:`~skytorch.atmosphere.multiple_scattering.TableResolution` of the fields
+        ``resolution`` (a mapping) and a black ground (the scene has no ground
+        reflection); built once per (orders, resolution, nodes) and kept. The tables give
+        the radiance per unit irradiance of a point source in any direction, so the Sun and
+        the Moon share them.
+        """
+        if isinstance(scattering_orders, bool) or not (
+                scattering_orders == "converged"
+                or (isinstance(scattering_orders, int) and scattering_orders >= 1)):
+            raise ValueError("scattering_orders must be an integer >= 1 or 'converged'; "
+                             f"got {scattering_orders!r}")
+        settings = tuple(sorted((str(k), int(v)) for k, v in dict(resolution).items()))
+        nodes = self.scattering_nodes(n_nodes)
+
+        def build():
+            from skytorch.atmosphere.multiple_scattering import (
+                TableResolution,
+                precompute_scattering,
+            )
+
+            return precompute_scattering(self.atmosphere, nodes, ground_albedo=0.0,
+                                         scattering_orders=scattering_orders,
+                                         resolution=TableResolution(**dict(settings)))
+
+        return self._get(("scattering", scattering_orders, settings, int(n_nodes)), build)
 
     # ------------------------------------------------------------------ views
     def view(self, kind: str, size: int, dtype, build: Callable):

@@ -49,7 +49,7 @@ from skytorch._toml import loads as toml_loads
 from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
 from skytorch.dataset import open_dataset
 from skytorch.scene.planner import plan as make_plan
-from skytorch.scene.presets import EFFECTS, FIDELITY_PRESETS
+from skytorch.scene.presets import EFFECTS, FIDELITY_PRESETS, SCATTERING_ORDER_CHOICES
 from skytorch.scene.render import render as render_scene
 from skytorch.scene.resources import SceneResources, SceneSpec
 
@@ -384,6 +384,16 @@ def _wavelengths(value):
     return tuple(float(v) for v in wavelength)
 
 
+def _orders(value):
+    """Check ``scattering_orders``: "auto", "converged" or an integer >= 1."""
+    if isinstance(value, str):
+        return check_choice("scattering_orders", value, SCATTERING_ORDER_CHOICES)
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1:
+        return int(value)
+    raise ValueError(f"scattering_orders must be an integer >= 1, 'converged' or 'auto'; "
+                     f"got {value!r}")
+
+
 def _effects(name: str, value, vocabulary) -> tuple[str, ...]:
     """Return a tuple of names from ``vocabulary``, given as a sequence or a comma-separated str."""
     if value is None:
@@ -510,6 +520,11 @@ class Scene:
         omitted effect may cause, in [0, 1]; see :mod:`skytorch.scene.planner`.
     fidelity : {"fast", "default", "reference"}
         Knob preset of the modules (:data:`skytorch.scene.planner.FIDELITY`).
+    scattering_orders : {"auto", "converged"} or int
+        Orders of scattering of the sunlit and moonlit sky: 1 (single scattering), an
+        integer N >= 1 (orders 1..N), ``"converged"`` (the planner keeps the orders the
+        tolerance needs, :mod:`skytorch.scene.planner`) or ``"auto"``, the fidelity
+        preset's choice (1 for "fast", "converged" for "default" and "reference").
     force, exclude : sequence of str
         Effects always computed / never computed (planner vocabulary).
     outputs : sequence of str
@@ -583,6 +598,7 @@ class Scene:
     lamp: str = "white"
     tolerance: float = 0.01
     fidelity: str = "default"
+    scattering_orders: object = "auto"
     force: Sequence[str] = field(default_factory=tuple)
     exclude: Sequence[str] = field(default_factory=tuple)
     outputs: Sequence[str] = ("spectral", "xyz", "srgb", "v_mag")
@@ -612,6 +628,7 @@ class Scene:
         self.size = check_int("size", self.size, 2, MAX_SIZE)
         check_choice("fidelity", self.fidelity, FIDELITY_PRESETS)
         check_choice("natural_model", self.natural_model, NATURAL_MODELS)
+        self.scattering_orders = _orders(self.scattering_orders)
         if not isinstance(self.dtype, torch.dtype) or self.dtype not in (torch.float32,
                                                                           torch.float64):
             raise TypeError(f"dtype must be torch.float32 or torch.float64; got {self.dtype!r}")
@@ -870,7 +887,7 @@ class Scene:
         ``[atmosphere]`` (turbidity, ozone_du), ``[lights]``
         (``file`` = a netCDF light map, or ``synthetic_city`` = keyword table of
         :func:`skytorch.skyglow.citymap.synthetic_city`; observer_xy, lamp),
-        ``[planner]`` (tolerance, fidelity, force, exclude) and top-level time,
+        ``[planner]`` (tolerance, fidelity, scattering_orders, force, exclude) and top-level time,
         wavelengths, outputs, star_limit_mag, natural_mag_arcsec2.
         """
         if not isinstance(config, Mapping):
