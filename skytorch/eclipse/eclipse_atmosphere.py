@@ -14,17 +14,25 @@ adds the clouds and returns the :class:`~skytorch.eclipse.shadow.Shadow`. Ingred
   exponent 1.3 and the 1.2 km scale height;
 * **ozone**: a global mean column of 300 DU (WMO 2018 ozone assessment: the 1964–1980
   global mean about 306 DU, 2014–2017 about 2 % lower);
-* **clouds** (:func:`eclipse_shadow` only): a cloud deck with tops at 5 km covering
-  a fraction 0.66 of the limb (ISCCP: global cloud amount 66 %, Rossow & Schiffer 1999;
-  the mean cloud-top height of the ISCCP/CALIPSO climatologies is 5–6 km, Stubenrauch
-  et al. 2013). The rays whose lowest point is below the tops pass with weight
-  ``1 - cloud_fraction``.
+* **clouds** (:func:`eclipse_shadow` only), by default the cloud profile of
+  :func:`cloud_climatology` (``clouds="rossow1999"``): the ISCCP global cloud amounts of
+  the low, middle and high classes (tops below 680 hPa, 680–440 hPa, above 440 hPa;
+  Rossow & Schiffer 1999) with the tops spread evenly over each class (high tops up to
+  16 km, the top of the tropical cirrus, Nazaryan et al. 2008), turned into a limb
+  clear-line-of-sight probability ``(1 - f(h))^n`` whose exponent ``n`` makes the
+  probability at a tangent altitude of 7 km the one measured by solar occultation (SAGE:
+  successful penetrations to 7 km about 30 % of the time in the tropics, up to 60 % at
+  higher latitudes, Woodbury & McCormick 1983, 1986), averaged along the terminator.
+  ``clouds="deck"`` keeps the former single deck (tops 5 km, fraction 0.66, ISCCP total
+  amount and the 5–6 km mean top height of Stubenrauch et al. 2013): rays whose lowest
+  point is below the tops pass with weight ``1 - cloud_fraction``.
 
 The split: the :class:`~skytorch.atmosphere.Atmosphere` holds what extinguishes the light
 along a ray (molecules, aerosols, ozone, gases), the :class:`~skytorch.eclipse.shadow.Shadow`
 holds what blocks rays by their lowest point (ground, terrain, cloud tops:
-``cloud_top_altitude_m``, ``cloud_fraction``, ``terrain_height_m``), because a cloud is an
-opaque boundary of the ring integral, not an extinction coefficient.
+``cloud_cover``, or ``cloud_top_altitude_m`` and ``cloud_fraction``; ``terrain_height_m``),
+because a cloud is an opaque boundary of the ring integral, not an extinction
+coefficient.
 
 Everything is a global mean: the terminator crosses all latitudes and the limb average is
 a global one to first order; the seasonal and latitudinal structure is not modelled.
@@ -42,6 +50,14 @@ References
    Bull. Am. Meteorol. Soc. 80, 2261, doi:10.1175/1520-0477(1999)080<2261:AIUCFI>2.0.CO;2.
 5. Stubenrauch, C. J. et al. 2013, Assessment of global cloud datasets from satellites,
    Bull. Am. Meteorol. Soc. 94, 1031, doi:10.1175/BAMS-D-12-00117.1.
+7. Woodbury, G. E., McCormick, M. P. 1983, Global distributions of cirrus clouds
+   determined from SAGE data, Geophys. Res. Lett. 10, 1180, doi:10.1029/GL010i012p01180;
+   1986, Zonal and geographical distributions of cirrus clouds determined from SAGE data,
+   J. Geophys. Res. 91, 2775, doi:10.1029/JD091iD02p02775.
+8. Nazaryan, H., McCormick, M. P., Menzel, W. P. 2008, Global characterization of cirrus
+   clouds using CALIPSO data, J. Geophys. Res. 113, D16211, doi:10.1029/2007JD009481.
+9. U.S. Standard Atmosphere 1976, NOAA-S/T 76-1562 (pressure levels 680 hPa at 3.24 km,
+   440 hPa at 6.51 km).
 6. WMO 2018, Scientific Assessment of Ozone Depletion: 2018, Global Ozone Research and
    Monitoring Project Report 58, ch. 3.
 
@@ -61,20 +77,27 @@ import csv
 from functools import lru_cache
 
 import numpy as np
+import torch
 
 from skytorch._data import data_path
-from skytorch._validate import check_range
+from skytorch._validate import check_choice, check_range
 from skytorch.atmosphere import Atmosphere
 from skytorch.eclipse.circumstances import _parse_one
-from skytorch.eclipse.shadow import Shadow
+from skytorch.eclipse.shadow import LimbCloudCover, Shadow
 from skytorch.ephemeris import parse_times
 
 __all__ = [
+    "CLOUD_CLASS_AMOUNTS",
+    "CLOUD_CLASS_TOPS_M",
     "CLOUD_FRACTION",
+    "CLOUD_MODELS",
     "CLOUD_TOP_ALTITUDE_M",
+    "SAGE_CLEAR_7KM",
     "OZONE_DU",
     "STRATOSPHERIC_AOD_FILE",
+    "TROPICAL_TERMINATOR_SHARE",
     "TROPOSPHERIC_AOD_550",
+    "cloud_climatology",
     "eclipse_atmosphere",
     "eclipse_shadow",
     "stratospheric_aod",
@@ -90,6 +113,21 @@ OZONE_DU = 300.0
 CLOUD_TOP_ALTITUDE_M = 5000.0
 #: global cloud amount (ISCCP, Rossow & Schiffer 1999)
 CLOUD_FRACTION = 0.66
+#: ISCCP global cloud amounts as seen from above of the low (tops below 680 hPa),
+#: middle (680-440 hPa) and high (above 440 hPa) classes [1] (Rossow & Schiffer 1999;
+#: sum 0.66, the total amount)
+CLOUD_CLASS_AMOUNTS = (0.27, 0.19, 0.20)
+#: altitudes bounding the classes' tops [m]: ground, 680 hPa and 440 hPa in the U.S.
+#: 1976 atmosphere, and 16 km, the highest tropical cirrus tops (Nazaryan et al. 2008)
+CLOUD_CLASS_TOPS_M = (0.0, 3240.0, 6510.0, 16000.0)
+#: SAGE solar occultations penetrating to a tangent altitude of 7 km [1]: ~0.30 in the
+#: tropics, up to 0.60 at higher latitudes (Woodbury & McCormick 1983, 1986)
+SAGE_CLEAR_7KM = {"tropics": 0.30, "extratropics": 0.60, "altitude_m": 7000.0}
+#: share of the terminator's length within 25 deg of the equator (a great circle through
+#: the poles: 50/180; 0.31 at a solar declination of 23.4 deg)
+TROPICAL_TERMINATOR_SHARE = 0.28
+#: cloud models of :func:`eclipse_shadow`
+CLOUD_MODELS = ("rossow1999", "deck", "none")
 
 
 @lru_cache(maxsize=1)
@@ -166,19 +204,87 @@ def eclipse_atmosphere(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550, ozone_du=
                             name=f"eclipse {np.datetime_as_string(moment, 'D')}")
 
 
-def eclipse_shadow(date, *, cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,
-                   cloud_fraction=CLOUD_FRACTION, atmosphere=None, **shadow_options):
-    """Build the Earth's shadow of ``date``: :func:`eclipse_atmosphere` and a cloud deck.
+def cloud_climatology(limb_clear_7km=None, *, amounts=CLOUD_CLASS_AMOUNTS) -> LimbCloudCover:
+    r"""Limb cloud profile of the global-mean cloud-top climatology (ISCCP classes, SAGE).
+
+    The nadir cover ``f(z)`` (fraction of the area with cloud tops above ``z``) falls
+    linearly within each ISCCP class, from the total amount at the ground to 0 at 16 km
+    (tops spread evenly over ``CLOUD_CLASS_TOPS_M``). The limb exponent ``n`` makes
+    ``(1 - f(7 km))^n`` the probability that a solar occultation reaches 7 km:
+
+    .. math::
+
+        n = rac{\ln P_{SAGE}(7\,km)}{\ln(1 - f(7\,km))}, \qquad
+        P_{SAGE} = s\,P_{tropics} + (1 - s)\,P_{extratropics}
+
+    with ``s`` the tropical share of the terminator (``TROPICAL_TERMINATOR_SHARE``). The
+    occultation path is the eclipse ray's own geometry (a solar limb path at the
+    terminator, sunrise or sunset), so the measured probability already contains the
+    long limb chord and the semi-transparent cirrus that it sees as opaque.
+
+    Parameters
+    ----------
+    limb_clear_7km : float or Tensor (), optional
+        Clear-line-of-sight probability at 7 km [1], in (0, 1); default the terminator
+        mean of Woodbury & McCormick's 0.30 (tropics) and 0.60 (higher latitudes), 0.516.
+        Their range 0.30-0.60 is the uncertainty of the profile.
+    amounts : sequence of 3 float or Tensor (3,)
+        Low, middle and high cloud amounts [1] (sum <= 1); default ISCCP.
+
+    Returns
+    -------
+    skytorch.eclipse.shadow.LimbCloudCover
+        Named ``"rossow1999"``; tensors that require a gradient keep it.
+
+    Examples
+    --------
+    >>> cover = cloud_climatology()
+    >>> round(float(cover.limb_exponent), 2)
+    3.15
+    >>> import torch
+    >>> [round(v, 3) for v in cover.clear_fraction(torch.tensor([0.0, 7e3, 16e3])).tolist()]
+    [0.034, 0.516, 1.0]
+    """
+    if limb_clear_7km is None:
+        share = TROPICAL_TERMINATOR_SHARE
+        limb_clear_7km = (share * SAGE_CLEAR_7KM["tropics"]
+                          + (1.0 - share) * SAGE_CLEAR_7KM["extratropics"])
+    clear = check_range("limb_clear_7km", limb_clear_7km, 0.0, 1.0, low_inclusive=False,
+                        high_inclusive=False, dtype=torch.float64)
+    amounts = check_range("amounts", amounts, 0.0, 1.0, dtype=torch.float64)
+    if amounts.shape != (3,) or float(amounts.detach().sum()) > 1.0:
+        raise ValueError("amounts must be the 3 cloud amounts (low, middle, high) with a sum "
+                         f"<= 1; got {amounts.detach().tolist()}")
+    low, middle, high = amounts.unbind()
+    zero = torch.zeros((), dtype=torch.float64)
+    cover = torch.stack([low + middle + high, middle + high, high, zero])
+    tops = torch.tensor(CLOUD_CLASS_TOPS_M, dtype=torch.float64)
+    profile = LimbCloudCover(tops, cover, 1.0)
+    at_7km = profile.cover_at(torch.tensor(SAGE_CLEAR_7KM["altitude_m"], dtype=torch.float64))
+    exponent = torch.log(clear) / torch.log1p(-at_7km)
+    return LimbCloudCover(tops, cover, exponent, name="rossow1999")
+
+
+def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,
+                   cloud_fraction=CLOUD_FRACTION, cloud_cover=None, atmosphere=None,
+                   **shadow_options):
+    """Build the Earth's shadow of ``date``: :func:`eclipse_atmosphere` and the clouds.
 
     Parameters
     ----------
     date : str, datetime or datetime64
         Date of the eclipse (UTC).
+    clouds : {"rossow1999", "deck", "none"}
+        ``"rossow1999"``: the limb cloud profile ``cloud_cover`` (default
+        :func:`cloud_climatology`); ``"deck"``: one deck of ``cloud_top_altitude_m`` and
+        ``cloud_fraction``; ``"none"``: no clouds.
     cloud_top_altitude_m : float or Tensor ()
-        Cloud-top altitude [m] below which rays pass with weight ``1 - cloud_fraction``;
-        default 5 km.
+        For ``"deck"``: cloud-top altitude [m] below which rays pass with weight
+        ``1 - cloud_fraction``; default 5 km.
     cloud_fraction : float
-        Fraction of the limb covered by clouds, in [0, 1]; default 0.66.
+        For ``"deck"``: fraction of the limb covered by clouds, in [0, 1]; default 0.66.
+    cloud_cover : LimbCloudCover, optional
+        For ``"rossow1999"``: the profile; default ``cloud_climatology()``.
     atmosphere : Atmosphere, optional
         Default ``eclipse_atmosphere(date)``.
     **shadow_options
@@ -189,7 +295,13 @@ def eclipse_shadow(date, *, cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,
     -------
     skytorch.eclipse.shadow.Shadow
     """
+    check_choice("clouds", clouds, CLOUD_MODELS)
     if atmosphere is None:
         atmosphere = eclipse_atmosphere(date)
-    return Shadow.earth(atmosphere, cloud_top_altitude_m=cloud_top_altitude_m,
-                        cloud_fraction=cloud_fraction, **shadow_options)
+    if clouds == "deck":
+        return Shadow.earth(atmosphere, cloud_top_altitude_m=cloud_top_altitude_m,
+                            cloud_fraction=cloud_fraction, **shadow_options)
+    if clouds == "none":
+        return Shadow.earth(atmosphere, **shadow_options)
+    cover = cloud_climatology() if cloud_cover is None else cloud_cover
+    return Shadow.earth(atmosphere, cloud_cover=cover, **shadow_options)

@@ -125,6 +125,7 @@ from skytorch.eclipse.shadow_scattering import ScatteringProfile, scattered_illu
 
 __all__ = [
     "EARTH_MEAN_TERRAIN_HEIGHT_M",
+    "LimbCloudCover",
     "MARS_SEMI_MAJOR_AXIS_M",
     "RingProfile",
     "Shadow",
@@ -424,7 +425,10 @@ class RingProfile:
         Impact altitudes of the rays whose lowest point is at a kink of the refractivity
         profile, that are nodes of the table [m].
     terrain_height_m, cloud_top_m, cloud_fraction : float or None
-        Ray weights, see :meth:`weight`.
+        Ray weights, see :func:`_ray_weight`.
+    cloud_cover : LimbCloudCover or None
+        Clear-line-of-sight probability of the limb rays by periapsis altitude (the cloud
+        profile), a further ray weight.
     deviation_rad : Tensor (n,)
         Total bending [rad].
     optical_depth : Tensor (n, n_wavelength) or (n, n_batch, n_wavelength)
@@ -440,8 +444,10 @@ class RingProfile:
 
     def __init__(self, beta_min_m, beta_top_m, deviation_rad, optical_depth,
                  periapsis_altitude_m, terrain_height_m=None, split_betas_m=(),
-                 cloud_top_m=0.0, cloud_fraction=0.0, kink_betas_m=(), cloud_split_m=None):
+                 cloud_top_m=0.0, cloud_fraction=0.0, kink_betas_m=(), cloud_split_m=None,
+                 cloud_cover=None):
         self.beta_min_m = float(beta_min_m)
+        self.cloud_cover = cloud_cover
         self.beta_top_m = float(beta_top_m)
         self.deviation_rad = deviation_rad
         self.optical_depth = optical_depth
@@ -538,7 +544,8 @@ def _ray_weight(periapsis_m: torch.Tensor, profile: RingProfile) -> torch.Tensor
     """Fraction of the rays with periapsis altitude ``h`` not blocked by terrain or clouds.
 
     Terrain: ``clamp(h / (2 h_terrain), 0, 1)`` (Schneegans et al. 2025 §5.2); clouds: a
-    fraction ``f`` of the limb has tops at ``h_c``, so rays below pass with ``1 - f``.
+    fraction ``f`` of the limb has tops at ``h_c``, so rays below pass with ``1 - f``;
+    a cloud profile (:class:`LimbCloudCover`): its clear-line-of-sight probability.
     """
     weight = torch.ones_like(periapsis_m)
     if profile.terrain_height_m is not None:
@@ -546,7 +553,128 @@ def _ray_weight(periapsis_m: torch.Tensor, profile: RingProfile) -> torch.Tensor
     if profile.cloud_fraction > 0.0 and profile.cloud_top_m > 0.0:
         weight = weight * torch.where(periapsis_m < profile.cloud_top_m,
                                       1.0 - profile.cloud_fraction, 1.0)
+    cover = getattr(profile, "cloud_cover", None)
+    if cover is not None:
+        weight = weight * cover.clear_fraction(periapsis_m)
     return weight
+
+
+class LimbCloudCover:
+    r"""Cloud profile of the limb: the chance that a grazing ray passes the cloud tops.
+
+    A ray whose lowest point is at altitude ``h`` crosses the limb below any cloud top
+    ``z > h`` along a chord of length ``2 sqrt(2 R (z - h))`` (~±200 km for
+    ``z - h = 3 km``), much longer than a nadir view. The profile is the nadir cloud-top
+    climatology ``f(z)``, the fraction of the area covered by clouds with tops above ``z``
+    (piecewise linear between ``altitude_m`` nodes, constant outside them), raised to an
+    effective number ``n`` of independent cloud fields along the limb chord:
+
+    .. math::
+
+        P_{clear}(h) = (1 - f(h))^{n} .
+
+    ``n = 1`` is the nadir cover itself (a single deck ``f = cloud_fraction`` below
+    ``cloud_top_altitude_m`` is the case of two nodes with a step); a larger ``n`` states
+    that the long limb chord meets more clouds than a vertical column. The clouds met are
+    opaque: a cirrus of vertical optical depth 0.03 has a slant optical depth ~30-100
+    times larger along the limb chord.
+
+    Parameters
+    ----------
+    altitude_m : sequence of float or Tensor (k,)
+        Nodes [m], ``k >= 2``, strictly increasing, >= 0 (fixed; not differentiated).
+    cover : sequence of float or Tensor (k,)
+        ``f`` at the nodes [1], in [0, 1], non-increasing with altitude. A tensor that
+        requires a gradient keeps it (:meth:`clear_fraction` is differentiable in it).
+    limb_exponent : float or Tensor ()
+        ``n`` [1], in [0, 1000]; a tensor that requires a gradient keeps it.
+    name : str
+        Label for Dataset attributes.
+
+    Examples
+    --------
+    >>> cover = LimbCloudCover([0.0, 3000.0, 9000.0], [0.6, 0.3, 0.0], limb_exponent=2.0)
+    >>> [round(v, 4) for v in cover.clear_fraction(torch.tensor([0.0, 6000.0, 1e4])).tolist()]
+    [0.16, 0.7225, 1.0]
+    """
+
+    def __init__(self, altitude_m, cover, limb_exponent=1.0, *, name: str = "custom"):
+        altitude = check_range("altitude_m", altitude_m, 0.0, unit=" m", dtype=torch.float64)
+        values = check_range("cover", cover, 0.0, 1.0, dtype=torch.float64)
+        if altitude.ndim != 1 or altitude.shape[0] < 2:
+            raise ValueError("altitude_m must be a 1-d sequence of at least 2 nodes; got "
+                             f"shape {tuple(altitude.shape)}")
+        if values.shape != altitude.shape:
+            raise ValueError(f"cover must have the shape of altitude_m {tuple(altitude.shape)}; "
+                             f"got {tuple(values.shape)}")
+        if bool((torch.diff(altitude.detach()) <= 0.0).any()):
+            raise ValueError("altitude_m must be strictly increasing; got "
+                             f"{altitude.detach().tolist()}")
+        if bool((torch.diff(values.detach()) > 0.0).any()):
+            raise ValueError("cover (the fraction with cloud tops above each altitude) must "
+                             f"not increase with altitude; got {values.detach().tolist()}")
+        exponent = check_range("limb_exponent", limb_exponent, 0.0, 1000.0,
+                               dtype=torch.float64)
+        if exponent.ndim != 0:
+            raise ValueError("limb_exponent must be a number or a 0-d tensor; got shape "
+                             f"{tuple(exponent.shape)}")
+        self.altitude_m = altitude.detach()
+        self.cover = values
+        self.limb_exponent = exponent
+        self.name = str(name)
+
+    @property
+    def kink_altitudes_m(self) -> tuple[float, ...]:
+        """Node altitudes [m], where :meth:`clear_fraction` has kinks (quadrature splits)."""
+        return tuple(float(z) for z in self.altitude_m)
+
+    @property
+    def requires_grad(self) -> bool:
+        """Whether the cover or the exponent requires a gradient."""
+        return bool(self.cover.requires_grad or self.limb_exponent.requires_grad)
+
+    def cover_at(self, altitude_m: torch.Tensor) -> torch.Tensor:
+        """Nadir fraction ``f`` [1] with cloud tops above ``altitude_m`` [m] (any shape)."""
+        z = self.altitude_m.to(altitude_m.dtype)
+        cover = self.cover.to(altitude_m.dtype)
+        index = torch.clamp(torch.searchsorted(z, altitude_m.detach().contiguous(),
+                                               right=True), 1, z.shape[0] - 1)
+        z0, z1 = z[index - 1], z[index]
+        t = torch.clamp((altitude_m - z0) / (z1 - z0), 0.0, 1.0)
+        return cover[index - 1] + t * (cover[index] - cover[index - 1])
+
+    def clear_fraction(self, periapsis_m: torch.Tensor) -> torch.Tensor:
+        """Clear-line-of-sight probability ``(1 - f(h))^n`` [1] of rays with periapsis ``h``.
+
+        Parameters
+        ----------
+        periapsis_m : Tensor (...)
+            Lowest altitude of the rays [m].
+
+        Returns
+        -------
+        Tensor (...)
+            In [0, 1], dtype of ``periapsis_m``; exactly 0 where ``f = 1`` and ``n > 0``
+            (finite gradients there).
+        """
+        clear = 1.0 - self.cover_at(periapsis_m)
+        exponent = self.limb_exponent.to(periapsis_m.dtype)
+        positive = clear > 0.0
+        safe = torch.where(positive, clear, torch.ones_like(clear))
+        return torch.where(positive, safe ** exponent,
+                           torch.zeros_like(clear) if float(exponent.detach()) > 0.0
+                           else torch.ones_like(clear))
+
+    def parameters_dict(self) -> dict:
+        """Return nodes, cover and exponent (for Dataset attributes)."""
+        return {"name": self.name, "altitude_m": self.altitude_m.tolist(),
+                "cover": self.cover.detach().tolist(),
+                "limb_exponent": float(self.limb_exponent.detach())}
+
+    def __repr__(self) -> str:
+        """Name, node count and exponent."""
+        return (f"LimbCloudCover(name={self.name!r}, nodes={self.altitude_m.shape[0]}, "
+                f"limb_exponent={float(self.limb_exponent.detach()):.4g})")
 
 
 def _spline_slope(coefficients: torch.Tensor, s: torch.Tensor):
@@ -848,6 +976,14 @@ class Shadow(nn.Module):
     cloud_fraction : float
         Fraction of the limb covered by those clouds (1: a closed deck; 0.5: half the
         rays below the cloud tops pass).
+    cloud_cover : LimbCloudCover, optional
+        A cloud profile instead of the single deck: rays with periapsis ``h`` pass with
+        its clear-line-of-sight probability (``LimbCloudCover.clear_fraction``); the
+        ring quadrature is split at the rays grazing its nodes. Its cover and exponent
+        given as tensors that require a gradient keep it in :meth:`relative_illuminance`
+        and :class:`~skytorch.eclipse.shadow_table.ShadowTable` (not with
+        ``scattering=True``: ``ValueError``). Exclusive with a cloud deck
+        (``cloud_top_altitude_m > 0``).
     terrain_height_m : float or None
         Mean terrain height for the linear attenuation of rays with periapsis between 0 and
         twice this height [m] (Schneegans et al. 2025 §5.2); ``None``: off.
@@ -884,7 +1020,7 @@ class Shadow(nn.Module):
     def __init__(self, *, occluder_radius_m: float, sun_distance_m: float, atmosphere=None,
                  sun_radius_m: float = SUN_RADIUS_M, refraction: bool = True,
                  extinction: bool = True, cloud_top_altitude_m: float = 0.0,
-                 cloud_fraction: float = 1.0,
+                 cloud_fraction: float = 1.0, cloud_cover: LimbCloudCover | None = None,
                  terrain_height_m: float | None = None, limb_darkening=0.6,
                  law: str = "linear", n_altitude: int = DEFAULT_N_ALTITUDE,
                  n_ring: int | None = None, n_arc: int = DEFAULT_ARC_NODES,
@@ -923,6 +1059,16 @@ class Shadow(nn.Module):
         self.cloud_top_parameter = (cloud_top if isinstance(cloud_top_altitude_m, torch.Tensor)
                                     else None)
         self.cloud_fraction = float(check_range("cloud_fraction", cloud_fraction, 0.0, 1.0))
+        if cloud_cover is not None:
+            if not isinstance(cloud_cover, LimbCloudCover):
+                raise TypeError("cloud_cover must be a LimbCloudCover or None; got "
+                                f"{type(cloud_cover).__name__}: {cloud_cover!r:.60}")
+            if self.cloud_top_parameter is not None or self.cloud_top_altitude_m > 0.0:
+                raise ValueError("give either a cloud deck (cloud_top_altitude_m > 0) or a "
+                                 "cloud profile (cloud_cover), not both; got "
+                                 f"cloud_top_altitude_m={self.cloud_top_altitude_m:.6g} m "
+                                 f"and cloud_cover={cloud_cover!r}")
+        self.cloud_cover = cloud_cover
         if terrain_height_m is not None:
             terrain_height_m = float(check_positive("terrain_height_m", terrain_height_m,
                                                     unit=" m"))
@@ -990,6 +1136,8 @@ class Shadow(nn.Module):
             "sun_radius_m": self.sun_radius_m, "refraction": self.refraction,
             "extinction": self.extinction, "cloud_top_altitude_m": self.cloud_top_altitude_m,
             "cloud_fraction": self.cloud_fraction,
+            "cloud_cover": ("none" if self.cloud_cover is None
+                            else self.cloud_cover.parameters_dict()),
             "terrain_height_m": self.terrain_height_m if self.terrain_height_m else "none",
             "limb_darkening": self.limb_darkening.tolist(), "limb_darkening_law": self.law,
             "n_altitude": self.n_altitude, "n_arc": self.n_arc,
@@ -1062,6 +1210,9 @@ class Shadow(nn.Module):
             if (cloud_parameter is None and not closed and self.cloud_fraction > 0.0
                     and self.cloud_top_altitude_m > 0.0):
                 splits.append(impact_of(self.cloud_top_altitude_m))
+            if self.cloud_cover is not None:
+                splits += [impact_of(z) for z in self.cloud_cover.kink_altitudes_m
+                           if lowest_altitude < z < top]
             # kinks of the refractivity profile (e.g. the US 1976 layer bases): table nodes
             kinks = [impact_of(h) for h in getattr(atm, "refractivity_kinks_m", ())
                      if lowest_altitude < h < top]
@@ -1097,7 +1248,8 @@ class Shadow(nn.Module):
                               cloud_top_m=0.0 if closed else self.cloud_top_altitude_m,
                               cloud_fraction=0.0 if closed else self.cloud_fraction,
                               kink_betas_m=grid.kinks_m,
-                              cloud_split_m=self._cloud_split(atm, top))
+                              cloud_split_m=self._cloud_split(atm, top),
+                              cloud_cover=self.cloud_cover)
         if not differentiable:
             self._profiles[key] = profile
         return profile
@@ -1131,6 +1283,12 @@ class Shadow(nn.Module):
                              "with respect to cloud_top_altitude_m (its kernel is tabulated "
                              "without gradients): pass the cloud top detached, or "
                              "scattering=False")
+        if (self.cloud_cover is not None and self.cloud_cover.requires_grad
+                and torch.is_grad_enabled()):
+            raise ValueError("the scattered light (scattering=True) is not differentiable "
+                             "with respect to cloud_cover (its kernel is tabulated without "
+                             "gradients): pass its cover and limb_exponent detached, or "
+                             "scattering=False")
         wavelength = _check_wavelength(wavelength_nm, torch.float64)
         key = tuple(round(float(x), 9) for x in wavelength)
         if key not in self._scattering_profiles:
@@ -1138,7 +1296,8 @@ class Shadow(nn.Module):
             cloud = self.cloud_top_altitude_m
             weights = RingProfile(0.0, 1.0, torch.zeros(3), torch.zeros(3, 1), torch.zeros(3),
                                   self.terrain_height_m, cloud_top_m=0.0 if closed else cloud,
-                                  cloud_fraction=0.0 if closed else self.cloud_fraction)
+                                  cloud_fraction=0.0 if closed else self.cloud_fraction,
+                                  cloud_cover=self.cloud_cover)
             self._scattering_profiles[key] = ScatteringProfile(
                 self.atmosphere, wavelength, lowest_altitude_m=cloud if closed else 0.0,
                 ray_weight=lambda h: _ray_weight(h, weights),
