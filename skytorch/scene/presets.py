@@ -64,9 +64,11 @@ SCATTERING_ORDER_CHOICES = ("auto", "converged")
 
 #: multiple-scattering tables of the presets (:class:`skytorch.atmosphere.multiple_scattering.
 #: TableResolution` fields; error and cost in docs/scene.md, experiment scene_ms_accuracy_cost)
-_MS_TINY = {"n_r": 5, "n_mu": 16, "n_mu_s": 8, "n_phi": 5, "n_ray": 16, "n_sphere_mu": 4,
-            "transmittance_r": 16, "transmittance_mu": 32}
-_MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 16, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
+#: TableResolution.tiny() but 24 Sun zenith nodes (8 make the twilight 3-4 mag too bright
+#: at -12 deg: the linear interpolation across a steep fall in mu_s)
+_MS_SMALL = {"n_r": 5, "n_mu": 16, "n_mu_s": 24, "n_phi": 5, "n_ray": 16, "n_sphere_mu": 4,
+             "transmittance_r": 16, "transmittance_mu": 32}
+_MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 24, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
               "transmittance_r": 32, "transmittance_mu": 128}
 
 #: module knobs per fidelity preset (measured error and cost in docs/scene.md);
@@ -78,7 +80,7 @@ FIDELITY = {
         "sky_lut": (12, 13), "sky_samples": 24, "transmittance": (64, 16),
         "moon_lut": (8, 9), "moon_steps": 16, "moon_quadrature": 8,
         "moon_disc_quadrature": 12,
-        "scattering_orders": 1, "ms_tables": _MS_TINY, "ms_wavelength_nodes": 6,
+        "scattering_orders": 1, "ms_tables": _MS_SMALL, "ms_wavelength_nodes": 6,
         "skyglow": {"n_azimuth": 32, "n_elevation": 8, "n_distance": 16, "n_components": 4,
                     "max_distance_m": 30_000.0}},
     "default": {
@@ -86,7 +88,7 @@ FIDELITY = {
         "sky_lut": (24, 25), "sky_samples": 48, "transmittance": (128, 32),
         "moon_lut": (12, 13), "moon_steps": 32, "moon_quadrature": 16,
         "moon_disc_quadrature": 24,
-        "scattering_orders": "converged", "ms_tables": _MS_TINY, "ms_wavelength_nodes": 6,
+        "scattering_orders": "converged", "ms_tables": _MS_SMALL, "ms_wavelength_nodes": 6,
         "skyglow": {"n_azimuth": 64, "n_elevation": 16, "n_distance": 32, "n_components": 8,
                     "max_distance_m": 40_000.0}},
     "reference": {

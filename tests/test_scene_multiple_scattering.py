@@ -1,0 +1,268 @@
+"""Multiple scattering in the scene's sunlit and moonlit sky (``Scene.scattering_orders``).
+
+The scene keeps its exact single-scattering look-up table and adds the orders 2..N of
+coarse multiple-scattering tables (:func:`skytorch.scene.render.higher_orders`). Checks:
+
+* plumbing: ``scattering_orders=1`` draws the single-scattering sky of the unchanged code
+  path bit for bit; the plan and the Dataset record the orders; bad values raise;
+* energy: the multiply-scattered sky is nowhere darker than the single-scattered one;
+* independent references: SPECTRL2's diffuse horizontal irradiance (Bird & Riordan
+  1986, pvlib), the moonlit sky of Krisciunas & Schaefer (1991), and what is physically
+  certain of the twilight (a monotone fall of the zenith brightness; single scattering
+  alone loses the deep twilight, Patat et al. 2006: multiple scattering dominates there).
+
+Measured numbers are in docs/scene.md ("Multiple scattering").
+"""
+
+from __future__ import annotations
+
+import math
+import types
+
+import numpy as np
+import pytest
+import torch
+
+import skytorch as st
+from skytorch.constants import DEGREE, MAG, MEAN_EARTH_MOON_DISTANCE_M, PERCENT
+from skytorch.scene.presets import FIDELITY
+from skytorch.scene.render import Knobs, _lookup, moon_table, sky_component, sky_table
+from skytorch.scene.resources import SceneResources, SceneSpec
+
+DAY = {"time": "2015-06-21T10:00", "lat_deg": 48.85, "lon_deg": 2.35, "size": 24}
+#: the V-band grid of the moonlit-sky comparison [nm]
+V_GRID_NM = tuple(float(w) for w in np.arange(470.0, 701.0, 5.0))
+#: SPECTRL2 case (issue 14): AOD 0.1 at 500 nm, Angstrom exponent 1.14, 300 DU, no water
+AOD_500, ALPHA, OZONE_DU = 0.1, 1.14, 300.0
+
+
+def _knobs(orders=None, fidelity="default", elevation_m=0.0):
+    """Knobs of a bare geometry: single scattering (None) or ``orders`` of converged tables."""
+    scattering = None if orders is None else {"sky": orders, "moon": orders,
+                                              "tables": "converged"}
+    return Knobs(FIDELITY[fidelity], torch.float64, None, 0.0, 0.0, elevation_m,
+                 scattering_orders=scattering)
+
+
+def _converged_orders(resources, fidelity="default"):
+    knobs = FIDELITY[fidelity]
+    return resources.scattering_tables("converged", knobs["ms_tables"],
+                                       knobs["ms_wavelength_nodes"]).orders_computed
+
+
+# ------------------------------------------------------------------ plumbing
+def test_single_order_is_the_single_scattering_path_bit_for_bit():
+    """scattering_orders=1: the sky component is the code path without a plan's orders."""
+    scene = st.Scene(**DAY, scattering_orders=1)
+    ds = scene.render()
+    assert ds.attrs["sky_scattering_orders"] == 1
+    assert "scattering" not in str(scene.resources().built())
+    resources = scene.resources()
+    view = scene.make_view(resources)
+    plan = scene.plan(resources)
+    expected = sky_component(resources, view, plan.geometry, scene.wavelength_nm(),
+                             Knobs.of(scene))
+    got = ds["component_radiance"].sel(component="sky").values
+    assert np.array_equal(np.nan_to_num(got), np.nan_to_num(expected.numpy()))
+
+
+def test_plan_records_the_orders_and_the_sky_brightens():
+    """Default fidelity: converged tables, the orders kept recorded; MS >= SS everywhere."""
+    single = st.Scene(**DAY, scattering_orders=1).render()
+    multiple = st.Scene(**DAY).render()
+    orders = multiple.attrs["sky_scattering_orders"]
+    assert orders >= 2 and "sky:" in multiple.attrs["scattering_orders_reason"]
+    a = single["component_radiance"].sel(component="sky").values
+    b = multiple["component_radiance"].sel(component="sky").values
+    inside = np.isfinite(a) & (a > 0)
+    assert (b[inside] >= a[inside] * (1.0 - 1e-12)).all()
+    # the orders >= 2 add of the order of the Rayleigh optical depth: 5-60 % here
+    ratio = b[inside].sum() / a[inside].sum()
+    assert 1.05 < ratio < 1.6
+
+
+def test_fast_fidelity_stays_single_and_the_tolerance_sets_the_orders():
+    """'fast' means 1; a looser tolerance keeps fewer orders (never more)."""
+    fast = st.Scene(**DAY, fidelity="fast").plan()
+    assert fast.scattering_orders["sky"] == 1
+    tight = st.Scene(**DAY, tolerance=1e-4).plan()
+    loose = st.Scene(**DAY, tolerance=0.05).plan()
+    assert 1 <= loose.scattering_orders["sky"] <= tight.scattering_orders["sky"]
+    fixed = st.Scene(**DAY, scattering_orders=2).plan()
+    assert fixed.scattering_orders == {"sky": 2, "moon": 1, "tables": 2}
+
+
+@pytest.mark.parametrize("bad", [0, -1, 2.5, "all", True])
+def test_bad_scattering_orders_raise(bad):
+    """Anything but 'auto', 'converged' or an integer >= 1 is refused, naming the field."""
+    with pytest.raises(ValueError, match="scattering_orders"):
+        st.Scene(**DAY, scattering_orders=bad)
+
+
+def test_toml_and_parameters_carry_the_orders():
+    """[planner] scattering_orders reads back; the Dataset parameters carry it."""
+    scene = st.Scene.from_dict({"planner": {"scattering_orders": 3}, "view": {"size": 8}})
+    assert scene.scattering_orders == 3
+    assert scene.parameters()["scattering_orders"] == 3
+    assert st.Scene().parameters()["scattering_orders"] == "auto"
+
+
+# ------------------------------------------------------------------ SPECTRL2
+def _spectrl2_dhi(zenith_deg):
+    """SPECTRL2 diffuse horizontal irradiance per unit extraterrestrial irradiance."""
+    import pvlib
+    from pvlib.spectrum import spectrl2
+
+    air_mass = pvlib.atmosphere.get_relative_airmass(zenith_deg, model="kasten1966")
+    out = spectrl2(apparent_zenith=zenith_deg, aoi=zenith_deg, surface_tilt=0.0,
+                   ground_albedo=0.0, surface_pressure=101325.0, relative_airmass=air_mass,
+                   precipitable_water=0.0, ozone=OZONE_DU / 1000.0,
+                   aerosol_turbidity_500nm=AOD_500, dayofyear=np.full(zenith_deg.shape, 172),
+                   alpha=ALPHA)
+    keep = (out["wavelength"] >= 400.0) & (out["wavelength"] <= 685.0)
+    return out["wavelength"][keep], (out["dhi"] / out["dni_extra"]).T[:, keep]
+
+
+class _GivenAtmosphere(SceneResources):
+    """Resources whose atmosphere is given (SPECTRL2's AOD and Angstrom exponent)."""
+
+    def __init__(self, spec, atmosphere):
+        super().__init__(spec)
+        self._given = atmosphere
+
+    @property
+    def atmosphere(self):
+        return self._get("atmosphere", lambda: self._given)
+
+
+def _scene_dhi(resources, wavelength, sun_zenith_deg, orders):
+    """Hemisphere integral of the scene's sky table, cos-weighted (wavelength,) [1]."""
+    from skytorch.spectrum import solar_irradiance
+
+    x, w = np.polynomial.legendre.leggauss(32)
+    mu = torch.tensor(0.5 * (x + 1.0))
+    weight = torch.tensor(0.5 * w) * mu * (2.0 * math.pi / 128)
+    zenith, azimuth = torch.meshgrid(torch.acos(mu), torch.arange(128, dtype=torch.float64)
+                                     * (2.0 * math.pi / 128), indexing="ij")
+    geometry = types.SimpleNamespace(sun_altitude_deg=90.0 - sun_zenith_deg)
+    table = sky_table(resources, geometry, _knobs(orders), wavelength) / solar_irradiance(
+        wavelength)
+    return (_lookup(table, zenith, azimuth) * weight[:, None, None]).sum((0, 1)).numpy()
+
+
+@pytest.fixture(scope="module")
+def dhi_ratios():
+    from skytorch.atmosphere import Atmosphere
+
+    zenith = np.array([30.0, 60.0])
+    wavelength, reference = _spectrl2_dhi(zenith)
+    atm = Atmosphere.earth(aerosol_optical_depth=AOD_500 * (550.0 / 500.0) ** -ALPHA,
+                           angstrom_alpha=ALPHA, ozone_du=OZONE_DU)
+    resources = _GivenAtmosphere(SceneSpec(2.0, OZONE_DU, tuple(float(v) for v in wavelength)),
+                                 atm)
+    wl = torch.tensor(wavelength, dtype=torch.float64)
+    n = _converged_orders(resources)
+    return {orders: np.stack([_scene_dhi(resources, wl, z, orders) for z in zenith])
+            / reference for orders in (None, n)}
+
+
+def test_multiple_scattering_raises_the_diffuse_irradiance_past_single(dhi_ratios):
+    """Single scattering is below SPECTRL2 (0.70-0.99); the converged sky is above it."""
+    single, multiple = dhi_ratios[None], dhi_ratios[max(k for k in dhi_ratios if k)]
+    assert (single < 1.0).all() and (multiple > single).all()
+    # at 400 nm, where the Rayleigh optical depth is 0.36, the converged sky is closer
+    assert (np.abs(multiple[:, 0] - 1.0) < np.abs(single[:, 0] - 1.0)).all()
+
+
+@pytest.mark.xfail(strict=True, reason="measured skytorch/SPECTRL2 diffuse horizontal "
+                   "irradiance 1.07-1.15 (Sun 30 deg) and 1.15-1.21 (Sun 60 deg) over "
+                   "400-685 nm with the default tables (1.04-1.16 and 1.09-1.19 with the "
+                   "reference tables); the issue asks 10 %")
+def test_diffuse_irradiance_against_spectrl2_within_10_percent(dhi_ratios):
+    """Issue 14: the day sky's diffuse horizontal irradiance within 10 % of SPECTRL2."""
+    multiple = dhi_ratios[max(k for k in dhi_ratios if k)]
+    assert (np.abs(multiple - 1.0) < 10 * PERCENT).all()
+
+
+# ------------------------------------------------------------------ moonlit sky
+#: (turbidity, phase angle, view zenith, azimuth from the Moon) [-, deg, deg, deg]; the
+#: Moon at zenith 30 deg (docs/moon.md's single-scattering table)
+KS_CASES = ((1, 10, 0, 0), (1, 10, 60, 180), (1, 10, 85, 90), (2, 10, 0, 0),
+            (2, 10, 30, 180), (2, 10, 60, 180), (2, 10, 85, 90), (2, 90, 0, 0),
+            (4, 10, 0, 0), (4, 10, 60, 180))
+
+
+@pytest.fixture(scope="module")
+def moonlit_against_ks():
+    """V [mag arcsec^-2] of single, multiple scattering and K&S for KS_CASES."""
+    from skytorch.moon import sky
+
+    wl = torch.tensor(V_GRID_NM, dtype=torch.float64)
+    rows = []
+    for turbidity in (1, 2, 4):
+        resources = SceneResources(SceneSpec(float(turbidity), 300.0, V_GRID_NM))
+        k = float(sky.extinction_coefficient_v(resources.atmosphere))
+        n = _converged_orders(resources)
+        for t, alpha, z, daz in KS_CASES:
+            if t != turbidity:
+                continue
+            g = types.SimpleNamespace(phase_angle_rad=alpha * DEGREE, moon_altitude_deg=60.0,
+                                      moon_distance_m=MEAN_EARTH_MOON_DISTANCE_M)
+            direction = (torch.tensor([z * DEGREE], dtype=torch.float64),
+                         torch.tensor([daz * DEGREE], dtype=torch.float64))
+            v = [float(sky.radiance_to_mag_arcsec2(
+                _lookup(moon_table(resources, g, _knobs(o), wl), *direction), wl)[0])
+                for o in (None, n)]
+            zm, zv = 30.0 * DEGREE, z * DEGREE
+            rho = math.acos(math.cos(zm) * math.cos(zv)
+                            + math.sin(zm) * math.sin(zv) * math.cos(daz * DEGREE))
+            ks = float(sky.nanolambert_to_mag_arcsec2(sky.moonlit_sky_ks1991(
+                torch.tensor(alpha * DEGREE), torch.tensor(rho), torch.tensor(zm),
+                torch.tensor(zv), k)))
+            rows.append((t, v[0], v[1], ks))
+    return np.array(rows)
+
+
+def test_moonlit_multiple_scattering_is_brighter_and_nearer_ks1991(moonlit_against_ks):
+    """MS brighter than SS everywhere; for turbidity 2 nearer K&S at every point."""
+    t, single, multiple, ks = moonlit_against_ks.T
+    assert (multiple < single).all()
+    two = t == 2
+    assert (np.abs(multiple - ks)[two] < np.abs(single - ks)[two]).all()
+
+
+@pytest.mark.xfail(strict=True, reason="measured MS - K&S: +0.82, +0.21, -0.32 (turbidity "
+                   "1), +0.18, +0.40, +0.38, +0.21, +0.20 (2), -0.38, +0.07 mag (4); "
+                   "single scattering was -0.09 to +1.38 mag")
+def test_moonlit_sky_within_ks1991_accuracy(moonlit_against_ks):
+    """K&S's own accuracy, 0.2 mag (8-23 %), at every point."""
+    _, _, multiple, ks = moonlit_against_ks.T
+    assert (np.abs(multiple - ks) < 0.2 * MAG).all()
+
+
+# ------------------------------------------------------------------ twilight
+def test_zenith_twilight_falls_and_multiple_scattering_dominates():
+    """Zenith brightness falls with the Sun's depression; orders >= 2 dominate at -8 deg.
+
+    At -8 deg the orders >= 2 make the sky more than 10 times brighter than single
+    scattering (Patat et al. 2006: the deep twilight is multiply scattered; single
+    scattering alone is 3.4 % of sasktran2's sky at -8 deg,
+    docs/multiple_scattering_validation.md).
+    """
+    from skytorch.moon.sky import radiance_to_mag_arcsec2
+
+    wl = torch.tensor(V_GRID_NM[::2], dtype=torch.float64)
+    resources = SceneResources(SceneSpec(2.0, 300.0, tuple(wl.tolist())))
+    n = _converged_orders(resources)
+    zenith = (torch.zeros(1, dtype=torch.float64),) * 2
+    values = {}
+    for orders in (None, n):
+        radiance = [_lookup(sky_table(resources, types.SimpleNamespace(sun_altitude_deg=-d),
+                                      _knobs(orders), wl), *zenith)
+                    for d in (0.0, 2.0, 4.0, 6.0, 8.0, 10.0)]
+        values[orders] = torch.cat(radiance).sum(-1)
+    multiple = values[n]
+    assert (torch.diff(multiple) < 0).all()
+    assert float(multiple[4] / values[None][4]) > 10.0
+    v = radiance_to_mag_arcsec2(multiple[:1, None] * torch.ones(1, wl.numel()), wl)
+    assert torch.isfinite(v).all()
