@@ -144,13 +144,13 @@ def coefficients(opt: Optics, h):
 
 
 def _segments(opt: Optics, h0, mu, distance=None):
-    """Pieces of rays between shell crossings and their optical depths.
+    r"""Pieces of rays between shell crossings and their optical depths.
 
     The ray from altitude ``h0`` with direction cosine ``mu`` (to the local vertical) is
-    written with :math:`x = s + r_0 \\mu` (distance from the tangent point) so that
+    written with :math:`x = s + r_0 \mu` (distance from the tangent point) so that
     :math:`r^2 = x^2 + b^2`. Shell ``j`` is crossed on the way down at
-    :math:`x \\in [-c_{j+1}, -c_j]` and on the way up at :math:`[c_j, c_{j+1}]`,
-    :math:`c_j = \\sqrt{r_j^2 - b^2}` (0 below the tangent point).
+    :math:`x \in [-c_{j+1}, -c_j]` and on the way up at :math:`[c_j, c_{j+1}]`,
+    :math:`c_j = \sqrt{r_j^2 - b^2}` (0 below the tangent point).
 
     Returns
     -------
@@ -227,7 +227,7 @@ def optical_depth(opt: Optics, h0, mu, distance=None):
 
 
 def sample_distance(opt: Optics, h0, mu, u):
-    """Draw distances of the next event, forced before the boundary.
+    r"""Draw distances of the next event, forced before the boundary.
 
     Parameters
     ----------
@@ -348,7 +348,7 @@ class SunTable:
 
 
 def _rotate(d, cos_theta, phi):
-    """Unit vectors at angle arccos(cos_theta) from ``d`` (ray, 3), azimuth ``phi``."""
+    """Turn unit vectors ``d`` (ray, 3) by arccos(cos_theta) at azimuth ``phi``."""
     a = np.where(np.abs(d[:, 2:3]) < 0.9, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0, 0]))
     u = np.cross(d, a)
     u /= np.linalg.norm(u, axis=1, keepdims=True)
@@ -373,7 +373,7 @@ def sample_hg(u, g):
 
 
 def sun_directions(view_zenith_deg: float, relative_azimuth_deg, sun_zenith_deg):
-    """Unit vectors to the Sun (sun, 3) in the frame where the view azimuth is 0."""
+    """Return unit vectors to the Sun (sun, 3) in the frame where the view azimuth is 0."""
     sz = np.deg2rad(np.asarray(sun_zenith_deg, float))
     az = -np.deg2rad(np.asarray(relative_azimuth_deg, float))
     return np.stack([np.sin(sz) * np.cos(az), np.sin(sz) * np.sin(az), np.cos(sz)], axis=-1)
@@ -401,7 +401,7 @@ def _los_density(opt, table, d0, suns, n_sub=8, mixture=0.5):
     p = (opt.planet_radius_m + h0[0]) * mu0[0]
     edges = np.unique(np.concatenate([lo[0], hi[0]]))
     frac = np.linspace(0.0, 1.0, n_sub + 1)[:-1]
-    nodes = np.concatenate([(a + (e - a) * frac) for a, e in zip(edges[:-1], edges[1:])]
+    nodes = np.concatenate([(a + (e - a) * frac) for a, e in zip(edges[:-1], edges[1:], strict=True)]
                            + [edges[-1:]]) - p
     mids = 0.5 * (nodes[1:] + nodes[:-1])
     width = np.diff(nodes)

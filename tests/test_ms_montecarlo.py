@@ -1,0 +1,251 @@
+"""The backward Monte-Carlo reference of the ground sky radiance (issue 14).
+
+The generator ``tests/data/ms_reference/generate_montecarlo.py`` is verified here against
+references that do not use its ray machinery: a direct numerical quadrature of the
+single-scattering definition (trapezoidal optical depths along the line of sight and
+along each ray to the Sun), the closed-form single scattering of a homogeneous
+plane-parallel layer, and sasktran2's single scattering; then the shipped table is the
+reference of the skytorch multiple-scattering solver. Radiances are per unit TOA solar
+irradiance normal to the beam [sr^-1]; Monte-Carlo agreement is judged in standard
+errors of the estimate.
+"""
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import xarray as xr
+
+from skytorch.constants import PERCENT
+
+DATA = Path(__file__).parent / "data" / "ms_reference"
+TABLE = DATA / "montecarlo_sky.nc"
+HAS_SOLVER = importlib.util.find_spec("skytorch.atmosphere.multiple_scattering") is not None
+
+
+def _load_generator():
+    spec = importlib.util.spec_from_file_location("generate_montecarlo",
+                                                  DATA / "generate_montecarlo.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("generate_montecarlo", module)   # dataclasses look it up
+    spec.loader.exec_module(module)
+    return module
+
+
+mc = _load_generator()
+
+
+@pytest.fixture(scope="module")
+def aerosol_550():
+    """Rayleigh + aerosol 0.1 at 550 nm and a Sun table (coarser than the generator's)."""
+    opt = mc.optics(0.1, 550.0)
+    return opt, mc.SunTable(opt, n_sub=2, n_angle=129)
+
+
+def _ray_optical_depth(opt, start, direction, n=1501):
+    """Trapezoidal optical depth from points ``start`` (p, 3) along ``direction`` to the top.
+
+    Infinite where the ray meets the ground. Independent of the generator's shell pieces.
+    """
+    radius, top = opt.planet_radius_m, opt.planet_radius_m + opt.top_m
+    direction = np.broadcast_to(direction, start.shape)
+    b = np.einsum("ij,ij->i", start, direction)
+    c = np.sum(start * start, axis=1)
+    length = -b + np.sqrt(b * b - c + top * top)
+    disc = b * b - c + radius * radius
+    ground = (disc > 0.0) & (-b - np.sqrt(np.maximum(disc, 0.0)) > 0.0)
+    t = np.linspace(0.0, 1.0, n)
+    pts = start[:, None, :] + (length[:, None] * t)[..., None] * direction[:, None, :]
+    h = np.linalg.norm(pts, axis=2) - radius
+    k = np.interp(h, opt.altitude_m, opt.extinction)
+    tau = np.trapezoid(k, t, axis=1) * length
+    return np.where(ground, np.inf, tau)
+
+
+def _single_scattering_quadrature(opt, view_zenith_deg, azimuth_deg, sun_zenith_deg):
+    r"""Direct quadrature of :math:`\int \beta_s P T_{los} T_\odot ds` along the sight line."""
+    d0 = mc.view_vector(view_zenith_deg)
+    sun = mc.sun_directions(view_zenith_deg, [azimuth_deg], [sun_zenith_deg])[0]
+    obs = np.array([0.0, 0.0, opt.planet_radius_m + mc.OBSERVER_ALTITUDE_M])
+    top = opt.planet_radius_m + opt.top_m
+    b = obs @ d0
+    s_top = -b + math.sqrt(b * b - obs @ obs + top * top)
+    s = s_top * np.linspace(0.0, 1.0, 2001) ** 3
+    pts = obs + s[:, None] * d0
+    h = np.linalg.norm(pts, axis=1) - opt.planet_radius_m
+    k = np.interp(h, opt.altitude_m, opt.extinction)
+    tau_los = np.concatenate([[0.0], np.cumsum(0.5 * (k[1:] + k[:-1]) * np.diff(s))])
+    ray = np.interp(h, opt.altitude_m, opt.rayleigh)
+    aer = np.interp(h, opt.altitude_m, opt.aerosol)
+    cos_theta = d0 @ sun
+    phase = (ray * 3.0 / (16.0 * math.pi) * (1.0 + cos_theta ** 2)
+             + aer * (1.0 - opt.asymmetry ** 2)
+             / (4.0 * math.pi * (1.0 + opt.asymmetry ** 2 - 2.0 * opt.asymmetry * cos_theta)
+                ** 1.5))
+    integrand = phase * np.exp(-tau_los - _ray_optical_depth(opt, pts, sun))
+    return float(np.trapezoid(integrand, s))
+
+
+def _order_one(opt, table, view_zenith_deg, azimuths, sun_zeniths, n, seed):
+    """Order-1 estimates and standard errors (azimuth, sun) from the generator."""
+    az, sz = np.meshgrid(azimuths, sun_zeniths, indexing="ij")
+    suns = mc.sun_directions(view_zenith_deg, az.ravel(), sz.ravel())
+    d0 = mc.view_vector(view_zenith_deg)
+    x, w = mc._first_events(opt, table, d0, suns, n, np.random.default_rng(seed))
+    c = mc._nee(opt, table, x, np.broadcast_to(d0, x.shape), w, suns)
+    mean, err = c.mean(axis=0), c.std(axis=0, ddof=1) / math.sqrt(n)
+    return mean.reshape(az.shape), err.reshape(az.shape)
+
+
+def test_sun_table_against_trapezoidal_rays(aerosol_550):
+    """The Sun optical-depth table matches independent ray quadratures (|d tau| < 0.005)."""
+    opt, table = aerosol_550
+    rng = np.random.default_rng(7)
+    h = 1.0e5 * rng.random(400) ** 3
+    mu = np.sign(rng.random(400) - 0.5) * rng.random(400) ** 2
+    start = np.stack([np.zeros(400), np.zeros(400), opt.planet_radius_m + h], axis=1)
+    direction = np.stack([np.sqrt(1.0 - mu * mu), np.zeros(400), mu], axis=1)
+    ref = _ray_optical_depth(opt, start, direction, n=20001)
+    ours = table(h, mu)
+    shadow = ~np.isfinite(ref)
+    assert np.array_equal(~np.isfinite(ours), shadow)
+    moderate = ~shadow & (ref < 5.0)
+    assert moderate.sum() > 200
+    assert np.abs(ours[moderate] - ref[moderate]).max() < 5e-3
+
+
+@pytest.mark.parametrize("sun_zenith_deg", [60.0, 94.0])
+def test_order_one_against_quadrature(aerosol_550, sun_zenith_deg):
+    """Order 1 of the Monte-Carlo equals the direct single-scattering integral (3 sigma).
+
+    Sun 94 deg puts the lower part of the sight lines in the Earth's shadow.
+    """
+    opt, table = aerosol_550
+    azimuths = [0.0, 90.0, 180.0]
+    mean, err = _order_one(opt, table, 60.0, azimuths, [sun_zenith_deg], 20000, 11)
+    for a, azimuth in enumerate(azimuths):
+        ref = _single_scattering_quadrature(opt, 60.0, azimuth, sun_zenith_deg)
+        assert err[a, 0] < 0.03 * ref
+        assert abs(mean[a, 0] - ref) < 3.0 * err[a, 0], (azimuth, mean[a, 0], ref, err[a, 0])
+
+
+def test_thin_homogeneous_layer_closed_form():
+    r"""Plane-parallel limit: single scattering of a homogeneous Rayleigh layer.
+
+    Planet radius 1e11 m (curvature negligible over the 10 km layer), optical depth 0.05,
+    observer at the bottom looking up at :math:`\mu_v`, Sun at :math:`\mu_0`:
+    :math:`L_1 = P(\Theta)\,\mu_0 (e^{-\tau/\mu_0} - e^{-\tau/\mu_v}) / (\mu_0 - \mu_v)`.
+    """
+    tau, thickness = 0.05, 1.0e4
+    levels = np.array([0.0, 2500.0, 5000.0, 7500.0, 10000.0])
+    k = np.full(levels.shape, tau / thickness)
+    opt = mc.Optics(levels, k, np.zeros_like(k), k, 0.0, 1.0e11, thickness)
+    table = mc.SunTable(opt, n_sub=4, n_angle=129)
+    view_zenith, sun_zenith = 30.0, 60.0
+    mean, err = _order_one(opt, table, view_zenith, [0.0, 90.0, 180.0], [sun_zenith],
+                           20000, 5)
+    mu_v, mu_0 = math.cos(math.radians(view_zenith)), math.cos(math.radians(sun_zenith))
+    for a, azimuth in enumerate([0.0, 90.0, 180.0]):
+        cos_theta = (mu_v * mu_0 + math.sin(math.radians(view_zenith))
+                     * math.sin(math.radians(sun_zenith)) * math.cos(math.radians(azimuth)))
+        phase = 3.0 / (16.0 * math.pi) * (1.0 + cos_theta ** 2)
+        # observer 1 m above the bottom: the layer below it (2e-5 of the path) is missed
+        ref = phase * mu_0 * (math.exp(-tau / mu_0) - math.exp(-tau / mu_v)) / (mu_0 - mu_v)
+        assert abs(mean[a, 0] / ref - 1.0) < max(3.0 * err[a, 0] / ref, 0.1 * PERCENT)
+
+
+@pytest.fixture(scope="module")
+def table():
+    with xr.open_dataset(TABLE) as ds:
+        return ds.load()
+
+
+@pytest.fixture(scope="module")
+def sasktran2():
+    with xr.open_dataset(DATA / "sasktran2_sky.nc") as ds:
+        return ds.load()
+
+
+def _sasktran2_at_views(sasktran2, variable, case, sun_zenith_deg, wavelength):
+    ref = sasktran2[variable].sel(case=case, sun_zenith=sun_zenith_deg, wavelength=wavelength)
+    return np.array([float(ref.sel(view_zenith=vz, relative_azimuth=az))
+                     for vz, az in mc.VIEWS])
+
+
+def test_table_metadata(table):
+    """The shipped table says how it was made and stays small."""
+    for key in ("photons", "seed", "script", "date", "skytorch_commit"):
+        assert key in table.attrs
+    assert TABLE.stat().st_size < 200_000
+    assert list(table.view_zenith.values) == [v[0] for v in mc.VIEWS]
+
+
+@pytest.mark.parametrize("case", ["rayleigh", "rayleigh_aerosol"])
+def test_table_order_one_against_sasktran2(table, sasktran2, case):
+    """Shipped order 1 equals sasktran2's single scattering (Sun <= 80 deg), max(3 sigma, 1 %)."""
+    for sun_zenith_deg in (30.0, 60.0, 80.0):
+        for wavelength in mc.WAVELENGTH_NM:
+            ours = table.sel(case=case, sun_zenith=sun_zenith_deg, wavelength=wavelength)
+            ref = _sasktran2_at_views(sasktran2, "single_scattering", case, sun_zenith_deg,
+                                      wavelength)
+            tolerance = np.maximum(3.0 * ours.order_1_stderr.values, 1.0 * PERCENT * ref)
+            assert np.all(np.abs(ours.order_1.values - ref) < tolerance), (
+                sun_zenith_deg, wavelength, ours.order_1.values / ref - 1.0)
+
+
+def test_table_precision_and_truncation(table):
+    """Day sky to 0.5 % standard error; orders 51-60 below 1e-4 of the total."""
+    day = table.sel(sun_zenith=[30.0, 60.0, 80.0])
+    assert float((day.total_stderr / day.total).max()) < 0.5 * PERCENT
+    lit = table.total > 0.0
+    assert float((table.orders_51_60 / table.total).where(lit).max()) < 1e-4
+
+
+def _solver_radiance(case):
+    from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
+
+    coarse = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
+                             transmittance_r=32, transmittance_mu=128)
+    wavelength = torch.tensor(mc.WAVELENGTH_NM, dtype=torch.float64)
+    tables = precompute_scattering(mc.skytorch_atmosphere(mc.CASES[case]), wavelength,
+                                   ground_albedo=0.0, scattering_orders="converged",
+                                   resolution=coarse)
+    vz = torch.deg2rad(torch.tensor([v[0] for v in mc.VIEWS], dtype=torch.float64))
+    az = torch.deg2rad(torch.tensor([v[1] for v in mc.VIEWS], dtype=torch.float64))
+    out = {}
+    for sun_zenith_deg in (30.0, 60.0, 80.0, 90.0, 94.0, 98.0):
+        value = tables.radiance(torch.tensor(1.0, dtype=torch.float64), vz, az,
+                                torch.tensor(math.radians(sun_zenith_deg),
+                                             dtype=torch.float64))
+        out[sun_zenith_deg] = value.detach().numpy().T  # (wavelength, view)
+    return out
+
+
+SOLVER_XFAIL = "measured: see docs/multiple_scattering_validation.md (Monte-Carlo section)"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
+@pytest.mark.xfail(strict=True, reason=SOLVER_XFAIL)
+@pytest.mark.parametrize("case", ["rayleigh", "rayleigh_aerosol"])
+def test_solver_against_montecarlo(table, case):
+    """Coarse-table solver within 3 % (Sun <= 80 deg) and 10 % (to 98 deg) of the MC.
+
+    Only points where the Monte-Carlo standard error is below a third of the tolerance
+    are judged (the others cannot decide the tolerance).
+    """
+    ours = _solver_radiance(case)
+    worst = {}
+    for sun_zenith_deg, value in ours.items():
+        ref = table.sel(case=case, sun_zenith=sun_zenith_deg)
+        tolerance = 3.0 * PERCENT if sun_zenith_deg <= 80.0 else 10.0 * PERCENT
+        relative = value / ref.total.values - 1.0
+        decided = ref.total_stderr.values < tolerance / 3.0 * ref.total.values
+        assert decided.any()
+        worst[sun_zenith_deg] = float(np.abs(relative[decided]).max())
+        assert worst[sun_zenith_deg] < tolerance, worst
