@@ -266,3 +266,22 @@ def test_zenith_twilight_falls_and_multiple_scattering_dominates():
     assert float(multiple[4] / values[None][4]) > 10.0
     v = radiance_to_mag_arcsec2(multiple[:1, None] * torch.ones(1, wl.numel()), wl)
     assert torch.isfinite(v).all()
+
+
+# ------------------------------------------------------------------ experiment
+@pytest.mark.slow
+def test_accuracy_cost_experiment_quick(tmp_path):
+    """The experiment runs in quick mode; more wavelength nodes help the day sky."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from skytorch.dataset import open_dataset
+
+    root = Path(__file__).resolve().parents[1]
+    subprocess.run([sys.executable, str(root / "experiments" / "scene_ms_accuracy_cost.py"),
+                    "--quick", "--output-dir", str(tmp_path)], check=True, cwd=root)
+    ds = open_dataset(tmp_path / "scene_ms_accuracy_cost.nc")
+    day = ds["max_relative_error"].sel(sun_zenith=60.0).values
+    assert day[1] < day[0]
+    assert (tmp_path / "scene_ms_accuracy_cost.png").stat().st_size > 10_000
