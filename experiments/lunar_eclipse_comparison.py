@@ -3,13 +3,18 @@
 For every eclipse of ``observed_lunar_eclipses()`` with a V magnitude (or, for
 2015-09-28, a magnitude below the full Moon) the Moon's light curve is modelled through
 ``eclipse_shadow(date)`` (the year's stratospheric sulfate layer, global-mean troposphere
-and ozone, the ISCCP cloud deck; nothing fitted to eclipses) and compared at its faintest
-sample: residual model - observed, rms and bias. Then, for one eclipse (2015-09-28), each
-ingredient is added in turn (molecules only; + ozone; + tropospheric aerosol;
-+ stratospheric aerosol; + clouds) to state what it changes.
+and ozone, the limb cloud profile of ISCCP and SAGE; nothing fitted to eclipses) and
+compared at its faintest sample: residual model - observed, rms and bias; with each the
+Danjon class read from the modelled umbra (``danjon_class_l``) beside the L of Vital's
+correlation. Then, for one eclipse (2015-09-28), each ingredient is added in turn
+(molecules only; + ozone; + tropospheric aerosol; + stratospheric aerosol; + clouds) to
+state what it changes, with the former single deck and the SAGE range of the cloud profile
+beside it, and the altitudes whose rays light the umbra's centre.
 
-Writes ``lunar_eclipse_comparison.nc`` / ``.png`` (per-eclipse table) and
+Writes ``lunar_eclipse_comparison.nc`` / ``.png`` (per-eclipse table),
 ``lunar_eclipse_ingredients.nc`` / ``.png`` (light curves of the ingredients),
+``lunar_eclipse_altitudes`` (umbra-centre light by periapsis altitude),
+``lunar_eclipse_light_curve_2019`` (the 2019-01-21 photometry overlaid),
 ``lunar_eclipse_umbral_edge`` (the modelled umbral edge) and ``lunar_eclipse_retrieval``
 (stratospheric AOD retrieved from each observed V, beside the record).
 """
@@ -30,17 +35,69 @@ from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from skytorch.atmosphere import Atmosphere  # noqa: E402
 from skytorch.eclipse import (  # noqa: E402
     Shadow,
+    danjon_class_l,
     eclipse_shadow,
     lunar_light_curve,
     observed_lunar_eclipses,
     stratospheric_aod,
 )
 from skytorch.eclipse.eclipse_atmosphere import (  # noqa: E402
-    CLOUD_FRACTION,
-    CLOUD_TOP_ALTITUDE_M,
     OZONE_DU,
+    SAGE_CLEAR_7KM,
     TROPOSPHERIC_AOD_550,
+    cloud_climatology,
 )
+
+#: the 2019-01-21 photometry (Georgia J. Sci. 80(1) art. 32), samples as printed
+PHOTOMETRY_2019 = (Path(__file__).resolve().parents[1] / "tests" / "data"
+                   / "lunar_eclipse_2019_01_21_photometry.csv")
+#: the umbral rim of Danjon's classes: this fraction of the umbra radius from the axis
+RIM_FRACTION = 0.95
+
+
+def _band_offsets(shadow, distance_m, offsets_m):
+    """V and B of sunlight through the shadow minus those of the unobstructed Sun [mag].
+
+    At ``offsets_m`` from the axis at ``distance_m``; (n_offset,) each. The Moon's own
+    colour cancels in the difference (it multiplies both spectra).
+    """
+    from skytorch.spectrum import solar_irradiance, spectrum_to_magnitude, wavelength_grid
+
+    wavelength = wavelength_grid("bands15")
+    offset = torch.as_tensor(offsets_m, dtype=torch.float64)
+    light = shadow.relative_illuminance(torch.full_like(offset, distance_m), offset,
+                                        wavelength)
+    sun = solar_irradiance(wavelength)
+    return [spectrum_to_magnitude(light * sun, wavelength, band)
+            - spectrum_to_magnitude(sun, wavelength, band) for band in ("V", "B")]
+
+
+def danjon_class_of(day: str, shadow, v_full: float) -> tuple[float, float, float, float]:
+    """Danjon's verbal class of the modelled umbra at greatest eclipse, and its inputs.
+
+    The centre (axis) as the V of a Moon uniformly that bright (``v_full`` plus the
+    centre's V below sunlight), the rim at ``RIM_FRACTION`` of the umbra radius (Danjon's
+    1/85 enlargement) at the Moon's distance; returns (class, centre V [mag], rim/centre,
+    rim B-V [mag]).
+    """
+    from skytorch.constants import EARTH_MEAN_RADIUS_M
+    from skytorch.eclipse import shadow_radii
+    from skytorch.eclipse.danjon import MOON_B_MINUS_V
+    from skytorch.eclipse.lunar import nearest_eclipse
+    from skytorch.ephemeris import sun_moon
+
+    row = nearest_eclipse(day).isel(eclipse=0)
+    ephemeris = sun_moon(np.atleast_1d(row.time.values))
+    distance = float(ephemeris.moon_distance.values.reshape(-1)[0])  # [m]
+    umbra = float(shadow_radii(distance, shadow.sun_distance_m, shadow.sun_radius_m,
+                               EARTH_MEAN_RADIUS_M, enlargement="danjon")[0])
+    v, b = _band_offsets(shadow, distance, [0.0, RIM_FRACTION * umbra])
+    centre_v = v_full + float(v[0])
+    rim_to_centre = float(10.0 ** (-0.4 * (v[1] - v[0])))
+    rim_b_minus_v = MOON_B_MINUS_V + float(b[1] - v[1])
+    level = float(danjon_class_l(torch.tensor(centre_v), torch.tensor(rim_to_centre),
+                                 torch.tensor(rim_b_minus_v)))
+    return level, centre_v, rim_to_centre, rim_b_minus_v
 
 
 def _faintest(curve, index=()):
@@ -59,14 +116,19 @@ def comparison(quick: bool):
         observed.v_below_full_moon.values)
     observed = observed.isel(eclipse=np.flatnonzero(has))
     n_times, n_v = (16, 96) if quick else (48, 192)
-    rows = []
+    rows, classes = [], []
     start = time.perf_counter()
     for date in observed.eclipse.values:
         day = np.datetime_as_string(date, "D")
-        curve = lunar_light_curve(day, shadow=eclipse_shadow(day), n_times=n_times,
-                                  table_n_v=n_v)
+        shadow = eclipse_shadow(day)
+        curve = lunar_light_curve(day, shadow=shadow, n_times=n_times, table_n_v=n_v)
         rows.append((*_faintest(curve), stratospheric_aod(day)))
+        classes.append((rows[-1][0], rows[-1][2], shadow))
     seconds = time.perf_counter() - start
+    # Danjon's classes read from the modelled umbra (not timed with the light curves)
+    danjon = np.array([danjon_class_of(np.datetime_as_string(date, "D"), shadow, v - below)
+                       for date, (v, below, shadow) in zip(observed.eclipse.values, classes,
+                                                           strict=True)])
     model = np.array(rows)
     obs_v = observed.v_magnitude.values
     obs_below = observed.v_below_full_moon.values
@@ -79,6 +141,12 @@ def comparison(quick: bool):
          "model_b_minus_v": (dims, model[:, 1], {"units": "mag"}),
          "model_v_below_full_moon": (dims, model[:, 2], {"units": "mag"}),
          "model_danjon_l": (dims, model[:, 3], {"units": "1"}),
+         "model_danjon_class": (dims, danjon[:, 0], {"units": "1", "long_name":
+                                "Danjon verbal class of the modelled umbra"}),
+         "model_centre_v_magnitude": (dims, danjon[:, 1], {"units": "mag", "long_name":
+                                      "V of a Moon as bright as the umbral centre"}),
+         "model_rim_to_centre": (dims, danjon[:, 2], {"units": "1"}),
+         "model_rim_b_minus_v": (dims, danjon[:, 3], {"units": "mag"}),
          "stratospheric_aod_550": (dims, model[:, 4], {"units": "1"}),
          "observed_v_magnitude": (dims, obs_v, {"units": "mag"}),
          "observed_v_below_full_moon": (dims, obs_below, {"units": "mag"}),
@@ -92,8 +160,9 @@ def comparison(quick: bool):
                "bias_v_mag": float(np.mean(residual)),
                "model_seconds": seconds, "n_times": n_times, "table_n_v": n_v,
                "tropospheric_aod_550": TROPOSPHERIC_AOD_550, "ozone_du": OZONE_DU,
-               "cloud_top_altitude_m": CLOUD_TOP_ALTITUDE_M,
-               "cloud_fraction": CLOUD_FRACTION})
+               "clouds": "rossow1999 (LimbCloudCover, limb exponent "
+                         f"{float(cloud_climatology().limb_exponent):.3f})",
+               "danjon_rim_fraction_of_umbra": RIM_FRACTION})
     import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -127,11 +196,19 @@ def ingredients(quick: bool, date: str = "2015-09-28"):
         stratospheric_aerosol_optical_depth=torch.tensor([0.0, 0.0, 0.0, saod], dtype=f64))
     clear = lunar_light_curve(date, shadow=Shadow.earth(atm), n_times=n_times,
                               table_n_v=n_v)
-    cloudy = lunar_light_curve(date, shadow=eclipse_shadow(date), n_times=n_times,
-                               table_n_v=n_v)
-    values = [_faintest(clear, (i,)) for i in range(4)] + [_faintest(cloudy)]
-    labels.append("+ clouds")
-    curves = torch.cat([clear["v_magnitude"], cloudy["v_magnitude"][None]]).numpy()
+    cloudy = {name: lunar_light_curve(date, shadow=shadow, n_times=n_times, table_n_v=n_v)
+              for name, shadow in (
+                  ("+ clouds (ISCCP + SAGE profile)", eclipse_shadow(date)),
+                  ("+ clouds, SAGE tropics 0.30 at 7 km", eclipse_shadow(
+                      date, cloud_cover=cloud_climatology(SAGE_CLEAR_7KM["tropics"]))),
+                  ("+ clouds, SAGE extratropics 0.60 at 7 km", eclipse_shadow(
+                      date, cloud_cover=cloud_climatology(SAGE_CLEAR_7KM["extratropics"]))),
+                  ("+ clouds, single deck 5 km 0.66", eclipse_shadow(date, clouds="deck")))}
+    values = [_faintest(clear, (i,)) for i in range(4)] + [_faintest(c)
+                                                          for c in cloudy.values()]
+    labels += list(cloudy)
+    curves = torch.cat([clear["v_magnitude"]] + [c["v_magnitude"][None]
+                                                 for c in cloudy.values()]).numpy()
     values = np.array(values)
     dataset = xr.Dataset(
         {"v_magnitude": (("ingredient", "sample"), curves, {"units": "mag"}),
@@ -146,12 +223,159 @@ def ingredients(quick: bool, date: str = "2015-09-28"):
 
     figure, axis = plt.subplots(figsize=(7, 4))
     for label, curve in zip(labels, curves, strict=True):
-        axis.plot(curve, label=label)
+        axis.plot(curve, label=label, ls="--" if label.startswith("+ clouds,") else "-")
     axis.invert_yaxis()
     axis.set(xlabel="sample (P1-5% .. P4+5%)", ylabel="V [mag]", title=date)
     axis.legend(fontsize=8)
     figure.tight_layout()
     summary = {f"V {label}": v for label, v in zip(labels, values[:, 0], strict=True)}
+    return dataset, figure, summary
+
+
+def _moon_geometry(date: str):
+    """Moon distance [m] and offset of its centre from the shadow axis [m] at greatest."""
+    from skytorch.eclipse.lunar import nearest_eclipse, sun_moon_vectors
+
+    row = nearest_eclipse(date).isel(eclipse=0)
+    vectors = sun_moon_vectors(np.atleast_1d(row.time.values))
+    sun, moon = vectors["sun_gcrs_m"][0], vectors["moon_gcrs_m"][0]
+    anti_sun = -sun / torch.linalg.norm(sun)
+    along = float(moon @ anti_sun)
+    return float(torch.linalg.norm(moon)), float(torch.linalg.norm(moon - along * anti_sun))
+
+
+def altitude_contribution(quick: bool, date: str = "2015-09-28"):
+    """Which rays light the eclipsed Moon: V left with every ray below ``h`` blocked.
+
+    At greatest eclipse, at three points: the shadow axis (the umbra's centre), the
+    Moon's centre and the Moon's limb nearest the umbra's edge; for the clear atmosphere
+    of ``date`` and with the cloud profile; the light left when the rays with periapsis
+    below ``h`` are removed, as a fraction of all of it (V band).
+    """
+    from skytorch.constants import MOON_RADIUS_M
+    from skytorch.eclipse.shadow import LimbCloudCover
+
+    distance, centre = _moon_geometry(date)
+    points = {"umbra centre": 0.0, "Moon centre": centre, "Moon limb": centre + MOON_RADIUS_M}
+    heights = (np.array([0.0, 4.0, 8.0, 12.0, 16.0, 24.0]) if quick
+               else np.array([0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 20.0, 25.0,
+                              30.0])) * 1e3
+    profile = cloud_climatology()
+    z, f = profile.altitude_m, profile.cover.detach()
+    f64 = torch.float64
+    atmosphere = eclipse_shadow(date, clouds="none").atmosphere
+    left = {"clear": [], "clouds": []}
+    for h in heights:
+        for name in left:
+            cloudy = name == "clouds"
+            if h == 0.0:
+                cover = LimbCloudCover(z, f, profile.limb_exponent if cloudy else 0.0)
+            else:
+                above = z > h + 1e-3
+                rest = (torch.cat([profile.cover_at(torch.tensor(h + 1e-3, dtype=f64))[None],
+                                   f[above]]) if cloudy
+                        else torch.zeros(int(above.sum()) + 1, dtype=f64))
+                nodes = torch.cat([torch.tensor([0.0, h, h + 1e-3], dtype=f64), z[above]])
+                values = torch.cat([torch.ones(2, dtype=f64), rest])
+                cover = LimbCloudCover(nodes, values,
+                                       profile.limb_exponent if cloudy else 1.0)
+            shadow = Shadow.earth(atmosphere, cloud_cover=cover)
+            left[name].append(_band_offsets(shadow, distance, list(points.values()))[0]
+                              .numpy())
+    fractions = {name: 10.0 ** (-0.4 * (np.array(v) - v[0])) for name, v in left.items()}
+    dims = ("periapsis_altitude", "position")
+    dataset = xr.Dataset(
+        {f"fraction_{name}": (dims, value, {"units": "1", "long_name": "V light left when "
+                                             "rays below the altitude are blocked"})
+         for name, value in fractions.items()},
+        coords={"periapsis_altitude": ("periapsis_altitude", heights, {"units": "m"}),
+                "position": list(points),
+                "offset": ("position", np.array(list(points.values())), {"units": "m"})},
+        attrs={"title": f"Light at greatest eclipse by periapsis altitude, {date}",
+               "moon_distance_m": distance})
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6, 4))
+    for name, value in fractions.items():
+        for k, point in enumerate(points):
+            axis.plot(heights / 1e3, value[:, k], "o-" if name == "clouds" else "s:",
+                      label=f"{point} ({name})")
+    axis.set_yscale("log")
+    axis.set_ylim(1e-4, 1.5)
+    axis.set(xlabel="rays below this periapsis altitude removed [km]",
+             ylabel="V light left", title=date)
+    axis.legend(fontsize=7)
+    figure.tight_layout()
+    summary = {f"{name} {point} left above {h / 1e3:g} km": value[i, k]
+               for name, value in fractions.items() for k, point in enumerate(points)
+               for i, h in enumerate(heights) if h in (4e3, 8e3, 12e3)}
+    return dataset, figure, summary
+
+
+def _read_photometry(path=PHOTOMETRY_2019):
+    """Read the times (datetime64[ns]), bands and magnitudes of the stored photometry."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(line for line in handle if not line.startswith("#")))
+    times = np.array([row["time_utc"] for row in rows], dtype="datetime64[ns]")
+    return times, np.array([row["band"] for row in rows]), np.array(
+        [float(row["magnitude"]) for row in rows])
+
+
+def light_curve_2019(quick: bool, date: str = "2019-01-21"):
+    """Model the 2019-01-21 light curve and compare it with the printed photometry (V, B).
+
+    Model interpolated linearly in time at the observed instants; residual model -
+    observed [mag], for the cloud profile and for no clouds.
+    """
+    from skytorch.eclipse import lunar_eclipse
+
+    n_times, n_v = (48, 96) if quick else (240, 192)
+    times, bands, observed = _read_photometry()
+    models, residuals = {}, {}
+    for name, clouds in (("clouds", "rossow1999"), ("no clouds", "none")):
+        ds = lunar_eclipse(date, shadow=eclipse_shadow(date, clouds=clouds),
+                           n_times=n_times, n_images=0, table_n_v=n_v)
+        t = ds.time.values.astype("datetime64[ns]").astype(np.int64).astype(float)
+        models[name] = ds
+        at = times.astype(np.int64).astype(float)
+        model = np.where(bands == "V", np.interp(at, t, ds.v_magnitude.values),
+                         np.interp(at, t, ds.b_magnitude.values))
+        residuals[name] = model - observed
+    dims = ("sample",)
+    dataset = xr.Dataset(
+        {"observed_magnitude": (dims, observed, {"units": "mag"}),
+         "band": (dims, bands),
+         **{f"residual_{name.replace(' ', '_')}": (dims, value, {"units": "mag",
+            "long_name": "model minus observed"}) for name, value in residuals.items()},
+         "model_time": ("time", models["clouds"].time.values),
+         "model_v_magnitude": ("time", models["clouds"].v_magnitude.values,
+                               {"units": "mag"}),
+         "model_b_magnitude": ("time", models["clouds"].b_magnitude.values,
+                               {"units": "mag"})},
+        coords={"sample_time": (dims, times)},
+        attrs={"title": f"Modelled and observed light curve, {date}",
+               "source": "Georgia Journal of Science 80(1) art. 32 (SSP-3, Johnson B, V)"})
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(7, 4))
+    for name, ds in models.items():
+        for band, colour in (("v", "g"), ("b", "b")):
+            axis.plot(ds.time.values, ds[f"{band}_magnitude"].values, colour,
+                      ls="-" if name == "clouds" else ":",
+                      label=f"model {band.upper()} ({name})")
+    for band, colour in (("V", "g"), ("B", "b")):
+        pick = bands == band
+        axis.plot(times[pick], observed[pick], colour + "o", label=f"observed {band}")
+    axis.set_xlim(times.min() - np.timedelta64(40, "m"), times.max() + np.timedelta64(40, "m"))
+    axis.set_ylim(1.0, -6.0)
+    axis.set(xlabel="UTC", ylabel="magnitude", title=date)
+    axis.legend(fontsize=7)
+    figure.autofmt_xdate()
+    figure.tight_layout()
+    summary = {f"{name} {band} {str(t)[11:19]}": r for name, value in residuals.items()
+               for band, t, r in zip(bands, times, value, strict=True)}
     return dataset, figure, summary
 
 
@@ -256,6 +480,8 @@ def main(argv=None) -> int:
     args = parse_arguments(__doc__.splitlines()[0], argv)
     for build, stem in ((comparison, "lunar_eclipse_comparison"),
                         (ingredients, "lunar_eclipse_ingredients"),
+                        (altitude_contribution, "lunar_eclipse_altitudes"),
+                        (light_curve_2019, "lunar_eclipse_light_curve_2019"),
                         (umbral_edge, "lunar_eclipse_umbral_edge"),
                         (retrieval_series, "lunar_eclipse_retrieval")):
         dataset, figure, summary = build(args.quick)
@@ -266,7 +492,9 @@ def main(argv=None) -> int:
             print(dataset[["model_v_magnitude", "observed_v_magnitude",
                            "observed_v_below_full_moon", "model_v_below_full_moon",
                            "residual_v", "model_b_minus_v", "model_danjon_l",
-                           "observed_danjon_l"]].to_dataframe().round(2).to_string())
+                           "observed_danjon_l", "model_danjon_class",
+                           "model_centre_v_magnitude", "model_rim_to_centre",
+                           "model_rim_b_minus_v"]].to_dataframe().round(2).to_string())
     return 0
 
 
