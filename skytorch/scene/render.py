@@ -14,10 +14,15 @@ occulted):
   (view zenith, relative azimuth) grid for the scene's Sun and interpolated bilinearly;
   the zenith nodes are denser towards the horizon (:math:`z = \tfrac{\pi}{2}\sin
   \tfrac{\pi u}{2}`) and the azimuth nodes towards the Sun (:math:`\phi = \pi u^2`).
+  With the planner's orders of scattering above 1 the orders 2..N of the resources'
+  multiple-scattering tables are added on the same nodes (:func:`higher_orders`: coarse
+  tables at a few wavelength nodes, interpolated in log radiance; the exact single
+  scattering keeps the aureole and the band absorbers).
 * ``moon`` — the disc's irradiance (:func:`skytorch.moon.lunar_irradiance`) times the
   transmittance along the line of sight, spread over the pixel that holds it, plus the
-  moonlit sky (:func:`skytorch.moon.sky.moonlit_sky_single_scattering`) tabulated
-  like the sky; during an eclipse each pixel of the disc is multiplied by the relative
+  moonlit sky (:func:`skytorch.moon.sky.moonlit_sky_single_scattering`, plus the orders
+  2..N of the Moon as a point source) tabulated like the sky; during an eclipse each
+  pixel of the disc is multiplied by the relative
   illuminance of the Earth's shadow (:meth:`skytorch.eclipse.Shadow.relative_illuminance`)
   at the lunar surface point its centre sees (a disc smaller than a pixel, and the
   moonlit sky, by the shadow averaged over the disc), so a resolved disc shows the
