@@ -185,3 +185,31 @@ def test_bad_profiles_raise():
     scattering = Shadow.earth(cloud_cover=needs, scattering=True, n_altitude=17)
     with pytest.raises(ValueError, match="cloud_cover"):
         scattering.relative_illuminance(MOON_M, 0.0, WAVELENGTH)
+
+
+def test_light_curve_gradient_with_respect_to_the_cloud_profile():
+    # d V(mid-totality) / d P_clear(7 km) through the shadow table and the light curve,
+    # against central differences (the profile can be a retrieval parameter); and float32
+    # geometry within 1e-5 of float64
+    from skytorch.eclipse import lunar_light_curve
+
+    def faintest_v(clear_7km):
+        shadow = eclipse_shadow("2015-09-28", cloud_cover=cloud_climatology(clear_7km))
+        curve = lunar_light_curve("2015-09-28", shadow=shadow, n_times=9, table_n_v=64)
+        return curve["v_magnitude"].max()
+
+    clear = torch.tensor(0.516, dtype=F64, requires_grad=True)
+    faintest_v(clear).backward()
+    step = 1e-4
+    with torch.no_grad():
+        central = (faintest_v(torch.tensor(0.516 + step, dtype=F64))
+                   - faintest_v(torch.tensor(0.516 - step, dtype=F64))) / (2 * step)
+    assert float(clear.grad) < 0.0  # clearer limb paths: a brighter Moon
+    assert float(clear.grad) == pytest.approx(float(central), rel=1e-5)
+    shadow = eclipse_shadow("2015-09-28")
+    offset = torch.tensor([0.0, 3e6, 4.4e6])
+    single = shadow.relative_illuminance(torch.full_like(offset, MOON_M), offset, [550.0])
+    double = shadow.relative_illuminance(torch.full_like(offset, MOON_M).double(),
+                                         offset.double(), [550.0])
+    assert single.dtype == torch.float32
+    torch.testing.assert_close(single.double(), double, rtol=1e-5, atol=0.0)
