@@ -26,7 +26,10 @@ Method, per view direction (all Sun positions scored on the same paths):
    distance found by inverting the cumulative optical depth, integrated exactly per shell
    segment (Gauss-Legendre on each piece between shell crossings; the extinction is
    linear in altitude inside a shell, the altitude a smooth function of the distance
-   between crossings);
+   between crossings); the next order is scored at ``n_split`` = 8 events stratified in
+   the optical depth of that ray (mean of their next-event estimates) and the history
+   continues from one of them chosen at random, which keeps the estimate unbiased and
+   samples the sunlit far end of a ray in twilight;
 4. Russian roulette from order ``ROULETTE_ORDER`` on (survival 1/2, weight doubled);
    orders above ``MAX_ORDER`` are dropped (their size is reported).
 
@@ -573,7 +576,6 @@ def compute(case_names, wavelengths_nm, n_photons: int) -> xr.Dataset:
     view_zeniths = sorted({vz for vz, _ in VIEWS})
     shape = (len(case_names), len(SUN_ZENITH_DEG), len(wavelengths_nm), len(VIEWS), 4)
     mean, error = np.full(shape, np.nan), np.full(shape, np.nan)
-    tail = np.zeros(shape[:4])
     for i, case in enumerate(case_names):
         for j, wl in enumerate(wavelengths_nm):
             # one independent stream per (case, wavelength): parts can run separately
@@ -582,12 +584,11 @@ def compute(case_names, wavelengths_nm, n_photons: int) -> xr.Dataset:
             table = SunTable(opt)
             for vz in view_zeniths:
                 idx = [v for v, (z, _) in enumerate(VIEWS) if z == vz]
-                m, e, orders = radiance(opt, table, vz, [VIEWS[v][1] for v in idx],
+                m, e, _ = radiance(opt, table, vz, [VIEWS[v][1] for v in idx],
                                         SUN_ZENITH_DEG, n_photons, rng)
                 for a, v in enumerate(idx):
                     mean[i, :, j, v] = m[a]
                     error[i, :, j, v] = e[a]
-                    tail[i, :, j, v] = orders[a, :, -10:].sum(axis=-1)
                 print(f"{case} {wl:.0f} nm view {vz:.0f}: "
                       f"{time.perf_counter() - start:.0f} s", flush=True)
     dims = ("case", "sun_zenith", "wavelength", "view")
@@ -597,8 +598,6 @@ def compute(case_names, wavelengths_nm, n_photons: int) -> xr.Dataset:
                       f"{name} radiance per unit TOA solar irradiance normal to the beam"})
         data[f"{name}_stderr"] = (dims, error[..., b], {"units": "sr-1", "long_name":
                                   f"standard error of {name}"})
-    data["orders_51_60"] = (dims, tail, {"units": "sr-1", "long_name": "part of total "
-                            "from orders 51-60 (the size of the truncation scale)"})
     ds = xr.Dataset(data, coords={
         "case": np.array(case_names, dtype="<U32"),
         "aerosol_optical_depth": ("case", [CASES[c] for c in case_names]),
@@ -635,9 +634,16 @@ def main(argv=None) -> None:
     output = args.output or (None if args.quick else HERE / "montecarlo_sky.nc")
     if args.merge:
         parts = [xr.open_dataset(path).load() for path in args.merge]
+        # object labels, so that combining does not cut "rayleigh_aerosol" to "rayleigh"
+        parts = [part.assign_coords(case=part.case.values.astype(object)) for part in parts]
         ds = xr.combine_by_coords(parts, combine_attrs="drop_conflicts")
         ds.attrs["cpu_time_s"] = round(sum(float(p.attrs["cpu_time_s"]) for p in parts), 1)
         ds.attrs["date"] = max(p.attrs["date"] for p in parts)
+        ds.attrs["skytorch_commit"] = ", ".join(sorted({p.attrs["skytorch_commit"]
+                                                        for p in parts}))
+        # under the roulette no history reaches order 51: the cap is bounded instead by
+        # the order spectrum (tests/test_ms_montecarlo.py::test_order_truncation_...)
+        ds = ds.drop_vars("orders_51_60", errors="ignore")
     else:
         n_photons = args.photons or (500 if args.quick else 120000)
         cases = [args.case] if args.case else list(CASES)
