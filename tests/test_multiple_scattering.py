@@ -13,6 +13,7 @@ import torch
 
 from skytorch.atmosphere import Atmosphere
 from skytorch.atmosphere.multiple_scattering import (
+    MU_S_MIN,
     ScatteringTables,
     TableResolution,
     precompute_scattering,
@@ -66,24 +67,58 @@ def test_multiple_scattering_adds_more_in_the_blue(day_tables):
     assert bool((ratio > 1.05).all()) and float(ratio[0]) > float(ratio[1]), ratio
 
 
-@pytest.mark.xfail(strict=True, reason="the discrete scheme gains energy: outgoing TOA flux "
-                   "1.58-1.75 of the incoming on the tiny table "
-                   "(docs/multiple_scattering.md, open)")
+def _global_energy_balance(tables) -> float:
+    """Light leaving the top of the atmosphere over the whole planet / light intercepted.
+
+    In spherical geometry the balance is global, not local: a Lambertian ground's light
+    spreads over the larger sphere of the top ((R_top / R)^2 = 1.032 for 100 km), so the
+    outgoing flux above the subsolar point is ~3 % below the incoming even when nothing
+    is lost. Over the sphere, the flux F_out(mu_s) leaving the top [per unit solar
+    irradiance] integrates to (2 pi R_top^2) * int F_out dmu_s = pi R_top^2, i.e.
+    int_{-1}^{1} F_out dmu_s = 1/2 (F_out is 0 beyond the tables' twilight limit).
+    """
+    x, w = np.polynomial.legendre.leggauss(48)
+    mu = torch.tensor(-0.5 * (x + 1.0))
+    weight = torch.tensor(0.5 * w) * mu.abs()
+    azimuth = (torch.arange(48, dtype=F64) + 0.5) * (2 * math.pi / 48)
+    nodes, weights = [], []
+    for low, high in ((MU_S_MIN, 0.0), (0.0, 1.0)):
+        xs, ws = np.polynomial.legendre.leggauss(24)
+        nodes.append(0.5 * (high - low) * xs + 0.5 * (high + low))
+        weights.append(0.5 * (high - low) * ws)
+    total = 0.0
+    for mu_s, w_s in zip(np.concatenate(nodes), np.concatenate(weights), strict=True):
+        radiance = tables.radiance(tables.top_altitude_m, torch.acos(mu)[:, None],
+                                   azimuth[None, :], math.acos(mu_s))[..., 0]
+        total += w_s * float((radiance * weight[:, None]).sum()) * 2 * math.pi / 48
+    return total / 0.5
+
+
+def test_conservation_rayleigh_white_ground():
+    """Conservative Rayleigh atmosphere over a ground of albedo 1 returns what it receives.
+
+    Measured 0.9990 (coarse tables, 10 orders): within the issue's 0.5 %.
+    """
+    atm = Atmosphere.earth(aerosol_optical_depth=0.0, ozone_du=0.0, precipitable_water_cm=0.0)
+    coarse = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
+                             transmittance_r=32, transmittance_mu=128)
+    tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64), ground_albedo=1.0,
+                                   scattering_orders="converged", resolution=coarse)
+    assert tables.converged
+    assert abs(_global_energy_balance(tables) - 1.0) <= 0.005
+
+
+@pytest.mark.xfail(strict=True, reason="with a forward-peaked aerosol (turbidity 2, albedo "
+                   "1) the balance is 1.086 on the tiny table, 1.008 on coarse "
+                   "8x32x16x6 and 0.989 on the default table (docs/multiple_scattering.md)")
 def test_conservation_albedo_one():
-    atm = Atmosphere.earth(turbidity=2.0, ozone_du=0.0, aerosol_single_scattering_albedo=1.0)
+    atm = Atmosphere.earth(turbidity=2.0, ozone_du=0.0, precipitable_water_cm=0.0,
+                           aerosol_single_scattering_albedo=1.0)
     tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64), ground_albedo=1.0,
                                    scattering_orders="converged",
                                    resolution=TableResolution.tiny())
     assert tables.converged
-    x, w = np.polynomial.legendre.leggauss(24)
-    mu = torch.tensor(-0.5 * (x + 1.0))
-    weight = torch.tensor(0.5 * w) * mu.abs()
-    azimuth = torch.arange(32, dtype=F64) * (2 * math.pi / 32)
-    for sun in (0.0, 0.5):
-        radiance = tables.radiance(tables.top_altitude_m, torch.acos(mu)[:, None],
-                                   azimuth[None, :], sun)[..., 0]
-        flux = float((radiance * weight[:, None]).sum()) * 2 * math.pi / 32
-        assert abs(flux / math.cos(sun) - 1.0) <= 0.005
+    assert abs(_global_energy_balance(tables) - 1.0) <= 0.005
 
 
 @pytest.mark.parametrize("altitude, view, sun", [

@@ -255,6 +255,39 @@ def _gather4(table, b, corners):
     return result
 
 
+def balanced_phase_operator(phase, weights, iterations: int = 200):
+    r"""Discrete scattering operator that conserves energy both ways on a quadrature.
+
+    With ``phase`` :math:`p_{ij} = P(\omega_i\cdot\omega_j)` (symmetric) and the solid-angle
+    weights :math:`w_j` of the directions, returns :math:`K_{ij} = d_i\,p_{ij}\,w_j\,d_j`
+    with the scale factors :math:`d` found by symmetric Sinkhorn iteration so that every row
+    sums to 1 (the source of each direction is a weighted mean of the radiance: no gain
+    for an isotropic field) and, by the symmetry of :math:`p`, every column satisfies
+    :math:`\sum_i w_i K_{ij} = w_j` (the light scattered out of each direction is
+    redistributed whole). Normalising rows alone loses the second property for a
+    forward-peaked phase function on a coarse quadrature, and the scheme then gains or
+    loses energy at every order.
+
+    Parameters
+    ----------
+    phase : Tensor (..., n, n, λ)
+        Phase function between the quadrature directions [sr^-1], symmetric in (n, n).
+    weights : Tensor (n,)
+        Quadrature weights [sr] (sum 4π).
+    iterations : int
+        Sinkhorn iterations (the scaling converges geometrically).
+
+    Returns
+    -------
+    Tensor (..., n, n, λ)
+    """
+    a = phase * weights[:, None]
+    d = torch.ones(a.shape[:-3] + (a.shape[-3], a.shape[-1]), dtype=a.dtype)
+    for _ in range(iterations):
+        d = torch.sqrt(d / torch.einsum("...ijl,...jl->...il", a, d))
+    return d[..., :, None, :] * a * d[..., None, :, :]
+
+
 # ---------------------------------------------------------------- the tables
 class ScatteringTables:
     """Precomputed orders of scattering of one atmosphere at given wavelengths.
@@ -603,16 +636,18 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     cos_theta = torch.clamp(
         mu_q[:, None, None, None] * mu_q[None, None, :, None]
         + sin_q[:, None, None, None] * sin_q[None, None, :, None]
-        * torch.cos(phi_nodes[None, :, None, None] - phi_full[None, None, None, :]),
-        -1.0, 1.0)                                                   # (q, phi, q', m)
+        * torch.cos(phi_full[None, :, None, None] - phi_full[None, None, None, :]),
+        -1.0, 1.0)                                                   # (q, m, q', m')
     n_out, n_in = 2 * res.n_sphere_mu * res.n_phi, 2 * res.n_sphere_mu * n_full
     w_in = (w_q[:, None] * (2 * math.pi / n_full)).expand(2 * res.n_sphere_mu, n_full)
+    # output rows: the table's azimuths [0, pi] (the first n_phi of the full circle)
+    rows = (torch.arange(2 * res.n_sphere_mu)[:, None] * n_full
+            + torch.arange(res.n_phi)[None, :]).reshape(-1)
     operators = []
     for sp in scatterers:
-        p = sp.phase(_geometry(cos_theta, nb), extra=4)             # (*B?, q, phi, q', m, λ?)
-        p = p.reshape(tuple(p.shape[:-5]) + (n_out, n_in, p.shape[-1]))
-        k = p * w_in.reshape(-1)[:, None]
-        k = k / k.sum(-2, keepdim=True)
+        p = sp.phase(_geometry(cos_theta, nb), extra=4)             # (*B?, q, m, q', m', λ?)
+        p = p.reshape(tuple(p.shape[:-5]) + (n_in, n_in, p.shape[-1]))
+        k = balanced_phase_operator(p, w_in.reshape(-1))[..., rows, :, :]
         lead = k.shape[:-3]
         k = k.reshape((-1,) + tuple(k.shape[-3:])) if lead else k[None]
         operators.append(k.permute(0, 3, 2, 1))                     # (b?, λ?, n_in, n_out)
@@ -634,6 +669,67 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         field = (single * phase_on_nodes()).sum(-2) + ground1
     else:
         field = ground1
+
+    def on_quadrature(table):
+        """``table`` (b, r, mu, ms, phi, ...) at the quadrature directions, phi mirrored."""
+        extra = (None,) * (table.ndim - 5)
+        lq = (table[:, ar, iq] * (1 - wq_)[(None, slice(None), slice(None), None, None) + extra]
+              + table[:, ar, iq + 1] * wq_[(None, slice(None), slice(None), None, None) + extra])
+        return torch.cat([lq, lq[:, :, :, :, 1:res.n_phi - 1].flip(4)], dim=4)
+
+    def single_at_quadrature():
+        """Order 1 at the quadrature directions (b, r, q, ms, m, λ), exact phases.
+
+        The phase-free single scattering is smooth in the view direction and is
+        interpolated; the phase is evaluated at each quadrature direction's own
+        scattering angle, so that the aureole is not smeared across the table's nodes.
+        """
+        out = on_quadrature(ground1)
+        if not scatterers:
+            return out
+        sin_s = torch.sqrt(torch.clamp(1 - mu_s_nodes ** 2, min=0.0))
+        nu_q = torch.clamp(mu_q[:, None, None] * mu_s_nodes[None, :, None]
+                           + sin_q[:, None, None] * sin_s[None, :, None]
+                           * torch.cos(phi_full)[None, None, :], -1.0, 1.0)  # (q, ms, m)
+        s_q = on_quadrature(single)                                  # (b, r, q, ms, m, S, λ)
+        for k, sp in enumerate(scatterers):
+            p = sp.phase(_geometry(nu_q, nb), extra=3)
+            p = _flat(p.expand(tuple(p.shape[:-1]) + (n_lambda,)), shape_b, 4)
+            out = out + s_q[..., k, :] * p[:, None]
+        return out
+
+    def ground_irradiance_single(n_mu_fine=32, n_phi_fine=64):
+        """Diffuse irradiance of order 1 at the ground (b, ms, λ), fine quadrature.
+
+        The aureole of a forward-peaked phase function is not resolved by the sphere
+        quadrature; its irradiance is integrated on a finer grid (the phase-free
+        single scattering interpolated in mu and phi, the phase exact).
+        """
+        if not scatterers:
+            return torch.zeros((b, res.n_mu_s, n_lambda), dtype=dtype)
+        xf, wf = np.polynomial.legendre.leggauss(n_mu_fine)
+        mu_f = tens(0.5 * (xf + 1.0))
+        w_f = tens(0.5 * wf) * mu_f * (2 * math.pi / n_phi_fine)
+        phi_f = (torch.arange(n_phi_fine, dtype=dtype) + 0.5) * (2 * math.pi / n_phi_fine)
+        r0 = r_nodes[:1].expand(n_mu_fine)
+        im_f, wm_f = _mu_index(shell, r0, mu_f, res.n_mu)
+        fold = math.pi - torch.abs(phi_f - math.pi)                  # |phi| in [0, pi]
+        ip_f, wp_f = _linear(fold / math.pi * (res.n_phi - 1), res.n_phi)
+        s0 = single[:, 0]                                            # (b, mu, ms, phi, S, λ)
+        s_mu = (s0[:, im_f] * (1 - wm_f)[None, :, None, None, None, None]
+                + s0[:, im_f + 1] * wm_f[None, :, None, None, None, None])  # (b, qf, ms, phi, S, λ)
+        s_f = (s_mu[:, :, :, ip_f] * (1 - wp_f)[None, None, None, :, None, None]
+               + s_mu[:, :, :, ip_f + 1] * wp_f[None, None, None, :, None, None])
+        sin_s = torch.sqrt(torch.clamp(1 - mu_s_nodes ** 2, min=0.0))
+        nu_f = torch.clamp(mu_f[:, None, None] * mu_s_nodes[None, :, None]
+                           + torch.sqrt(1 - mu_f ** 2)[:, None, None] * sin_s[None, :, None]
+                           * torch.cos(phi_f)[None, None, :], -1.0, 1.0)  # (qf, ms, mf)
+        total = 0.0
+        for k, sp in enumerate(scatterers):
+            p = sp.phase(_geometry(nu_f, nb), extra=3)
+            p = _flat(p.expand(tuple(p.shape[:-1]) + (n_lambda,)), shape_b, 4)
+            total = total + (s_f[..., k, :] * p * w_f[None, :, None, None, None]).sum((1, 3))
+        return total
     level_sum = field.detach().abs().sum()
     reference = level_sum if float(level_sum) > 0 else torch.tensor(1.0, dtype=dtype)
     cumulative = [ground1]
@@ -641,13 +737,15 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     converged = False
     previous = field
     while len(cumulative) < target:
-        # radiance of the last order at the quadrature directions, phi mirrored
-        lq = (previous[:, ar, iq] * (1 - wq_)[None, :, :, None, None, None]
-              + previous[:, ar, iq + 1] * wq_[None, :, :, None, None, None])
-        lq = torch.cat([lq, lq[..., 1:res.n_phi - 1, :].flip(-2)], dim=-2)  # (b,r,q,ms,m,λ)
-        # ground irradiance of that order (r node 0 is the ground)
-        e_prev = (lq[:, 0][:, up] * (w_q[up] * mu_q[up])[None, :, None, None, None]
-                  ).sum((1, 3)) * (2 * math.pi / n_full)            # (b, ms, λ)
+        # radiance of the last order at the quadrature directions, phi mirrored, and its
+        # irradiance at the ground (r node 0)
+        if len(cumulative) == 1:
+            lq = single_at_quadrature()                              # (b,r,q,ms,m,λ)
+            e_prev = ground_irradiance_single()                      # (b, ms, λ)
+        else:
+            lq = on_quadrature(previous)
+            e_prev = (lq[:, 0][:, up] * (w_q[up] * mu_q[up])[None, :, None, None, None]
+                      ).sum((1, 3)) * (2 * math.pi / n_full)
         lin = lq.permute(0, 5, 1, 3, 2, 4).reshape(b, n_lambda, res.n_r * res.n_mu_s, n_in)
         # per species the phase-weighted mean radiance (smooth in r); its scattering
         # coefficient is applied at each sample's own altitude (exact vertical profile)
