@@ -159,6 +159,72 @@ def test_thin_homogeneous_layer_closed_form():
         assert abs(mean[a, 0] / ref - 1.0) < max(3.0 * err[a, 0] / ref, 0.1 * PERCENT)
 
 
+def _order_two_quadrature(opt, sun_table, sun_zenith_deg, n_los=32, n_mu=48, n_phi=48,
+                          n_ray=400):
+    r"""Deterministic double scattering at the zenith view (Rayleigh only).
+
+    :math:`L_2 = \int ds_1 \beta(s_1) T(0, s_1) \int d\Omega\, P(\Theta_1)
+    \int ds_2 \beta(s_2) T(s_1, s_2) P(\Theta_2) T_\odot(s_2)`: Gauss-Legendre in
+    the line-of-sight coordinate and in the direction cosine, uniform azimuths,
+    trapezoidal optical depths along each second leg; only the Sun's optical depth comes
+    from the (separately tested) table.
+    """
+    radius, top = opt.planet_radius_m, opt.planet_radius_m + opt.top_m
+    u, wu = np.polynomial.legendre.leggauss(n_los)
+    u, wu = 0.5 * (u + 1.0), 0.5 * wu
+    s1, w1 = opt.top_m * u ** 2, opt.top_m * 2.0 * u * wu
+    mu, wmu = np.polynomial.legendre.leggauss(n_mu)
+    phi = (np.arange(n_phi) + 0.5) * 2.0 * math.pi / n_phi
+    m, f = np.meshgrid(mu, phi, indexing="ij")
+    dirs = np.stack([np.sqrt(1 - m ** 2) * np.cos(f), np.sqrt(1 - m ** 2) * np.sin(f), m],
+                    -1).reshape(-1, 3)
+    wdir = np.repeat(wmu, n_phi) * 2.0 * math.pi / n_phi
+    sun = mc.sun_directions(0.0, [0.0], [sun_zenith_deg])[0]
+    fine = np.linspace(0.0, opt.top_m, 20001)
+    k_fine = np.interp(fine + mc.OBSERVER_ALTITUDE_M, opt.altitude_m, opt.extinction)
+    tau_fine = np.concatenate([[0.0], np.cumsum(0.5 * (k_fine[1:] + k_fine[:-1])
+                                                * np.diff(fine))])
+    v = np.linspace(0.0, 1.0, n_ray)
+    total = 0.0
+    for s, w in zip(s1, w1, strict=True):
+        x1 = np.array([0.0, 0.0, radius + mc.OBSERVER_ALTITUDE_M + s])
+        b = dirs @ x1
+        disc = b * b - x1 @ x1 + radius * radius
+        ground = (disc > 0.0) & (-b - np.sqrt(np.maximum(disc, 0.0)) > 0.0)
+        length = np.where(ground, -b - np.sqrt(np.maximum(disc, 0.0)),
+                          -b + np.sqrt(b * b - x1 @ x1 + top * top))
+        s2 = length[:, None] * v ** 2
+        pts = x1 + s2[..., None] * dirs[:, None, :]
+        r = np.linalg.norm(pts, axis=2)
+        h = r - radius
+        k2 = np.interp(h, opt.altitude_m, opt.extinction)
+        beta2 = np.interp(h, opt.altitude_m, opt.rayleigh)
+        tau = np.concatenate([np.zeros((len(length), 1)), np.cumsum(
+            0.5 * (k2[:, 1:] + k2[:, :-1]) * np.diff(s2, axis=1), axis=1)], axis=1)
+        sun_t = np.exp(-sun_table(h.ravel(), ((pts @ sun) / r).ravel())).reshape(h.shape)
+        inner = np.trapezoid(beta2 * np.exp(-tau) * sun_t, s2, axis=1)
+        phase = (mc.rayleigh_phase(dirs[:, 2]) * mc.rayleigh_phase(dirs @ sun))
+        beta1 = np.interp(s + mc.OBSERVER_ALTITUDE_M, opt.altitude_m, opt.rayleigh)
+        los_t = math.exp(-np.interp(s, fine, tau_fine))
+        total += w * beta1 * los_t * np.sum(wdir * phase * inner)
+    return total
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sun_zenith_deg", [60.0, 94.0])
+def test_table_order_two_against_quadrature(table, sun_zenith_deg):
+    """Shipped order 2 (Rayleigh, 550 nm, zenith) equals a deterministic quadrature (3 sigma).
+
+    In twilight (Sun 94 deg) this is the check of the multiple-scattering part that
+    sasktran2's successive orders cannot give (one solar zenith along the sight line).
+    """
+    opt = mc.optics(0.0, 550.0)
+    ref = _order_two_quadrature(opt, mc.SunTable(opt), sun_zenith_deg)
+    ours = table.sel(case="rayleigh", wavelength=550.0, view=0, sun_zenith=sun_zenith_deg)
+    assert abs(float(ours.order_2) - ref) < 3.0 * float(ours.order_2_stderr), (
+        float(ours.order_2), ref)
+
+
 @pytest.fixture(scope="module")
 def table():
     with xr.open_dataset(TABLE) as ds:
