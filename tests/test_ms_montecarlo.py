@@ -309,10 +309,10 @@ def _solver_radiance(case):
     return out
 
 
-SOLVER_XFAIL = ("measured with coarse tables (docs/multiple_scattering_validation.md): Rayleigh "
-                "day <= 2.0 %, Sun 90/94/98 deg 21 %/79 %/2.4x; Rayleigh + aerosol day "
-                "8.3-11 % (near the Sun), Sun 90/94/98 deg 41 %/85 %/2.1x (max over the "
-                "decided views, 400 and 550 nm)")
+SOLVER_XFAIL = ("measured at 3ea4c46 with coarse tables (docs/multiple_scattering_validation"
+                ".md): Rayleigh day <= 2.0 %, Sun 90/94/98 deg 21 %/79 %/2.4x; Rayleigh + "
+                "aerosol day 8.2-11 % (near the Sun), Sun 90/94/98 deg 41 %/84 %/2.1x (max "
+                "over the decided views, 400 and 550 nm)")
 
 
 @pytest.mark.slow
