@@ -230,11 +230,32 @@ def _mu_index(shell, r, mu, n_mu: int):
     return torch.where(ground, ig, it), torch.where(ground, wg, wt)
 
 
+def _geometric(low, high, weight):
+    """Interpolate between two nodes, geometrically where they differ by a large factor.
+
+    The sky falls by orders of magnitude between two Sun-zenith nodes in twilight; there a
+    linear interpolation overestimates by up to the ratio of the nodes, a geometric one is
+    exact for an exponential fall. Where the nodes differ by less than 1.5× (the day sky)
+    the interpolation is linear, by more than 4× geometric, and blended smoothly in the
+    logarithm of the ratio between; where a node is zero (the planet's shadow) linear.
+    """
+    positive = (low > 0) & (high > 0)
+    tiny = torch.finfo(low.dtype).tiny
+    log_low = torch.log(torch.clamp(low, min=tiny))
+    log_high = torch.log(torch.clamp(high, min=tiny))
+    linear = (1.0 - weight) * low + weight * high
+    geometric = torch.exp((1.0 - weight) * log_low + weight * log_high)
+    blend = torch.clamp((torch.abs(log_high - log_low) - math.log(1.5))
+                        / (math.log(4.0) - math.log(1.5)), 0.0, 1.0)
+    return torch.where(positive, linear + blend * (geometric - linear), linear)
+
+
 def _gather4(table, b, corners):
-    """Multilinear look-up of ``table`` (b, n1, n2, n3, n4, λ') at the corners.
+    """Look ``table`` (b, n1, n2, n3, n4, λ') up at the corners.
 
     ``corners`` is four (index, weight) pairs of equal shapes; ``b`` the batch index.
-    Returns (*shape, λ').
+    Multilinear in dims 1, 2 and 4 (r, mu, phi) and geometric in dim 3 (mu_s, see
+    :func:`_geometric`). Returns (*shape, λ').
     """
     dims = table.shape[1:5]
     flat = table.reshape(-1, table.shape[-1])
@@ -242,17 +263,19 @@ def _gather4(table, b, corners):
     for (i, _), n in zip(corners, dims, strict=True):
         base = base * n + i
     strides = [dims[1] * dims[2] * dims[3], dims[2] * dims[3], dims[3], 1]
-    result = 0.0
+    sides = [0.0, 0.0]
     for c in range(16):
         offset, weight = 0, 1.0
-        for d in range(4):
+        for d in (0, 1, 3):
             bit = (c >> d) & 1
             offset = offset + bit * strides[d]
             w = corners[d][1]
             weight = weight * (w if bit else 1.0 - w)
-        result = result + weight[..., None] * flat[(base + offset).reshape(-1)].reshape(
+        side = (c >> 2) & 1
+        offset = offset + side * strides[2]
+        sides[side] = sides[side] + weight[..., None] * flat[(base + offset).reshape(-1)].reshape(
             base.shape + (flat.shape[-1],))
-    return result
+    return _geometric(sides[0], sides[1], corners[2][1][..., None])
 
 
 def balanced_phase_operator(phase, weights, iterations: int = 200):
@@ -784,8 +807,7 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
             ray = integrand.sum(2)                                  # (b, mu, ms, phi, λ)
             mus_g = mus_s[:, -1]
             eg = _linear(shell.mu_s_coordinate(mus_g) * (res.n_mu_s - 1), res.n_mu_s)
-            e_at = (e_prev[:, eg[0]] * (1 - eg[1])[None, ..., None]
-                    + e_prev[:, eg[0] + 1] * eg[1][None, ..., None])
+            e_at = _geometric(e_prev[:, eg[0]], e_prev[:, eg[0] + 1], eg[1][None, ..., None])
             ray = ray + (ground_ray[None, :, None, None, None]
                          * t_view[:, i, :, -1][:, :, None, None, :]
                          * albedo[:, None, None, None, :] / math.pi * e_at)
