@@ -120,9 +120,11 @@ def test_rayleigh_day_sky_against_sasktran2_coarse_tables(reference):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
-@pytest.mark.xfail(strict=True, reason="measured at 38cba69, default tables, Rayleigh + "
-                   "aerosol: day sky 9.1 % (Sun 30 deg, near the Sun), zenith twilight "
-                   "30-76 % too dark at Sun 94-98 deg (docs/multiple_scattering_validation.md)")
+@pytest.mark.xfail(strict=True, reason="default tables, Rayleigh + aerosol: day sky 9.1 % "
+                   "near the Sun at Sun 30 deg (38cba69); the twilight rows of this reference "
+                   "(num_sza = 1) are 1.4-8x brighter than the Monte-Carlo reference at Sun "
+                   ">= 94 deg (docs/multiple_scattering_validation.md), so the solver cannot "
+                   "meet them")
 @pytest.mark.parametrize("case", ["rayleigh", "rayleigh_aerosol"])
 def test_multiple_scattering_against_sasktran2(reference, case):
     """Default tables: day sky (Sun 30-80 deg) within 3 %, Sun to -8 deg within 10 %."""
