@@ -29,6 +29,7 @@ from skytorch.eclipse.circumstances import lunar_eclipses  # noqa: F401
 from skytorch.eclipse.cone import ENLARGEMENTS, shadow_cone, shadow_radii  # noqa: F401
 from skytorch.eclipse.danjon import danjon_class_l, danjon_l_linear  # noqa: F401
 from skytorch.eclipse.eclipse_atmosphere import (  # noqa: F401
+    cloud_climatology,
     eclipse_atmosphere,
     eclipse_shadow,
     stratospheric_aod,
@@ -40,6 +41,7 @@ from skytorch.eclipse.occlusion import (  # noqa: F401
     sun_visible_fraction,
 )
 from skytorch.eclipse.retrieval import retrieve_atmosphere  # noqa: F401
+from skytorch.eclipse.shadow import LimbCloudCover  # noqa: F401
 from skytorch.eclipse.solar import solar_eclipses  # noqa: F401
 from skytorch.eclipse.solar_local import solar_eclipse_local  # noqa: F401
 from skytorch.eclipse.solar_path import obscuration_map, solar_eclipse_path  # noqa: F401
@@ -47,8 +49,10 @@ from skytorch.eclipse.solar_path import obscuration_map, solar_eclipse_path  # n
 __all__ = [
     "ENLARGEMENTS",
     "LIMB_DARKENING_LAWS",
+    "LimbCloudCover",
     "Shadow",
     "ShadowTable",
+    "cloud_climatology",
     "danjon_class_l",
     "danjon_l",
     "danjon_l_linear",

@@ -3,7 +3,9 @@
 * :mod:`~skytorch.nightsky.zodiacal` — Leinert et al. 1998 Table 17 and its colour;
 * :mod:`~skytorch.nightsky.airglow` — van Rhijn layer, zenith level and solar cycle;
 * :mod:`~skytorch.nightsky.starlight` — Gaia catalogue stars fainter than a limit, as a
-  surface-brightness map (the Milky Way of the catalogue).
+  surface-brightness map (the Milky Way of the catalogue);
+* :mod:`~skytorch.nightsky.faint_starlight` — the Pioneer 10/11 starlight (Leinert et al.
+  1998 Table 35) fainter than the catalogue.
 
 The per-direction sum for a scene is :func:`skytorch.scene.natural_sky.natural_component`.
 """
@@ -14,6 +16,10 @@ from skytorch.nightsky.airglow import (
     airglow_solar_factor,
     airglow_zenith_mag,
     van_rhijn,
+)
+from skytorch.nightsky.faint_starlight import (
+    faint_starlight_table,
+    faint_starlight_v_radiance,
 )
 from skytorch.nightsky.starlight import (
     catalogue_starlight_map,
@@ -34,6 +40,8 @@ __all__ = [
     "airglow_solar_factor",
     "airglow_zenith_mag",
     "catalogue_starlight_map",
+    "faint_starlight_table",
+    "faint_starlight_v_radiance",
     "galactic_coordinates",
     "starlight_v_radiance",
     "van_rhijn",
