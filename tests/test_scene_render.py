@@ -207,3 +207,15 @@ def test_render_times_stacks_instants(tmp_path):
     assert (night_sky == 0.0).all()
     again = open_dataset(to_netcdf(ds, tmp_path / "series.nc"))
     np.testing.assert_array_equal(again["radiance"].values, ds["radiance"].values)
+
+
+def test_render_times_keeps_the_orders_of_scattering_per_frame():
+    """A day and a night frame: the orders of scattering differ and stay per frame."""
+    scene = st.Scene(time="2015-06-21T12:00", **PARIS, view="directions",
+                     directions={"altitude_deg": [90.0], "azimuth_deg": [0.0]})
+    frames = [scene.replace(time=t).render() for t in ("2015-06-21T12:00", "2015-06-21T23:30")]
+    assert frames[0].attrs["sky_scattering_orders"] != frames[1].attrs["sky_scattering_orders"]
+    ds = st.scene.render_times(scene, ["2015-06-21T12:00", "2015-06-21T23:30"])
+    assert ds["sky_scattering_orders"].dims == ("time",)
+    assert list(ds["sky_scattering_orders"].values) == [
+        str(f.attrs["sky_scattering_orders"]) for f in frames]

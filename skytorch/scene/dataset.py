@@ -160,12 +160,17 @@ _COORD_SPECS = {
 
 
 
+#: planner decisions kept per frame when they differ between stacked frames
+_PER_FRAME_DECISIONS = ("sky_scattering_orders", "moon_scattering_orders",
+                        "scattering_orders_reason")
+
+
 def stack_frames(frames, dim: str, coordinate, title: str):
     """Stack rendered scenes along ``dim``.
 
     The changing variables get the dimension, the planner's decisions become string variables over
-    it, the attributes that differ between frames are dropped and ``effects_computed`` lists the
-    union.
+    it (so do the orders of scattering, when they differ between frames), the other attributes
+    that differ between frames are dropped and ``effects_computed`` lists the union.
     """
     computed = [f.attrs["effects_computed"] for f in frames]
     skipped = [f.attrs["effects_skipped"] for f in frames]
@@ -186,6 +191,11 @@ def stack_frames(frames, dim: str, coordinate, title: str):
     stacked["effects_skipped"] = variable((dim,), np.array(skipped, dtype=np.str_),
                                           VariableSpec("1", "effects skipped",
                                                        "Skipped effects and reasons."))
+    for key in _PER_FRAME_DECISIONS:
+        if key in varying and all(key in f.attrs for f in frames):
+            values = np.array([str(f.attrs[key]) for f in frames], dtype=np.str_)
+            stacked[key] = variable((dim,), values, VariableSpec(
+                "1", key.replace("_", " "), f"Planner decision per {dim}."))
     stacked.attrs = {k: v for k, v in frames[0].attrs.items() if k not in varying}
     union = {e for c in computed for e in c.split(",") if e}
     stacked.attrs["effects_computed"] = ",".join(e for e in EFFECTS if e in union)
