@@ -30,7 +30,7 @@ import torch
 import xarray as xr
 
 from skytorch._validate import check_int
-from skytorch.eclipse.eclipse_atmosphere import eclipse_atmosphere
+from skytorch.eclipse.eclipse_atmosphere import eclipse_atmosphere, eclipse_shadow
 from skytorch.eclipse.lunar import lunar_light_curve
 
 __all__ = ["OBSERVABLES", "PARAMETERS", "retrieve_atmosphere"]
@@ -62,7 +62,9 @@ def _model(date, names, x, n_times, table_n_v):
     """Modelled observables (in OBSERVABLES order) for log-parameters ``x``."""
     values = {name: torch.exp(x[i]) for i, name in enumerate(names)}
     atmosphere = eclipse_atmosphere(date, **values)
-    curve = lunar_light_curve(date, atmosphere, n_times=n_times, table_n_v=table_n_v)
+    # the date's shadow: the clouds block the lowest limb rays as in the comparison
+    shadow = eclipse_shadow(date, atmosphere=atmosphere)
+    curve = lunar_light_curve(date, shadow=shadow, n_times=n_times, table_n_v=table_n_v)
     k = int(torch.argmax(curve["v_magnitude"].detach()))
     return torch.stack([curve["v_magnitude"][k], curve["b_minus_v"][k]])
 
