@@ -680,13 +680,16 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     ar = torch.arange(res.n_r)[:, None]
     up = mu_q > 0
 
+    def phase_at(sp, cosine):
+        """Phase of ``sp`` at the geometry ``cosine`` (*g): (b, *g, λ)."""
+        p = sp.phase(_geometry(cosine, nb), extra=cosine.ndim)
+        return _flat(p.expand(tuple(p.shape[:-1]) + (n_lambda,)), shape_b, cosine.ndim + 1)
+
     def phase_on_nodes():
         """Exact phases at the table's nu nodes: (b, r, mu, ms, phi, S, λ)."""
-        out = []
-        for sp in scatterers:
-            p = sp.phase(_geometry(nu_nodes, nb), extra=4)
-            out.append(_flat(p.expand(tuple(p.shape[:-1]) + (n_lambda,)), shape_b, 5))
-        return torch.stack(out, dim=-2)
+        return torch.stack([phase_at(sp, nu_nodes) for sp in scatterers], dim=-2)
+
+    sin_s = torch.sqrt(torch.clamp(1 - mu_s_nodes ** 2, min=0.0))
 
     if scatterers:
         field = (single * phase_on_nodes()).sum(-2) + ground1
@@ -710,15 +713,12 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         out = on_quadrature(ground1)
         if not scatterers:
             return out
-        sin_s = torch.sqrt(torch.clamp(1 - mu_s_nodes ** 2, min=0.0))
         nu_q = torch.clamp(mu_q[:, None, None] * mu_s_nodes[None, :, None]
                            + sin_q[:, None, None] * sin_s[None, :, None]
                            * torch.cos(phi_full)[None, None, :], -1.0, 1.0)  # (q, ms, m)
         s_q = on_quadrature(single)                                  # (b, r, q, ms, m, S, λ)
         for k, sp in enumerate(scatterers):
-            p = sp.phase(_geometry(nu_q, nb), extra=3)
-            p = _flat(p.expand(tuple(p.shape[:-1]) + (n_lambda,)), shape_b, 4)
-            out = out + s_q[..., k, :] * p[:, None]
+            out = out + s_q[..., k, :] * phase_at(sp, nu_q)[:, None]
         return out
 
     def ground_irradiance_single(n_mu_fine=32, n_phi_fine=64):
@@ -743,15 +743,13 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
                 + s0[:, im_f + 1] * wm_f[None, :, None, None, None, None])  # (b, qf, ms, phi, S, λ)
         s_f = (s_mu[:, :, :, ip_f] * (1 - wp_f)[None, None, None, :, None, None]
                + s_mu[:, :, :, ip_f + 1] * wp_f[None, None, None, :, None, None])
-        sin_s = torch.sqrt(torch.clamp(1 - mu_s_nodes ** 2, min=0.0))
         nu_f = torch.clamp(mu_f[:, None, None] * mu_s_nodes[None, :, None]
                            + torch.sqrt(1 - mu_f ** 2)[:, None, None] * sin_s[None, :, None]
                            * torch.cos(phi_f)[None, None, :], -1.0, 1.0)  # (qf, ms, mf)
         total = 0.0
         for k, sp in enumerate(scatterers):
-            p = sp.phase(_geometry(nu_f, nb), extra=3)
-            p = _flat(p.expand(tuple(p.shape[:-1]) + (n_lambda,)), shape_b, 4)
-            total = total + (s_f[..., k, :] * p * w_f[None, :, None, None, None]).sum((1, 3))
+            total = total + (s_f[..., k, :] * phase_at(sp, nu_f)
+                             * w_f[None, :, None, None, None]).sum((1, 3))
         return total
     level_sum = field.detach().abs().sum()
     reference = level_sum if float(level_sum) > 0 else torch.tensor(1.0, dtype=dtype)
