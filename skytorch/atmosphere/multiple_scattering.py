@@ -241,11 +241,10 @@ def _geometric(low, high, weight):
     """
     positive = (low > 0) & (high > 0)
     tiny = torch.finfo(low.dtype).tiny
-    log_low = torch.log(torch.clamp(low, min=tiny))
-    log_high = torch.log(torch.clamp(high, min=tiny))
-    linear = (1.0 - weight) * low + weight * high
-    geometric = torch.exp((1.0 - weight) * log_low + weight * log_high)
-    blend = torch.clamp((torch.abs(log_high - log_low) - math.log(1.5))
+    log_ratio = torch.log(torch.clamp(high, min=tiny) / torch.clamp(low, min=tiny))
+    linear = low + weight * (high - low)
+    geometric = low * torch.exp(weight * log_ratio)
+    blend = torch.clamp((torch.abs(log_ratio) - math.log(1.5))
                         / (math.log(4.0) - math.log(1.5)), 0.0, 1.0)
     return torch.where(positive, linear + blend * (geometric - linear), linear)
 
@@ -276,6 +275,39 @@ def _gather4(table, b, corners):
         sides[side] = sides[side] + weight[..., None] * flat[(base + offset).reshape(-1)].reshape(
             base.shape + (flat.shape[-1],))
     return _geometric(sides[0], sides[1], corners[2][1][..., None])
+
+
+def _gather_rays(table, ray_corners, sun_corners):
+    """Look ``table`` (b, n1, n2, n3, n4, λ') up at the samples of the table's rays.
+
+    ``ray_corners`` is two (index, weight) pairs of shape (*g) on dims 1 and 2 (r, mu:
+    fixed along a sample of a ray), ``sun_corners`` two pairs of shape (*g, m3, m4) on
+    dims 3 and 4 (mu_s, phi: one per Sun direction of the table). The same interpolation
+    as :func:`_gather4` (multilinear in r, mu, phi, geometric in mu_s), done in two
+    stages: contiguous (mu_s, phi) blocks are interpolated in (r, mu) once per sample,
+    then looked up in (mu_s, phi). Returns (b, *g, m3, m4, λ').
+    """
+    (i1, w1), (i2, w2) = ray_corners
+    n3, n4, channels = table.shape[3:]
+    ray = 0.0
+    for d1 in (0, 1):
+        for d2 in (0, 1):
+            w = (w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2)
+            ray = ray + w[..., None, None, None] * table[:, i1 + d1, i2 + d2]
+    b, n_g = table.shape[0], i1.numel()
+    flat = ray.reshape(-1, channels)                             # (b * g * n3 * n4, λ')
+    (i3, w3), (i4, w4) = sun_corners
+    row = (torch.arange(b * n_g).reshape((b,) + tuple(i1.shape) + (1, 1)) * (n3 * n4)
+           + (i3 * n4 + i4)[None])
+    sides = []
+    for d3 in (0, 1):
+        side = 0.0
+        for d4 in (0, 1):
+            idx = (row + (d3 * n4 + d4)).reshape(-1)
+            w = (w4 if d4 else 1.0 - w4)[None, ..., None]
+            side = side + w * torch.index_select(flat, 0, idx).reshape(row.shape + (channels,))
+        sides.append(side)
+    return _geometric(sides[0], sides[1], w3[None, ..., None])
 
 
 def balanced_phase_operator(phase, weights, iterations: int = 200):
@@ -782,19 +814,18 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         nxt = []
         for i in range(res.n_r):
             mus_s = sample_sun(i)                                   # (mu, K, ms, phi)
-            rs = r_s[i][:, :, None, None].expand(mus_s.shape)
-            mv = mu_view_s[i][:, :, None, None].expand(mus_s.shape)
-            nu = nu_nodes[i][:, None].expand(mus_s.shape)
-            denom = torch.sqrt(torch.clamp((1 - mv * mv) * (1 - mus_s * mus_s), min=1e-30))
-            phi_s = torch.acos(torch.clamp((nu - mv * mus_s) / denom, -1.0, 1.0))
-            cr = _linear(shell.x_of_r(rs) * (res.n_r - 1), res.n_r)
+            mv = mu_view_s[i]                                       # (mu, K)
+            mv4 = mv[:, :, None, None]
+            nu = nu_nodes[i][:, None]
+            denom = torch.sqrt(torch.clamp((1 - mv4 * mv4) * (1 - mus_s * mus_s), min=1e-30))
+            phi_s = torch.acos(torch.clamp((nu - mv4 * mus_s) / denom, -1.0, 1.0))
+            cr = _linear(shell.x_of_r(r_s[i]) * (res.n_r - 1), res.n_r)
             pos = torch.clamp(torch.searchsorted(mu_q, mv.contiguous()) - 1, 0,
                               mu_q.shape[0] - 2)
             wmu = torch.clamp((mv - mu_q[pos]) / (mu_q[pos + 1] - mu_q[pos]), 0.0, 1.0)
             cms = _linear(shell.mu_s_coordinate(mus_s) * (res.n_mu_s - 1), res.n_mu_s)
             cph = _linear(phi_s / math.pi * (res.n_phi - 1), res.n_phi)
-            jv = _gather4(j_table, torch.arange(b).reshape(b, 1, 1, 1, 1),
-                          [(c[0][None], c[1][None]) for c in (cr, (pos, wmu), cms, cph)])
+            jv = _gather_rays(j_table, (cr, (pos, wmu)), (cms, cph))
             jv = jv.reshape(jv.shape[:-1] + (n_s, n_lambda))
             if beta_s:
                 beta = torch.stack([bs[:, i] for bs in beta_s], -2)[:, :, :, None, None]
