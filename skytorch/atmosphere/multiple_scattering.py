@@ -241,10 +241,13 @@ def _geometric(low, high, weight):
     """
     positive = (low > 0) & (high > 0)
     tiny = torch.finfo(low.dtype).tiny
-    log_ratio = torch.log(torch.clamp(high, min=tiny) / torch.clamp(low, min=tiny))
-    linear = low + weight * (high - low)
-    geometric = low * torch.exp(weight * log_ratio)
-    blend = torch.clamp((torch.abs(log_ratio) - math.log(1.5))
+    # two logarithms, not the log of the ratio: high / tiny overflows where low is zero,
+    # and the unused branch of the where would then give NaN gradients
+    log_low = torch.log(torch.clamp(low, min=tiny))
+    log_high = torch.log(torch.clamp(high, min=tiny))
+    linear = (1.0 - weight) * low + weight * high
+    geometric = torch.exp((1.0 - weight) * log_low + weight * log_high)
+    blend = torch.clamp((torch.abs(log_high - log_low) - math.log(1.5))
                         / (math.log(4.0) - math.log(1.5)), 0.0, 1.0)
     return torch.where(positive, linear + blend * (geometric - linear), linear)
 
