@@ -270,3 +270,52 @@ def test_apparent_colour_hard_cases_finite_with_gradients(atm, dtype):
     pair = apparent_color(bv[1:2].detach(), torch.tensor([[math.pi / 2], [0.0]], dtype=dtype),
                           table)
     assert float(pair[1, 0, 2]) < float(pair[0, 0, 2])
+
+
+def test_observe_colour_per_chunk_matches_apparent_colour(atm):
+    """Check the per-chunk colour of observe against apparent_color.
+
+    observe looks the colour up per chunk of times inside observe_tensors (per-star
+    table); apparent_color on the whole (time, star) altitudes, and its two-node path on
+    single instants, give the same colours.
+    """
+    from skytorch.stars.photometry import apparent_color, apparent_color_table
+
+    catalog = bright_stars(3.0)
+    times = np.datetime64("2025-09-07T18:00") + np.arange(200) * np.timedelta64(7, "m")
+    ds = observe(catalog, times, 52.5, 13.4, atmosphere=atm)
+    altitude = torch.deg2rad(torch.as_tensor(ds.altitude.values))
+    bv = torch.as_tensor(catalog.bv.values)
+    table = apparent_color_table(atm, 0.0)
+    whole = apparent_color(bv, altitude, table).numpy()
+    assert np.abs(ds.color.values - whole).max() < 1e-12
+    instant = np.concatenate([apparent_color(bv, altitude[i:i + 1], table).numpy()
+                              for i in (0, 57, 199)])
+    assert np.abs(ds.color.values[[0, 57, 199]] - instant).max() < 1e-12
+
+
+def test_observe_tensors_refuses_a_colour_table_of_other_stars(atm):
+    from skytorch.stars import observe_tensors
+    from skytorch.stars.photometry import apparent_color_table, star_color_table
+    from skytorch.stars.positions import star_vectors, time_operators
+
+    catalog = bright_stars(1.5)
+    stars = star_vectors(catalog.ra.values, catalog.dec.values, catalog.pm_ra.values,
+                         catalog.pm_dec.values, catalog.parallax.values)
+    operators, velocity = time_operators(np.array(["2025-09-07T20:00"], dtype="M8[ns]"),
+                                         52.5, 13.4, 0.0)
+    vmag = torch.as_tensor(catalog.vmag.values)
+    bv = torch.as_tensor(catalog.bv.values)
+    other = star_color_table(bv[:3], apparent_color_table(atm, 0.0))
+    with pytest.raises(ValueError, match="color_table"):
+        observe_tensors(stars, vmag, bv, operators, velocity, None, None, color_table=other)
+
+
+def test_bv_to_srgb_distinct_values_match_the_differentiable_path():
+    """Without gradients each distinct B−V is converted once; with them, every star."""
+    bv = torch.tensor([0.65, -0.2, 0.65, 1.5, -0.2, 0.65], dtype=torch.float64)
+    once = bv_to_srgb(bv)
+    every = bv_to_srgb(bv.clone().requires_grad_(True)).detach()
+    assert once.shape == (6, 3)
+    assert torch.allclose(once, every, rtol=0.0, atol=1e-12)
+    assert torch.equal(once[0], once[2]) and torch.equal(once[1], once[4])

@@ -45,6 +45,9 @@ from skytorch.stars.photometry import (
     grid_altitudes,
     lerp,
     relative_brightness,
+    star_color,
+    star_color_table,
+    star_table_pays_off,
     table_lookup,
 )
 from skytorch.stars.positions import (
@@ -284,8 +287,10 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
                     operators: torch.Tensor, velocity_m_s: torch.Tensor | None,
                     refraction: dict[str, torch.Tensor] | None,
                     extinction_tab: dict[str, torch.Tensor] | None,
-                    time_chunk: int = TIME_CHUNK) -> dict[str, torch.Tensor]:
-    """Apparent altitude, azimuth, magnitude and air mass of all stars at all times.
+                    time_chunk: int = TIME_CHUNK,
+                    color_table: dict[str, torch.Tensor] | None = None
+                    ) -> dict[str, torch.Tensor]:
+    """Apparent altitude, azimuth, magnitude, air mass (and colour) of all stars at all times.
 
     Parameters
     ----------
@@ -304,13 +309,17 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
         the atmosphere (air mass from the plane-parallel 1/sin h, capped at 40).
     time_chunk : int
         Times processed per step.
+    color_table : dict, optional
+        :func:`skytorch.stars.photometry.star_color_table` of the same stars: adds the
+        apparent colour, looked up per chunk of times.
 
     Returns
     -------
     dict of torch.Tensor, each (time, star)
         ``altitude`` and ``azimuth`` [rad], ``magnitude`` [mag] (V after extinction;
         below the horizon the horizon extinction, finite), ``airmass`` [1] and
-        ``above_horizon`` (bool, apparent altitude ≥ 0).
+        ``above_horizon`` (bool, apparent altitude ≥ 0); with ``color_table`` also
+        ``color`` (time, star, 3), as :func:`skytorch.stars.photometry.apparent_color`.
 
     Notes
     -----
@@ -324,6 +333,11 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
     n_time, n_star = operators.shape[0], stars.shape[0]
     out = {name: torch.empty(n_time, n_star, dtype=dtype)
            for name in ("altitude", "azimuth", "magnitude", "airmass")}
+    if color_table is not None:
+        if color_table["offsets"].numel() != n_star:
+            raise ValueError(f"color_table must be built for the {n_star} stars; got "
+                             f"{color_table['offsets'].numel()}")
+        out["color"] = torch.empty(n_time, n_star, 3, dtype=dtype)
     vmag = vmag.to(dtype)
     bv = bv.to(dtype)
     if velocity_m_s is not None:
@@ -356,6 +370,8 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
                                 _lerp_take(values[2], slopes[2], index, weight), bv)
         out["magnitude"][sl] = delta_m + vmag
         out["airmass"][sl] = _lerp_take(values[3], slopes[3], index, weight)
+        if color_table is not None:
+            star_color(altitude, color_table, out=out["color"][sl])
     out["above_horizon"] = out["altitude"] >= 0.0
     return out
 
@@ -420,18 +436,57 @@ def _site_atmosphere_tables(atmosphere, elevation: float, refraction: bool):
             extinction_table(atmosphere, elevation, refraction=refraction))
 
 
-def _star_colours(bv: torch.Tensor, altitude: torch.Tensor, atmosphere, elevation: float,
-                  refraction: bool) -> tuple[torch.Tensor, torch.Tensor]:
+def _colour_source(atmosphere, elevation: float, refraction: bool, bv: torch.Tensor,
+                   n_time: int):
+    """Return the apparent-colour table of a site and, where it pays off, per star.
+
+    ``(None, None)`` without an ``atmosphere`` (none, or no reddening asked).
+    """
+    if atmosphere is None:
+        return None, None
+    table = apparent_color_table(atmosphere, elevation, refraction=refraction)
+    per_star = star_color_table(bv, table) if star_table_pays_off(n_time, table) else None
+    return table, per_star
+
+
+def _star_colours(bv: torch.Tensor, result: dict[str, torch.Tensor], table
+                  ) -> tuple[torch.Tensor, torch.Tensor]:
     """Return the apparent (time, star, 3) and exo-atmospheric (star, 3) colours.
 
-    Without an ``atmosphere`` (none, or no reddening asked) the apparent colour repeats the
-    exo-atmospheric one over time.
+    The apparent colour is ``result["color"]`` where :func:`observe_tensors` looked it
+    up, else :func:`apparent_color` at the two nodes around each star; without a
+    ``table`` it repeats the exo-atmospheric colour over time.
     """
+    altitude = result["altitude"]
     color_exo = bv_to_srgb(bv).to(altitude.dtype)
-    if atmosphere is None:
+    if "color" in result:
+        return result["color"], color_exo
+    if table is None:
         return color_exo.expand(altitude.shape[0], *color_exo.shape), color_exo
-    table = apparent_color_table(atmosphere, elevation, refraction=refraction)
     return apparent_color(bv, altitude, table), color_exo
+
+
+def _brightness_and_scintillation(result: dict[str, torch.Tensor], control_magnitude: float,
+                                  factor: torch.Tensor | None, aperture_m: float,
+                                  exposure_s: float, elevation: float,
+                                  time_chunk: int = TIME_CHUNK
+                                  ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return the relative brightness and the scintillation index (time, star).
+
+    The brightness is 0 below the horizon and scaled by the day-night ``factor`` (time,)
+    when given; the scintillation index is taken at the air mass (at least 1). Computed
+    per chunk of times, which keeps the temporaries small.
+    """
+    magnitude, above, airmass = (result[name] for name in
+                                 ("magnitude", "above_horizon", "airmass"))
+    brightness, scint = torch.empty_like(magnitude), torch.empty_like(magnitude)
+    for start in range(0, magnitude.shape[0], time_chunk):
+        sl = slice(start, start + time_chunk)
+        chunk = relative_brightness(magnitude[sl], control_magnitude) * above[sl]
+        brightness[sl] = chunk if factor is None else chunk * factor[sl, None]
+        scint[sl] = scintillation_index(airmass[sl].clamp_min(1.0), aperture_m, exposure_s,
+                                        elevation)
+    return brightness, scint
 
 
 def _day_night_factor(times: np.ndarray, lat: float, lon: float, elevation: float,
@@ -714,26 +769,24 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
                                                                              2000.0)))
     refraction_tab, extinction_tab = _site_atmosphere_tables(
         atmosphere if has_atmosphere else None, elevation, refraction)
+    colour_table, per_star = _colour_source(
+        atmosphere if has_atmosphere and reddening else None, elevation, refraction, bv,
+        values.size)
     result = observe_tensors(stars, vmag, bv, operators, velocity, refraction_tab,
-                             extinction_tab)
+                             extinction_tab, color_table=per_star)
     factor = (_day_night_factor(values, lat, lon, elevation, dtype)
               if visibility == "muller2012" else None)
     sky, limit, visible, count = _visibility(result, sky_values, background, visibility,
                                              factor)
-    brightness = relative_brightness(result["magnitude"], control_magnitude)
-    brightness = brightness * result["above_horizon"]
-    if factor is not None:
-        brightness = brightness * factor[:, None]
-    scint = scintillation_index(result["airmass"].clamp_min(1.0), aperture_m, exposure_s,
-                                elevation)
-    color, color_exo = _star_colours(bv, result["altitude"],
-                                     atmosphere if has_atmosphere and reddening else None,
-                                     elevation, refraction)
+    brightness, scint = _brightness_and_scintillation(result, control_magnitude, factor,
+                                                      aperture_m, exposure_s, elevation)
+    color, color_exo = _star_colours(bv, result, colour_table)
 
     ts = ("time", "star")
     data_vars = {
-        "altitude": variable(ts, torch.rad2deg(result["altitude"]), _SPECS["altitude"]),
-        "azimuth": variable(ts, torch.rad2deg(result["azimuth"]), _SPECS["azimuth"]),
+        # the radians are not used further: degrees in place
+        "altitude": variable(ts, result["altitude"].rad2deg_(), _SPECS["altitude"]),
+        "azimuth": variable(ts, result["azimuth"].rad2deg_(), _SPECS["azimuth"]),
         "magnitude": variable(ts, result["magnitude"], _SPECS["magnitude"]),
         "airmass": variable(ts, result["airmass"], _SPECS["airmass"]),
         "above_horizon": variable(ts, result["above_horizon"], _SPECS["above_horizon"]),
