@@ -122,10 +122,14 @@ def main(argv: list[str] | None = None) -> int:
     rows.append({"method": "skytorch positions + magnitudes (float64, tables rebuilt)",
                  "wall [s]": median_seconds(cold, repeat=1, warmup=0),
                  "CPU [s]": median_cpu_seconds(cold, repeat=1, warmup=0)})
-    full = lambda: observe(catalog, times, LAT, LON, ELEVATION, atmosphere=atmosphere)  # noqa: E731
-    rows.append({"method": "skytorch.stars.observe (full Dataset, float64)",
-                 "wall [s]": median_seconds(full, repeat=1, warmup=0),
-                 "CPU [s]": median_cpu_seconds(full, repeat=1, warmup=0)})
+    for label, options in (("float64", {}), ("float32", {"dtype": torch.float32}),
+                           ("float64, reddening=False", {"reddening": False})):
+        def full(options=options):
+            return observe(catalog, times, LAT, LON, ELEVATION, atmosphere=atmosphere,
+                           **options)
+        rows.append({"method": f"skytorch.stars.observe (full Dataset, {label})",
+                     "wall [s]": median_seconds(full, repeat=args.repeat, warmup=1),
+                     "CPU [s]": median_cpu_seconds(full, repeat=args.repeat, warmup=0)})
     scale = len(times) / len(subset)
     sky = median_seconds(skyfield_run, repeat=1, warmup=1) * scale
     sky_cpu = median_cpu_seconds(skyfield_run, repeat=1, warmup=0) * scale

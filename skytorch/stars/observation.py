@@ -689,7 +689,7 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         Seed of the twinkle sequence.
     reddening : bool
         ``color`` after the spectral extinction along each path (default); False skips
-        that step (about 60 % of the Dataset's cost for 9 000 stars × 1 440 times) and
+        that step (about half of the Dataset's cost for 9 000 stars × 1 440 times) and
         repeats the exo-atmospheric colour over time.
     dtype : torch.dtype
         Computation dtype of the per-star quantities (float64 or float32).
