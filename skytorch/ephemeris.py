@@ -95,6 +95,7 @@ __all__ = [
     "skyfield_time",
     "sun_moon",
     "sun_moon_vectors",
+    "VECTOR_FRAMES",
     "timescale",
 ]
 
@@ -666,12 +667,19 @@ def _apparent_geocentric(t):
     return earth.observe(ephemeris["sun"]).apparent(), earth.observe(ephemeris["moon"]).apparent()
 
 
-def sun_moon_vectors(times) -> dict[str, torch.Tensor]:
+#: frames of :func:`sun_moon_vectors`: GCRS (ICRS axes) and true equator and equinox of date
+VECTOR_FRAMES = ("gcrs", "tod")
+
+
+def sun_moon_vectors(times, frames=VECTOR_FRAMES) -> dict[str, torch.Tensor]:
     """Apparent geocentric position vectors of the Sun and Moon [m].
 
     Parameters
     ----------
     times : see :func:`parse_times`
+    frames : sequence of {"gcrs", "tod"}
+        Frames to return (:data:`VECTOR_FRAMES`); ``"tod"`` needs the IAU 2000A nutation
+        at every time, most of the cost for a few thousand times.
 
     Returns
     -------
@@ -681,14 +689,21 @@ def sun_moon_vectors(times) -> dict[str, torch.Tensor]:
         Earth's barycentric velocity and gravitational deflection included (skyfield
         ``observe().apparent()``); lengths are the light-time distances.
     """
+    if isinstance(frames, str) or not all(isinstance(f, str) for f in frames) \
+            or not set(frames) <= set(VECTOR_FRAMES) or not frames:
+        raise ValueError(f"frames must be a non-empty sequence of {VECTOR_FRAMES}; got "
+                         f"{frames!r:.60}")
     t = skyfield_time(times)
     sun, moon = _apparent_geocentric(t)
-    matrix = np.moveaxis(np.asarray(t.M, np.float64), -1, 0).reshape(-1, 3, 3)
+    matrix = (np.moveaxis(np.asarray(t.M, np.float64), -1, 0).reshape(-1, 3, 3)
+              if "tod" in frames else None)
     result = {}
     for name, position in (("sun", sun), ("moon", moon)):
         gcrs = np.ascontiguousarray(np.asarray(position.position.m, np.float64).T)
-        result[f"{name}_gcrs_m"] = torch.from_numpy(gcrs)
-        result[f"{name}_tod_m"] = torch.from_numpy(np.einsum("nij,nj->ni", matrix, gcrs))
+        if "gcrs" in frames:
+            result[f"{name}_gcrs_m"] = torch.from_numpy(gcrs)
+        if matrix is not None:
+            result[f"{name}_tod_m"] = torch.from_numpy(np.einsum("nij,nj->ni", matrix, gcrs))
     return result
 
 

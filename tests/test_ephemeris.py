@@ -403,6 +403,29 @@ def test_greatest_lunar_eclipse_nasa_canon(greatest_td, delta_t_s, gamma):
     assert math.copysign(1.0, north) == math.copysign(1.0, gamma)
 
 
+def test_sun_moon_vectors_frames():
+    """Check that frames selects the vectors without changing them.
+
+    One frame asked for gives the same vectors as both; the true-equator vectors are
+    the GCRS ones rotated (same lengths); bad frames are refused.
+    """
+    times = np.array(["2015-09-28T02:47", "2024-04-08T18:17"], dtype="M8[ns]")
+    both = eph.sun_moon_vectors(times)
+    gcrs = eph.sun_moon_vectors(times, frames=("gcrs",))
+    tod = eph.sun_moon_vectors(times, frames=["tod"])
+    assert sorted(gcrs) == ["moon_gcrs_m", "sun_gcrs_m"]
+    assert sorted(tod) == ["moon_tod_m", "sun_tod_m"]
+    for body in ("sun", "moon"):
+        assert torch.equal(gcrs[f"{body}_gcrs_m"], both[f"{body}_gcrs_m"])
+        assert torch.equal(tod[f"{body}_tod_m"], both[f"{body}_tod_m"])
+        lengths = [torch.linalg.vector_norm(v[f"{body}_{f}_m"], dim=-1)
+                   for v, f in ((gcrs, "gcrs"), (tod, "tod"))]
+        assert torch.allclose(lengths[0], lengths[1], rtol=1e-14, atol=0.0)
+    for frames in ("gcrs", (), ("icrs",), (1,)):
+        with pytest.raises(ValueError, match="frames"):
+            eph.sun_moon_vectors(times, frames=frames)
+
+
 # --- the Dataset ------------------------------------------------------------------------------
 
 

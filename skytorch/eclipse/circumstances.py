@@ -15,7 +15,7 @@ Method
    axis and at axial distance ``x(t)``; the umbral and penumbral radii ``r_u``, ``r_p`` at
    ``x`` come from :func:`skytorch.eclipse.cone.shadow_radii` with the chosen enlargement.
 4. Greatest eclipse: ``min delta(t)``, by a grid search and a vectorised golden-section
-   search (to < 1 ms). Gamma is ``delta / R_earth`` there, positive when the Moon passes
+   search (bracket < 0.1 ms). Gamma is ``delta / R_earth`` there, positive when the Moon passes
    north of the axis.
 5. Magnitudes: ``(r + R_moon - delta) / (2 R_moon)`` with ``r = r_u`` (umbral) or
    ``r_p`` (penumbral). Kind: total if the umbral magnitude is >= 1, partial if > 0,
@@ -81,6 +81,8 @@ _HALF_WINDOW_S = 0.8 * 86400.0  # half-width of the window around a mean full mo
 _N_NODES = 9  # Chebyshev nodes per window
 _N_GRID = 97  # grid for the first search of greatest eclipse (every 24 min)
 _CONTACT_SPAN_S = 0.25 * 86400.0  # contacts lie within 6 h of greatest eclipse
+_GOLDEN_STEPS = 36  # 2 x 24 min x 0.618^36 = 0.09 ms
+_BISECTION_STEPS = 32  # 6 h / 2^32 = 5 microseconds
 #: margin between the searched range and the ephemeris' range: a candidate full moon
 #: within one window of the range is searched over its window and its contacts 6 h beyond
 _RANGE_MARGIN = np.timedelta64(2, "D")
@@ -151,13 +153,13 @@ class _Geometry:
         times = (centres[:, None] + offsets[None, :]).reshape(-1)
         shape = (len(centres), _N_NODES, 3)
         if len(centres):
-            vectors = sun_moon_vectors(times)
+            vectors = sun_moon_vectors(times, frames=("gcrs",))
         else:  # no candidate: nothing to look up
             empty = torch.zeros(shape, dtype=torch.float64)
-            vectors = {"sun_tod_m": empty, "moon_tod_m": empty}
+            vectors = {"sun_gcrs_m": empty, "moon_gcrs_m": empty}
         matrix = torch.as_tensor(to_coefficients, dtype=torch.float64)
-        self.sun = torch.einsum("kj,cjx->ckx", matrix, vectors["sun_tod_m"].reshape(shape))
-        self.moon = torch.einsum("kj,cjx->ckx", matrix, vectors["moon_tod_m"].reshape(shape))
+        self.sun = torch.einsum("kj,cjx->ckx", matrix, vectors["sun_gcrs_m"].reshape(shape))
+        self.moon = torch.einsum("kj,cjx->ckx", matrix, vectors["moon_gcrs_m"].reshape(shape))
         self.centres = centres
         self.enlargement = enlargement
         self.earth_radius = EARTH_EQUATORIAL_RADIUS_M
@@ -178,7 +180,7 @@ class _Geometry:
         delta = torch.linalg.vector_norm(offset, dim=-1)
         umbra, penumbra, *_ = _cone(axial, sun_distance, self.sun_radius, self.earth_radius,
                                     self.enlargement)
-        return {"delta": delta, "umbra": umbra, "penumbra": penumbra, "north": offset[..., 2]}
+        return {"delta": delta, "umbra": umbra, "penumbra": penumbra, "offset": offset}
 
 
 def _golden_minimum(function, low: torch.Tensor, high: torch.Tensor, iterations: int = 48):
@@ -343,7 +345,8 @@ def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
     delta = geometry(grid.expand(n, -1))["delta"]
     best = grid[delta.argmin(dim=1)]
     step = float(grid[1] - grid[0])
-    greatest = _golden_minimum(lambda s: geometry(s)["delta"], best - step, best + step)
+    greatest = _golden_minimum(lambda s: geometry(s)["delta"], best - step, best + step,
+                               iterations=_GOLDEN_STEPS)
     at_greatest = {key: value[:, 0] for key, value in geometry(greatest[:, None]).items()}
     moon_radius = geometry.moon_radius
     umbral = (at_greatest["umbra"] + moon_radius - at_greatest["delta"]) / (2 * moon_radius)
@@ -367,7 +370,8 @@ def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
 
     start_points = t0[:, None].expand(-1, len(CONTACTS))
     reached = excess(start_points) < 0
-    roots = _bisect(excess, start_points.clone(), start_points + sides * _CONTACT_SPAN_S)
+    roots = _bisect(excess, start_points.clone(), start_points + sides * _CONTACT_SPAN_S,
+                    iterations=_BISECTION_STEPS)
     roots = torch.where(reached, roots, torch.nan)
     contacts = {name: roots[:, i] for i, name in enumerate(CONTACTS)}
 
@@ -384,7 +388,13 @@ def lunar_eclipses(start, end, enlargement: str = "danjon") -> xr.Dataset:
     umbral, penumbral = umbral[rows], penumbral[rows]
     kind = np.where(umbral.numpy() >= 1.0, "total",
                     np.where(umbral.numpy() > 0.0, "partial", "penumbral"))
-    sign = torch.where(at_greatest["north"][rows] >= 0, 1.0, -1.0)
+    # north of the true equator of date at greatest eclipse: the third row of the
+    # GCRS → true-equator-of-date matrix (the nutation only at these times)
+    pole = (torch.from_numpy(np.ascontiguousarray(
+        np.asarray(skyfield_time(times).M, np.float64)[2].T)) if len(times)
+        else torch.zeros(0, 3, dtype=torch.float64))
+    north = (at_greatest["offset"][rows] * pole).sum(-1)
+    sign = torch.where(north >= 0, 1.0, -1.0)
     delta_t = np.asarray(skyfield_time(times).delta_t, dtype=np.float64).reshape(-1) \
         if len(times) else np.zeros(0)
     durations = {

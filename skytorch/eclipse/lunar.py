@@ -356,7 +356,7 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     wavelength = (wavelength_grid("bands15") if wavelength_nm is None
                   else _check_wavelength(wavelength_nm, torch.float64))
     times, row = _eclipse_times(time_or_date, n_times, enlargement)
-    vectors = sun_moon_vectors(times)
+    vectors = sun_moon_vectors(times, frames=("gcrs",))
     sun, moon = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
     sun_distance = float(torch.linalg.norm(sun, dim=-1).mean())
     if shadow is None:

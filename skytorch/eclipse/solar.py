@@ -157,7 +157,8 @@ class _SunMoon:
         offsets = (nodes * half_window_s * 1e9).astype("timedelta64[ns]")
         shape = (len(centres), n_nodes, 3)
         if len(centres):
-            vectors = sun_moon_vectors((centres[:, None] + offsets[None, :]).reshape(-1))
+            vectors = sun_moon_vectors((centres[:, None] + offsets[None, :]).reshape(-1),
+                                       frames=("gcrs",))
             t = skyfield_time(centres)
             npb = np.moveaxis(np.asarray(t.M, np.float64), -1, 0).reshape(-1, 3, 3)
             gast = np.asarray(t.gast, np.float64).reshape(-1) * (np.pi / 12.0)
