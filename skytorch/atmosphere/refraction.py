@@ -104,6 +104,7 @@ from skytorch.atmosphere.bouguer import (
     DEFAULT_NODES,
     TABLE_NODES,
     TABLE_PANEL_NODES,
+    _grazing_observer_bending,
     _observer_bending,
     _observer_optical_depth,
     _trace_grazing_bouguer,
@@ -280,7 +281,8 @@ def horizon_dip(atm, altitude_m, *, n_nodes: int = DEFAULT_NODES) -> dict[str, t
     dtype = common_dtype(altitude_m)
     height = check_range("altitude_m", altitude_m, low=0.0, unit=" m", dtype=dtype)
     geometric, apparent = _dip_terms(atm, height, dtype)
-    bend = refraction_angle(atm, -apparent, height, n_nodes=n_nodes)
+    _, n_nodes = _check_method("bouguer", n_nodes)
+    bend = _grazing_observer_bending(atm, height, dtype, n_nodes)
     geometric, apparent, bend = torch.broadcast_tensors(geometric, apparent, bend)
     return {"geometric_dip_rad": geometric, "apparent_dip_rad": apparent,
             "refraction_rad": bend, "true_altitude_rad": -(apparent + bend)}
