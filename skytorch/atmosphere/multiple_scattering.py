@@ -230,6 +230,12 @@ def _mu_index(shell, r, mu, n_mu: int):
     return torch.where(ground, ig, it), torch.where(ground, wg, wt)
 
 
+#: log of the node ratio below which :func:`_geometric` is linear, and 1 / the span of
+#: logarithms over which it blends into the geometric interpolation (ratios 1.5 to 4)
+_LOG_LINEAR_BELOW = math.log(1.5)
+_INVERSE_BLEND_SPAN = 1.0 / (math.log(4.0) - math.log(1.5))
+
+
 def _geometric(low, high, weight):
     """Interpolate between two nodes, geometrically where they differ by a large factor.
 
@@ -244,12 +250,12 @@ def _geometric(low, high, weight):
     # two logarithms, not the log of the ratio: high / tiny overflows where low is zero,
     # and the unused branch of the where would then give NaN gradients
     log_low = torch.log(torch.clamp(low, min=tiny))
-    log_high = torch.log(torch.clamp(high, min=tiny))
-    linear = (1.0 - weight) * low + weight * high
-    geometric = torch.exp((1.0 - weight) * log_low + weight * log_high)
-    blend = torch.clamp((torch.abs(log_high - log_low) - math.log(1.5))
-                        / (math.log(4.0) - math.log(1.5)), 0.0, 1.0)
-    return torch.where(positive, linear + blend * (geometric - linear), linear)
+    log_ratio = torch.log(torch.clamp(high, min=tiny)) - log_low
+    linear = torch.addcmul(low, weight, high - low)
+    geometric = torch.exp(torch.addcmul(log_low, weight, log_ratio))
+    blend = torch.clamp((torch.abs(log_ratio) - _LOG_LINEAR_BELOW) * _INVERSE_BLEND_SPAN,
+                        0.0, 1.0)
+    return torch.where(positive, torch.addcmul(linear, blend, geometric - linear), linear)
 
 
 def _gather4(table, b, corners):
@@ -258,26 +264,28 @@ def _gather4(table, b, corners):
     ``corners`` is four (index, weight) pairs of equal shapes; ``b`` the batch index.
     Multilinear in dims 1, 2 and 4 (r, mu, phi) and geometric in dim 3 (mu_s, see
     :func:`_geometric`). Returns (*shape, λ').
+
+    Each of the 16 corners is one row gather of the λ' channels (:func:`torch.index_select`)
+    accumulated with its weight; the weights of the (r, mu) corners are formed once.
     """
-    dims = table.shape[1:5]
-    flat = table.reshape(-1, table.shape[-1])
-    base = b
-    for (i, _), n in zip(corners, dims, strict=True):
-        base = base * n + i
-    strides = [dims[1] * dims[2] * dims[3], dims[2] * dims[3], dims[3], 1]
-    sides = [0.0, 0.0]
-    for c in range(16):
-        offset, weight = 0, 1.0
-        for d in (0, 1, 3):
-            bit = (c >> d) & 1
-            offset = offset + bit * strides[d]
-            w = corners[d][1]
-            weight = weight * (w if bit else 1.0 - w)
-        side = (c >> 2) & 1
-        offset = offset + side * strides[2]
-        sides[side] = sides[side] + weight[..., None] * flat[(base + offset).reshape(-1)].reshape(
-            base.shape + (flat.shape[-1],))
-    return _geometric(sides[0], sides[1], corners[2][1][..., None])
+    n1, n2, n3, n4 = table.shape[1:5]
+    channels = table.shape[-1]
+    flat = table.reshape(-1, channels)
+    (i1, w1), (i2, w2), (i3, w3), (i4, w4) = corners
+    base = ((((b * n1 + i1) * n2 + i2) * n3 + i3) * n4 + i4).reshape(-1)
+    pair_weights = [((w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2), d1 * n2 * n3 * n4
+                     + d2 * n3 * n4) for d1 in (0, 1) for d2 in (0, 1)]
+    phi_weights = (1.0 - w4, w4)
+    sides = []
+    for d3 in (0, 1):
+        side = None
+        for pair, pair_offset in pair_weights:
+            for d4 in (0, 1):
+                weight = (pair * phi_weights[d4]).reshape(-1, 1)
+                rows = torch.index_select(flat, 0, base + (pair_offset + d3 * n4 + d4))
+                side = rows * weight if side is None else side.addcmul_(rows, weight)
+        sides.append(side.reshape(i1.shape + (channels,)))
+    return _geometric(sides[0], sides[1], w3[..., None])
 
 
 def _gather_rays(table, ray_corners, sun_corners):
@@ -377,6 +385,8 @@ class ScatteringTables:
         self._single = single            # (b, r, mu, mu_s, phi, n_species * λ)
         self._phases = phases            # callables phase(cos) -> (b, ..., λ)
         self._cumulative = cumulative    # list: [orders <= n] minus single species parts
+        # per order, [single | cumulative] along the channels: one look-up per pixel
+        self._lookup = [torch.cat([single, part], dim=-1) for part in cumulative]
         self.order_contributions = contributions
         self.orders_computed = len(cumulative)
         self.converged = converged
@@ -444,10 +454,11 @@ class ScatteringTables:
         nu = torch.clamp(mu * mu_s + torch.sin(vz) * torch.sin(sz) * torch.cos(dphi),
                          -1.0, 1.0).expand(shape)
         corners = self._corners(r, mu, mu_s, phi)
-        single = _gather4(self._single, b, corners)
+        both = _gather4(self._lookup[n - 1], b, corners)
         n_lambda = self.wavelength_nm.shape[0]
-        single = single.reshape(shape + (len(self._phases), n_lambda))
-        total = _gather4(self._cumulative[n - 1], b, corners)
+        n_single = len(self._phases) * n_lambda
+        single = both[..., :n_single].reshape(shape + (len(self._phases), n_lambda))
+        total = both[..., n_single:]
         for k, phase in enumerate(self._phases):
             total = total + phase(nu) * single[..., k, :]
         return total
