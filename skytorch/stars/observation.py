@@ -38,6 +38,7 @@ from skytorch.moon.sky import nanolambert_to_mag_arcsec2
 from skytorch.stars.photometry import (
     apparent_color,
     apparent_color_table,
+    apparent_horizon,
     bv_to_srgb,
     check_atmosphere,
     check_flag,
@@ -49,6 +50,7 @@ from skytorch.stars.photometry import (
     star_color_table,
     star_table_pays_off,
     table_lookup,
+    table_low,
 )
 from skytorch.stars.positions import (
     aberration_operators,
@@ -93,14 +95,17 @@ def refraction_table(atmosphere, altitude_m: float = 0.0, n_nodes: int = 256
     -------
     dict of float64 torch.Tensor
         ``true_altitude_rad`` (n_nodes,) from the true altitude of the apparent horizon
-        (about −0.57° at sea level) to π/2, ``refraction_rad`` (n_nodes,) apparent − true,
-        and ``low_rad`` (0-d) the first node.
+        (about −0.57° at sea level, −2.47° from 3 km) to π/2, ``refraction_rad``
+        (n_nodes,) apparent − true, and ``low_rad`` (0-d) the first node.
 
     Notes
     -----
     ``atmosphere.refraction`` is evaluated on a grid of 4 n_nodes apparent altitudes in
-    [0, π/2] (dense near the horizon), giving true = apparent − R; R is then resampled
-    on the true-altitude grid by linear interpolation.
+    [h₀, π/2] (dense near the horizon), giving true = apparent − R; R is then resampled
+    on the true-altitude grid by linear interpolation. h₀ is the apparent horizon,
+    :func:`skytorch.stars.photometry.apparent_horizon`: 0 at the surface, minus the
+    apparent dip of the horizon for an elevated observer, who sees below the
+    astronomical horizon.
 
     The tables of the 8 most recent (atmosphere parameters, ``altitude_m``, ``n_nodes``)
     are kept in memory, keyed by the atmosphere's ``parameters_dict()`` values (two equal
@@ -121,7 +126,8 @@ def _trace_refraction_table(atmosphere, altitude_m: float, n_nodes: int
                             ) -> dict[str, torch.Tensor]:
     """Trace the table of :func:`refraction_table` (checked arguments, not cached)."""
     with torch.no_grad():
-        apparent = grid_altitudes(4 * n_nodes, 0.0, torch.float64)
+        apparent = grid_altitudes(4 * n_nodes, apparent_horizon(atmosphere, altitude_m),
+                                  torch.float64)
         bend = atmosphere.refraction(apparent, altitude_m).to(torch.float64).reshape(-1)
         true = apparent - bend
         low = float(true[0])
@@ -168,7 +174,10 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
     dict
         ``values`` (4, n) and ``slopes`` (4, n): refraction [rad], extinction offset A
         and colour term B [mag], air mass, on true altitudes −2° … 90° every 0.01°
-        (``low_rad``, ``step_rad``).
+        (``low_rad``, ``step_rad``; from further down for an elevated observer, whose
+        horizon lies below −2°); ``horizon_rad``: the apparent altitude of the horizon
+        (the ground), the first node of the extinction table
+        (:func:`skytorch.stars.photometry.apparent_horizon`; 0 without tables).
 
     Notes
     -----
@@ -177,8 +186,13 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
     gathers. Linear resampling of a piecewise-linear function on a 0.01° grid changes it
     by < 1e-6 mag and < 0.01″.
     """
-    low, step = math.radians(LOOKUP_LOW_DEG), math.radians(LOOKUP_STEP_DEG)
-    count = int(round((90.0 - LOOKUP_LOW_DEG) / LOOKUP_STEP_DEG)) + 1
+    horizon = (table_low(extinction_tab) if extinction_tab is not None
+               else float(refraction["low_rad"] + refraction["refraction_rad"][0])
+               if refraction is not None else 0.0)
+    lowest = math.degrees(float(refraction["low_rad"]) if refraction is not None else horizon)
+    low_deg = LOOKUP_LOW_DEG if lowest >= LOOKUP_LOW_DEG + 0.5 else math.floor(lowest - 0.5)
+    low, step = math.radians(low_deg), math.radians(LOOKUP_STEP_DEG)
+    count = int(round((90.0 - low_deg) / LOOKUP_STEP_DEG)) + 1
     true = low + step * torch.arange(count, dtype=torch.float64)
     true[-1] = 0.5 * math.pi
     with torch.no_grad():
@@ -186,7 +200,8 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
                 else torch.zeros_like(true))
         apparent = true + bend
         if extinction_tab is not None:
-            index, weight = table_lookup(apparent, extinction_tab["offset"].numel())
+            index, weight = table_lookup(apparent, extinction_tab["offset"].numel(),
+                                         table_low(extinction_tab))
             offset = lerp(extinction_tab["offset"], index, weight)
             colour = lerp(extinction_tab["colour"], index, weight)
             airmass = lerp(extinction_tab["airmass"], index, weight)
@@ -196,7 +211,7 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
     values = torch.stack([bend, offset, colour, airmass]).to(dtype)
     slopes = torch.diff(values, dim=-1, append=values[:, -1:])
     return {"values": values, "slopes": slopes, "low_rad": low, "step_rad": step,
-            "count": count}
+            "count": count, "horizon_rad": horizon}
 
 
 #: observer elevation accepted by :func:`observe` [m]: within the ephemeris' range and the
@@ -318,7 +333,9 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
     dict of torch.Tensor, each (time, star)
         ``altitude`` and ``azimuth`` [rad], ``magnitude`` [mag] (V after extinction;
         below the horizon the horizon extinction, finite), ``airmass`` [1] and
-        ``above_horizon`` (bool, apparent altitude ≥ 0); with ``color_table`` also
+        ``above_horizon`` (bool, apparent altitude at or above the apparent horizon: 0
+        at the surface, minus the dip of the horizon for an elevated observer); with
+        ``color_table`` also
         ``color`` (time, star, 3), as :func:`skytorch.stars.photometry.apparent_color`.
 
     Notes
@@ -372,7 +389,7 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
         out["airmass"][sl] = _lerp_take(values[3], slopes[3], index, weight)
         if color_table is not None:
             star_color(altitude, color_table, out=out["color"][sl])
-    out["above_horizon"] = out["altitude"] >= 0.0
+    out["above_horizon"] = out["altitude"] >= tables["horizon_rad"]
     return out
 
 
@@ -390,7 +407,10 @@ _SPECS = {
                             "Slant over vertical V-band optical depth of the atmosphere "
                             "model along the path."),
     "above_horizon": VariableSpec("1", "star above the horizon",
-                                  "True where the apparent altitude is >= 0."),
+                                  "True where the apparent altitude is at or above "
+                                  "the apparent horizon (0 at the surface; minus the "
+                                  "refracted dip of the horizon for an elevated "
+                                  "observer)."),
     "visible": VariableSpec("1", "star visible to the naked eye",
                             "Above the horizon and brighter than the limiting magnitude."),
     "relative_brightness": VariableSpec(
@@ -654,7 +674,10 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         ``elevation_m``) give several observers along a leading ``observer`` dimension.
     elevation_m : float or array_like (observer,)
         Height of the observer in [0, 10 000] m (:data:`ELEVATION_RANGE_M`); also the
-        altitude of the observer in the atmosphere.
+        altitude of the observer in the atmosphere. An elevated observer sees stars below
+        the astronomical horizon, down to the refracted dip of the horizon
+        (:func:`skytorch.stars.photometry.apparent_horizon`, −1.62° from 3 km), with
+        their refraction and extinction along the rays that pass low over the ground.
     atmosphere : skytorch.atmosphere.Atmosphere, optional
         Default ``Atmosphere.earth()`` (turbidity 2, 300 DU). Pass ``False`` for no
         atmosphere (geometric altitudes, magnitudes above the atmosphere).

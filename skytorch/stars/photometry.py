@@ -67,6 +67,7 @@ __all__ = [
     "EXTINCTION_METHODS",
     "apparent_color",
     "apparent_color_table",
+    "apparent_horizon",
     "star_color",
     "star_color_table",
     "star_table_pays_off",
@@ -78,6 +79,7 @@ __all__ = [
     "grid_altitudes",
     "lerp",
     "table_lookup",
+    "table_low",
 ]
 
 logger = logging.getLogger(__name__)
@@ -95,6 +97,9 @@ BV_FIT_GRID = (-0.3, 2.0, 24)
 COLOR_WAVELENGTHS_NM = (380.0, 780.0, 41)
 #: B−V nodes of the apparent-colour table (the clamping range of :func:`bv_to_srgb`) [mag]
 COLOR_BV_GRID = (BV_RANGE_MAG[0], BV_RANGE_MAG[1], 71)
+#: margin of the tables' first node above the apparent horizon of an elevated observer
+#: [rad] (:func:`apparent_horizon`)
+HORIZON_MARGIN_RAD = 1e-9
 #: ln(10)/2.5: 10^(0.4 Δm) = exp(Δm ln(10)/2.5)
 _LN10_OVER_2_5 = math.log(10.0) / 2.5
 #: stars per block while :func:`star_color_table` is built
@@ -170,6 +175,32 @@ def grid_altitudes(n_nodes: int, low_rad: float = 0.0,
     x = torch.linspace(0.0, 1.0, n_nodes, dtype=torch.float64)
     span = _HALF_PI - low_rad
     return (low_rad + span * (x * x + GRID_SHAPE * x) / (1.0 + GRID_SHAPE)).to(dtype)
+
+
+def apparent_horizon(atmosphere, altitude_m: float, refraction: bool = True) -> float:
+    """Apparent altitude [rad] of the horizon (the ground) for an observer at ``altitude_m``.
+
+    0 at the surface. An elevated observer sees below the astronomical horizon, down to
+    minus the apparent dip (refracted rays) or the geometric dip (straight rays) of
+    :func:`skytorch.atmosphere.refraction.horizon_dip` — e.g. −1.62° (−1.76°
+    geometric) from 3 km. The returned altitude is :data:`HORIZON_MARGIN_RAD` above it:
+    the tables' first node is a ray that grazes the ground and climbs to space (at the
+    dip itself rounding may put its periapsis under the ground, where the path, and its
+    optical depth, would end).
+    """
+    if altitude_m <= 0.0:
+        return 0.0
+    from skytorch.atmosphere.refraction import horizon_dip
+
+    dip = horizon_dip(atmosphere, torch.tensor(float(altitude_m), dtype=torch.float64))
+    return -float(dip["apparent_dip_rad" if refraction else "geometric_dip_rad"]) \
+        + HORIZON_MARGIN_RAD
+
+
+def table_low(table: dict[str, torch.Tensor]) -> float:
+    """First apparent-altitude node of a table [rad] (0 without ``apparent_altitude_rad``)."""
+    nodes = table.get("apparent_altitude_rad")
+    return 0.0 if nodes is None else float(nodes[0])
 
 
 def table_lookup(altitude_rad: torch.Tensor, n_nodes: int, low_rad: float = 0.0
@@ -263,14 +294,17 @@ def extinction_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 256,
     altitude_m : float
         Observer altitude above the surface [m].
     n_nodes : int
-        Grid nodes between the horizon and the zenith (see :func:`table_lookup`).
+        Grid nodes between the apparent horizon (:func:`apparent_horizon`: 0 at the
+        surface, below it for an elevated observer) and the zenith (see
+        :func:`table_lookup`).
     refraction : bool
         Integrate along refracted rays (``atmosphere.optical_depth(..., refraction=True)``)
         or straight ones.
     method : {"path", "airmass"}
         ``"path"``: the optical depth along the path for every altitude; ``"airmass"``:
         the zenith optical depth times the Kasten & Young (1989) air mass (a
-        plane-parallel shortcut, compared in the accuracy experiment).
+        plane-parallel shortcut, compared in the accuracy experiment; its grid starts at
+        the astronomical horizon, 0, at every observer altitude).
     cache : bool
         Reuse a table computed earlier for an atmosphere with the same parameters and the
         same arguments (the 8 most recent tables are kept, keyed by the atmosphere's
@@ -306,7 +340,9 @@ def _extinction_table(atmosphere, altitude: float, n_nodes: int, refraction: boo
                       method: str) -> dict[str, torch.Tensor]:
     """Compute the table of :func:`extinction_table` (checked arguments, not cached)."""
     dtype = torch.float64
-    heights = grid_altitudes(n_nodes, 0.0, dtype)
+    # the plane-parallel air mass has no path below the astronomical horizon
+    low = apparent_horizon(atmosphere, altitude, refraction) if method == "path" else 0.0
+    heights = grid_altitudes(n_nodes, low, dtype)
     wavelength = torch.linspace(*V_BAND_WAVELENGTHS_NM[:2], V_BAND_WAVELENGTHS_NM[2],
                                 dtype=dtype)
     with torch.no_grad():
@@ -344,8 +380,9 @@ def extinction(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     bv : torch.Tensor, shape (star,)
         B−V [mag].
     apparent_altitude_rad : torch.Tensor, shape (time, star)
-        Apparent (refracted) altitude [rad]; below 0 the horizon values are returned
-        (finite; such stars are flagged not visible by the caller).
+        Apparent (refracted) altitude [rad]; below the table's first node (the apparent
+        horizon, :func:`apparent_horizon`) the horizon values are returned (finite; such
+        stars are flagged not visible by the caller).
     table : dict
         From :func:`extinction_table`.
 
@@ -357,7 +394,7 @@ def extinction(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     bv, apparent_altitude_rad = _star_inputs(bv, apparent_altitude_rad)
     dtype = apparent_altitude_rad.dtype
     n_nodes = table["offset"].numel()
-    index, weight = table_lookup(apparent_altitude_rad, n_nodes)
+    index, weight = table_lookup(apparent_altitude_rad, n_nodes, table_low(table))
     offset = lerp(table["offset"].to(dtype), index, weight)
     colour = lerp(table["colour"].to(dtype), index, weight)
     airmass = lerp(table["airmass"].to(dtype), index, weight)
@@ -422,7 +459,8 @@ def apparent_color_table(atmosphere, altitude_m: float = 0.0, *, n_nodes: int = 
     altitude_m : float
         Observer altitude above the surface [m].
     n_nodes : int
-        Apparent-altitude nodes between the horizon and the zenith
+        Apparent-altitude nodes between the apparent horizon (:func:`apparent_horizon`)
+        and the zenith
         (:func:`grid_altitudes`).
     refraction : bool
         Optical depth along refracted (True) or straight paths.
@@ -463,7 +501,7 @@ def _apparent_color_table(atmosphere, altitude: float, n_nodes: int,
                           refraction: bool) -> dict[str, torch.Tensor]:
     """Compute the table of :func:`apparent_color_table` (checked arguments, not cached)."""
     dtype = torch.float64
-    heights = grid_altitudes(n_nodes, 0.0, dtype)
+    heights = grid_altitudes(n_nodes, apparent_horizon(atmosphere, altitude, refraction), dtype)
     wavelength = torch.linspace(*COLOR_WAVELENGTHS_NM[:2], COLOR_WAVELENGTHS_NM[2],
                                 dtype=dtype)
     bv = torch.linspace(*COLOR_BV_GRID[:2], COLOR_BV_GRID[2], dtype=dtype)
@@ -519,7 +557,7 @@ def apparent_color(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     if not star_table_pays_off(apparent_altitude_rad[..., 0].numel(), table):
         lower, w = _bv_weights(bv.to(dtype), table["bv"])
         linear = table["linear_srgb"].to(dtype)
-        index, weight = table_lookup(apparent_altitude_rad, n_nodes)
+        index, weight = table_lookup(apparent_altitude_rad, n_nodes, table_low(table))
 
         def node_colour(node):
             return _normalised_colour(linear[node, lower + 1], linear[node, lower], w, gamma)
@@ -572,8 +610,9 @@ def star_color_table(bv: torch.Tensor, table: dict[str, torch.Tensor], gamma: bo
     -------
     dict of torch.Tensor
         ``values`` and ``slopes`` (star · n_nodes, 3): the colour of star s at node i in
-        row s n_nodes + i and its difference to node i + 1; ``n_nodes`` (int) and
-        ``offsets`` (star,) = s n_nodes. Input of :func:`star_color`.
+        row s n_nodes + i and its difference to node i + 1; ``n_nodes`` (int),
+        ``offsets`` (star,) = s n_nodes and ``low_rad`` (float, the first node). Input of
+        :func:`star_color`.
     """
     _check_table("apparent_color_table", table, ("bv", "linear_srgb"))
     bv = check_finite("bv", as_tensor("bv", bv))
@@ -594,7 +633,7 @@ def star_color_table(bv: torch.Tensor, table: dict[str, torch.Tensor], gamma: bo
                                                w[block], gamma)
     slopes = torch.diff(values, dim=1, append=values[:, -1:]).reshape(-1, 3)
     return {"values": values.reshape(-1, 3), "slopes": slopes, "n_nodes": n_nodes,
-            "offsets": n_nodes * torch.arange(bv.numel())}
+            "offsets": n_nodes * torch.arange(bv.numel()), "low_rad": table_low(table)}
 
 
 def star_color(apparent_altitude_rad: torch.Tensor, per_star: dict[str, torch.Tensor],
@@ -622,7 +661,8 @@ def star_color(apparent_altitude_rad: torch.Tensor, per_star: dict[str, torch.Te
     The three channels of a node are gathered as one row (:func:`torch.index_select`)
     straight into the output.
     """
-    index, weight = table_lookup(apparent_altitude_rad, per_star["n_nodes"])
+    index, weight = table_lookup(apparent_altitude_rad, per_star["n_nodes"],
+                                 per_star["low_rad"])
     flat = index.add_(per_star["offsets"]).reshape(-1)
     values, slopes = per_star["values"], per_star["slopes"]
     if weight.requires_grad or values.requires_grad:
