@@ -100,8 +100,6 @@ COLOR_BV_GRID = (BV_RANGE_MAG[0], BV_RANGE_MAG[1], 71)
 #: margin of the tables' first node above the apparent horizon of an elevated observer
 #: [rad] (:func:`apparent_horizon`)
 HORIZON_MARGIN_RAD = 1e-9
-#: ln(10)/2.5: 10^(0.4 Δm) = exp(Δm ln(10)/2.5)
-_LN10_OVER_2_5 = math.log(10.0) / 2.5
 #: stars per block while :func:`star_color_table` is built
 STAR_BLOCK = 256
 #: shape parameter of the altitude grid h = H (x² + c x)/(1 + c), x ∈ [0, 1]
@@ -133,7 +131,7 @@ def relative_brightness(magnitude, control_magnitude: float = 6.0) -> torch.Tens
     """
     m = check_finite("magnitude", magnitude)
     m_a = check_range("control_magnitude", control_magnitude, -30.0, 40.0, unit=" mag")
-    return torch.exp((m_a.to(m.dtype) - m) * _LN10_OVER_2_5)
+    return torch.pow(10.0, 0.4 * (m_a.to(m.dtype) - m))
 
 
 def bv_to_srgb(bv) -> torch.Tensor:
