@@ -91,3 +91,19 @@ def test_extinction_table_reaches_the_dip(atm):
     assert (torch.diff(table["offset"]) <= 1e-9).all()
     at_zero = int(torch.searchsorted(nodes, torch.zeros((), dtype=nodes.dtype)))
     assert float(table["airmass"][0]) > 1.5 * float(table["airmass"][at_zero])
+
+
+def test_scene_sun_refracted_below_the_astronomical_horizon():
+    """The scenes' refracted Sun and Moon follow the elevated observer's tables."""
+    from skytorch.scene.resources import SceneResources, SceneSpec
+
+    resources = SceneResources(SceneSpec(2.0, 300.0, (550.0,)))
+    atm = resources.atmosphere
+    true = math.radians(-2.0)
+    apparent = resources.refracted_altitude(3000.0, true)
+    assert apparent > apparent_horizon(atm, 3000.0)
+    bend = float(atm.refraction(torch.tensor(apparent, dtype=torch.float64), 3000.0))
+    assert abs(bend - (apparent - true)) < 1.5 * ARCSEC
+    # at sea level the Sun 2 degrees down is taken at -1 degree, as before
+    assert resources.refracted_altitude(0.0, true) == resources.refracted_altitude(
+        0.0, math.radians(-1.0))

@@ -271,12 +271,16 @@ class SceneResources:
     def refracted_altitude(self, elevation_m: float, true_altitude_rad: float) -> float:
         """Apparent altitude [rad] of a true altitude [rad] at an observer height [m].
 
-        Below −1° taken at −1°; from the refraction table (ray-traced refraction).
+        From the refraction table (ray-traced refraction), which starts at the apparent
+        horizon: an elevated observer sees the Sun and Moon below the astronomical
+        horizon, down to the true altitude of the apparent horizon (−2.47° from 3 km).
+        Below −1° or that true altitude, whichever is lower, taken there.
         """
         from skytorch.stars import refract
 
         table = self.refraction_table(elevation_m)
-        true = torch.tensor([max(true_altitude_rad, math.radians(-1.0))], dtype=torch.float64)
+        lowest = min(math.radians(-1.0), float(table["low_rad"]))
+        true = torch.tensor([max(true_altitude_rad, lowest)], dtype=torch.float64)
         return float(refract(true, table)[0])
 
     @property
