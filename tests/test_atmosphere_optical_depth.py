@@ -259,3 +259,24 @@ def test_exact_chapman_float32_and_gradient():
     assert single.dtype == torch.float32
     double = chapman(x, zenith.detach(), exact=True)
     assert float((single.double() / double - 1.0).abs().max()) <= 1e-5
+
+
+def test_many_straight_rays_are_integrated_in_chunks_without_changing_them():
+    """More than 2 RAY_CHUNK rays go through in chunks: same values, shapes, gradients."""
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.atmosphere.model import RAY_CHUNK
+
+    atm = Atmosphere.earth(turbidity=2.5, ozone_du=300.0)
+    rows = 2 * RAY_CHUNK // 7 + 150  # rows x 7 altitudes > 2 RAY_CHUNK rays
+    generator = torch.Generator().manual_seed(1)
+    zenith = torch.rand(rows, 1, generator=generator, dtype=torch.float64) * 1.6
+    altitude = torch.linspace(0.0, 5000.0, 7, dtype=torch.float64)
+    wavelength = torch.tensor([340.0, 550.0, 762.0, 940.0], dtype=torch.float64)
+    chunked = atm.optical_depth(wavelength, zenith, altitude, per_species=True)
+    whole = atm._optical_depth(wavelength, zenith, altitude, per_species=True)
+    for key, value in whole.items():
+        assert chunked[key].shape == value.shape == (rows, 7, 4)
+        assert torch.equal(chunked[key], value), key
+    leaf = zenith.clone().requires_grad_(True)
+    atm.optical_depth(wavelength, leaf, altitude).sum().backward()
+    assert torch.isfinite(leaf.grad).all() and bool((leaf.grad.abs() > 0).any())

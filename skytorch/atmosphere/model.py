@@ -54,6 +54,7 @@ import copy
 import dataclasses
 import hashlib
 import json
+import math
 from functools import lru_cache
 from types import MappingProxyType
 
@@ -100,6 +101,9 @@ from skytorch.constants import (
 
 __all__ = ["SPECIES", "SPECIES_BUILDERS", "Atmosphere", "altitude_tensor", "wavelength_tensor"]
 
+#: straight rays integrated together by :meth:`Atmosphere.optical_depth` when there are
+#: more than twice as many (scalar parameters, fixed quadrature)
+RAY_CHUNK = 16_384
 #: constituents, in the order of ``per_species`` outputs
 SPECIES = ("rayleigh", "aerosol", "ozone", "stratospheric_aerosol", *_gases.GAS_SPECIES)
 
@@ -1174,9 +1178,33 @@ class Atmosphere(nn.Module):
         zenith = check_zenith(zenith_rad, dtype=dtype)
         altitude = altitude_tensor(altitude_m, dtype)
         _check_quadrature(method, n_steps, rtol)
-        self._check_shapes(zenith_rad=zenith, altitude_m=altitude)
+        shape = self._check_shapes(zenith_rad=zenith, altitude_m=altitude)
+        if not self.batch_shape and method != "adaptive" and math.prod(shape) > 2 * RAY_CHUNK:
+            return self._chunked_optical_depth(wavelength, zenith, altitude, shape,
+                                               method=method, n_steps=n_steps,
+                                               per_species=per_species)
         return self._optical_depth(wavelength, zenith, altitude, method=method,
                                    n_steps=n_steps, rtol=rtol, per_species=per_species)
+
+    def _chunked_optical_depth(self, wavelength, zenith, altitude, shape, *, method, n_steps,
+                               per_species):
+        """:meth:`_optical_depth` of many rays, :data:`RAY_CHUNK` rays at a time.
+
+        Scalar parameters and a fixed quadrature only: every ray is then integrated on its
+        own, so the values are those of one call, and the temporaries of a chunk stay in
+        cache (1e6 rays × 60 wavelengths: 6.3–6.8 s in chunks of 16 384 against 9.7–12.8 s
+        in one piece, 2 threads).
+        """
+        zenith = zenith.expand(shape).reshape(-1)
+        altitude = altitude.expand(shape).reshape(-1)
+        parts = [self._optical_depth(wavelength, zenith[start:start + RAY_CHUNK],
+                                     altitude[start:start + RAY_CHUNK], method=method,
+                                     n_steps=n_steps, per_species=per_species)
+                 for start in range(0, zenith.numel(), RAY_CHUNK)]
+        if per_species:
+            return {key: torch.cat([part[key] for part in parts]).reshape(
+                *shape, wavelength.numel()) for key in parts[0]}
+        return torch.cat(parts).reshape(*shape, wavelength.numel())
 
     def _optical_depth(self, wavelength, zenith, altitude, *, method="gauss", n_steps=None,
                        rtol=1e-9, per_species=False, extra: int = 0):
