@@ -96,3 +96,14 @@ def test_bad_backgrounds_raise(catalog):
         observe(catalog, TIME, *SITE, background=high)
     with pytest.raises(ValueError, match="times"):
         observe(catalog, TIME, *SITE, background=_grid(lambda a, z: 21.0 + 0 * a, times=3))
+
+
+def test_elevated_observer_needs_a_background_below_zero(catalog):
+    """From 3 km stars are up down to -1.6 deg: a background from 0 deg does not cover them."""
+    times = np.datetime64("2025-09-07T18:00") + np.arange(0, 720, 30) * np.timedelta64(1, "m")
+    lat, lon = SITE[0], SITE[1]
+    above_zero = _grid(lambda a, z: 21.0 + 0 * a).sel(altitude=slice(0.0, None))
+    with pytest.raises(ValueError, match="dip of the horizon"):
+        observe(catalog, times, lat, lon, 3000.0, background=above_zero)
+    ds = observe(catalog, times, lat, lon, 3000.0, background=_grid(lambda a, z: 21.0 + 0 * a))
+    assert float(ds.altitude.where(ds.above_horizon).min()) < 0.0

@@ -597,7 +597,9 @@ def _background_sky(background, n_time: int, altitude_rad: torch.Tensor,
         raise ValueError(
             f"background altitudes {float(alt_nodes[0])}..{float(alt_nodes[-1])} degree do "
             f"not cover the stars above the horizon (altitudes "
-            f"{float(alt_deg[above].min()):.3f}..{float(alt_deg[above].max()):.3f} degree)")
+            f"{float(alt_deg[above].min()):.3f}..{float(alt_deg[above].max()):.3f} degree; "
+            "an elevated observer sees down to the dip of the horizon, "
+            "skytorch.stars.photometry.apparent_horizon)")
     alt_deg = alt_deg.clamp(float(alt_nodes[0]), float(alt_nodes[-1]))  # below the horizon
     az_deg = torch.where(az_deg < az_nodes[0], az_deg + 360.0, az_deg)
     i = torch.searchsorted(alt_nodes, alt_deg.contiguous()).clamp(1, alt_nodes.numel() - 1)
