@@ -300,6 +300,12 @@ def _solar_eclipse_bound(geometry: Geometry, atmosphere, elevation_m: float,
 
 
 def _above_horizon(altitude_deg: float) -> bool:
+    """Whether a disc at true altitude [degree] can reach into the image.
+
+    Views end at apparent altitude 0, where refraction is largest for an observer on the
+    ground (0.55° in the standard atmosphere, less from higher up), so the 0.6° bound
+    holds at every height.
+    """
     return math.radians(altitude_deg) + SEMI_DIAMETER_RAD + HORIZON_REFRACTION_RAD > 0.0
 
 

@@ -532,10 +532,17 @@ def _apparent(resources, knobs, altitude_deg: float) -> float:
 
 
 def _point_transmittance(resources, knobs, altitude_rad: float, wavelength) -> torch.Tensor:
-    zenith = min(0.5 * math.pi - altitude_rad, 0.5 * math.pi)
+    """Transmittance (wl,) towards a point source at apparent altitude [rad].
+
+    Along the refracted ray when ``knobs.refraction`` (straight otherwise), from the
+    observer's height; below the apparent horizon (0 at sea level, minus the dip for an
+    elevated observer) the ray that grazes the ground.
+    """
+    low = resources.apparent_horizon(knobs.elevation_m, knobs.refraction)
+    zenith = 0.5 * math.pi - max(altitude_rad, low)
     return resources.atmosphere.transmittance(wavelength.to(torch.float64),
                                               torch.tensor(zenith, dtype=torch.float64),
-                                              knobs.elevation_m)
+                                              knobs.elevation_m, refraction=knobs.refraction)
 
 
 def natural_gradient(zenith_rad, airglow_fraction: float = 0.6,
@@ -687,7 +694,7 @@ def sun_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
 
     altitude = _apparent(resources, knobs, geometry.sun_altitude_deg)
     flux = (solar_irradiance(wavelength.to(torch.float64))
-            * _point_transmittance(resources, knobs, max(altitude, 0.0), wavelength))
+            * _point_transmittance(resources, knobs, altitude, wavelength))
     flux = flux * (ASTRONOMICAL_UNIT_M / geometry.sun_distance_m) ** 2
     radius = math.asin(SUN_RADIUS_M / geometry.sun_distance_m)
     azimuth = math.radians(geometry.sun_azimuth_deg)
@@ -803,7 +810,7 @@ def moon_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor
                                   sun_distance_m=geometry.moon_sun_distance_m,
                                   earthshine=earthshine,
                                   n_quadrature=knobs["moon_disc_quadrature"])
-    flux = irradiance * _point_transmittance(resources, knobs, max(altitude, 0.0), wavelength)
+    flux = irradiance * _point_transmittance(resources, knobs, altitude, wavelength)
     pattern = MoonDisc(resources, geometry, wavelength, altitude, earthshine=earthshine,
                        eclipse=eclipse)
     disc = _disc(view, altitude, math.radians(geometry.moon_azimuth_deg),

@@ -283,6 +283,21 @@ class SceneResources:
         true = torch.tensor([max(true_altitude_rad, lowest)], dtype=torch.float64)
         return float(refract(true, table)[0])
 
+    def apparent_horizon(self, elevation_m: float, refraction: bool) -> float:
+        """Apparent altitude [rad] of the horizon (the ground) at an observer height [m].
+
+        0 at sea level; minus the refracted (``refraction``) or geometric dip for an
+        elevated observer (:func:`skytorch.stars.photometry.apparent_horizon`).
+        """
+        elevation_m, refraction = float(elevation_m), bool(refraction)
+
+        def build():
+            from skytorch.stars.photometry import apparent_horizon
+
+            return apparent_horizon(self.atmosphere, elevation_m, refraction)
+
+        return self._get(("apparent_horizon", elevation_m, refraction), build)
+
     @property
     def deepest_sunlit_deg(self) -> float:
         """Sun depression [degree] beyond which all the air an observer sees is in shadow.
