@@ -7,7 +7,9 @@
   colour, relative brightness, scintillation index and visibility over ``(time, star)``;
 * tensor functions in :mod:`~skytorch.stars.positions`, :mod:`~skytorch.stars.photometry`,
   :mod:`~skytorch.stars.scintillation` and :mod:`~skytorch.stars.visibility`;
-* :func:`~skytorch.stars.chart.all_sky_chart` — an all-sky chart of an observation.
+* :func:`~skytorch.stars.chart.all_sky_chart` — an all-sky chart of an observation;
+* :func:`planets` — apparent places, phases and V magnitudes of the planets
+  (:mod:`~skytorch.stars.planets`).
 """
 
 from skytorch.stars.catalog import (
@@ -27,6 +29,7 @@ from skytorch.stars.photometry import (
     extinction_table,
     relative_brightness,
 )
+from skytorch.stars.planets import planet_magnitude, planets
 from skytorch.stars.positions import (
     apparent_altaz,
     horizontal_vectors,
@@ -60,6 +63,8 @@ __all__ = [
     "muller_day_night_factor",
     "observe",
     "observe_tensors",
+    "planet_magnitude",
+    "planets",
     "propagate_space_motion",
     "read_bsc5",
     "refract",

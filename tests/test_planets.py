@@ -1,0 +1,194 @@
+"""Planets: V magnitudes, phases and apparent places.
+
+References: the output of Mallama & Hilton's reference program (``Ap_Mag_Output_V3.txt``,
+tests/data/planet_magnitudes_mallama2018.csv); skyfield 1.55 (Rhodes 2019) for the
+apparent places, phase angles (``phase_angle(sun)``), altitudes and, fed with skyfield's
+own geometry, its independent implementation of the same magnitude formulae; the
+closed-form derivative of the distance term.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from skytorch.stars.planets import PLANETS, planet_magnitude, planets, sub_latitudes
+
+DATA = Path(__file__).parent / "data" / "planet_magnitudes_mallama2018.csv"
+#: Mars' corrections for its central meridian and orbital longitude (Mallama & Hilton
+#: 2018, Tables 3–4), in the reference output but not in skytorch, reach 0.1 mag
+MARS_CORRECTIONS_MAG = 0.1
+#: the reference output is printed to 0.001 mag
+PRINTED_MAG = 0.0005
+TIMES = np.datetime64("2000-01-01T00:00") + np.arange(0, 30 * 365, 29) * np.timedelta64(1, "D")
+
+
+def _rows():
+    with DATA.open() as handle:
+        return list(csv.DictReader(handle))
+
+
+def _optional(row, key, scale=1.0):
+    return None if row[key] == "" else torch.tensor(float(row[key]) * scale,
+                                                    dtype=torch.float64)
+
+
+@pytest.mark.parametrize("row", _rows(), ids=lambda r: f"{r['planet']}-{r['phase_angle_deg']}")
+def test_magnitude_against_the_reference_program(row):
+    degree = math.pi / 180.0
+    value = planet_magnitude(
+        row["planet"], torch.tensor(float(row["sun_distance_au"]), dtype=torch.float64),
+        torch.tensor(float(row["observer_distance_au"]), dtype=torch.float64),
+        torch.tensor(float(row["phase_angle_deg"]) * degree, dtype=torch.float64),
+        sun_latitude_rad=_optional(row, "sun_latitude_deg", degree),
+        observer_latitude_rad=_optional(row, "observer_latitude_deg", degree),
+        year=_optional(row, "year"), rings=row["rings"] != "0")
+    tolerance = MARS_CORRECTIONS_MAG if row["planet"] == "mars" else PRINTED_MAG
+    assert abs(float(value) - float(row["v_mag"])) < tolerance
+
+
+@pytest.fixture(scope="module")
+def dataset():
+    return planets(TIMES, 40.0, -105.0, 1600.0)
+
+
+@pytest.fixture(scope="module")
+def skyfield_positions():
+    from skytorch.ephemeris import load_ephemeris, skyfield_time
+    from skytorch.stars.planets import _TARGETS
+
+    ephemeris = load_ephemeris()
+    t = skyfield_time(TIMES)
+    earth = ephemeris["earth"].at(t)
+    return t, ephemeris, {name: earth.observe(ephemeris[_TARGETS[name]]) for name in PLANETS}
+
+
+def test_places_and_phases_against_skyfield(dataset, skyfield_positions):
+    from skyfield.api import wgs84
+
+    t, ephemeris, positions = skyfield_positions
+    site = (ephemeris["earth"] + wgs84.latlon(40.0, -105.0, elevation_m=1600.0)).at(t)
+    from skytorch.stars.planets import _TARGETS
+
+    for name, astrometric in positions.items():
+        column = dataset.sel(planet=name)
+        ra, dec, _ = astrometric.apparent().radec(epoch="date")
+        arc = np.hypot((column.ra.values - ra._degrees) * np.cos(np.radians(dec.degrees)),
+                       column.dec.values - dec.degrees) * 3600.0
+        assert arc.max() < 1e-3  # arcsec
+        phase = astrometric.phase_angle(ephemeris["sun"]).degrees
+        assert np.abs(column.phase_angle.values - phase).max() * 3600.0 < 0.5
+        assert np.allclose(column.distance.values, astrometric.distance().au, rtol=1e-12)
+        altitude, _, _ = site.observe(ephemeris[_TARGETS[name]]).apparent().altaz()
+        assert np.abs(column.altitude.values - altitude.degrees).max() * 3600.0 < 1e-3
+
+
+def test_magnitudes_against_skyfield_formulae(dataset, skyfield_positions):
+    """Skyfield's planet functions, fed with heliocentric (not barycentric) geometry."""
+    from skyfield import magnitudelib
+
+    t, ephemeris, positions = skyfield_positions
+    for name in ("mercury", "venus", "mars", "jupiter"):
+        astrometric = positions[name]
+        emitted = t - astrometric.light_time
+        target = astrometric.target
+        sun_distance = (ephemeris[target].at(emitted)
+                        - ephemeris["sun"].at(emitted)).distance().au
+        phase = astrometric.phase_angle(ephemeris["sun"]).degrees
+        expected = getattr(magnitudelib, f"_{name}_magnitude")(
+            sun_distance, astrometric.distance().au, phase)
+        assert np.abs(dataset.magnitude.sel(planet=name).values - expected).max() < 1e-4
+
+
+def test_outer_planets_against_skyfield(dataset, skyfield_positions):
+    """Saturn (rings), Uranus and Neptune against ``planetary_magnitude``.
+
+    Skyfield puts the Sun at the barycentre (up to 0.01 au away), which moves the
+    magnitudes of these distant planets by up to 0.007 mag (Saturn at opposition, where
+    the ring term changes fastest with phase angle). Neptune's phase term starts at 1.9°,
+    so the two differ by its step (0.015 mag) where their phase angles straddle it.
+    """
+    from skyfield.magnitudelib import planetary_magnitude
+
+    _, _, positions = skyfield_positions
+    for name in ("saturn", "uranus", "neptune"):
+        expected = planetary_magnitude(positions[name])
+        keep = np.abs(dataset.phase_angle.sel(planet=name).values - 1.9) > 0.01
+        difference = dataset.magnitude.sel(planet=name).values - expected
+        assert np.abs(difference[keep]).max() < 0.01
+
+
+def test_dataset_contents(dataset):
+    assert dataset.magnitude.dims == ("time", "planet")
+    assert list(dataset.planet.values) == list(PLANETS)
+    fraction = dataset.illuminated_fraction.values
+    assert ((fraction >= 0.0) & (fraction <= 1.0)).all()
+    # the inner planets' elongation never exceeds their orbit's (Venus 47.8 deg, Mercury 28)
+    assert dataset.elongation.sel(planet="venus").max() < 48.0
+    assert dataset.elongation.sel(planet="mercury").max() < 28.5
+    # Jupiter's equatorial diameter 30-50 arcsec; Venus' up to 66 arcsec at inferior
+    # conjunction
+    assert 29.0 < float(dataset.angular_diameter.sel(planet="jupiter").min())
+    assert float(dataset.angular_diameter.sel(planet="jupiter").max()) < 51.0
+    assert float(dataset.angular_diameter.sel(planet="venus").max()) < 66.5
+    assert dataset.magnitude.attrs["units"] == "mag"
+    assert float(dataset.bv.sel(planet="mars")) > float(dataset.bv.sel(planet="neptune"))
+
+
+def test_gradient_of_the_distance_term():
+    r = torch.tensor(5.2, dtype=torch.float64, requires_grad=True)
+    delta = torch.tensor(4.2, dtype=torch.float64, requires_grad=True)
+    alpha = torch.tensor(math.radians(10.0), dtype=torch.float64, requires_grad=True)
+    planet_magnitude("jupiter", r, delta, alpha).backward()
+    assert math.isclose(float(r.grad), 5.0 / (5.2 * math.log(10.0)), rel_tol=1e-12)
+    assert math.isclose(float(delta.grad), 5.0 / (4.2 * math.log(10.0)), rel_tol=1e-12)
+    assert torch.autograd.gradcheck(
+        lambda a: planet_magnitude("venus", torch.tensor(0.72, dtype=torch.float64),
+                                   torch.tensor(0.4, dtype=torch.float64), a), (alpha,))
+
+
+def test_float32_follows_float64():
+    alpha = torch.linspace(0.0, 3.0, 50, dtype=torch.float64)
+    for name in ("mercury", "venus", "mars", "jupiter"):
+        high = planet_magnitude(name, torch.tensor(1.0, dtype=torch.float64),
+                                torch.tensor(1.0, dtype=torch.float64), alpha)
+        low = planet_magnitude(name, torch.tensor(1.0), torch.tensor(1.0), alpha.float())
+        assert low.dtype == torch.float32
+        assert (low.double() - high).abs().max() < 1e-4
+
+
+def test_sub_latitudes_of_a_pole_on_the_line_of_sight():
+    pole = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
+    sun, observer = sub_latitudes(pole, torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64),
+                                  torch.tensor([0.0, 0.0, -2.0], dtype=torch.float64))
+    assert float(sun) == 0.0
+    assert math.isclose(float(observer), 0.5 * math.pi)
+
+
+def test_bad_input():
+    one = torch.tensor(1.0, dtype=torch.float64)
+    with pytest.raises(ValueError, match="planet"):
+        planet_magnitude("pluto", one, one, one)
+    with pytest.raises(ValueError, match="sun_distance_au"):
+        planet_magnitude("venus", -one, one, one)
+    with pytest.raises(ValueError, match="phase_angle_rad"):
+        planet_magnitude("venus", one, one, 4.0 * one)
+    with pytest.raises(ValueError, match="sun_latitude_rad"):
+        planet_magnitude("saturn", 9.5 * one, 8.5 * one, 0.01 * one)
+    with pytest.raises(ValueError, match="ring openings"):
+        planet_magnitude("saturn", 9.5 * one, 8.5 * one, 0.2 * one,
+                         sun_latitude_rad=0.3 * one, observer_latitude_rad=0.3 * one)
+    with pytest.raises(ValueError, match="after 2000"):
+        planet_magnitude("neptune", 30.0 * one, 29.0 * one, 0.05 * one, year=1990.0 * one)
+    with pytest.raises(ValueError, match="shapes"):
+        planet_magnitude("venus", torch.ones(3, dtype=torch.float64),
+                         torch.ones(2, dtype=torch.float64), one)
+    with pytest.raises(ValueError, match="bodies"):
+        planets("2021-10-04", bodies=("venus", "vulcan"))
+    with pytest.raises(ValueError, match="lat_deg"):
+        planets("2021-10-04", lat_deg=10.0)
