@@ -192,3 +192,95 @@ def test_bad_input():
         planets("2021-10-04", bodies=("venus", "vulcan"))
     with pytest.raises(ValueError, match="lat_deg"):
         planets("2021-10-04", lat_deg=10.0)
+
+
+def test_venus_in_a_scene_image():
+    """Venus (V −4.55, 2020-04-03 20:00 UTC from Paris, 25° up) in the stars component.
+
+    Drawn at skyfield's refracted topocentric place (within one 1.9′ pixel), with the
+    irradiance of its magnitude (skyfield's formula on heliocentric geometry) after the
+    550 nm transmittance of the refracted ray (0.05 mag: V-band vs 550 nm extinction).
+    """
+    from skyfield import magnitudelib
+    from skyfield.api import wgs84
+
+    import skytorch as st
+    from skytorch.ephemeris import load_ephemeris, skyfield_time
+    from skytorch.scene.render import star_spectra
+    from skytorch.stars.planets import PLANET_BV
+
+    time, site, size, fov = "2020-04-03T20:00", {"lat_deg": 48.85, "lon_deg": 2.35}, 64, 2.0
+    ephemeris, t = load_ephemeris(), skyfield_time([time])
+    venus, sun = ephemeris["venus"], ephemeris["sun"]
+    astrometric = ephemeris["earth"].at(t).observe(venus)
+    emitted = t - astrometric.light_time
+    magnitude = float(magnitudelib._venus_magnitude(
+        (venus.at(emitted) - sun.at(emitted)).distance().au, astrometric.distance().au,
+        astrometric.phase_angle(sun).degrees)[0])
+    observer = (ephemeris["earth"] + wgs84.latlon(site["lat_deg"], site["lon_deg"])).at(t)
+    altitude, azimuth, _ = observer.observe(venus).apparent().altaz(
+        temperature_C=10.0, pressure_mbar=1013.25)
+    scene = st.Scene(time=time, **site, view="camera", size=size, outputs=("spectral",),
+                     camera={"fov_deg": fov, "altitude_deg": float(altitude.degrees[0]),
+                             "azimuth_deg": float(azimuth.degrees[0])}, force=["stars"])
+    ds = scene.render()
+    wavelength = ds["wavelength"].values
+    band = int(np.argmin(np.abs(wavelength - 550.0)))
+    image = ds["component_radiance"].sel(component="stars").isel(wavelength=band).values
+    flux = image * scene.make_view().solid_angle_sr.numpy()
+    row, column = np.unravel_index(np.argmax(flux), flux.shape)
+    assert abs(row - (size - 1) / 2) <= 1.0 and abs(column - (size - 1) / 2) <= 1.0
+    drawn = float(flux[row - 2:row + 3, column - 2:column + 3].sum())
+    wl = torch.tensor([float(wavelength[band])], dtype=torch.float64)
+    zenith = torch.tensor(math.radians(90.0 - float(altitude.degrees[0])), dtype=torch.float64)
+    transmittance = float(torch.exp(-scene.atmosphere().optical_depth(wl, zenith,
+                                                                      refraction=True))[0])
+    expected = float(star_spectra(torch.tensor([magnitude], dtype=torch.float64),
+                                  torch.tensor([PLANET_BV["venus"]], dtype=torch.float64),
+                                  wl)[0, 0]) * transmittance
+    assert abs(2.5 * math.log10(expected / drawn)) < 0.05
+
+
+def test_the_first_hours_of_the_ephemeris():
+    """Neptune's light of 1899-07-29 01:00 left it before DE421 begins: raise, and scenes log."""
+    from skytorch.scene.resources import SceneResources, SceneSpec
+
+    with pytest.raises(ValueError, match="times"):
+        planets("1899-07-29T01:00")
+    assert planets("1899-07-29T05:00").magnitude.notnull().all()
+    sources = SceneResources(SceneSpec(2.0, 300.0, (550.0,))).planet_sources(
+        np.datetime64("1899-07-29T01:00"))
+    assert sources["vmag"].numel() == 0
+
+
+def test_venus_is_the_brightest_point_at_totality():
+    """Burgos, 2026-08-12 18:29:18 UTC (totality 18:28:27–18:30:10): Venus, 26° up.
+
+    At totality the corona holds 99 % of the image's V flux, so the planner leaves stars
+    (0.2 %) out at its default 1 % tolerance; forced, the brightest point source is Venus
+    at skyfield's place (one 1.9° pixel of the 96² fisheye), Jupiter (3° up) among the
+    next.
+    """
+    from skyfield.api import wgs84
+
+    import skytorch as st
+    from skytorch.ephemeris import load_ephemeris, skyfield_time
+
+    time, lat, lon, height = "2026-08-12T18:29:18", 42.34, -3.70, 850.0
+    ephemeris, t = load_ephemeris(), skyfield_time([time])
+    site = (ephemeris["earth"] + wgs84.latlon(lat, lon, elevation_m=height)).at(t)
+    altitude, azimuth, _ = site.observe(ephemeris["venus"]).apparent().altaz()
+    scene = st.Scene(time=time, lat_deg=lat, lon_deg=lon, elevation_m=height, size=96,
+                     fidelity="fast", outputs=("spectral",))
+    assert "stars" in scene.plan().skipped
+    scene = scene.replace(force=["stars"])
+    ds = scene.render()
+    assert "solar_eclipse" in ds.attrs["effects_computed"]
+    view = scene.make_view()
+    flux = (ds["component_radiance"].sel(component="stars").isel(wavelength=1).values
+            * view.solid_angle_sr.numpy())
+    brightest = np.unravel_index(np.argmax(flux), flux.shape)
+    index = int(view.pixel_index(torch.tensor([math.radians(float(altitude.degrees[0]))]),
+                                 torch.tensor([math.radians(float(azimuth.degrees[0]))]))[0])
+    row, column = divmod(index, 96)
+    assert abs(brightest[0] - row) <= 1 and abs(brightest[1] - column) <= 1

@@ -363,7 +363,9 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
     sun = _flux(SUN_V_MAG) if sun_up and points else 0.0
     moon_total, earthshine = resources.moon_fluxes(g)
     moon = moon_total if moon_up else 0.0
-    star_flux = 0.5 * resources.integrated_starlight(scene.star_limit_mag) if points else 0.0
+    star_flux = (0.5 * resources.integrated_starlight(scene.star_limit_mag)
+                 + resources.planet_flux(scene.time, scene.lat_deg, scene.lon_deg,
+                                         scene.star_limit_mag)) if points else 0.0
     atm = resources.atmosphere
     touches, clearance, sun_seen, corona = _solar_eclipse_bound(
         g, atm, elevation, sun_up and points)

@@ -890,26 +890,36 @@ def star_spectra(vmag: torch.Tensor, bv: torch.Tensor, wavelength) -> torch.Tens
 
 
 def stars_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor:
-    """Catalogue stars at their apparent places with extincted magnitudes.
+    """Catalogue stars and the planets at their apparent places with extincted magnitudes.
 
     The tensor layer of :func:`skytorch.stars.observe` (positions, refraction and extinction tables
-    from the resources); stars behind the Moon's disc (:func:`occulted`) are left out.
+    from the resources) for the catalogue and the planets to the scene's V limit
+    (:meth:`~skytorch.scene.resources.SceneResources.planet_sources`: Mallama & Hilton 2018
+    magnitudes, black bodies of the planets' B−V); stars and planets behind the Moon's disc
+    (:func:`occulted`) are left out.
     """
     from skytorch.ephemeris import parse_times
     from skytorch.stars import observe_tensors, time_operators
 
     vectors, vmag, bv, epoch = resources.star_vectors(knobs.star_limit_mag)
+    planets = resources.planet_sources(knobs.time)
+    bright = planets["vmag"] <= knobs.star_limit_mag
     operators, velocity = time_operators(parse_times([knobs.time]), float(knobs.lat_deg),
                                          float(knobs.lon_deg), float(knobs.elevation_m),
                                          epoch_jyear=epoch)
     refraction_tab, extinction_tab = resources.star_site_tables(knobs.elevation_m,
                                                                 knobs.refraction)
-    result = observe_tensors(vectors, vmag, bv, operators, velocity, refraction_tab,
-                             extinction_tab)
+    result = observe_tensors(torch.cat([vectors, planets["vectors"][bright]]),
+                             torch.cat([vmag, planets["vmag"][bright]]),
+                             torch.cat([bv, planets["bv"][bright]]), operators, velocity,
+                             refraction_tab, extinction_tab)
     altitude, azimuth = result["altitude"][0], result["azimuth"][0]
     up = (altitude > 0) & ~occulted(resources, geometry, altitude, azimuth, knobs)
     mag = result["magnitude"][0][up]
-    unit = resources.catalogue_spectra(knobs.star_limit_mag, star_spectra)[up]
+    planet_bv = planets["bv"][bright]
+    unit = torch.cat([resources.catalogue_spectra(knobs.star_limit_mag, star_spectra),
+                      star_spectra(torch.zeros_like(planet_bv), planet_bv,
+                                   wavelength)])[up]
     flux = unit * (10.0 ** (-0.4 * mag))[:, None]
     return _splat(view, altitude[up], azimuth[up], flux, wavelength.numel(), knobs.dtype)
 

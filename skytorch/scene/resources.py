@@ -71,6 +71,7 @@ from skytorch.constants import ASTRONOMICAL_UNIT_M
 from skytorch.scene.geometry import Geometry, site_geometries
 from skytorch.scene.presets import (
     HEMISPHERE_ARCSEC2,
+    HORIZON_REFRACTION_RAD,
     MOON_TABLE_DISTANCE_RANGE_M,
     MOON_TABLE_DISTANCES,
     MOON_TABLE_PHASES,
@@ -148,6 +149,7 @@ class SceneResources:
         self._lock = threading.RLock()
         self._built: dict = {}
         self._geometries: OrderedDict = OrderedDict()
+        self._planets: OrderedDict = OrderedDict()
 
     @classmethod
     def for_scene(cls, scene) -> SceneResources:
@@ -441,6 +443,69 @@ class SceneResources:
 
         return self._get(("star_vectors", limit_magnitude), build)
 
+    def planet_sources(self, time) -> dict:
+        """Return the planets at one UTC instant as catalogue entries at rest.
+
+        Kept per instant, like the geometries (the last :data:`GEOMETRIES_KEPT`); none
+        before :data:`skytorch.stars.planets.PLANET_TIME_MIN` (logged).
+
+        Their astrometric geocentric ICRS directions (:func:`skytorch.stars.planets.planets`)
+        as :func:`skytorch.stars.star_vectors` without proper motion or parallax, so that
+        :func:`skytorch.stars.observe_tensors` adds aberration, refraction and extinction
+        as for the stars; the topocentric parallax (at most 35″, Venus at inferior
+        conjunction) is neglected.
+
+        Returns
+        -------
+        dict
+            ``"planet"`` (names), ``"vectors"`` (planet, 8), ``"vmag"``, ``"bv"``
+            (planet,) [mag], float64.
+        """
+        time = np.datetime64(time, "ns")
+
+        def build():
+            from skytorch.stars import star_vectors
+            from skytorch.stars.planets import PLANET_TIME_MIN, planets
+
+            if time < PLANET_TIME_MIN:
+                logger.warning("planets are not drawn before %s: their light left them "
+                               "before the DE421 ephemeris begins", PLANET_TIME_MIN)
+                empty = torch.zeros(0, dtype=torch.float64)
+                return {"planet": (), "vectors": torch.zeros(0, 8, dtype=torch.float64),
+                        "vmag": empty, "bv": empty}
+            ds = planets(time).isel(time=0)
+            zeros = np.zeros(ds.sizes["planet"])
+            vectors = star_vectors(ds["astrometric_ra"].values, ds["astrometric_dec"].values,
+                                   zeros, zeros, zeros, dtype=torch.float64)
+            return {"planet": tuple(str(p) for p in ds["planet"].values), "vectors": vectors,
+                    "vmag": torch.as_tensor(ds["magnitude"].values, dtype=torch.float64),
+                    "bv": torch.as_tensor(ds["bv"].values, dtype=torch.float64)}
+
+        with self._lock:
+            if time not in self._planets:
+                self._planets[time] = build()
+            self._planets.move_to_end(time)
+            while len(self._planets) > self.GEOMETRIES_KEPT:
+                self._planets.popitem(last=False)
+            return self._planets[time]
+
+    def planet_flux(self, time, lat_deg: float, lon_deg: float, limit_magnitude: float
+                    ) -> float:
+        """V flux (relative to magnitude 0) of the planets to a V limit that can be up.
+
+        Above the atmosphere; a planet counts when its geometric altitude is above −0.7°
+        (refraction at the horizon plus aberration and parallax): a bound for the planner.
+        """
+        from skytorch.ephemeris import icrs_to_horizontal_matrices
+
+        sources = self.planet_sources(time)
+        rotation = icrs_to_horizontal_matrices([time], float(lat_deg), float(lon_deg))[0]
+        up = (sources["vectors"][:, :3] @ rotation.T)[:, 2]
+        visible = (torch.asin(up.clamp(-1.0, 1.0)) > -(HORIZON_REFRACTION_RAD
+                                                       + math.radians(0.1))) \
+            & (sources["vmag"] <= float(limit_magnitude))
+        return float((10.0 ** (-0.4 * sources["vmag"][visible])).sum())
+
     def catalogue_spectra(self, limit_magnitude: float, spectra: Callable) -> torch.Tensor:
         """Return spectra of V = 0 (star, wl) of the catalogue stars to a V limit.
 
@@ -610,6 +675,7 @@ class SceneResources:
         with self._lock:
             self._built.clear()
             self._geometries.clear()
+            self._planets.clear()
 
 
 def _floats(values) -> list[float]:

@@ -74,8 +74,8 @@ from skytorch.ephemeris import (
     skyfield_time,
 )
 
-__all__ = ["PLANETS", "PLANET_BV", "PLANET_RADIUS_M", "planet_magnitude", "planets",
-           "sub_latitudes"]
+__all__ = ["PLANETS", "PLANET_BV", "PLANET_RADIUS_M", "PLANET_TIME_MIN", "planet_magnitude",
+           "planets", "sub_latitudes"]
 
 #: the planets :func:`planets` and :func:`planet_magnitude` know, from the Sun outwards
 PLANETS = ("mercury", "venus", "mars", "jupiter", "saturn", "uranus", "neptune")
@@ -97,6 +97,9 @@ _POLES = {"saturn": ((40.589, -0.036), (83.537, -0.004)),
           "uranus": ((257.311, 0.0), (-15.175, 0.0))}
 #: Saturn's ring model holds up to this phase angle and ring opening [degree] (ref. 1)
 SATURN_RING_LIMITS_DEG = (6.5, 27.0)
+#: earliest UTC instant for the planets: DE421 starts at 1899-07-29 00:00 and Neptune's light
+#: takes up to 4.5 h to reach Earth
+PLANET_TIME_MIN = np.datetime64("1899-07-29T05:00", "ns")
 #: Neptune's phase term is fitted to observations after this year (ref. 1)
 NEPTUNE_PHASE_SINCE_YEAR = 2000.0
 
@@ -279,6 +282,7 @@ def _planet_columns(t, planet: str) -> dict[str, np.ndarray]:
     earth = ephemeris["earth"].at(t)
     astrometric = earth.observe(ephemeris[_TARGETS[planet]])
     ra, dec, _ = astrometric.apparent().radec(epoch="date")
+    astrometric_ra, astrometric_dec, _ = astrometric.radec()
     emitted = t.ts.tdb_jd(t.tdb - astrometric.light_time)
     observer_to_planet = np.asarray(astrometric.position.au, np.float64).T.reshape(-1, 3)
     planet_at_emission = np.asarray(earth.position.au, np.float64).T.reshape(-1, 3) \
@@ -304,6 +308,8 @@ def _planet_columns(t, planet: str) -> dict[str, np.ndarray]:
     return {
         "ra": 15.0 * np.asarray(ra.hours, np.float64).reshape(-1),
         "dec": np.asarray(dec.degrees, np.float64).reshape(-1),
+        "astrometric_ra": 15.0 * np.asarray(astrometric_ra.hours, np.float64).reshape(-1),
+        "astrometric_dec": np.asarray(astrometric_dec.degrees, np.float64).reshape(-1),
         "distance": delta,
         "sun_distance": np.linalg.norm(sun_to_planet, axis=-1),
         "phase_angle": np.degrees(phase),
@@ -321,6 +327,13 @@ _PLANET_SPECS = {
     "dec": ("degree", "apparent geocentric declination",
             "Apparent geocentric declination of the planet (true equator and equinox of "
             "date; light time, aberration and light deflection applied; DE421)."),
+    "astrometric_ra": ("degree", "astrometric geocentric right ascension",
+                       "Astrometric geocentric right ascension (ICRS; light time applied, "
+                       "no aberration or deflection): the catalogue-like place that "
+                       "skytorch.stars.observe turns into an apparent one."),
+    "astrometric_dec": ("degree", "astrometric geocentric declination",
+                        "Astrometric geocentric declination (ICRS; light time applied, no "
+                        "aberration or deflection)."),
     "distance": ("au", "geocentric distance", "Light-time distance from Earth's centre."),
     "sun_distance": ("au", "heliocentric distance",
                      "Distance from the Sun's centre when the light left the planet."),
@@ -350,7 +363,8 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
     Parameters
     ----------
     times : str, datetime, datetime64 or a list/array of them
-        UTC instants (dimension ``time``), 1899-07-29 .. 2053-10-09.
+        UTC instants (dimension ``time``), from :data:`PLANET_TIME_MIN` to
+        :data:`skytorch.ephemeris.TIME_MAX`.
     lat_deg, lon_deg : float, optional
         One observer's WGS84 geodetic latitude and east longitude [degree]; both or
         neither.
@@ -362,7 +376,8 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
     Returns
     -------
     xarray.Dataset
-        Over ``(time, planet)``: ``ra``, ``dec`` [degree], ``distance``, ``sun_distance``
+        Over ``(time, planet)``: ``ra``, ``dec`` [degree] (apparent, of date),
+        ``astrometric_ra``, ``astrometric_dec`` [degree] (ICRS), ``distance``, ``sun_distance``
         [au], ``phase_angle``, ``elongation`` [degree], ``illuminated_fraction`` [1],
         ``angular_diameter`` [arcsec], ``magnitude`` [mag]; ``bv`` [mag] over ``planet``;
         with an observer also ``altitude`` and ``azimuth`` [degree] (no refraction).
@@ -394,6 +409,10 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
                              f"must be scalars; got shape {tuple(lat.shape)}")
         observer = (float(lat), float(lon), float(elevation))
     values = parse_times(times)
+    if (values < PLANET_TIME_MIN).any():
+        raise ValueError(f"times: the planets need times from {PLANET_TIME_MIN} UTC (DE421 "
+                         "starts at 1899-07-29 and Neptune's light takes 4.5 h); got "
+                         f"{values.min()}")
     t = skyfield_time(values)
     columns = [_planet_columns(t, body) for body in bodies]
     if observer is not None:
