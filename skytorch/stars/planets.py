@@ -276,10 +276,13 @@ def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), (a * b).sum(-1))
 
 
-def _planet_columns(t, planet: str) -> dict[str, np.ndarray]:
-    """Geocentric apparent place, distances, phase and magnitude of one planet."""
+def _planet_columns(t, earth, earth_to_sun: np.ndarray, planet: str) -> dict[str, np.ndarray]:
+    """Geocentric apparent place, distances, phase and magnitude of one planet.
+
+    ``earth`` is the Earth's barycentric position at ``t`` (skyfield), ``earth_to_sun`` the
+    astrometric geocentric Sun (n, 3) [au].
+    """
     ephemeris = load_ephemeris()
-    earth = ephemeris["earth"].at(t)
     astrometric = earth.observe(ephemeris[_TARGETS[planet]])
     ra, dec, _ = astrometric.apparent().radec(epoch="date")
     astrometric_ra, astrometric_dec, _ = astrometric.radec()
@@ -289,8 +292,6 @@ def _planet_columns(t, planet: str) -> dict[str, np.ndarray]:
         + observer_to_planet
     sun = np.asarray(ephemeris["sun"].at(emitted).position.au, np.float64).T.reshape(-1, 3)
     sun_to_planet = planet_at_emission - sun
-    earth_to_sun = np.asarray(earth.observe(ephemeris["sun"]).position.au,
-                              np.float64).T.reshape(-1, 3)
     phase = _angle(sun_to_planet, observer_to_planet)
     extra = {}
     if planet in _POLES:
@@ -414,7 +415,10 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
                          "starts at 1899-07-29 and Neptune's light takes 4.5 h); got "
                          f"{values.min()}")
     t = skyfield_time(values)
-    columns = [_planet_columns(t, body) for body in bodies]
+    earth = load_ephemeris()["earth"].at(t)
+    earth_to_sun = np.asarray(earth.observe(load_ephemeris()["sun"]).position.au,
+                              np.float64).T.reshape(-1, 3)
+    columns = [_planet_columns(t, earth, earth_to_sun, body) for body in bodies]
     if observer is not None:
         from skyfield.api import wgs84
 
