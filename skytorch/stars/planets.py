@@ -57,6 +57,7 @@ Examples
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -73,6 +74,8 @@ from skytorch.ephemeris import (
     parse_times,
     skyfield_time,
 )
+from skytorch.stars.observation import refract, refraction_table
+from skytorch.stars.photometry import apparent_horizon, extinction, extinction_table
 
 __all__ = ["PLANETS", "PLANET_BV", "PLANET_RADIUS_M", "PLANET_TIME_MIN", "planet_magnitude",
            "planets", "sub_latitudes"]
@@ -351,14 +354,74 @@ _PLANET_SPECS = {
     "altitude": ("degree", "topocentric altitude",
                  "Apparent topocentric altitude of the planet's centre above the observer's "
                  "horizontal plane, geometric (no atmospheric refraction)."),
+    "apparent_altitude": ("degree", "apparent topocentric altitude",
+                          "Topocentric altitude of the planet's centre refracted by the "
+                          "atmosphere (ray-traced)."),
+    "extinction": ("mag", "V-band extinction",
+                   "Extinction of the planet's light (its B-V) along the refracted path."),
+    "airmass": ("1", "relative air mass", "Air mass of the refracted path."),
+    "apparent_magnitude": ("mag", "V magnitude after extinction",
+                           "magnitude + extinction."),
+    "above_horizon": ("1", "above the apparent horizon",
+                      "Apparent altitude at or above the apparent horizon (the ground)."),
     "azimuth": ("degree", "topocentric azimuth",
                 "Apparent topocentric azimuth of the planet, from north through east in "
                 "[0, 360)."),
 }
 
 
+def _through_the_atmosphere(columns, bodies, atmosphere, elevation_m: float) -> None:
+    """Add refracted altitudes and V extinction to the planets' columns (in place)."""
+    refraction = refraction_table(atmosphere, elevation_m)
+    table = extinction_table(atmosphere, elevation_m, refraction=True)
+    horizon = apparent_horizon(atmosphere, elevation_m)
+    for column, body in zip(columns, bodies, strict=True):
+        apparent = refract(torch.from_numpy(np.radians(column["altitude"])), refraction)
+        delta_m, airmass = extinction(torch.tensor([PLANET_BV[body]], dtype=torch.float64),
+                                      apparent[:, None], table)
+        column["apparent_altitude"] = np.degrees(apparent.numpy())
+        column["extinction"] = delta_m[:, 0].numpy()
+        column["airmass"] = airmass[:, 0].numpy()
+        column["apparent_magnitude"] = column["magnitude"] + column["extinction"]
+        column["above_horizon"] = (apparent >= horizon).numpy()
+
+
+def _check_request(bodies, lat_deg, lon_deg, elevation_m, atmosphere):
+    """Check the planets and the observer of :func:`planets`; return the observer or None."""
+    if isinstance(bodies, str) or not bodies:
+        raise ValueError(f"bodies must be a non-empty sequence of {PLANETS}; got {bodies!r}")
+    for body in bodies:
+        check_choice("bodies", body, PLANETS)
+    if (lat_deg is None) != (lon_deg is None):
+        raise ValueError("give both lat_deg and lon_deg for an observer, or neither; got "
+                         f"lat_deg={lat_deg!r}, lon_deg={lon_deg!r}")
+    observer = None
+    if atmosphere is not None and lat_deg is None:
+        raise ValueError("atmosphere needs an observer: give lat_deg and lon_deg")
+    if lat_deg is not None:
+        lat, lon, elevation = check_observer(lat_deg, lon_deg, elevation_m)
+        if lat.ndim:
+            raise ValueError("planets takes one observer: lat_deg, lon_deg and elevation_m "
+                             f"must be scalars; got shape {tuple(lat.shape)}")
+        observer = (float(lat), float(lon), float(elevation))
+    return observer
+
+
+def _topocentric(columns, bodies, t, observer) -> None:
+    """Add the observer's geometric altitude and azimuth [degree] to the columns (in place)."""
+    from skyfield.api import wgs84
+
+    ephemeris = load_ephemeris()
+    site = (ephemeris["earth"] + wgs84.latlon(observer[0], observer[1],
+                                              elevation_m=observer[2])).at(t)
+    for column, body in zip(columns, bodies, strict=True):
+        altitude, azimuth, _ = site.observe(ephemeris[_TARGETS[body]]).apparent().altaz()
+        column["altitude"] = np.asarray(altitude.degrees, np.float64).reshape(-1)
+        column["azimuth"] = np.asarray(azimuth.degrees, np.float64).reshape(-1)
+
+
 def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
-            bodies=PLANETS) -> xr.Dataset:
+            bodies=PLANETS, atmosphere=None) -> xr.Dataset:
     """Apparent places, phases and V magnitudes of the planets over time.
 
     Parameters
@@ -373,6 +436,9 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
         The observer's height above the ellipsoid [m].
     bodies : sequence of str
         Planets (dimension ``planet``), from :data:`PLANETS`.
+    atmosphere : skytorch.atmosphere.Atmosphere, optional
+        With an observer: refract and extinguish the planets through it (scalar
+        parameters), as :func:`skytorch.stars.observe` does for the stars.
 
     Returns
     -------
@@ -381,8 +447,14 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
         ``astrometric_ra``, ``astrometric_dec`` [degree] (ICRS), ``distance``, ``sun_distance``
         [au], ``phase_angle``, ``elongation`` [degree], ``illuminated_fraction`` [1],
         ``angular_diameter`` [arcsec], ``magnitude`` [mag]; ``bv`` [mag] over ``planet``;
-        with an observer also ``altitude`` and ``azimuth`` [degree] (no refraction).
-        The magnitude is geocentric (the observer's offset changes it by < 0.001 mag).
+        with an observer also ``altitude`` and ``azimuth`` [degree] (no refraction);
+        with an atmosphere also ``apparent_altitude`` [degree] (ray-traced refraction,
+        :func:`skytorch.stars.refraction_table`), ``extinction`` [mag] and ``airmass``
+        [1] of the V band along the refracted path for the planet's B−V
+        (:func:`skytorch.stars.extinction_table`), ``apparent_magnitude`` [mag] and
+        ``above_horizon`` (apparent altitude at or above the apparent horizon; below it
+        the horizon's extinction is reported, finite). The magnitude is geocentric (the
+        observer's offset changes it by < 0.001 mag).
 
     Raises
     ------
@@ -395,20 +467,7 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
     >>> [round(float(v), 2) for v in ds.magnitude[0]]
     [-4.25, -2.69]
     """
-    if isinstance(bodies, str) or not bodies:
-        raise ValueError(f"bodies must be a non-empty sequence of {PLANETS}; got {bodies!r}")
-    for body in bodies:
-        check_choice("bodies", body, PLANETS)
-    if (lat_deg is None) != (lon_deg is None):
-        raise ValueError("give both lat_deg and lon_deg for an observer, or neither; got "
-                         f"lat_deg={lat_deg!r}, lon_deg={lon_deg!r}")
-    observer = None
-    if lat_deg is not None:
-        lat, lon, elevation = check_observer(lat_deg, lon_deg, elevation_m)
-        if lat.ndim:
-            raise ValueError("planets takes one observer: lat_deg, lon_deg and elevation_m "
-                             f"must be scalars; got shape {tuple(lat.shape)}")
-        observer = (float(lat), float(lon), float(elevation))
+    observer = _check_request(bodies, lat_deg, lon_deg, elevation_m, atmosphere)
     values = parse_times(times)
     if (values < PLANET_TIME_MIN).any():
         raise ValueError(f"times: the planets need times from {PLANET_TIME_MIN} UTC (DE421 "
@@ -420,15 +479,9 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
                               np.float64).T.reshape(-1, 3)
     columns = [_planet_columns(t, earth, earth_to_sun, body) for body in bodies]
     if observer is not None:
-        from skyfield.api import wgs84
-
-        ephemeris = load_ephemeris()
-        site = (ephemeris["earth"] + wgs84.latlon(observer[0], observer[1],
-                                                  elevation_m=observer[2])).at(t)
-        for column, body in zip(columns, bodies, strict=True):
-            altitude, azimuth, _ = site.observe(ephemeris[_TARGETS[body]]).apparent().altaz()
-            column["altitude"] = np.asarray(altitude.degrees, np.float64).reshape(-1)
-            column["azimuth"] = np.asarray(azimuth.degrees, np.float64).reshape(-1)
+        _topocentric(columns, bodies, t, observer)
+    if atmosphere is not None:
+        _through_the_atmosphere(columns, bodies, atmosphere, observer[2])
     data = {name: variable(("time", "planet"),
                            np.stack([column[name] for column in columns], axis=1),
                            VariableSpec(*_PLANET_SPECS[name]))
@@ -440,9 +493,12 @@ def planets(times, lat_deg=None, lon_deg=None, elevation_m=0.0, *,
     coords = {"time": time_coordinate(values),
               "planet": coordinate("planet", np.array(list(bodies)),
                                    VariableSpec("1", "planet", "Name of the planet."))}
-    parameters: dict[str, object] = {"ephemeris": EPHEMERIS_FILE, "refraction": False}
+    parameters: dict[str, object] = {"ephemeris": EPHEMERIS_FILE,
+                                     "refraction": atmosphere is not None}
     if observer is not None:
         parameters.update(lat_deg=observer[0], lon_deg=observer[1], elevation_m=observer[2])
+    if atmosphere is not None:
+        parameters["atmosphere"] = json.dumps(atmosphere.parameters_dict(), default=str)
     return build_dataset(
         data, coords, title="Apparent places and V magnitudes of the planets",
         references=[
