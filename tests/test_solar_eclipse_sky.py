@@ -10,6 +10,7 @@ import skytorch as st
 from skytorch.scene.geometry import site_geometries
 from skytorch.scene.solar_eclipse_sky import (
     baumbach_corona,
+    eclipsed_second_order,
     eclipsed_single_scattering,
     penumbra_touches,
     sight_radius_m,
@@ -133,3 +134,61 @@ def test_scene_at_totality_is_dark_overhead_with_a_bright_horizon():
     sun_normal = float((normal.component_radiance.sel(component="sun")
                         * normal.solid_angle).sum())
     assert 1e-7 < sun_total / sun_normal < 1e-5
+
+
+def test_second_order_far_from_the_shadow_is_the_atmosphere_second_order():
+    """The next day the visible fraction is 1 everywhere: the generic kernel's value."""
+    from skytorch.atmosphere.scattering import second_order_radiance
+    from skytorch.atmosphere.tables import TransmittanceTable
+
+    g = _geometry(NEXT_DAY, *BURGOS)
+    atm = st.Atmosphere.earth(2.0)
+    wl = torch.tensor([550.0], dtype=torch.float64)
+    table = TransmittanceTable.build(atm, wl, cache=False, n_mu=64, n_r=16)
+    zenith = torch.tensor([0.0, 1.2], dtype=torch.float64)
+    azimuth = torch.tensor([0.0, 2.0], dtype=torch.float64)
+    ours = eclipsed_second_order(atm, wl, zenith, azimuth, g, BURGOS[2], table=table,
+                                 n_view=12, n_phi=8, n_samples=12)
+    north, east, up = g.sun_horizontal_m
+    reference = second_order_radiance(
+        atm.constituents(wl), zenith, azimuth,
+        torch.tensor(math.atan2(math.hypot(north, east), up), dtype=torch.float64),
+        torch.tensor(math.atan2(east, north), dtype=torch.float64),
+        torch.tensor(BURGOS[2], dtype=torch.float64), table=table, n_view=12, n_phi=8,
+        n_samples=12)
+    assert torch.allclose(ours, reference, rtol=1e-9, atol=0.0)
+
+
+def test_zenith_at_totality_about_four_orders_below_the_day_sky():
+    """Dandekar & Turtle (1971): the zenith at totality "about four orders of magnitude lower".
+
+    Single scattering alone puts it six orders down (the air overhead is in the umbra);
+    the second order, light scattered once in the sunlit air outside the umbra, brings
+    it to 10^-3.6 at 550 nm (both days with orders 1 and 2).
+    """
+    from skytorch.atmosphere.tables import TransmittanceTable
+
+    atm = st.Atmosphere.earth(2.0)
+    wl = torch.tensor([550.0], dtype=torch.float64)
+    table = TransmittanceTable.build(atm, wl, cache=False, n_mu=128, n_r=32)
+    zero = torch.zeros(1, dtype=torch.float64)
+    sky = {}
+    for name, time in (("total", TOTALITY), ("normal", NEXT_DAY)):
+        g = _geometry(time, *BURGOS)
+        single = eclipsed_single_scattering(atm, wl, zero, zero, g, BURGOS[2], table=table,
+                                            n_samples=48)
+        second = eclipsed_second_order(atm, wl, zero, zero, g, BURGOS[2], table=table)
+        sky[name] = (float(single), float(second))
+    assert sky["total"][1] > 100.0 * sky["total"][0]  # the second order dominates
+    ratio = sum(sky["total"]) / sum(sky["normal"])
+    assert -4.5 < math.log10(ratio) < -3.0
+    assert math.log10(sky["total"][0] / sky["normal"][0]) < -5.0  # single scattering alone
+
+
+def test_the_planner_keeps_two_orders_during_the_eclipse():
+    scene = st.Scene(time=TOTALITY, lat_deg=BURGOS[0], lon_deg=BURGOS[1],
+                     elevation_m=BURGOS[2], size=16, fidelity="default")
+    plan = scene.plan()
+    assert "solar_eclipse" in plan.computed
+    assert plan.scattering_orders["sky"] == 2
+    assert "orders >= 3 are not computed" in plan.scattering_reason

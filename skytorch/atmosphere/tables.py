@@ -601,14 +601,17 @@ class TransmittanceTable(nn.Module):
         hits = _ray_hits_ground(r, mu, self.planet_radius_m)
         table = self.columns
         up = self._lookup(r - self.planet_radius_m, torch.where(hits, -mu, mu), table)
-        d = _distance_to_ground(r, mu, self.planet_radius_m)
-        planet = self.planet_radius_m
-        # mu at the ground point (looking down) from r mu + d = R mu_g
-        mu_ground = torch.clamp((r * mu + d) / planet, -1.0, 0.0)
-        from_ground = self._lookup(torch.zeros_like(r), -mu_ground, table)
-        # (additive columns: exact; optical depths: exact for linear species only)
-        down = torch.clamp(from_ground - up, min=0.0)
-        value = torch.where(hits[..., None], down, up)
+        value = up
+        if bool(hits.any()):
+            # rays meeting the ground: the column from the ground point, for those rays only
+            r_hit, mu_hit = r[hits], mu[hits]
+            d = _distance_to_ground(r_hit, mu_hit, self.planet_radius_m)
+            planet = self.planet_radius_m
+            # mu at the ground point (looking down) from r mu + d = R mu_g
+            mu_ground = torch.clamp((r_hit * mu_hit + d) / planet, -1.0, 0.0)
+            from_ground = self._lookup(torch.zeros_like(r_hit), -mu_ground, table)
+            # (additive columns: exact; optical depths: exact for linear species only)
+            value = up.index_put((hits,), torch.clamp(from_ground - up[hits], min=0.0))
         if table is None:
             return value
         columns = dict(zip(self.constituents.names, value.unbind(-1), strict=True))

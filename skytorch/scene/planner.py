@@ -525,7 +525,11 @@ class _OrderEstimate:
         if "sky" not in computed:
             reasons.append("sky: not computed")
         elif "solar_eclipse" in computed:
-            reasons.append("sky: single scattering (the solar-eclipse sky)")
+            # the eclipse sky's orders come from a direct quadrature that stops at two
+            result["sky"] = 2
+            reasons.append("sky: 2 orders (the solar-eclipse sky: single and second order "
+                           "with the Sun's visible fraction at every scattering; orders >= 3 "
+                           "are not computed)")
         elif not self.sun_in_tables:
             reasons.append("sky: single scattering (Sun below the tables' 18 deg depression)")
         else:

@@ -832,7 +832,8 @@ def eclipse_sky_table(resources, geometry, knobs, wavelength):
     :func:`skytorch.scene.solar_eclipse_sky.eclipsed_single_scattering` times the
     extraterrestrial spectrum on ``knobs["eclipse_sky_lut"]`` nodes (zenith as
     :func:`_zenith_nodes`, azimuth uniform over the full circle, the first column repeated
-    after the last) [W m^-2 sr^-1 nm^-1].
+    after the last) [W m^-2 sr^-1 nm^-1]; with ``knobs.orders("sky") >= 2`` plus the
+    second order of :func:`eclipse_second_order_table`, interpolated to those nodes.
     """
     from skytorch.scene.solar_eclipse_sky import eclipsed_single_scattering
     from skytorch.spectrum import solar_irradiance
@@ -846,7 +847,43 @@ def eclipse_sky_table(resources, geometry, knobs, wavelength):
     radiance = eclipsed_single_scattering(resources.atmosphere, wl, z, a, geometry,
                                           knobs.elevation_m, n_samples=knobs["eclipse_samples"],
                                           table=table) * solar_irradiance(wl)
+    if knobs.orders("sky") >= 2:
+        second = eclipse_second_order_table(resources, geometry, knobs, wl)
+        radiance = radiance + _lookup_full(second, z, a)
     return torch.cat([radiance, radiance[:, :1]], dim=1)
+
+
+#: lines of sight per call of the eclipse sky's second order (memory stays in cache)
+_ECLIPSE_MS_CHUNK = 2
+
+
+def eclipse_second_order_table(resources, geometry, knobs, wavelength):
+    """Second order of the eclipse sky on the coarser ``knobs["eclipse_ms_lut"]`` nodes.
+
+    :func:`skytorch.scene.solar_eclipse_sky.eclipsed_second_order` (quadrature
+    ``knobs["eclipse_ms"]``: samples along the line of sight, direction cosines per
+    hemisphere, azimuths, samples per ray) times the extraterrestrial spectrum, laid out
+    as :func:`eclipse_sky_table` (z, a + 1, wl) [W m^-2 sr^-1 nm^-1].
+    """
+    from skytorch.scene.solar_eclipse_sky import eclipsed_second_order
+    from skytorch.spectrum import solar_irradiance
+
+    n_z, n_a = knobs["eclipse_ms_lut"]
+    n_view, n_mu, n_phi, n_samples = knobs["eclipse_ms"]
+    zenith = _zenith_nodes(n_z, torch.float64)
+    azimuth = torch.linspace(0.0, 2.0 * math.pi, n_a + 1, dtype=torch.float64)[:-1]
+    z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
+    wl = wavelength.to(torch.float64)
+    table = resources.transmittance_table(*knobs["transmittance"])
+    z, a = z.reshape(-1), a.reshape(-1)
+    # a few lines of sight at a time: each holds n_view x 2 n_mu x n_phi x n_samples points
+    parts = [eclipsed_second_order(resources.atmosphere, wl, z[i:i + _ECLIPSE_MS_CHUNK],
+                                   a[i:i + _ECLIPSE_MS_CHUNK], geometry, knobs.elevation_m,
+                                   n_view=n_view, n_mu=n_mu, n_phi=n_phi,
+                                   n_samples=n_samples, table=table)
+             for i in range(0, z.numel(), _ECLIPSE_MS_CHUNK)]
+    second = (torch.cat(parts) * solar_irradiance(wl)).reshape(n_z, n_a, wl.numel())
+    return torch.cat([second, second[:, :1]], dim=1)
 
 
 def _lookup_full(table: torch.Tensor, zenith: torch.Tensor, azimuth: torch.Tensor):

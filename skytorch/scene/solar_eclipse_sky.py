@@ -35,10 +35,11 @@ over 1000 km is 1.4 arcsec) while the Moon's direction and angular radius change
 the point (its parallax over 100 km is 0.9 arcmin, a quarter of the umbra's width).
 The Sun's transmittance from each point is the scene's transmittance table.
 
-Multiple scattering is not included here: the orders beyond the first are neglected,
-which at totality is a large part of the sky (most light reaching the umbra's air is
-scattered more than once; see ``docs/solar_eclipse_sky.md`` for the measured
-comparison).
+The second order (:func:`eclipsed_second_order`) applies the same fraction at every
+first scattering of :func:`skytorch.atmosphere.scattering.second_order_radiance`: at
+totality it is most of the sky (light scattered once in the sunlit air outside the umbra
+and again in the dark air the observer looks through; ``docs/solar_eclipse_sky.md``).
+Orders beyond the second are not included.
 
 References
 ----------
@@ -57,12 +58,12 @@ import math
 import torch
 
 from skytorch._validate import as_tensor, check_int
-from skytorch.atmosphere.scattering import constituent_radiance
+from skytorch.atmosphere.scattering import constituent_radiance, second_order_radiance
 from skytorch.constants import MOON_RADIUS_M, SUN_RADIUS_M
 
 __all__ = ["BAUMBACH_COEFFICIENTS", "CORONA_FLUX_FRACTION", "baumbach_corona",
-           "eclipsed_single_scattering", "penumbra_touches", "sight_radius_m",
-           "visible_fraction_at"]
+           "eclipsed_second_order", "eclipsed_single_scattering", "penumbra_touches",
+           "sight_radius_m", "visible_fraction_at"]
 
 #: Baumbach (1937) white-light corona: :math:`I/\bar I_\odot = 10^{-6}\sum a_k\rho^{-n_k}`
 #: as (a_k, n_k), ρ in solar radii from the Sun's centre (Allen 1973, §81)
@@ -286,3 +287,53 @@ def eclipsed_single_scattering(atmosphere, wavelength_nm, view_zenith_rad, view_
     return constituent_radiance(constituents, view_zenith.to(dtype), view_azimuth.to(dtype),
                                 sun_zenith, sun_azimuth, altitude, n_samples=n_samples,
                                 table=table, source_weight=visible)
+
+
+def eclipsed_second_order(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad,
+                          geometry, altitude_m: float = 0.0, *, n_view: int = 24,
+                          n_mu: int = 4, n_phi: int = 16, n_samples: int = 16, table=None,
+                          n_nodes: int = 8) -> torch.Tensor:
+    r"""Second order of scattering per unit solar irradiance during a solar eclipse [1/sr].
+
+    Parameters
+    ----------
+    atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad, geometry, altitude_m
+        As :func:`eclipsed_single_scattering`.
+    n_view, n_mu, n_phi, n_samples : int
+        Quadrature of :func:`skytorch.atmosphere.scattering.second_order_radiance`.
+    table : TransmittanceTable, optional
+        The Sun's transmittance from each first scattering.
+    n_nodes : int
+        Quadrature nodes of the visible fraction.
+
+    Returns
+    -------
+    Tensor (..., wavelength)
+        :math:`L_2/E_\odot` [sr^-1].
+
+    Notes
+    -----
+    :func:`~skytorch.atmosphere.scattering.second_order_radiance` with the Sun's visible
+    fraction (:func:`visible_fraction_at`) at every first scattering: at totality the air
+    around the observer is dark, and light scattered once in the sunlit air outside the
+    umbra is scattered again towards the observer. Orders beyond the second are not
+    included. Without the Moon nearby the result is the atmosphere's second order
+    (checked against a Monte-Carlo in ``tests/test_second_order.py``).
+    """
+    wavelength = as_tensor("wavelength_nm", wavelength_nm).to(torch.float64)
+    view_zenith = as_tensor("view_zenith_rad", view_zenith_rad).to(torch.float64)
+    view_azimuth = as_tensor("view_azimuth_rad", view_azimuth_rad).to(torch.float64)
+    constituents = atmosphere.constituents(wavelength)
+    dtype = constituents.dtype
+    north, east, up = geometry.sun_horizontal_m
+    sun_zenith = torch.tensor(math.atan2(math.hypot(north, east), up), dtype=dtype)
+    sun_azimuth = torch.tensor(math.atan2(east, north), dtype=dtype)
+    altitude = torch.tensor(float(altitude_m), dtype=dtype)
+
+    def visible(points):
+        return visible_fraction_at(geometry, points, n_nodes=n_nodes)
+
+    return second_order_radiance(constituents, view_zenith.to(dtype), view_azimuth.to(dtype),
+                                 sun_zenith, sun_azimuth, altitude, n_view=n_view, n_mu=n_mu,
+                                 n_phi=n_phi, n_samples=n_samples, table=table,
+                                 source_weight=visible)

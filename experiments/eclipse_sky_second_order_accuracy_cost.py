@@ -1,0 +1,104 @@
+"""Accuracy versus cost of the solar-eclipse sky's second order of scattering.
+
+Burgos (42.34 N, 3.70 W, 850 m) at totality, 2026-08-12 18:29:18 UTC (Sun 8.4° up),
+turbidity 2, 550 nm: :func:`skytorch.scene.solar_eclipse_sky.eclipsed_second_order` on
+three lines of sight (zenith; 60° from the zenith opposite the Sun; 85° at right angles
+to it) for quadratures ``(n_view, n_mu, n_phi, n_samples)`` from coarse to fine, against
+the finest as the converged reference; the wall time of each (three lines of sight, one
+wavelength, one thread). The scene presets use ``(24, 4, 16, 16)`` ("fast", "default") and
+``(48, 8, 32, 32)`` ("reference").
+
+Output: ``eclipse_sky_second_order_accuracy_cost.nc`` / ``.png``; ``--quick`` drops the two
+finest quadratures (the reference is then ``(32, 6, 24, 24)``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import xarray as xr
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments._common import parse_arguments, save_outputs  # noqa: E402
+
+QUADRATURES = ((12, 2, 8, 8), (16, 3, 12, 12), (24, 4, 16, 16), (32, 6, 24, 24),
+               (48, 8, 32, 32), (64, 12, 48, 48))
+BURGOS = (42.34, -3.70, 850.0)
+TOTALITY = "2026-08-12T18:29:18"
+
+
+def main(argv=None):
+    arguments = parse_arguments(__doc__.splitlines()[0], argv)
+    import matplotlib.pyplot as plt
+
+    import skytorch as st
+    from skytorch.atmosphere.tables import TransmittanceTable
+    from skytorch.scene.geometry import site_geometries
+    from skytorch.scene.solar_eclipse_sky import eclipsed_second_order
+
+    torch.set_num_threads(1)
+    quadratures = QUADRATURES[:4] if arguments.quick else QUADRATURES
+    atmosphere = st.Atmosphere.earth(2.0)
+    wavelength = torch.tensor([550.0], dtype=torch.float64)
+    table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
+    geometry = site_geometries(np.datetime64(TOTALITY), [BURGOS[0]], [BURGOS[1]],
+                               [BURGOS[2]])[0]
+    sun_azimuth = math.radians(geometry.sun_azimuth_deg)
+    zenith = torch.tensor([0.0, math.radians(60.0), math.radians(85.0)], dtype=torch.float64)
+    azimuth = torch.tensor([0.0, sun_azimuth + math.pi, sun_azimuth + 0.5 * math.pi],
+                           dtype=torch.float64)
+    values, seconds = [], []
+    for n_view, n_mu, n_phi, n_samples in quadratures:
+        start = time.perf_counter()
+        value = eclipsed_second_order(atmosphere, wavelength, zenith, azimuth, geometry,
+                                      BURGOS[2], n_view=n_view, n_mu=n_mu, n_phi=n_phi,
+                                      n_samples=n_samples, table=table)[:, 0]
+        seconds.append(time.perf_counter() - start)
+        values.append(value.numpy())
+    values = np.array(values)
+    relative = values / values[-1] - 1.0
+    labels = [f"{a}/{b}/{c}/{d}" for a, b, c, d in quadratures]
+    line = ["zenith", "60 deg anti-Sun", "85 deg side"]
+    dataset = xr.Dataset(
+        {"second_order": (("quadrature", "line_of_sight"), values,
+                          {"units": "sr-1", "long_name": "second-order radiance per unit "
+                                                         "solar irradiance at 550 nm"}),
+         "relative_error": (("quadrature", "line_of_sight"), relative,
+                            {"units": "1", "long_name": "relative difference from the "
+                                                        "finest quadrature"}),
+         "seconds": ("quadrature", np.array(seconds),
+                     {"units": "s", "long_name": "wall time, three lines of sight"})},
+        coords={"quadrature": ("quadrature", labels,
+                               {"long_name": "n_view/n_mu/n_phi/n_samples"}),
+                "line_of_sight": ("line_of_sight", line, {"long_name": "line of sight"})},
+        attrs={"title": "Solar-eclipse sky, second order: accuracy vs cost",
+               "scene": f"Burgos {BURGOS}, {TOTALITY} UTC (totality), turbidity 2",
+               "reference": labels[-1]})
+    figure, axis = plt.subplots(figsize=(5, 3.5))
+    for j, name in enumerate(line):
+        axis.loglog(seconds[:-1], np.maximum(np.abs(relative[:-1, j]), 1e-6), "o-", label=name)
+    for label, x, y in zip(labels[:-1], seconds[:-1],
+                           np.maximum(np.abs(relative[:-1]).max(1), 1e-6), strict=True):
+        axis.annotate(label, (x, y), fontsize=7)
+    axis.set_xlabel("time, three lines of sight, one wavelength [s]")
+    axis.set_ylabel(f"|relative difference from {labels[-1]}|")
+    axis.set_title("eclipse sky at totality: second order")
+    axis.legend(fontsize=7)
+    save_outputs(dataset, figure, arguments.output_dir, "eclipse_sky_second_order_accuracy_cost")
+    rows = ["| n_view/n_mu/n_phi/n_samples | zenith | 60° anti-Sun | 85° side | time [s] |",
+            "| --- | --- | --- | --- | --- |"]
+    for i, label in enumerate(labels):
+        cells = " | ".join(f"{100 * r:+.1f} %" for r in relative[i])
+        rows.append(f"| {label} | {cells} | {seconds[i]:.2f} |")
+    print("\n".join(rows))
+    return dataset
+
+
+if __name__ == "__main__":
+    main()
