@@ -24,6 +24,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "eclipse": ("skytorch.commands.eclipse",
                 "lunar eclipses (circumstances, light curve) and solar eclipses (local sky)"),
     "stars": ("skytorch.commands.stars", "apparent star positions, magnitudes and a chart"),
+    "planets": ("skytorch.commands.planets",
+                "places, phases and V magnitudes of the planets over time"),
     "moon": ("skytorch.commands.moon",
              "phase, illumination, libration, brightness and disc images of the Moon"),
     "skyglow": ("skytorch.commands.skyglow", "artificial sky brightness from a light map"),
