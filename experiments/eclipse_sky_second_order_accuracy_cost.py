@@ -8,8 +8,13 @@ the finest as the converged reference; the wall time of each (three lines of sig
 wavelength, one thread). The scene presets use ``(24, 4, 16, 16)`` ("fast", "default") and
 ``(48, 8, 32, 32)`` ("reference").
 
+Second knob: the scene's (zenith, azimuth) grid of the second order
+(``"eclipse_ms_lut"``), linear or log interpolation, at 40 random lines of sight above 1°
+against direct evaluations with the same quadrature (the scene's wavelengths).
+
 Output: ``eclipse_sky_second_order_accuracy_cost.nc`` / ``.png``; ``--quick`` drops the two
-finest quadratures (the reference is then ``(32, 6, 24, 24)``).
+finest quadratures (the reference is then ``(32, 6, 24, 24)``), uses 10 lines of sight and
+two grids.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
 
+GRIDS = ((4, 8), (5, 10), (6, 12), (8, 16))
 QUADRATURES = ((12, 2, 8, 8), (16, 3, 12, 12), (24, 4, 16, 16), (32, 6, 24, 24),
                (48, 8, 32, 32), (64, 12, 48, 48))
 BURGOS = (42.34, -3.70, 850.0)
@@ -80,6 +86,17 @@ def main(argv=None):
         attrs={"title": "Solar-eclipse sky, second order: accuracy vs cost",
                "scene": f"Burgos {BURGOS}, {TOTALITY} UTC (totality), turbidity 2",
                "reference": labels[-1]})
+    grids = ((4, 8), (6, 12)) if arguments.quick else GRIDS
+    grid_error, grid_seconds = _grid_errors(grids, 10 if arguments.quick else 40)
+    dataset["grid_error"] = (("grid", "interpolation", "statistic"), grid_error,
+                             {"units": "1", "long_name": "relative look-up error of the "
+                                                         "second order"})
+    dataset["grid_seconds"] = ("grid", grid_seconds,
+                               {"units": "s", "long_name": "wall time of the grid"})
+    dataset = dataset.assign_coords(
+        grid=("grid", [f"{a}x{b}" for a, b in grids], {"long_name": "zenith x azimuth nodes"}),
+        interpolation=("interpolation", ["linear", "log"]),
+        statistic=("statistic", ["median", "p90", "max"]))
     figure, axis = plt.subplots(figsize=(5, 3.5))
     for j, name in enumerate(line):
         axis.loglog(seconds[:-1], np.maximum(np.abs(relative[:-1, j]), 1e-6), "o-", label=name)
@@ -97,7 +114,52 @@ def main(argv=None):
         cells = " | ".join(f"{100 * r:+.1f} %" for r in relative[i])
         rows.append(f"| {label} | {cells} | {seconds[i]:.2f} |")
     print("\n".join(rows))
+    rows = ["| grid | linear: median / p90 / max | log: median / p90 / max | time [s] |",
+            "| --- | --- | --- | --- |"]
+    for i, (a, b) in enumerate(grids):
+        cells = [" / ".join(f"{100 * v:.1f} %" for v in grid_error[i, k]) for k in range(2)]
+        rows.append(f"| {a} × {b} | {cells[0]} | {cells[1]} | {grid_seconds[i]:.2f} |")
+    print("\n".join(rows))
     return dataset
+
+
+def _grid_errors(grids, n_lines):
+    """Look-up errors (grid, linear/log, median/p90/max) of the scene's second-order grid."""
+    import skytorch as st
+    from skytorch.scene.render import Knobs, _lookup_full, eclipse_second_order_table
+    from skytorch.scene.solar_eclipse_sky import eclipsed_second_order
+    from skytorch.spectrum import solar_irradiance
+
+    scene = st.Scene(time=TOTALITY, lat_deg=BURGOS[0], lon_deg=BURGOS[1],
+                     elevation_m=BURGOS[2], size=16, fidelity="default")
+    resources = scene.resources()
+    geometry = resources.geometry(scene)
+    knobs = Knobs.of(scene, scene.plan())
+    wavelength = resources.wavelength_nm
+    table = resources.transmittance_table(*knobs["transmittance"])
+    n_view, n_mu, n_phi, n_samples = knobs["eclipse_ms"]
+    rng = np.random.default_rng(1)
+    zenith = torch.tensor(0.5 * math.pi - np.arcsin(rng.uniform(0.02, 1.0, n_lines)))
+    azimuth = torch.tensor(rng.uniform(0.0, 2.0 * math.pi, n_lines))
+    direct = torch.cat([
+        eclipsed_second_order(resources.atmosphere, wavelength, zenith[i:i + 2],
+                              azimuth[i:i + 2], geometry, BURGOS[2], n_view=n_view,
+                              n_mu=n_mu, n_phi=n_phi, n_samples=n_samples, table=table)
+        for i in range(0, n_lines, 2)]) * solar_irradiance(wavelength)
+    errors, seconds = [], []
+    for grid in grids:
+        fidelity = dict(knobs.fidelity, eclipse_ms_lut=grid)
+        start = time.perf_counter()
+        second = eclipse_second_order_table(resources, geometry,
+                                            Knobs(**{**knobs.__dict__, "fidelity": fidelity}),
+                                            wavelength)
+        seconds.append(time.perf_counter() - start)
+        linear = _lookup_full(second, zenith, azimuth)
+        logarithmic = torch.exp(_lookup_full(torch.log(second), zenith, azimuth))
+        errors.append([[float(q) for q in (rel.median(), rel.quantile(0.9), rel.max())]
+                       for rel in ((linear / direct - 1.0).abs(),
+                                   (logarithmic / direct - 1.0).abs())])
+    return np.array(errors), np.array(seconds)
 
 
 if __name__ == "__main__":

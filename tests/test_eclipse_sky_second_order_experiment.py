@@ -19,8 +19,11 @@ def test_eclipse_sky_second_order_experiment_quick(tmp_path):
     assert (tmp_path / f"{stem}.png").stat().st_size > 0
     with xr.open_dataset(tmp_path / f"{stem}.nc") as dataset:
         error = np.abs(dataset["relative_error"].values)
+        grid = dataset["grid_error"].sel(statistic="median").values
         assert dataset["second_order"].attrs["units"] == "sr-1"
     # 2 direction cosines per hemisphere and 8 azimuths miss most of the light from the
     # sunlit ring around the umbra; the presets' quadrature is within 15 % of the finest
     assert error[0].max() > 0.5
     assert error[2].max() < 0.15
+    # the finer grid and the log look-up both shrink the look-up error
+    assert grid[1, 1] < grid[0, 1] and grid[1, 1] < grid[1, 0]

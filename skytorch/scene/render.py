@@ -833,7 +833,8 @@ def eclipse_sky_table(resources, geometry, knobs, wavelength):
     extraterrestrial spectrum on ``knobs["eclipse_sky_lut"]`` nodes (zenith as
     :func:`_zenith_nodes`, azimuth uniform over the full circle, the first column repeated
     after the last) [W m^-2 sr^-1 nm^-1]; with ``knobs.orders("sky") >= 2`` plus the
-    second order of :func:`eclipse_second_order_table`, interpolated to those nodes.
+    second order of :func:`eclipse_second_order_table`, interpolated to those nodes in
+    log radiance.
     """
     from skytorch.scene.solar_eclipse_sky import eclipsed_single_scattering
     from skytorch.spectrum import solar_irradiance
@@ -848,8 +849,11 @@ def eclipse_sky_table(resources, geometry, knobs, wavelength):
                                           knobs.elevation_m, n_samples=knobs["eclipse_samples"],
                                           table=table) * solar_irradiance(wl)
     if knobs.orders("sky") >= 2:
+        # in log radiance: the second order grows steeply towards the horizon (halves the
+        # look-up error of linear interpolation, docs/solar_eclipse_sky.md)
         second = eclipse_second_order_table(resources, geometry, knobs, wl)
-        radiance = radiance + _lookup_full(second, z, a)
+        tiny = torch.finfo(second.dtype).tiny
+        radiance = radiance + torch.exp(_lookup_full(torch.log(second.clamp(min=tiny)), z, a))
     return torch.cat([radiance, radiance[:, :1]], dim=1)
 
 
