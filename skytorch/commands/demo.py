@@ -446,10 +446,12 @@ def solar_eclipse_part(output_dir: Path, quick: bool, state: dict) -> list[str]:
     plot.all_sky(sky, axes[1], title=f"Burgos at maximum ({local.kind.values})")
     png = plot.savefig(figure, output_dir / "solar_eclipse.png")
     zenith = float(sky["v_mag_arcsec2"].sel(x=0.0, y=0.0, method="nearest"))
+    orders = int(sky.attrs["sky_scattering_orders"])
+    scattering = "single scattering" if orders == 1 else f"orders of scattering 1-{orders}"
     return [f"solar eclipse {SOLAR_ECLIPSE_DATE} at Burgos -> {png.name}",
             f"  {local.kind.values}, obscuration {float(local.obscuration):.4f}, maximum "
             f"{instant} UTC, central phase {float(local.central_duration):.1f} s",
-            f"  sky at maximum: zenith {zenith:.2f} mag/arcsec2 (single scattering), computed "
+            f"  sky at maximum: zenith {zenith:.2f} mag/arcsec2 ({scattering}), computed "
             f"[{sky.attrs['effects_computed']}], {seconds:.1f} s"]
 
 
