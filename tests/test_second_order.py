@@ -82,3 +82,29 @@ def test_second_order_bad_input(reference):
         second_order_radiance(constituents, one, one, one, one, one, n_view=1)
     with pytest.raises(ValueError, match="n_mu"):
         second_order_radiance(constituents, one, one, one, one, one, n_mu=0)
+
+
+def test_second_order_gradient_and_float32():
+    """The Sun-zenith derivative matches central differences; float32 follows float64."""
+    import skytorch as st
+
+    atmosphere = st.Atmosphere.earth(2.0)
+    options = {"n_view": 6, "n_mu": 2, "n_phi": 4, "n_samples": 6}
+
+    def radiance(sun_zenith, dtype=torch.float64):
+        constituents = atmosphere.constituents(torch.tensor([550.0], dtype=dtype))
+        return second_order_radiance(
+            constituents, torch.tensor([0.0, 1.2], dtype=dtype),
+            torch.tensor([0.0, 2.0], dtype=dtype), sun_zenith, torch.tensor(0.0, dtype=dtype),
+            torch.tensor(10.0, dtype=dtype), **options)
+
+    sun = torch.tensor(1.0, dtype=torch.float64, requires_grad=True)
+    value = radiance(sun)
+    (gradient,) = torch.autograd.grad(value.sum(), sun)
+    step = 1e-5
+    numeric = (radiance(torch.tensor(1.0 + step, dtype=torch.float64)).sum()
+               - radiance(torch.tensor(1.0 - step, dtype=torch.float64)).sum()) / (2 * step)
+    assert abs(float(gradient) / float(numeric) - 1.0) < 1e-6
+    single = radiance(torch.tensor(1.0), dtype=torch.float32)
+    assert single.dtype == torch.float32
+    assert torch.allclose(single.double(), value.detach(), rtol=1e-3, atol=0.0)

@@ -212,6 +212,20 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
                                 n_samples=n_samples, table=table, sun_steps=sun_steps)
 
 
+def _cumulative_columns(densities, step):
+    """Trapezoid columns (..., n) [m] of each density from the first sample to each sample.
+
+    ``densities`` maps species to (..., n) samples, ``step`` (..., n - 1) the distances
+    between consecutive samples [m].
+    """
+    columns = {}
+    for name, density in densities.items():
+        increments = 0.5 * step * (density[..., 1:] + density[..., :-1])
+        columns[name] = torch.cat([torch.zeros_like(increments[..., :1]),
+                                   torch.cumsum(increments, dim=-1)], dim=-1)
+    return columns
+
+
 def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth,
                          altitude, *, n_samples: int = 128, table=None,
                          sun_steps: int | None = None, source_weight=None) -> torch.Tensor:
@@ -265,12 +279,7 @@ def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, su
         tau_sun = constituents.optical_depth(columns, extra=1)
     # view path: cumulative trapezoid columns of every species along the samples
     step = s[..., 1:] - s[..., :-1]
-    view_columns = {}
-    for name, density in densities.items():
-        increments = 0.5 * step * (density[..., 1:] + density[..., :-1])
-        view_columns[name] = torch.cat([torch.zeros_like(increments[..., :1]),
-                                        torch.cumsum(increments, dim=-1)], dim=-1)
-    tau_view = constituents.optical_depth(view_columns, extra=1)
+    tau_view = constituents.optical_depth(_cumulative_columns(densities, step), extra=1)
     shadow = _ray_hits_ground(r, mu_sun, planet)[..., None]
     sun_transmittance = torch.where(shadow, torch.zeros_like(tau_sun), torch.exp(-tau_sun))
     source = None
@@ -427,10 +436,6 @@ def second_order_radiance(constituents, view_zenith, view_azimuth, sun_zenith, s
         term = densities[species.name][..., None] * species.scattering * inscattered
         source = term if source is None else source + term
     step = s[..., 1:] - s[..., :-1]
-    columns = {}
-    for name, density in densities.items():
-        increments = 0.5 * step * (density[..., 1:] + density[..., :-1])
-        columns[name] = torch.cat([torch.zeros_like(increments[..., :1]),
-                                   torch.cumsum(increments, dim=-1)], dim=-1)
+    columns = _cumulative_columns(densities, step)
     integrand = source * torch.exp(-constituents.optical_depth(columns, extra=1))
     return (0.5 * step[..., None] * (integrand[..., 1:, :] + integrand[..., :-1, :])).sum(-2)

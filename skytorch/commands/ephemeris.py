@@ -61,6 +61,17 @@ def time_range(start: str, end: str, step: str) -> np.ndarray:
     return first + delta * np.arange(count)
 
 
+def requested_times(args: argparse.Namespace):
+    """Return the instants of ``--times`` or of ``--start``/``--end``/``--step`` (one only)."""
+    if args.times:
+        if args.start or args.end:
+            raise ValueError("give either --times or --start/--end, not both")
+        return args.times
+    if args.start and args.end:
+        return time_range(args.start, args.end, args.step)
+    raise ValueError("give --start and --end (with --step), or --times")
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``skytorch ephemeris``."""
     when = parser.add_argument_group("times (UTC, ISO 8601)")
@@ -82,14 +93,7 @@ def run(args: argparse.Namespace) -> int:
     from skytorch.dataset import to_netcdf
     from skytorch.ephemeris import sun_moon
 
-    if args.times:
-        if args.start or args.end:
-            raise ValueError("give either --times or --start/--end, not both")
-        times = args.times
-    elif args.start and args.end:
-        times = time_range(args.start, args.end, args.step)
-    else:
-        raise ValueError("give --start and --end (with --step), or --times")
+    times = requested_times(args)
     dataset = sun_moon(times, lat_deg=args.lat, lon_deg=args.lon, elevation_m=args.elevation)
     path = to_netcdf(dataset, args.output)
     logger.info("wrote %d instants to %s", dataset.sizes["time"], path)

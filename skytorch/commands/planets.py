@@ -15,7 +15,7 @@ import argparse
 import logging
 
 from skytorch.commands.ephemeris import configure as configure_times
-from skytorch.commands.ephemeris import time_range
+from skytorch.commands.ephemeris import requested_times
 
 logger = logging.getLogger(__name__)
 
@@ -40,14 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from skytorch.dataset import to_netcdf
     from skytorch.stars.planets import planets
 
-    if args.times:
-        if args.start or args.end:
-            raise ValueError("give either --times or --start/--end, not both")
-        times = args.times
-    elif args.start and args.end:
-        times = time_range(args.start, args.end, args.step)
-    else:
-        raise ValueError("give --start and --end (with --step), or --times")
+    times = requested_times(args)
     atmosphere = Atmosphere.earth(turbidity=args.turbidity) if args.atmosphere else None
     dataset = planets(times, lat_deg=args.lat, lon_deg=args.lon, elevation_m=args.elevation,
                       bodies=tuple(args.bodies), atmosphere=atmosphere)

@@ -826,6 +826,13 @@ def moon_component(resources, view, geometry, wavelength, knobs) -> torch.Tensor
     return disc + sky.to(knobs.dtype) * view.valid[..., None].to(knobs.dtype)
 
 
+def _full_circle_grid(n_z: int, n_a: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return (zenith, absolute azimuth) nodes (n_z, n_a) [rad], the azimuths uniform."""
+    zenith = _zenith_nodes(n_z, torch.float64)
+    azimuth = torch.linspace(0.0, 2.0 * math.pi, n_a + 1, dtype=torch.float64)[:-1]
+    return torch.meshgrid(zenith, azimuth, indexing="ij")
+
+
 def eclipse_sky_table(resources, geometry, knobs, wavelength):
     """Sky during a solar eclipse on the (zenith, absolute azimuth) grid (z, a + 1, wl).
 
@@ -839,10 +846,7 @@ def eclipse_sky_table(resources, geometry, knobs, wavelength):
     from skytorch.scene.solar_eclipse_sky import eclipsed_single_scattering
     from skytorch.spectrum import solar_irradiance
 
-    n_z, n_a = knobs["eclipse_sky_lut"]
-    zenith = _zenith_nodes(n_z, torch.float64)
-    azimuth = torch.linspace(0.0, 2.0 * math.pi, n_a + 1, dtype=torch.float64)[:-1]
-    z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
+    z, a = _full_circle_grid(*knobs["eclipse_sky_lut"])
     wl = wavelength.to(torch.float64)
     table = resources.transmittance_table(*knobs["transmittance"])
     radiance = eclipsed_single_scattering(resources.atmosphere, wl, z, a, geometry,
@@ -874,9 +878,7 @@ def eclipse_second_order_table(resources, geometry, knobs, wavelength):
 
     n_z, n_a = knobs["eclipse_ms_lut"]
     n_view, n_mu, n_phi, n_samples = knobs["eclipse_ms"]
-    zenith = _zenith_nodes(n_z, torch.float64)
-    azimuth = torch.linspace(0.0, 2.0 * math.pi, n_a + 1, dtype=torch.float64)[:-1]
-    z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
+    z, a = _full_circle_grid(n_z, n_a)
     wl = wavelength.to(torch.float64)
     table = resources.transmittance_table(*knobs["transmittance"])
     z, a = z.reshape(-1), a.reshape(-1)

@@ -232,6 +232,13 @@ def baumbach_corona(rho, level: float = 1.0) -> torch.Tensor:
     return 1e-6 * level * total
 
 
+def _sun_direction(geometry, dtype) -> tuple[torch.Tensor, torch.Tensor]:
+    """Zenith angle and azimuth [rad] of the Sun's vector of ``geometry`` (0-d tensors)."""
+    north, east, up = geometry.sun_horizontal_m
+    return (torch.tensor(math.atan2(math.hypot(north, east), up), dtype=dtype),
+            torch.tensor(math.atan2(east, north), dtype=dtype))
+
+
 def eclipsed_single_scattering(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad,
                                geometry, altitude_m: float = 0.0, *, n_samples: int = 64,
                                table=None, n_nodes: int = 8) -> torch.Tensor:
@@ -275,9 +282,7 @@ def eclipsed_single_scattering(atmosphere, wavelength_nm, view_zenith_rad, view_
     view_azimuth = as_tensor("view_azimuth_rad", view_azimuth_rad).to(torch.float64)
     constituents = atmosphere.constituents(wavelength)
     dtype = constituents.dtype
-    north, east, up = geometry.sun_horizontal_m
-    sun_zenith = torch.tensor(math.atan2(math.hypot(north, east), up), dtype=dtype)
-    sun_azimuth = torch.tensor(math.atan2(east, north), dtype=dtype)
+    sun_zenith, sun_azimuth = _sun_direction(geometry, dtype)
     altitude = torch.full(torch.broadcast_shapes(view_zenith.shape, view_azimuth.shape),
                           float(altitude_m), dtype=dtype)
 
@@ -325,9 +330,7 @@ def eclipsed_second_order(atmosphere, wavelength_nm, view_zenith_rad, view_azimu
     view_azimuth = as_tensor("view_azimuth_rad", view_azimuth_rad).to(torch.float64)
     constituents = atmosphere.constituents(wavelength)
     dtype = constituents.dtype
-    north, east, up = geometry.sun_horizontal_m
-    sun_zenith = torch.tensor(math.atan2(math.hypot(north, east), up), dtype=dtype)
-    sun_azimuth = torch.tensor(math.atan2(east, north), dtype=dtype)
+    sun_zenith, sun_azimuth = _sun_direction(geometry, dtype)
     altitude = torch.tensor(float(altitude_m), dtype=dtype)
 
     def visible(points):
