@@ -319,3 +319,38 @@ def test_bv_to_srgb_distinct_values_match_the_differentiable_path():
     assert once.shape == (6, 3)
     assert torch.allclose(once, every, rtol=0.0, atol=1e-12)
     assert torch.equal(once[0], once[2]) and torch.equal(once[1], once[4])
+
+
+def test_observe_tensors_in_place_path_matches_the_gradient_path(atm):
+    """Check the in-place path of observe_tensors against its gradient path.
+
+    Without gradients observe_tensors writes every chunk in place through scratch buffers;
+    with them it builds new tensors (√(n² + e² + 1e-30) instead of hypot). Both give the same
+    altitudes, azimuths, magnitudes, air masses and colours (several chunks, a partial
+    last one), and the gradient of the magnitudes with respect to V is 1.
+    """
+    from skytorch.stars import observe_tensors
+    from skytorch.stars.observation import refraction_table
+    from skytorch.stars.photometry import apparent_color_table, extinction_table, star_color_table
+    from skytorch.stars.positions import star_vectors, time_operators
+
+    catalog = bright_stars(2.5)
+    stars = star_vectors(catalog.ra.values, catalog.dec.values, catalog.pm_ra.values,
+                         catalog.pm_dec.values, catalog.parallax.values)
+    times = np.datetime64("2025-09-07T18:00", "ns") + np.arange(75) * np.timedelta64(9, "m")
+    operators, velocity = time_operators(times, 52.5, 13.4, 0.0)
+    vmag = torch.as_tensor(catalog.vmag.values)
+    bv = torch.as_tensor(catalog.bv.values)
+    tables = refraction_table(atm, 0.0), extinction_table(atm, 0.0, refraction=True)
+    colours = star_color_table(bv, apparent_color_table(atm, 0.0))
+    in_place = observe_tensors(stars, vmag, bv, operators, velocity, *tables,
+                               time_chunk=16, color_table=colours)
+    vmag_grad = vmag.clone().requires_grad_(True)
+    recorded = observe_tensors(stars, vmag_grad, bv, operators, velocity, *tables,
+                               time_chunk=16, color_table=colours)
+    for name in ("altitude", "azimuth", "magnitude", "airmass", "color"):
+        assert torch.allclose(in_place[name], recorded[name].detach(), rtol=0, atol=1e-12), name
+    assert torch.equal(in_place["above_horizon"], recorded["above_horizon"])
+    assert bool(in_place["above_horizon"].any()) and not bool(in_place["above_horizon"].all())
+    (gradient,) = torch.autograd.grad(recorded["magnitude"].sum(), vmag_grad)
+    assert torch.allclose(gradient, torch.full_like(gradient, float(len(times))))

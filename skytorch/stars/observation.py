@@ -25,6 +25,7 @@ import torch
 import xarray as xr
 
 from skytorch._cache import MemoryCache, atmosphere_key, clone_tables, value_key
+from skytorch._memory import Scratch
 from skytorch._validate import (
     check_broadcastable,
     check_choice,
@@ -39,13 +40,13 @@ from skytorch.stars.photometry import (
     apparent_color,
     apparent_color_table,
     apparent_horizon,
+    brightness_ratio,
     bv_to_srgb,
     check_atmosphere,
     check_flag,
     extinction_table,
     grid_altitudes,
     lerp,
-    relative_brightness,
     star_color,
     star_color_table,
     star_table_pays_off,
@@ -58,7 +59,7 @@ from skytorch.stars.positions import (
     star_vectors,
     time_operators,
 )
-from skytorch.stars.scintillation import scintillation_index, twinkle
+from skytorch.stars.scintillation import scintillation_law, twinkle
 from skytorch.stars.visibility import (
     VISIBILITY_MODELS,
     count_visible,
@@ -293,9 +294,57 @@ def _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere, 
 
 
 def _lerp_take(values: torch.Tensor, slopes: torch.Tensor, index: torch.Tensor,
-               weight: torch.Tensor) -> torch.Tensor:
+               weight: torch.Tensor, scratch: Scratch, out: torch.Tensor | None
+               ) -> torch.Tensor:
     """``values[i] + w slopes[i]`` with :func:`torch.take` (faster than advanced indexing)."""
-    return torch.addcmul(torch.take(values, index), weight, torch.take(slopes, index))
+    taken = torch.take(slopes, index, out=scratch("taken", index.shape, slopes.dtype))
+    taken = torch.mul(taken, weight, out=taken if scratch.enabled else None)
+    return torch.add(torch.take(values, index, out=out), taken,
+                     out=out if scratch.enabled else None)
+
+
+def _observe_chunk(stars_t: torch.Tensor, operators: torch.Tensor, vmag: torch.Tensor,
+                   bv: torch.Tensor, tables: dict, scratch: Scratch,
+                   rows: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """Apparent altitude, azimuth, magnitude and air mass of the stars at a chunk of times.
+
+    With ``scratch`` enabled every result is written into ``rows`` (the output's rows of
+    the chunk) and every temporary into the scratch buffers; otherwise (gradients) the
+    results are new tensors, returned for the caller to copy.
+    """
+    dtype = stars_t.dtype
+    shape = (operators.shape[0], stars_t.shape[1])
+    rows = {name: rows[name] if scratch.enabled else None
+            for name in ("altitude", "azimuth", "magnitude", "airmass")}
+    south, west, up = horizontal_planes(stars_t, operators,
+                                        out=scratch("planes", (3 * shape[0], shape[1]), dtype))
+    if scratch.enabled:
+        horizontal = torch.hypot(south, west, out=scratch("horizontal", shape, dtype))
+    else:  # hypot's gradient is NaN at the zenith
+        horizontal = torch.sqrt(torch.addcmul(south * south, west, west) + _TINY)
+    true = torch.atan2(up, horizontal, out=scratch("true", shape, dtype))
+    azimuth = torch.atan2(west, south, out=rows["azimuth"])
+    azimuth = torch.add(azimuth, math.pi, out=rows["azimuth"])
+    x = scratch("x", shape, dtype)
+    x = torch.sub(true, tables["low_rad"], out=x)
+    x = torch.mul(x, 1.0 / tables["step_rad"], out=x if scratch.enabled else None)
+    top = float(tables["count"] - 1)
+    x = torch.clamp(x, 0.0, top, out=x if scratch.enabled else None)
+    floor = torch.floor(x.detach(), out=scratch("floor", shape, dtype)).clamp_(max=top - 1.0)
+    weight = torch.sub(x, floor, out=scratch("weight", shape, dtype))
+    index = scratch("index", shape, torch.int64)
+    index = floor.long() if index is None else index.copy_(floor)
+    values, slopes = tables["values"], tables["slopes"]
+    altitude = _lerp_take(values[0], slopes[0], index, weight, scratch, rows["altitude"])
+    altitude = torch.add(altitude, true, out=rows["altitude"])
+    colour_term = _lerp_take(values[2], slopes[2], index, weight, scratch,
+                             scratch("colour_term", shape, dtype))
+    magnitude = _lerp_take(values[1], slopes[1], index, weight, scratch, rows["magnitude"])
+    magnitude = torch.addcmul(magnitude, colour_term, bv, out=rows["magnitude"])
+    magnitude = torch.add(magnitude, vmag, out=rows["magnitude"])
+    airmass = _lerp_take(values[3], slopes[3], index, weight, scratch, rows["airmass"])
+    return {"altitude": altitude, "azimuth": azimuth, "magnitude": magnitude,
+            "airmass": airmass}
 
 
 def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
@@ -365,30 +414,17 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
     tables = site_tables(refraction, extinction_tab, dtype)
     needs_grad = torch.is_grad_enabled() and any(
         t.requires_grad for t in (stars, vmag, bv, operators))
-    values, slopes = tables["values"], tables["slopes"]
-    low, inverse_step = tables["low_rad"], 1.0 / tables["step_rad"]
-    top = float(tables["count"] - 1)
+    scratch = Scratch(enabled=not needs_grad)
     for start in range(0, n_time, time_chunk):
         sl = slice(start, min(start + time_chunk, n_time))
-        south, west, up = horizontal_planes(stars_t, operators[sl])
-        if needs_grad:  # hypot's gradient is NaN at the zenith
-            horizontal = torch.sqrt(torch.addcmul(south * south, west, west) + _TINY)
-        else:
-            horizontal = torch.hypot(south, west)
-        true = torch.atan2(up, horizontal)
-        out["azimuth"][sl] = torch.atan2(west, south).add_(math.pi)
-        x = ((true - low) * inverse_step).clamp_(0.0, top)
-        index = x.detach().floor().clamp_(max=top - 1.0)
-        weight = x - index
-        index = index.long()
-        altitude = true + _lerp_take(values[0], slopes[0], index, weight)
-        out["altitude"][sl] = altitude
-        delta_m = torch.addcmul(_lerp_take(values[1], slopes[1], index, weight),
-                                _lerp_take(values[2], slopes[2], index, weight), bv)
-        out["magnitude"][sl] = delta_m + vmag
-        out["airmass"][sl] = _lerp_take(values[3], slopes[3], index, weight)
+        chunk = _observe_chunk(stars_t, operators[sl], vmag, bv, tables, scratch,
+                               {name: value[sl] for name, value in out.items()})
         if color_table is not None:
-            star_color(altitude, color_table, out=out["color"][sl])
+            star_color(chunk["altitude"], color_table,
+                       out=out["color"][sl], scratch=scratch)
+        if needs_grad:  # the chunk's values are new tensors: copy them in
+            for name, value in chunk.items():
+                out[name][sl] = value
     out["above_horizon"] = out["altitude"] >= tables["horizon_rad"]
     return out
 
@@ -500,12 +536,15 @@ def _brightness_and_scintillation(result: dict[str, torch.Tensor], control_magni
     magnitude, above, airmass = (result[name] for name in
                                  ("magnitude", "above_horizon", "airmass"))
     brightness, scint = torch.empty_like(magnitude), torch.empty_like(magnitude)
+    coefficient, exponent = scintillation_law(aperture_m, exposure_s, elevation)
     for start in range(0, magnitude.shape[0], time_chunk):
         sl = slice(start, start + time_chunk)
-        chunk = relative_brightness(magnitude[sl], control_magnitude) * above[sl]
-        brightness[sl] = chunk if factor is None else chunk * factor[sl, None]
-        scint[sl] = scintillation_index(airmass[sl].clamp_min(1.0), aperture_m, exposure_s,
-                                        elevation)
+        chunk = brightness_ratio(magnitude[sl], control_magnitude, out=brightness[sl])
+        chunk.mul_(above[sl])
+        if factor is not None:
+            chunk.mul_(factor[sl, None])
+        chunk = torch.clamp(airmass[sl], min=1.0, out=scint[sl])
+        torch.pow(chunk, exponent, out=chunk).mul_(coefficient)
     return brightness, scint
 
 

@@ -41,6 +41,7 @@ import numpy as np
 import torch
 
 from skytorch._cache import MemoryCache, atmosphere_key, clone_tables, value_key
+from skytorch._memory import Scratch
 from skytorch._validate import (
     as_tensor,
     check_broadcastable,
@@ -131,7 +132,31 @@ def relative_brightness(magnitude, control_magnitude: float = 6.0) -> torch.Tens
     """
     m = check_finite("magnitude", magnitude)
     m_a = check_range("control_magnitude", control_magnitude, -30.0, 40.0, unit=" mag")
-    return torch.pow(10.0, 0.4 * (m_a.to(m.dtype) - m))
+    return brightness_ratio(m, float(m_a))
+
+
+def brightness_ratio(magnitude: torch.Tensor, control_magnitude: float,
+                     out: torch.Tensor | None = None) -> torch.Tensor:
+    """Unchecked kernel of :func:`relative_brightness`: 10^(0.4 (m_a − m)).
+
+    Parameters
+    ----------
+    magnitude : torch.Tensor
+        ``(...)`` apparent magnitude m [mag], finite.
+    control_magnitude : float
+        m_a [mag].
+    out : torch.Tensor, optional
+        Receives the result (may be ``magnitude`` itself; not while gradients are
+        recorded).
+
+    Returns
+    -------
+    torch.Tensor
+        ``(...)`` ratio [1].
+    """
+    ratio = torch.sub(magnitude, control_magnitude, out=out)
+    ratio = torch.mul(ratio, -0.4, out=out)
+    return torch.pow(10.0, ratio, out=out)
 
 
 def bv_to_srgb(bv) -> torch.Tensor:
@@ -201,23 +226,45 @@ def table_low(table: dict[str, torch.Tensor]) -> float:
     return 0.0 if nodes is None else float(nodes[0])
 
 
-def table_lookup(altitude_rad: torch.Tensor, n_nodes: int, low_rad: float = 0.0
-                 ) -> tuple[torch.Tensor, torch.Tensor]:
+def table_lookup(altitude_rad: torch.Tensor, n_nodes: int, low_rad: float = 0.0,
+                 scratch: Scratch | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """Index and weight of altitudes on the grid of :func:`grid_altitudes`.
 
     Altitudes are clamped to [low_rad, π/2] (below the grid the lowest node is used).
+
+    Parameters
+    ----------
+    altitude_rad : torch.Tensor
+        Apparent altitudes [rad].
+    n_nodes : int
+        Nodes of the grid.
+    low_rad : float
+        First node [rad].
+    scratch : skytorch._memory.Scratch, optional
+        Buffers of a loop over chunks that the results are written into (an enabled one
+        only while no gradients are recorded).
 
     Returns
     -------
     index : torch.Tensor (int64), weight : torch.Tensor
         Same shape as the input; value = t[index] + weight (t[index+1] − t[index]).
     """
-    span = _HALF_PI - low_rad
-    h = (altitude_rad.clamp(low_rad, _HALF_PI) - low_rad) * ((1.0 + GRID_SHAPE) / span)
+    scratch = Scratch(enabled=False) if scratch is None else scratch
+    shape, dtype = altitude_rad.shape, altitude_rad.dtype
     c = GRID_SHAPE
-    x = 0.5 * (torch.sqrt(c * c + 4.0 * h) - c) * (n_nodes - 1)
-    index = x.detach().floor().clamp(0, n_nodes - 2)
-    return index.to(torch.int64), x - index
+    # x = (√(c² + 4 h) − c)/2 · (n − 1), h = (clamp(altitude) − low)(1 + c)/span
+    x = scratch("lookup_x", shape, dtype)
+    x = torch.clamp(altitude_rad, low_rad, _HALF_PI, out=x)
+    in_place = x if scratch.enabled else None
+    x = torch.sub(x, low_rad, out=in_place)
+    x = torch.mul(x, 4.0 * (1.0 + c) / (_HALF_PI - low_rad), out=in_place)
+    x = torch.sqrt(torch.add(x, c * c, out=in_place), out=in_place)
+    x = torch.mul(torch.sub(x, c, out=in_place), 0.5 * (n_nodes - 1), out=in_place)
+    floor = torch.floor(x.detach(), out=scratch("lookup_floor", shape, dtype))
+    floor = floor.clamp_(0, n_nodes - 2)
+    weight = torch.sub(x, floor, out=in_place)
+    index = scratch("lookup_index", shape, torch.int64)
+    return (floor.to(torch.int64) if index is None else index.copy_(floor)), weight
 
 
 def lerp(table: torch.Tensor, index: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
@@ -635,7 +682,8 @@ def star_color_table(bv: torch.Tensor, table: dict[str, torch.Tensor], gamma: bo
 
 
 def star_color(apparent_altitude_rad: torch.Tensor, per_star: dict[str, torch.Tensor],
-               out: torch.Tensor | None = None) -> torch.Tensor:
+               out: torch.Tensor | None = None, scratch: Scratch | None = None
+               ) -> torch.Tensor:
     """Look the colour of every star up at its apparent altitude.
 
     Parameters
@@ -648,6 +696,9 @@ def star_color(apparent_altitude_rad: torch.Tensor, per_star: dict[str, torch.Te
     out : torch.Tensor, optional
         Contiguous (time, star, 3) tensor written in place (not while gradients are
         recorded).
+    scratch : skytorch._memory.Scratch, optional
+        Buffers of a loop over chunks for the temporaries (an enabled one only while no
+        gradients are recorded).
 
     Returns
     -------
@@ -660,7 +711,7 @@ def star_color(apparent_altitude_rad: torch.Tensor, per_star: dict[str, torch.Te
     straight into the output.
     """
     index, weight = table_lookup(apparent_altitude_rad, per_star["n_nodes"],
-                                 per_star["low_rad"])
+                                 per_star["low_rad"], scratch)
     flat = index.add_(per_star["offsets"]).reshape(-1)
     values, slopes = per_star["values"], per_star["slopes"]
     if weight.requires_grad or values.requires_grad:
@@ -673,5 +724,7 @@ def star_color(apparent_altitude_rad: torch.Tensor, per_star: dict[str, torch.Te
         return colour
     rows = None if out is None else out.view(-1, 3)
     colour = torch.index_select(values, 0, flat, out=rows)
-    colour.addcmul_(torch.index_select(slopes, 0, flat), weight.reshape(-1, 1))
+    gathered = None if scratch is None else scratch("colour_slopes", (flat.numel(), 3),
+                                                    slopes.dtype)
+    colour.addcmul_(torch.index_select(slopes, 0, flat, out=gathered), weight.reshape(-1, 1))
     return colour.reshape(*apparent_altitude_rad.shape, 3)

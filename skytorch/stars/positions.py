@@ -291,7 +291,8 @@ def aberration_operators(operators: torch.Tensor, velocity_m_s: torch.Tensor) ->
     return folded
 
 
-def horizontal_planes(stars_t: torch.Tensor, operators: torch.Tensor
+def horizontal_planes(stars_t: torch.Tensor, operators: torch.Tensor,
+                      out: torch.Tensor | None = None
                       ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Fast path of :func:`horizontal_vectors`: (north, east, up) as three contiguous planes.
 
@@ -301,6 +302,9 @@ def horizontal_planes(stars_t: torch.Tensor, operators: torch.Tensor
         Transposed (contiguous) :func:`star_vectors`; sets the dtype.
     operators : torch.Tensor, shape (time, 3, 8)
         :func:`time_operators`, or :func:`aberration_operators` to include aberration.
+    out : torch.Tensor, optional
+        Contiguous (time · 3, star) buffer that receives the product (not while gradients
+        are recorded).
 
     Returns
     -------
@@ -315,7 +319,7 @@ def horizontal_planes(stars_t: torch.Tensor, operators: torch.Tensor
     agreement with :func:`horizontal_vectors` to 1e-12.
     """
     n_time = operators.shape[0]
-    planes = operators.to(stars_t.dtype).reshape(n_time * 3, -1) @ stars_t
+    planes = torch.mm(operators.to(stars_t.dtype).reshape(n_time * 3, -1), stars_t, out=out)
     planes = planes.view(n_time, 3, -1)
     return planes[:, 0], planes[:, 1], planes[:, 2]
 

@@ -65,6 +65,7 @@ def _ar1(noise: torch.Tensor, rho: float) -> torch.Tensor:
 __all__ = [
     "SCINTILLATION_MODELS",
     "scintillation_index",
+    "scintillation_law",
     "twinkle",
 ]
 
@@ -114,19 +115,39 @@ def scintillation_index(airmass, aperture_m: float = 0.007, exposure_s: float = 
     X³ e^(−2h/H), which for C_Y = 1 is Young's law with a slightly shallower air-mass
     exponent (0.09² × 100^(−4/3)/2 = 0.87 × 10⁻⁵).
     """
-    check_choice("model", model, SCINTILLATION_MODELS)
     x = check_range("airmass", airmass, 1.0 - 1e-9, 1e4)
+    coefficient, exponent = scintillation_law(aperture_m, exposure_s, altitude_m, model,
+                                              site_factor)
+    return coefficient * x**exponent
+
+
+def scintillation_law(aperture_m: float = 0.007, exposure_s: float = 0.1,
+                      altitude_m: float = 0.0, model: str = "young1967",
+                      site_factor: float = OSBORN_DEFAULT_CY) -> tuple[float, float]:
+    """Zenith scintillation index and air-mass exponent of :func:`scintillation_index`.
+
+    Parameters
+    ----------
+    aperture_m, exposure_s, altitude_m, model, site_factor
+        As :func:`scintillation_index`.
+
+    Returns
+    -------
+    coefficient : float
+        σ_I² at the zenith (X = 1) [1].
+    exponent : float
+        p of σ_I² = coefficient · X^p: 3.5 (Young 1967) or 3 (Osborn et al. 2015).
+    """
+    check_choice("model", model, SCINTILLATION_MODELS)
     diameter = float(check_range("aperture_m", aperture_m, 1e-4, 100.0, unit=" m"))
     exposure = float(check_range("exposure_s", exposure_s, 1e-6, 1e5, unit=" s"))
     height = float(check_range("altitude_m", altitude_m, -500.0, 1e4, unit=" m"))
     decay = math.exp(-2.0 * height / SCINTILLATION_SCALE_HEIGHT_M)
     if model == "young1967":
-        sigma_zenith_sq = (YOUNG_COEFFICIENT**2 * (100.0 * diameter) ** (-4.0 / 3.0)
-                           / (2.0 * exposure) * decay)
-        return sigma_zenith_sq * x**3.5
+        return (YOUNG_COEFFICIENT**2 * (100.0 * diameter) ** (-4.0 / 3.0)
+                / (2.0 * exposure) * decay), 3.5
     c_y = float(check_range("site_factor", site_factor, 0.1, 10.0))
-    sigma_zenith_sq = OSBORN_COEFFICIENT * c_y**2 * diameter ** (-4.0 / 3.0) / exposure * decay
-    return sigma_zenith_sq * x**3
+    return OSBORN_COEFFICIENT * c_y**2 * diameter ** (-4.0 / 3.0) / exposure * decay, 3.0
 
 
 def twinkle(scintillation_index_value, n_samples: int, *, sample_interval_s: float = 0.01,
