@@ -276,6 +276,11 @@ def curve_of_growth(coefficient, amount, pressure_ratio=1.0, *, curve=WATER_CURV
     p = check_range("pressure_ratio", as_tensor("pressure_ratio", pressure_ratio,
                                                 dtype=k.dtype), low=0.0, low_inclusive=False)
     check_broadcastable(coefficient=k, amount=u, pressure_ratio=p)
+    return _curve_of_growth(k, u, p, curve)
+
+
+def _curve_of_growth(k: torch.Tensor, u: torch.Tensor, p, curve) -> torch.Tensor:
+    """:func:`curve_of_growth` of checked inputs (the kernel of the band species' laws)."""
     scale, saturation, exponent = curve
     x = k * u
     return scale * x * torch.pow(1.0 + saturation * x / p, -exponent)
@@ -636,7 +641,8 @@ def _band_law(coefficient, per_m, curve):
 
     def law(column, extra):
         amount = (column * insert_dims(per_m, extra, 0))[..., None]
-        tau = curve_of_growth(band, amount, curve=curve)
+        # amounts are path columns (>= 0 by construction), the band coefficients > 0
+        tau = _curve_of_growth(band, amount, 1.0, curve)
         if everywhere:
             return tau
         return tau.new_zeros(*tau.shape[:-1], coefficient.numel()).index_copy(-1, inside, tau)
