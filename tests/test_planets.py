@@ -258,10 +258,11 @@ def test_the_first_hours_of_the_ephemeris():
 def test_venus_is_the_brightest_point_at_totality():
     """Burgos, 2026-08-12 18:29:18 UTC (totality 18:28:27–18:30:10): Venus, 26° up.
 
-    At totality the corona holds 99 % of the image's V flux, so the planner leaves stars
-    (0.2 %) out at its default 1 % tolerance; forced, the brightest point source is Venus
-    at skyfield's place (one 1.9° pixel of the 96² fisheye), Jupiter (3° up) among the
-    next.
+    At totality the corona holds 99 % of the image's V flux and the stars 0.2 %, yet the
+    planner draws them: Venus stands out of the dark sky of its pixel (the point-source
+    test). The brightest point source of the render is Venus at skyfield's place (one
+    1.9° pixel of the 96² fisheye), Jupiter (3° up) among the next. The next day at the
+    same time the sunlit sky hides them.
     """
     from skyfield.api import wgs84
 
@@ -274,8 +275,9 @@ def test_venus_is_the_brightest_point_at_totality():
     altitude, azimuth, _ = site.observe(ephemeris["venus"]).apparent().altaz()
     scene = st.Scene(time=time, lat_deg=lat, lon_deg=lon, elevation_m=height, size=96,
                      fidelity="fast", outputs=("spectral",))
-    assert "stars" in scene.plan().skipped
-    scene = scene.replace(force=["stars"])
+    plan = scene.plan()
+    assert "stars" in plan.computed and plan.shares["stars"] < 0.01
+    assert "stars" in scene.replace(time="2026-08-13T18:29:18").plan().skipped
     ds = scene.render()
     assert "solar_eclipse" in ds.attrs["effects_computed"]
     view = scene.make_view()

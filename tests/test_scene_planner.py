@@ -28,11 +28,14 @@ SCENES = {
     "moonlit": {"time": "2015-09-27T23:00", **BERLIN},
     "eclipse": {"time": "2015-09-28T02:47", **BERLIN},
 }
+#: twilight (Sun 4.8° down) and moonlight: the starlight is a tiny share of the image
+#: flux, but Venus (twilight) and the brightest stars stand out of the darkest sky of
+#: their pixels (the point-source test of the planner)
 EXPECTED = {
     "day": {"sky", "sun"},
-    "twilight": {"sky"},
+    "twilight": {"sky", "stars", "refraction"},
     "dark": {"stars", "refraction"},
-    "moonlit": {"moon"},
+    "moonlit": {"moon", "stars", "refraction"},
     "eclipse": {"moon", "eclipse", "stars", "refraction"},
 }
 #: the scenes' tolerance: 1 % of the image's V-band flux
@@ -69,6 +72,26 @@ def test_reasons_name_the_cause():
     assert "outside the penumbra" in moonlit.skipped["eclipse"]
     dark = scene("dark").plan()
     assert "below the horizon" in dark.skipped["moon"]
+
+
+@pytest.mark.parametrize("size", [24, 512])
+def test_point_sources_appear_in_civil_twilight(size):
+    """Stars are skipped at noon and drawn at the end of civil twilight.
+
+    "At the end of civil twilight [Sun 6° below the horizon] ... the brightest stars and
+    planets can be seen" (U.S. Naval Observatory, Rise, Set, and Twilight Definitions).
+    Paris, 2015-06-21: at noon (Sun 64.5° up) the brightest point source that can be up
+    is well under 1 % of the darkest sky in its pixel, at 20:40 UTC (Sun 6.0° down) above.
+    The share of the image flux alone would skip them in both.
+    """
+    options = {**PARIS, "size": size, "fidelity": "fast", "tolerance": TOLERANCE}
+    noon = st.Scene(time="2015-06-21T12:00", **options).plan()
+    dusk = st.Scene(time="2015-06-21T20:40", **options)
+    assert dusk.resources().geometry(dusk).sun_altitude_deg == pytest.approx(-6.0, abs=0.1)
+    dusk = dusk.plan()
+    assert "stars" in noon.skipped and "darkest sky in its pixel" in noon.skipped["stars"]
+    assert "stars" in dusk.computed
+    assert dusk.shares["stars"] < TOLERANCE
 
 
 def test_city_scene_computes_skyglow():

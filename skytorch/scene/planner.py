@@ -43,7 +43,14 @@ Estimates
   bound). When it does, the Sun counts at its visible fraction at the observer plus the
   corona (Baumbach's law, 1.1e-6 of the Sun), and the sky counts as zero in the image
   total (it may be dark throughout), so every share stays an upper bound;
-* stars: half the integrated V flux of the catalogue above ``star_limit_mag``;
+* stars: half the integrated V flux of the catalogue above ``star_limit_mag``; and,
+  since a point source changes its own pixel however small its share of the image, the
+  brightest star or planet that can be up (:meth:`SceneResources.brightest_point_flux`)
+  against the darkest sky its pixel can hold: the natural background plus the darkest
+  of the sky estimate's 9 directions (none while the Moon's penumbra reaches the air in
+  sight). Stars are drawn when either is at least ``scene.tolerance`` (at totality the
+  corona dominates the image flux, yet Venus and the brightest stars stand out of the
+  dark sky);
 * skyglow: the brightest sky measured by Falchi et al. (2016), 14.0 V mag arcsec^-2,
   over the hemisphere (a bound, since the planner cannot afford the skyglow model);
 * refraction: the Sun's and Moon's pixels with and without refraction (table of
@@ -239,13 +246,29 @@ def _sky_flux(resources: SceneResources, elevation_m: float, geometry: Geometry)
     Interpolated log-linearly in the Sun's altitude in
     :meth:`~skytorch.scene.resources.SceneResources.sky_flux_table`.
     """
+    return _sky_table_value(resources, elevation_m, geometry, 1)
+
+
+def _darkest_sky(resources: SceneResources, elevation_m: float, geometry: Geometry) -> float:
+    """V surface brightness (flux per arcsec², relative to V = 0) of the darkest direction.
+
+    The darkest of the 9 directions of
+    :meth:`~skytorch.scene.resources.SceneResources.sky_flux_table`, single-scattered
+    sunlight only (the orders >= 2 and the moonlit sky only add to it).
+    """
+    return _sky_table_value(resources, elevation_m, geometry, 2)
+
+
+def _sky_table_value(resources: SceneResources, elevation_m: float, geometry: Geometry,
+                     column: int) -> float:
+    """Interpolate a column of the planner's sky table log-linearly in the Sun's altitude."""
     deepest = resources.deepest_sunlit_deg
     if geometry.sun_altitude_deg <= -deepest:
         return 0.0
     segment = min(int((geometry.sun_altitude_deg + deepest) / SKY_TABLE_SEGMENT_DEG),
                   int((90.0 + deepest) / SKY_TABLE_SEGMENT_DEG))
-    altitude, log_flux = resources.sky_flux_table(elevation_m, segment)
-    return float(np.exp(np.interp(geometry.sun_altitude_deg, altitude, log_flux)))
+    table = resources.sky_flux_table(elevation_m, segment)
+    return float(np.exp(np.interp(geometry.sun_altitude_deg, table[0], table[column])))
 
 
 def _eclipse_bounds(geometry: Geometry) -> float:
@@ -435,7 +458,17 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
         decided["stars"] = (False, "a directions view holds no point sources")
     else:
         s = share("stars", star_flux)
-        decided["stars"] = (s >= tol, f"starlight {s:.1e} of the image flux")
+        # a point source changes its own pixel: its flux against the darkest sky a pixel
+        # can hold (the natural background, plus the sunlit sky unless the Moon's
+        # penumbra reaches the air in sight, where the sky may be dark throughout)
+        darkest = _flux(scene.natural_mag_arcsec2) + (
+            0.0 if touches else _darkest_sky(resources, elevation, g))
+        peak = resources.brightest_point_flux(scene.time, scene.lat_deg, scene.lon_deg,
+                                              scene.star_limit_mag)
+        contrast = peak / (darkest * (math.degrees(view.pixel_rad) * 3600.0) ** 2)
+        decided["stars"] = (s >= tol or contrast >= tol,
+                            f"starlight {s:.1e} of the image flux; the brightest point "
+                            f"source {contrast:.1e} of the darkest sky in its pixel")
     stars_on = decided["stars"][0] or "stars" in scene.force
     decided["scintillation"] = (False, "a still image records the mean flux of a twinkling "
                                        "star" if stars_on else "no stars in the image")

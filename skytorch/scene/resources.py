@@ -333,6 +333,9 @@ class SceneResources:
         log_flux : ndarray (n,)
             Natural logarithm of the flux relative to V = 0 (the smallest positive float
             where the flux is zero).
+        log_darkest : ndarray (n,)
+            Natural logarithm of the darkest of the 9 directions' surface brightness, V
+            flux per arcsec² relative to V = 0 (the planner's contrast of point sources).
         """
         elevation_m, segment = float(elevation_m), int(segment)
 
@@ -354,10 +357,14 @@ class SceneResources:
                                         torch.zeros_like(sun_zenith), elevation_m,
                                         solar_irradiance=True, n_samples=24)
             mags = radiance_to_mag_arcsec2(radiance.clamp(min=1e-300), wl)
-            flux = torch.mean(10.0 ** (-0.4 * mags), dim=-1) * HEMISPHERE_ARCSEC2
+            surface = 10.0 ** (-0.4 * mags)  # (altitude, direction) per arcsec²
+            flux = torch.mean(surface, dim=-1) * HEMISPHERE_ARCSEC2
+            darkest = surface.amin(dim=-1)
             if segment == 0:
-                flux[0] = 0.0
-            return altitude, np.log(flux.clamp(min=np.finfo(np.float64).tiny).numpy())
+                flux[0] = darkest[0] = 0.0
+            tiny = np.finfo(np.float64).tiny
+            return (altitude, np.log(flux.clamp(min=tiny).numpy()),
+                    np.log(darkest.clamp(min=tiny).numpy()))
 
         return self._get(("sky_flux", elevation_m, segment), build)
 
@@ -493,18 +500,30 @@ class SceneResources:
                     ) -> float:
         """V flux (relative to magnitude 0) of the planets to a V limit that can be up.
 
-        Above the atmosphere; a planet counts when its geometric altitude is above −0.7°
-        (refraction at the horizon plus aberration and parallax): a bound for the planner.
+        Above the atmosphere; a planet counts when its geometric altitude is above −0.8°
+        (refraction at the horizon plus a margin, :func:`_can_be_up`): a bound for the
+        planner.
         """
-        from skytorch.ephemeris import icrs_to_horizontal_matrices
-
         sources = self.planet_sources(time)
-        rotation = icrs_to_horizontal_matrices([time], float(lat_deg), float(lon_deg))[0]
-        up = (sources["vectors"][:, :3] @ rotation.T)[:, 2]
-        visible = (torch.asin(up.clamp(-1.0, 1.0)) > -(HORIZON_REFRACTION_RAD
-                                                       + math.radians(0.1))) \
-            & (sources["vmag"] <= float(limit_magnitude))
-        return float((10.0 ** (-0.4 * sources["vmag"][visible])).sum())
+        vmag = sources["vmag"][_can_be_up(sources["vectors"], time, lat_deg, lon_deg)]
+        return float((10.0 ** (-0.4 * vmag[vmag <= float(limit_magnitude)])).sum())
+
+    def brightest_point_flux(self, time, lat_deg: float, lon_deg: float,
+                             limit_magnitude: float) -> float:
+        """V flux (relative to magnitude 0) of the brightest star or planet that can be up.
+
+        The catalogue's stars and the planets to a V limit, above the atmosphere, that
+        stand above −0.8° geometric altitude at ``time`` (as :meth:`planet_flux`); 0 when
+        none does.
+        """
+        limit = float(limit_magnitude)
+        vectors, vmag, _, _ = self.star_vectors(limit)
+        peaks = [vmag[_can_be_up(vectors, time, lat_deg, lon_deg)]]
+        planets = self.planet_sources(time)
+        peaks.append(planets["vmag"][_can_be_up(planets["vectors"], time, lat_deg, lon_deg)])
+        vmag = torch.cat([p.to(torch.float64) for p in peaks])
+        vmag = vmag[vmag <= limit]
+        return float(10.0 ** (-0.4 * vmag.min())) if vmag.numel() else 0.0
 
     def catalogue_spectra(self, limit_magnitude: float, spectra: Callable) -> torch.Tensor:
         """Return spectra of V = 0 (star, wl) of the catalogue stars to a V limit.
@@ -680,3 +699,18 @@ class SceneResources:
 
 def _floats(values) -> list[float]:
     return [float(v) for v in np.asarray(values, float).reshape(-1)]
+
+
+def _can_be_up(vectors: torch.Tensor, time, lat_deg: float, lon_deg: float) -> torch.Tensor:
+    """Whether sources (ICRS unit vectors in the first three columns) can be in the sky.
+
+    Geometric altitude at ``time`` above −(refraction at the horizon + 0.2°): the 0.2°
+    covers aberration (20″), parallax and the proper motion of the fastest catalogue star
+    brighter than V = 6.5 (61 Cygni, 5.3″/yr: 0.15° over the century from J2000 that the
+    ephemeris spans).
+    """
+    from skytorch.ephemeris import icrs_to_horizontal_matrices
+
+    rotation = icrs_to_horizontal_matrices([time], float(lat_deg), float(lon_deg))[0]
+    up = (vectors[:, :3].to(rotation.dtype) @ rotation.T)[:, 2]
+    return torch.asin(up.clamp(-1.0, 1.0)) > -(HORIZON_REFRACTION_RAD + math.radians(0.2))
