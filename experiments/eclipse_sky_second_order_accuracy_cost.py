@@ -5,16 +5,21 @@ turbidity 2, 550 nm: :func:`skytorch.scene.solar_eclipse_sky.eclipsed_second_ord
 three lines of sight (zenith; 60° from the zenith opposite the Sun; 85° at right angles
 to it) for quadratures ``(n_view, n_mu, n_phi, n_samples)`` from coarse to fine, against
 the finest as the converged reference; the wall time of each (three lines of sight, one
-wavelength, one thread). The scene presets use ``(24, 4, 16, 16)`` ("fast", "default") and
-``(48, 8, 32, 32)`` ("reference").
+wavelength, one thread). The scene presets use ``(12, 4, 16, 8)`` ("fast"),
+``(16, 4, 16, 16)`` ("default") and ``(48, 8, 32, 32)`` ("reference").
+
+Convergence per dimension: with fine angles (8 direction cosines per hemisphere, 32
+azimuths) the samples along the line of sight (``n_view`` 8–48, 16 samples per ray) and
+along each ray of the first scattering (``n_samples`` 6–48, 24 along the line of sight),
+each against the finest of its series.
 
 Second knob: the scene's (zenith, azimuth) grid of the second order
 (``"eclipse_ms_lut"``), linear or log interpolation, at 40 random lines of sight above 1°
 against direct evaluations with the same quadrature (the scene's wavelengths).
 
 Output: ``eclipse_sky_second_order_accuracy_cost.nc`` / ``.png``; ``--quick`` drops the two
-finest quadratures (the reference is then ``(32, 6, 24, 24)``), uses 10 lines of sight and
-two grids.
+finest quadratures (the reference is then ``(32, 6, 24, 24)``) and the finest of each
+dimension's series, uses 10 lines of sight and two grids.
 """
 
 from __future__ import annotations
@@ -33,8 +38,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
 
 GRIDS = ((4, 8), (5, 10), (6, 12), (8, 16))
-QUADRATURES = ((12, 2, 8, 8), (16, 3, 12, 12), (24, 4, 16, 16), (32, 6, 24, 24),
-               (48, 8, 32, 32), (64, 12, 48, 48))
+QUADRATURES = ((12, 2, 8, 8), (16, 3, 12, 12), (12, 4, 16, 8), (16, 4, 16, 16),
+               (24, 4, 16, 16), (32, 6, 24, 24), (48, 8, 32, 32), (64, 12, 48, 48))
+#: one dimension refined at a time, the others fine: (name, values, quadrature of a value)
+DIMENSIONS = (("n_view", (8, 12, 16, 24, 48), lambda n: (n, 8, 32, 16)),
+              ("n_samples", (6, 8, 16, 32, 48), lambda n: (24, 8, 32, n)))
 BURGOS = (42.34, -3.70, 850.0)
 TOTALITY = "2026-08-12T18:29:18"
 
@@ -49,7 +57,7 @@ def main(argv=None):
     from skytorch.scene.solar_eclipse_sky import eclipsed_second_order
 
     torch.set_num_threads(1)
-    quadratures = QUADRATURES[:4] if arguments.quick else QUADRATURES
+    quadratures = QUADRATURES[:-2] if arguments.quick else QUADRATURES
     atmosphere = st.Atmosphere.earth(2.0)
     wavelength = torch.tensor([550.0], dtype=torch.float64)
     table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
@@ -59,14 +67,15 @@ def main(argv=None):
     zenith = torch.tensor([0.0, math.radians(60.0), math.radians(85.0)], dtype=torch.float64)
     azimuth = torch.tensor([0.0, sun_azimuth + math.pi, sun_azimuth + 0.5 * math.pi],
                            dtype=torch.float64)
-    values, seconds = [], []
-    for n_view, n_mu, n_phi, n_samples in quadratures:
+    def evaluate(quadrature):
+        n_view, n_mu, n_phi, n_samples = quadrature
         start = time.perf_counter()
         value = eclipsed_second_order(atmosphere, wavelength, zenith, azimuth, geometry,
                                       BURGOS[2], n_view=n_view, n_mu=n_mu, n_phi=n_phi,
                                       n_samples=n_samples, table=table)[:, 0]
-        seconds.append(time.perf_counter() - start)
-        values.append(value.numpy())
+        return value.numpy(), time.perf_counter() - start
+
+    values, seconds = (list(x) for x in zip(*(evaluate(q) for q in quadratures), strict=True))
     values = np.array(values)
     relative = values / values[-1] - 1.0
     labels = [f"{a}/{b}/{c}/{d}" for a, b, c, d in quadratures]
@@ -86,6 +95,7 @@ def main(argv=None):
         attrs={"title": "Solar-eclipse sky, second order: accuracy vs cost",
                "scene": f"Burgos {BURGOS}, {TOTALITY} UTC (totality), turbidity 2",
                "reference": labels[-1]})
+    dataset = dataset.merge(_dimension_convergence(evaluate, arguments.quick))
     grids = ((4, 8), (6, 12)) if arguments.quick else GRIDS
     grid_error, grid_seconds = _grid_errors(grids, 10 if arguments.quick else 40)
     dataset["grid_error"] = (("grid", "interpolation", "statistic"), grid_error,
@@ -121,6 +131,27 @@ def main(argv=None):
         rows.append(f"| {a} × {b} | {cells[0]} | {cells[1]} | {grid_seconds[i]:.2f} |")
     print("\n".join(rows))
     return dataset
+
+
+def _dimension_convergence(evaluate, quick: bool) -> xr.Dataset:
+    """Relative error of each dimension's series against its finest member; print a table."""
+    variables, rows = {}, ["| dimension | value | zenith | 60° anti-Sun | 85° side |",
+                           "| --- | --- | --- | --- | --- |"]
+    for name, steps, quadrature in DIMENSIONS:
+        steps = steps[:-1] if quick else steps
+        values = np.array([evaluate(quadrature(n))[0] for n in steps])
+        relative = values / values[-1] - 1.0
+        variables[f"{name}_relative_error"] = (
+            (name, "line_of_sight"), relative,
+            {"units": "1", "long_name": f"relative difference from {name} = {steps[-1]}, "
+                                        "the other dimensions fine"})
+        variables[name] = (name, np.array(steps), {"long_name": name})
+        rows += [f"| {name} | {n} | " + " | ".join(f"{100 * r:+.1f} %" for r in relative[i])
+                 + " |" for i, n in enumerate(steps)]
+    print("\n".join(rows))
+    return xr.Dataset({key: value for key, value in variables.items()
+                       if key not in ("n_view", "n_samples")},
+                      coords={key: variables[key] for key in ("n_view", "n_samples")})
 
 
 def _grid_errors(grids, n_lines):

@@ -77,7 +77,7 @@ _MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 24, "n_phi": 6, "n_ray": 24, "n_sp
 FIDELITY = {
     "fast": {
         "eclipse_sky_lut": (12, 24), "eclipse_samples": 24,
-        "eclipse_ms_lut": (4, 8), "eclipse_ms": (24, 4, 16, 16),
+        "eclipse_ms_lut": (4, 8), "eclipse_ms": (12, 4, 16, 8),
         "sky_lut": (12, 13), "sky_samples": 24, "transmittance": (64, 16),
         "moon_lut": (8, 9), "moon_steps": 16, "moon_quadrature": 8,
         "moon_disc_quadrature": 12,
@@ -86,7 +86,7 @@ FIDELITY = {
                     "max_distance_m": 30_000.0}},
     "default": {
         "eclipse_sky_lut": (24, 48), "eclipse_samples": 48,
-        "eclipse_ms_lut": (6, 12), "eclipse_ms": (24, 4, 16, 16),
+        "eclipse_ms_lut": (6, 12), "eclipse_ms": (16, 4, 16, 16),
         "sky_lut": (24, 25), "sky_samples": 48, "transmittance": (128, 32),
         "moon_lut": (12, 13), "moon_steps": 32, "moon_quadrature": 16,
         "moon_disc_quadrature": 24,
