@@ -17,10 +17,11 @@ for the table knobs). Writes ``eclipse_accuracy_cost.nc`` / ``.png``.
 
 A second part varies ``scattering_resolution`` of the single-scattered component
 (:mod:`skytorch.eclipse.shadow_scattering`) against resolution 4: maximum relative error of
-the scattered illuminance ``E_sca / E_sun`` alone over the same points for the typical and
-the volcanic Earth atmosphere, and over the shadow of Mars at Phobos' and Deimos' orbits;
-cost: kernel precomputation + evaluation. Writes ``eclipse_scattering_accuracy_cost.nc`` /
-``.png`` (run alone with ``--scattering-only``).
+the scattered illuminance ``E_sca / E_sun`` alone over the same points for the typical Earth
+atmosphere and the stratospheric one of 2015 (``eclipse_atmosphere("2015-09-28")``), and
+over the shadow of Mars at Phobos' and Deimos' orbits; cost: kernel precomputation +
+evaluation. Writes ``eclipse_scattering_accuracy_cost.nc`` / ``.png`` (run alone with
+``--scattering-only``).
 
 Run: ``python experiments/eclipse_accuracy_cost.py [--quick] [--output-dir DIR]
 [--scattering-only]``.
@@ -66,7 +67,7 @@ def scattering(quick: bool, output_dir) -> dict:
     """Error of the scattered component vs ``scattering_resolution`` (module docstring)."""
     from skytorch.atmosphere import Atmosphere
     from skytorch.constants import DEIMOS_SEMI_MAJOR_AXIS_M, PHOBOS_SEMI_MAJOR_AXIS_M
-    from skytorch.eclipse.lunar import volcanic_atmosphere
+    from skytorch.eclipse import eclipse_atmosphere
     from skytorch.eclipse.shadow import Shadow
 
     distance, offset = _points(quick)
@@ -76,8 +77,9 @@ def scattering(quick: bool, output_dir) -> dict:
     mars_points = torch.broadcast_tensors(mars_distance, mars_offset)
     cases = {
         "earth typical": (lambda **k: Shadow.earth(Atmosphere.earth(), **k), (distance, offset)),
-        "earth volcanic": (lambda **k: Shadow.earth(volcanic_atmosphere(), **k),
-                           (distance, offset)),
+        "earth stratospheric 2015": (
+            lambda **k: Shadow.earth(eclipse_atmosphere("2015-09-28"), **k),
+            (distance, offset)),
         "mars": (lambda **k: Shadow.mars(**k), mars_points),
     }
     resolutions = SCATTERING_RESOLUTIONS[:2] if quick else SCATTERING_RESOLUTIONS
@@ -101,7 +103,7 @@ def scattering(quick: bool, output_dir) -> dict:
             values.append(resolution)
             errors.append(relative)
             seconds.append(elapsed)
-            print(f"scattering {name:>15} resolution {resolution:>5}: max rel. error "
+            print(f"scattering {name:>24} resolution {resolution:>5}: max rel. error "
                   f"{relative:.3g}, {elapsed:.3f} s")
     dataset = build_dataset(
         {"max_relative_error": variable(("variant",), np.array(errors), VariableSpec(

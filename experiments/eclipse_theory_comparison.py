@@ -5,20 +5,20 @@ Four parts, each written as netCDF + PNG:
 ``eclipse_theory_profiles``
     Radial profile of ``I / I_sun`` at the mean lunar distance (R 680, G 550, B 440 nm and
     the V band) for: geometry only; refraction only; + molecular extinction; + ozone
-    (300 DU); + typical aerosols (Preetham turbidity 2); + volcanic aerosols (2015 after
-    Calbuco: aerosol density x2, scale height 1.2 -> 3 km, i.e. column x5); + clouds
-    (tops at 8 km on 60 % of the limb, an illustrative choice); the molecular, typical and
-    volcanic cases again with single-scattered light (``scattering=True``). Reference facts:
-    umbra
-    centre ~1/2400 of sunlight for molecules without ozone (Vollmer & Gedzelman 2008,
-    energy 400–700 nm); about 100x darker with aerosols, ozone and clouds (same paper);
-    bluish umbra rim from ozone.
+    (300 DU); + typical aerosols (Preetham turbidity 2); + clouds (tops at 8 km on 60 % of
+    the limb, an illustrative choice); the stratospheric atmosphere of 2015, the Calbuco
+    year (``eclipse_atmosphere("2015-09-28")``: global-mean troposphere, aerosol optical
+    depth 0.12 at 550 nm, 300 DU, and the year's stratospheric sulfate layer); the
+    molecular, typical and stratospheric cases again with single-scattered light
+    (``scattering=True``). Reference facts: umbra centre ~1/2400 of sunlight for molecules
+    without ozone (Vollmer & Gedzelman 2008, energy 400–700 nm); about 100x darker with
+    aerosols, ozone and clouds (same paper); bluish umbra rim from ozone.
 ``eclipse_theory_ozone``
     Ozone sweep (tent peak density 0, 2, 4, 6, 8 x 1e18 m^-3) -> colour of the umbra.
 ``eclipse_theory_2015``
-    Light curve of 2015-09-28 for the typical and the volcanic atmosphere vs the reported
-    brightness (Vital 2015: ~50 000x fainter than the full Moon at mid-totality, i.e.
-    11.75 mag; Keen 2016: 33 % dimmer than expected for a clear stratosphere).
+    Light curve of 2015-09-28 for the typical and the stratospheric 2015 atmosphere vs the
+    reported brightness (Vital 2015: ~50 000x fainter than the full Moon at mid-totality,
+    i.e. 11.75 mag; Keen 2016: 33 % dimmer than expected for a clear stratosphere).
 ``eclipse_theory_mars``
     The Martian shadow at Phobos' and Deimos' distances (Schneegans et al. 2025, Fig. 12
     right), refracted light only and with single-scattered light.
@@ -68,15 +68,15 @@ REFERENCES = [
 
 def _atmospheres():
     from skytorch.atmosphere import Atmosphere
-    from skytorch.eclipse import volcanic_atmosphere
+    from skytorch.eclipse import eclipse_atmosphere
 
     clean = {"aerosol_optical_depth": 0.0}
     return {
         "molecules": Atmosphere.earth(ozone_du=0.0, **clean),
         "ozone": Atmosphere.earth(ozone_du=300.0, **clean),
         "aerosols": Atmosphere.earth(turbidity=2.0, ozone_du=300.0),
-        # density x2 and scale height 1.2 -> 3 km (Schneegans et al. 2025)
-        "volcanic": volcanic_atmosphere(2.0, 300.0),
+        # global-mean troposphere and ozone, the stratospheric sulfate of 2015 (Calbuco)
+        "stratospheric": eclipse_atmosphere("2015-09-28"),
     }
 
 
@@ -98,12 +98,12 @@ def profiles(quick: bool):
         "molecules": Shadow.earth(atmospheres["molecules"]),
         "ozone": Shadow.earth(atmospheres["ozone"]),
         "aerosols": Shadow.earth(atmospheres["aerosols"]),
-        "volcanic": Shadow.earth(atmospheres["volcanic"]),
+        "stratospheric": Shadow.earth(atmospheres["stratospheric"]),
         "clouds": Shadow.earth(atmospheres["aerosols"], cloud_top_altitude_m=CLOUD_TOP_M,
                                cloud_fraction=CLOUD_FRACTION),
         "molecules+scattering": Shadow.earth(atmospheres["molecules"], scattering=True),
         "aerosols+scattering": Shadow.earth(atmospheres["aerosols"], scattering=True),
-        "volcanic+scattering": Shadow.earth(atmospheres["volcanic"], scattering=True),
+        "stratospheric+scattering": Shadow.earth(atmospheres["stratospheric"], scattering=True),
     }
     step = 20.0 if quick else 10.0
     wavelength = torch.arange(400.0, 720.0 + 0.5 * step, step, dtype=torch.float64)
@@ -130,7 +130,7 @@ def profiles(quick: bool):
         "molecules_scattering_centre_over_vg2008":
             centre_energy["molecules+scattering"] / VG2008_CENTRE,
     }
-    for name in ("molecules", "aerosols", "volcanic"):
+    for name in ("molecules", "aerosols", "stratospheric"):
         index = names.index(name)
         with_light = names.index(f"{name}+scattering")
         for label, k in (("v", None), ("b440", rgb_index[2]), ("r680", rgb_index[0])):
@@ -244,7 +244,7 @@ def light_curves(quick: bool):
     atmospheres = _atmospheres()
     n_times = 25 if quick else 200
     curves = {}
-    for name in ("aerosols", "volcanic"):
+    for name in ("aerosols", "stratospheric"):
         for scattering in (False, True):
             key = f"{name}+scattering" if scattering else name
             curves[key] = lunar_eclipse("2015-09-28", n_times=n_times, n_images=0,
@@ -258,26 +258,26 @@ def light_curves(quick: bool):
     summary = {
         "full_moon_v": full,
         "greatest_v_typical": greatest["aerosols"],
-        "greatest_v_volcanic": greatest["volcanic"],
+        "greatest_v_stratospheric": greatest["stratospheric"],
         "dimming_typical_mag": greatest["aerosols"] - full,
-        "dimming_volcanic_mag": greatest["volcanic"] - full,
+        "dimming_stratospheric_mag": greatest["stratospheric"] - full,
         "vital2015_dimming_mag": VITAL2015_DIMMING_MAG,
-        "volcanic_over_typical_brightness": 10 ** (-0.4 * (greatest["volcanic"]
-                                                           - greatest["aerosols"])),
+        "stratospheric_over_typical_brightness": 10 ** (-0.4 * (greatest["stratospheric"]
+                                                                - greatest["aerosols"])),
         "keen2016_brightness_ratio": 1.0 - KEEN2016_DIMMER,
         "danjon_l_typical": float(curves["aerosols"].attrs["parameter_danjon_l"]),
-        "danjon_l_volcanic": float(curves["volcanic"].attrs["parameter_danjon_l"]),
+        "danjon_l_stratospheric": float(curves["stratospheric"].attrs["parameter_danjon_l"]),
     }
-    for name in ("aerosols", "volcanic"):
+    for name in ("aerosols", "stratospheric"):
         for key in (name, f"{name}+scattering"):
             curve = curves[key]
             middle = int(np.argmax(curve.v_magnitude.values))
             summary[f"greatest_b_minus_v_{key}"] = float(curve.b_magnitude.values[middle]
                                                          - curve.v_magnitude.values[middle])
     summary["greatest_v_typical_scattering"] = greatest["aerosols+scattering"]
-    summary["greatest_v_volcanic_scattering"] = greatest["volcanic+scattering"]
-    summary["volcanic_over_typical_brightness_scattering"] = 10 ** (
-        -0.4 * (greatest["volcanic+scattering"] - greatest["aerosols+scattering"]))
+    summary["greatest_v_stratospheric_scattering"] = greatest["stratospheric+scattering"]
+    summary["stratospheric_over_typical_brightness_scattering"] = 10 ** (
+        -0.4 * (greatest["stratospheric+scattering"] - greatest["aerosols+scattering"]))
     times = curves["aerosols"].time.values
     dataset = build_dataset(
         {"v_magnitude": variable(("case", "time"), v,

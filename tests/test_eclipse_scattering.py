@@ -251,13 +251,18 @@ def test_batched_atmospheres_equal_member_loop():
 
 
 def test_scattering_adds_light_and_float32_gradients(dtype):
-    """Scattering only adds light (most in the deep volcanic umbra); float32 follows float64.
+    """Scattering only adds light (most in the deep umbra); float32 follows float64.
 
-    Gradients with respect to the position are finite and match finite differences.
+    The atmosphere is the stratospheric one of 2015 (the Calbuco year,
+    ``eclipse_atmosphere("2015-09-28")``). At the umbra centre at 450 nm the scattered
+    light outweighs the refracted light, so scattering more than doubles the illuminance
+    (measured 2.9x, 66 % scattered; García Muñoz et al. 2011 find diffuse light a major
+    component below 600 nm); at 650 nm it adds 0.05 %. Gradients with respect to the
+    position are finite and match finite differences.
     """
-    from skytorch.eclipse.lunar import volcanic_atmosphere
+    from skytorch.eclipse import eclipse_atmosphere
 
-    atm = volcanic_atmosphere()
+    atm = eclipse_atmosphere("2015-09-28")
     plain = Shadow.earth(atm, n_altitude=101)
     scattering = Shadow.earth(atm, n_altitude=101, scattering=True)
     offset = torch.tensor([0.0, 2e6, 4.5e6, 1e7], dtype=dtype, requires_grad=True)
@@ -266,7 +271,7 @@ def test_scattering_adds_light_and_float32_gradients(dtype):
     without = plain.relative_illuminance(distance, offset, WAVELENGTH.to(dtype))
     assert with_light.dtype == dtype
     assert bool((with_light >= without).all().detach())
-    assert float((with_light[0, 0] / without[0, 0]).detach()) > 10.0  # deep umbra, 450 nm
+    assert float((with_light[0, 0] / without[0, 0]).detach()) > 2.0  # umbra centre, 450 nm
     if dtype == torch.float32:
         reference = scattering.relative_illuminance(distance.double(), offset.detach().double(),
                                                     WAVELENGTH)
@@ -288,10 +293,11 @@ def test_shadow_table_and_lunar_eclipse_with_scattering():
     The table matches the direct evaluation at the Moon's distance and the eclipsed Moon is brighter
     with it.
     """
-    from skytorch.eclipse.lunar import lunar_eclipse, volcanic_atmosphere
+    from skytorch.eclipse import eclipse_atmosphere
+    from skytorch.eclipse.lunar import lunar_eclipse
     from skytorch.eclipse.shadow_table import ShadowTable
 
-    atm = volcanic_atmosphere()
+    atm = eclipse_atmosphere("2015-09-28")
     shadow = Shadow.earth(atm, n_altitude=101, scattering=True)
     table = ShadowTable.compute(shadow, WAVELENGTH, n_u=24, n_v=64, progress=False,
                                 min_distance_m=3.0e8, max_distance_m=4.5e8)

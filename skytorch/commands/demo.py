@@ -4,8 +4,9 @@ The 2015-09-28 total lunar eclipse, end to end:
 
 1. ephemeris of the night from Berlin;
 2. circumstances (:func:`skytorch.eclipse.lunar_eclipses`);
-3. the Moon's light curve and colour for a typical atmosphere and the Calbuco (2015)
-   volcanic one (:func:`skytorch.eclipse.lunar_eclipse`);
+3. the Moon's light curve and colour for a typical atmosphere and the atmosphere of the
+   eclipse date, with the stratospheric sulfate of 2015 after Calbuco
+   (:func:`skytorch.eclipse.lunar_eclipse`);
 4. the Earth's shadow profile at the Moon's distance against lunar-eclipse theory:
    the geometric umbra/penumbra radii (Danjon enlargement) and the umbra centre of a
    molecular atmosphere, 1/2400 of sunlight (Vollmer & Gedzelman 2008);

@@ -72,7 +72,6 @@ __all__ = [
     "solar_eclipses",
     "stratospheric_aod",
     "sun_visible_fraction",
-    "volcanic_atmosphere",
 ]
 from skytorch.eclipse.lunar import (  # noqa: E402,F401,I001
-    Shadow, ShadowTable, danjon_l, lunar_eclipse, lunar_light_curve, volcanic_atmosphere)
+    Shadow, ShadowTable, danjon_l, lunar_eclipse, lunar_light_curve)

@@ -45,14 +45,8 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_choice, check_int, check_positive, check_range
-from skytorch.atmosphere import Atmosphere
-from skytorch.atmosphere.aerosol import (
-    ANGSTROM_REFERENCE_NM,
-    PREETHAM_ANGSTROM_ALPHA,
-    preetham_angstrom_beta,
-)
-from skytorch.constants import EARTH_AEROSOL_SCALE_HEIGHT_M, EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
+from skytorch._validate import check_choice, check_int
+from skytorch.constants import EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
 from skytorch.dataset import (
     VariableSpec,
     batch_coordinates,
@@ -85,47 +79,12 @@ __all__ = [
     "ShadowTable",
     "danjon_l",
     "lunar_eclipse",
-    "volcanic_atmosphere",
     "lunar_light_curve",
     "plot_lunar_eclipse",
 ]
 
 logger = logging.getLogger(__name__)
 
-def volcanic_atmosphere(turbidity=2.0, ozone_du=300.0, *, density_factor=2.0,
-                        scale_height_m=3000.0):
-    """Earth's atmosphere with a volcanic aerosol layer, as after Calbuco in 2015.
-
-    Schneegans et al. (2025, §6) model the 2015-09-28 eclipse by doubling the aerosol
-    density of a turbidity-2 atmosphere and raising its scale height from 1.2 km to 3 km.
-    The vertical aerosol optical depth at 550 nm therefore grows by
-    ``density_factor * scale_height_m / 1200 m``.
-
-    Parameters
-    ----------
-    turbidity : float
-        Preetham turbidity of the background aerosols the factor applies to, in [1, 64].
-    ozone_du : float
-        Ozone column [DU].
-    density_factor : float
-        Aerosol number density relative to the background at the ground.
-    scale_height_m : float
-        Scale height of the volcanic aerosols [m].
-
-    Returns
-    -------
-    skytorch.atmosphere.Atmosphere
-    """
-    turbidity = check_range("turbidity", turbidity, 1.0, 64.0)
-    if turbidity.numel() != 1:
-        raise ValueError(f"turbidity must be one number; got shape {tuple(turbidity.shape)}")
-    density_factor = float(check_positive("density_factor", density_factor))
-    scale_height_m = float(check_positive("scale_height_m", scale_height_m, unit=" m"))
-    beta = float(preetham_angstrom_beta(turbidity.detach().to(torch.float64).reshape(())))
-    aod_550 = beta * (550.0 / ANGSTROM_REFERENCE_NM) ** (-PREETHAM_ANGSTROM_ALPHA)
-    column = density_factor * scale_height_m / EARTH_AEROSOL_SCALE_HEIGHT_M
-    return Atmosphere.earth(aerosol_optical_depth=aod_550 * column, ozone_du=ozone_du,
-                            aerosol_scale_height_m=scale_height_m)
 #: days around the given date in which the nearest eclipse is looked for
 SEARCH_DAYS = 20
 #: fraction of the P1–P4 duration added before P1 and after P4
