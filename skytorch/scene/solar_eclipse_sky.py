@@ -277,21 +277,35 @@ def eclipsed_single_scattering(atmosphere, wavelength_nm, view_zenith_rad, view_
     fraction is 1 and the two agree to rounding (tested).
     """
     n_samples = check_int("n_samples", n_samples, 2)
+    constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth, visible = \
+        _eclipse_inputs(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad,
+                        geometry, n_nodes)
+    altitude = torch.full(torch.broadcast_shapes(view_zenith.shape, view_azimuth.shape),
+                          float(altitude_m), dtype=constituents.dtype)
+    return constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith,
+                                sun_azimuth, altitude, n_samples=n_samples, table=table,
+                                source_weight=visible)
+
+
+def _eclipse_inputs(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad, geometry,
+                    n_nodes: int):
+    """Constituents, view and Sun directions (their dtype) and the visible-fraction weight.
+
+    Shared by :func:`eclipsed_single_scattering` and :func:`eclipsed_second_order`: the
+    weight takes points (..., 3) from the observer and returns :func:`visible_fraction_at`.
+    """
     wavelength = as_tensor("wavelength_nm", wavelength_nm).to(torch.float64)
     view_zenith = as_tensor("view_zenith_rad", view_zenith_rad).to(torch.float64)
     view_azimuth = as_tensor("view_azimuth_rad", view_azimuth_rad).to(torch.float64)
     constituents = atmosphere.constituents(wavelength)
     dtype = constituents.dtype
     sun_zenith, sun_azimuth = _sun_direction(geometry, dtype)
-    altitude = torch.full(torch.broadcast_shapes(view_zenith.shape, view_azimuth.shape),
-                          float(altitude_m), dtype=dtype)
 
     def visible(points):
         return visible_fraction_at(geometry, points, n_nodes=n_nodes)
 
-    return constituent_radiance(constituents, view_zenith.to(dtype), view_azimuth.to(dtype),
-                                sun_zenith, sun_azimuth, altitude, n_samples=n_samples,
-                                table=table, source_weight=visible)
+    return (constituents, view_zenith.to(dtype), view_azimuth.to(dtype), sun_zenith,
+            sun_azimuth, visible)
 
 
 def eclipsed_second_order(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad,
@@ -325,18 +339,11 @@ def eclipsed_second_order(atmosphere, wavelength_nm, view_zenith_rad, view_azimu
     included. Without the Moon nearby the result is the atmosphere's second order
     (checked against a Monte-Carlo in ``tests/test_second_order.py``).
     """
-    wavelength = as_tensor("wavelength_nm", wavelength_nm).to(torch.float64)
-    view_zenith = as_tensor("view_zenith_rad", view_zenith_rad).to(torch.float64)
-    view_azimuth = as_tensor("view_azimuth_rad", view_azimuth_rad).to(torch.float64)
-    constituents = atmosphere.constituents(wavelength)
-    dtype = constituents.dtype
-    sun_zenith, sun_azimuth = _sun_direction(geometry, dtype)
-    altitude = torch.tensor(float(altitude_m), dtype=dtype)
-
-    def visible(points):
-        return visible_fraction_at(geometry, points, n_nodes=n_nodes)
-
-    return second_order_radiance(constituents, view_zenith.to(dtype), view_azimuth.to(dtype),
-                                 sun_zenith, sun_azimuth, altitude, n_view=n_view, n_mu=n_mu,
+    constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth, visible = \
+        _eclipse_inputs(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad,
+                        geometry, n_nodes)
+    altitude = torch.tensor(float(altitude_m), dtype=constituents.dtype)
+    return second_order_radiance(constituents, view_zenith, view_azimuth, sun_zenith,
+                                 sun_azimuth, altitude, n_view=n_view, n_mu=n_mu,
                                  n_phi=n_phi, n_samples=n_samples, table=table,
                                  source_weight=visible)
