@@ -151,6 +151,65 @@ def test_deep_umbra_relative_accuracy(shadow, earth, dtype):
     assert relative < (1 * PERCENT if dtype == torch.float64 else 5 * PERCENT)
 
 
+def _fold_points():
+    """Points at 1.05 lunar distances whose blue light comes through the tropopause fold."""
+    offset = torch.linspace(1.70e6, 2.00e6, 31, dtype=torch.float64)
+    return torch.full_like(offset, 1.05 * MEAN_EARTH_MOON_DISTANCE_M), offset
+
+
+def test_ring_breakpoints_match_a_dense_scan(shadow):
+    """Every crossing of a(beta) with the edges of F, folds included, vs a dense scan.
+
+    Below the U.S. 1976 tropopause the bending grows upwards and a(beta) folds back; an
+    edge can be crossed three times there. The crossings found by the bracketed search
+    must be the sign changes of a - edge on a grid of 2e6 + 1 nodes in s.
+    """
+    from skytorch.eclipse.shadow import _apparent_angle, _breakpoints
+
+    distance, offset = _fold_points()
+    distance = torch.cat([distance, D_MOON.reshape(1)])
+    offset = torch.cat([offset, torch.zeros(1, dtype=torch.float64)])
+    profile = shadow.ring_profile(RGB)
+    tables = profile.tables(torch.float64)
+    angles = shadow._geometry(distance, offset, None, torch.float64)
+    centre, rho, sigma = (angles[k] for k in ("centre_distance_m", "sun_radius_rad",
+                                               "separation_rad"))
+    scale = shadow.sun_distance_m / angles["sun_range_m"]
+    radius = shadow.occluder_radius_m
+    found = _breakpoints(profile, tables, centre, sigma, rho, scale, radius)
+    s = torch.linspace(0.0, 1.0, 2_000_001, dtype=torch.float64)
+    step = float(s[1])
+    folded = 0
+    for i in range(centre.shape[0]):
+        a = _apparent_angle(profile, tables, s, centre[i], scale[i], radius)
+        folded += int((a[1:] < a[:-1]).any())
+        expected = []
+        for edge in (-(sigma[i] + rho[i]), -(sigma[i] - rho[i]).abs(),
+                     (sigma[i] - rho[i]).abs(), sigma[i] + rho[i]):
+            below = a <= edge
+            expected += s[1:][below[1:] != below[:-1]].tolist()
+        got = sorted(x for x in found[i].tolist() if x < 1.0)
+        assert len(got) == len(expected), (i, got, expected)
+        for x, y in zip(got, sorted(expected), strict=True):
+            assert y - step <= x <= y  # inside the scan's interval
+    assert folded == centre.shape[0]
+    assert max(int((row < 1.0).sum()) for row in found) > 2  # some edge crossed thrice
+
+
+def test_fold_band_converged_in_table_rows(earth):
+    """Blue light beside the tropopause fold: 401 table rows vs 1601 (0.02 %).
+
+    A crossing missed at the fold used to cost up to 7 % here (I/I_sun ~ 5e-6 at 440 nm).
+    """
+    distance, offset = _fold_points()
+    options = {"n_ring": 48, "n_split": 4}
+    value = Shadow.earth(earth, **options).relative_illuminance(distance, offset, RGB)
+    reference = Shadow.earth(earth, n_altitude=1601, trace_nodes=128, **options)
+    expected = reference.relative_illuminance(distance, offset, RGB)
+    assert float(expected[:, 2].max()) < 1e-5  # the deep blue band
+    assert float(((value - expected) / expected).abs().max()) < 2e-4
+
+
 def test_molecular_umbra_centre_vollmer_gedzelman(molecules):
     """Umbra centre / sunlight for molecules only, 400-700 nm irradiance.
 

@@ -35,10 +35,14 @@ the Sun's centre and ``I_sun`` the limb-darkened radiance (zero outside the disc
 the radiance integrated along a circle through the offset solar disc: the arc inside the
 disc has half-angle ``psi_max``, ``hav psi_max = (hav rho_s - hav(alpha - sigma)) /
 (sin alpha sin sigma)``, and the substitution ``psi = psi_max (1 - v^2)`` removes the
-square-root behaviour at the limb (Gauss–Legendre in ``v``). ``a(beta)`` is monotone, so
-the breakpoints of ``F`` (``|a| = |sigma - rho_s|`` and ``sigma + rho_s``) are found by
-bracketing plus Newton steps in ``beta``, the ``beta`` integral is split there (only
-the non-empty pieces are integrated); each piece is integrated
+square-root behaviour at the limb (Gauss–Legendre in ``v``). ``a(beta)`` increases except
+in thin folds below the kinks of a layered profile where the upper layer has the steeper
+refractivity gradient (U.S. 1976: 11, 20, 32 and 71 km; the bending there grows upwards
+like ``-sqrt(beta_j - beta)``), so the breakpoints of ``F`` (``|a| = |sigma - rho_s|`` and
+``sigma + rho_s``, up to three crossings each near a fold) are bracketed between nodes
+where ``a`` is monotone (a coarse grid, the kinks and the folds' tops) and refined by
+safeguarded Newton steps; the ``beta`` integral is split there (only the pieces where the
+circle meets the solar disc are integrated); each piece is integrated
 with a Gauss–Legendre rule after the substitution ``s = (1 - cos pi t)/2`` that absorbs
 the square roots at both ends. ``delta(beta)`` and ``T(beta, lambda) = exp(-tau)`` come from
 :func:`skytorch.atmosphere.refraction.trace_grazing_rays`, tabulated once per atmosphere
@@ -152,8 +156,11 @@ DEFAULT_ARC_NODES = 8
 #: profile and for one with kinks, whose nodes already cut the integral into short pieces
 DEFAULT_SPLIT = 2
 DEFAULT_SPLIT_KINKED = 1
-#: Newton steps for the breakpoints inside a coarse-grid bracket (converged to ~1e-12)
-_NEWTON_STEPS = 3
+#: safeguarded Newton steps for the breakpoints inside a monotone bracket (converged to
+#: ~1e-13 in the table coordinate; a step leaving the bracket bisects instead)
+_ROOT_STEPS = 6
+#: bisection steps for the fold of ``a(beta)`` below a kink (~1e-8 of a row in ``s``)
+_FOLD_STEPS = 24
 #: relative singular-value cut-off of the optical-depth table (reconstruction ~1e-12)
 _RANK_TOLERANCE = 1e-13
 #: stride of the coarse grid that brackets the breakpoints before the Newton steps
@@ -526,18 +533,43 @@ class RingProfile:
             deviation = self.deviation_rad.to(dtype)[:, None]
             periapsis = self.periapsis_altitude_m.to(dtype)[:, None]
             factors = self.optical_factors.to(dtype)
-            coarse = list(range(0, self.n_altitude, _COARSE_STRIDE))
-            if coarse[-1] != self.n_altitude - 1:
-                coarse.append(self.n_altitude - 1)
+            # bracket nodes of the breakpoint search: a coarse grid and every kink
+            coarse = sorted(set(range(0, self.n_altitude, _COARSE_STRIDE))
+                            | set(self.grid.nodes))
             every = torch.cat([deviation, periapsis, factors], dim=-1)
+            spline = self._piecewise_spline(deviation)
+            s = torch.linspace(0.0, 1.0, self.n_altitude, dtype=dtype)
             self._cache[dtype] = {
-                "deviation": self._piecewise_spline(deviation),
+                "deviation": spline,
                 "all": self._piecewise_spline(every),
                 "basis": self.optical_basis.to(dtype),
                 "nodes": deviation[coarse, 0],
-                "nodes_s": torch.linspace(0.0, 1.0, self.n_altitude, dtype=dtype)[coarse],
+                "nodes_s": s[coarse],
+                "nodes_beta": self.beta(s[coarse]),
+                "folds": self._folds(spline, deviation, s, coarse),
             }
         return self._cache[dtype]
+
+    def _folds(self, spline, deviation, s, coarse) -> list[tuple]:
+        """Find the kinks below which the bending grows upwards, and where its rise starts.
+
+        There ``d beta / d s = 0`` (graded grid) and ``a' = -k delta'`` has the sign of
+        ``-delta'`` at the kink (see :func:`_fold_tops`). Returns per fold the kink's
+        column among the bracket nodes, the rise of the bending from the start of its
+        rising stretch to the kink [rad], and the stretch's ends ``s``.
+        """
+        folds = []
+        for first, last in self.grid.pieces[:-1]:
+            # slope of the piece's last interval at its upper end (t = 1), from below
+            _, c1, c2, c3 = spline[last - 1, :, 0].tolist()
+            if c1 + 2.0 * c2 + 3.0 * c3 <= 0.0:
+                continue
+            start = last - 1  # the bending rises on the intervals start .. last - 1
+            while start > first and float(spline[start - 1, 1, 0]) >= 0.0:
+                start -= 1
+            rise = float(deviation[last, 0] - deviation[start, 0])
+            folds.append((coarse.index(last), rise, s[start], s[last]))
+        return folds
 
 
 def _ray_weight(periapsis_m: torch.Tensor, profile: RingProfile) -> torch.Tensor:
@@ -688,43 +720,106 @@ def _spline_slope(coefficients: torch.Tensor, s: torch.Tensor):
     return c0 + t * (c1 + t * (c2 + t * c3)), n * (c1 + t * (2.0 * c2 + 3.0 * t * c3))
 
 
+def _apparent_angle(profile: RingProfile, tables, s, centre, scale, radius: float,
+                    slope: bool = False):
+    """Apparent angle ``a(beta(s))`` of the ring seen from the points [rad] (and d/ds).
+
+    ``centre`` and ``scale`` broadcast with ``s``.
+    """
+    if not slope:
+        deviation = _spline(tables["deviation"], s)[..., 0]
+        return torch.asin((radius + profile.beta(s)) / centre) - scale * deviation
+    deviation, ddev = (x[..., 0] for x in _spline_slope(tables["deviation"], s))
+    beta, dbeta_ds = profile.grid.beta_and_slope(s)
+    b = radius + beta
+    return (torch.asin(b / centre) - scale * deviation,
+            dbeta_ds / torch.sqrt((centre - b) * (centre + b)) - scale * ddev)
+
+
+def _fold_tops(profile: RingProfile, tables, centre, scale, radius: float, coarse,
+               edges) -> torch.Tensor:
+    """Local maxima of ``a(s)`` below the kinks where the bending grows upwards -> (n, F).
+
+    Just below a kink whose upper layer has the steeper refractivity gradient (the U.S.
+    1976 tropopause, 20, 32 and 71 km) the bending grows with the impact altitude like
+    ``-sqrt(beta_j - beta)``, faster than the geometric term: ``a(beta)`` folds back
+    (the 11 km fold spans ~80 m of impact altitude and ~1e-4 rad of ``a`` at the Moon).
+    On the graded table ``d beta / d s = 0`` at the kink, so ``a'`` there is
+    ``-k delta'`` and the fold is known from the table. An edge of ``F`` is crossed more
+    than once near a fold only if it lies between ``a`` at the kink and the fold's top,
+    which is below ``a(kink) + k (delta(kink) - delta(start of the rise))`` (tested with
+    twice that rise, a margin for the spline between the rows); for those points the top
+    (``a' = 0``) is found by bisection on the rising stretch, for the others the kink
+    itself is returned (``coarse``: ``a`` at the bracket nodes).
+    """
+    n = centre.shape[0]
+    tops = []
+    for column, rise, lower, upper in tables["folds"]:
+        a_kink = coarse[:, column:column + 1]
+        window = (edges >= a_kink) & (edges <= a_kink + 2.0 * rise * scale[:, None])
+        top = upper.expand(n).clone()
+        need = torch.nonzero(window.any(dim=1)).squeeze(-1)
+        if need.numel():
+            c, k = centre[need], scale[need]
+            lo, hi = lower.expand(need.shape[0]), upper.expand(need.shape[0])
+            for _ in range(_FOLD_STEPS):
+                mid = 0.5 * (lo + hi)
+                _, da = _apparent_angle(profile, tables, mid, c, k, radius, slope=True)
+                lo, hi = torch.where(da > 0, mid, lo), torch.where(da > 0, hi, mid)
+            top[need] = 0.5 * (lo + hi)
+        tops.append(top)
+    if not tops:
+        return centre.new_zeros((n, 0))
+    return torch.stack(tops, dim=-1)
+
+
 def _breakpoints(profile: RingProfile, tables, centre, separation, sun_radius, scale,
                  radius: float) -> torch.Tensor:
-    """Table coordinates ``s`` where ``a(beta(s))`` crosses the edges of ``F`` -> (n, 4).
+    """Table coordinates ``s`` where ``a(beta(s))`` crosses the edges of ``F`` -> (n, C).
 
-    ``a`` is increasing in ``s``: the crossing is bracketed on a coarse grid, started by
-    linear inverse interpolation in the bracket and refined by Newton steps on the cubic
-    spline, kept inside the bracket (converged to ~1e-12 in ``s``; edges outside the
-    range of ``a`` give 0 or 1).
+    ``a`` is monotone between the bracket nodes (every ``_COARSE_STRIDE``-th row, the
+    kinks, and the fold tops of :func:`_fold_tops`): each sign change of ``a - edge``
+    between two nodes is one crossing, refined by safeguarded Newton steps on the cubic
+    spline (a step that leaves the bracket bisects it; converged to ~1e-13 in ``s``). An
+    edge can be crossed up to three times near a fold. Rows are padded with 1.0 (``C`` is
+    the largest number of crossings of a point).
     """
     edges = torch.stack([-(separation + sun_radius), -(separation - sun_radius).abs(),
                          (separation - sun_radius).abs(), separation + sun_radius], dim=-1)
-    nodes_s = tables["nodes_s"]
-    coarse = (torch.asin((radius + profile.beta(nodes_s)) / centre[:, None])
+    n = centre.shape[0]
+    nodes_s = tables["nodes_s"].expand(n, -1)
+    coarse = (torch.asin((radius + tables["nodes_beta"]) / centre[:, None])
               - scale[:, None] * tables["nodes"])
-    index = torch.searchsorted(coarse.contiguous(), edges.contiguous())
-    last = nodes_s.shape[0] - 1
-    below = torch.clamp(index - 1, 0, last)
-    above = torch.clamp(index, 0, last)
-    low, high = nodes_s[below], nodes_s[above]
-    a_low, a_high = coarse.gather(1, below), coarse.gather(1, above)
-    width = a_high - a_low
-    fraction = torch.where(width > 0, (edges - a_low) / torch.where(width > 0, width, 1.0),
-                           0.0)
-    s = low + (high - low) * fraction.clamp(0.0, 1.0)
-    centre, scale = centre[:, None], scale[:, None]
-    for _ in range(_NEWTON_STEPS):
-        value, slope = _spline_slope(tables["deviation"], s)
-        beta = profile.beta(s)
-        b = radius + beta
-        a = torch.asin(b / centre) - scale * value[..., 0]
-        da = profile.dbeta_ds(s) / torch.sqrt((centre - b) * (centre + b)) - scale * slope[..., 0]
-        step = (a - edges) / torch.where(da > 0, da, 1.0)
-        s = torch.minimum(torch.maximum(s - step, low), high)
-    s = torch.where(index > last, 1.0, s)
-    return torch.where(index == 0, 0.0, s)
-
-
+    tops = _fold_tops(profile, tables, centre, scale, radius, coarse, edges)
+    if tops.shape[1]:
+        a_tops = _apparent_angle(profile, tables, tops, centre[:, None], scale[:, None],
+                                 radius)
+        nodes_s, order = torch.sort(torch.cat([nodes_s, tops], dim=1), dim=1)
+        coarse = torch.cat([coarse, a_tops], dim=1).gather(1, order)
+    below = coarse[:, :, None] <= edges[:, None, :]  # (n, K, 4)
+    point, interval, edge = torch.nonzero(below[:, :-1] != below[:, 1:], as_tuple=True)
+    if point.numel() == 0:
+        return centre.new_ones((n, 0))
+    target = edges[point, edge]
+    lo, hi = nodes_s[point, interval], nodes_s[point, interval + 1]
+    a_lo, a_hi = coarse[point, interval], coarse[point, interval + 1]
+    rising = a_hi > a_lo
+    s = lo + (hi - lo) * ((target - a_lo) / (a_hi - a_lo)).clamp(0.0, 1.0)
+    centre, scale = centre[point], scale[point]
+    for _ in range(_ROOT_STEPS):
+        a, da = _apparent_angle(profile, tables, s, centre, scale, radius, slope=True)
+        excess = a - target
+        past = (excess > 0) == rising  # s lies above the crossing
+        lo, hi = torch.where(past, lo, s), torch.where(past, s, hi)
+        newton = s - excess / torch.where(da != 0, da, 1.0)
+        inside = (newton >= lo) & (newton <= hi) & (da != 0)
+        s = torch.where(inside, newton, 0.5 * (lo + hi))
+    count = torch.bincount(point, minlength=n)
+    first = torch.cumsum(count, 0) - count
+    slot = torch.arange(point.numel()) - first[point]
+    result = centre.new_ones((n, int(count.max())))
+    result[point, slot] = s
+    return result
 def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coefficients,
                 n_ring: int, n_arc: int, radius: float, n_split: int = 1) -> torch.Tensor:
     """Ring integral for 1-D tensors of points -> (n_point, n_batch, n_wl), unnormalised.
@@ -740,14 +835,20 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
         # the breakpoints of F depend on the geometry and the bending only, and the
         # integrand is continuous there: their motion adds nothing to a derivative
         breaks = _breakpoints(profile, tables, centre, separation, sun_radius, scale, radius)
-    # pieces between the breakpoints of F: [e0, e1], [e1, e2] (zero unless the Sun
-    # covers the occluder's centre, sigma < rho_s), [e2, e3]; then the splits (the cloud
-    # top's keeps its graph: the nodes move with it, see RingProfile)
-    lo, hi = breaks[:, :-1], breaks[:, 1:]  # (n_point, 3)
-    for split in profile.split_coordinates(dtype):
-        cut = torch.minimum(torch.maximum(split.expand_as(lo), lo), hi)
-        lo, hi = torch.cat([lo, cut], dim=-1), torch.cat([cut, hi], dim=-1)
-    point, piece = torch.nonzero((hi > lo).detach(), as_tuple=True)
+    # pieces between the breakpoints of F and the splits (the cloud top's keeps its graph:
+    # the nodes move with it, see RingProfile); only the lit ones, where the circle of
+    # angle |a| meets the solar disc, are integrated
+    ends = [centre.new_zeros((n_point, 1)), breaks, centre.new_ones((n_point, 1))]
+    ends += [split.reshape(1, 1).expand(n_point, 1) for split in
+             profile.split_coordinates(dtype)]
+    bounds = torch.sort(torch.cat(ends, dim=1), dim=1).values
+    lo, hi = bounds[:, :-1], bounds[:, 1:]
+    with torch.no_grad():
+        middle = _apparent_angle(profile, tables, 0.5 * (lo + hi), centre[:, None],
+                                 scale[:, None], radius).abs()
+        lit = (middle < (separation + sun_radius)[:, None]) & (
+            (separation < sun_radius)[:, None] | (middle > (separation - sun_radius)[:, None]))
+    point, piece = torch.nonzero((hi > lo).detach() & lit, as_tuple=True)
     lo, hi = lo[point, piece], hi[point, piece]  # (n_pair,)
     if n_split > 1:  # composite rule: equal sub-pieces
         fraction = torch.arange(n_split + 1, dtype=dtype) / n_split
@@ -820,13 +921,14 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
     n_wl = profile.optical_depth.shape[-1]
     centre, sun_radius, separation, scale = flat[:4]
     with torch.no_grad():
-        # points whose ring cannot see the Sun: the apparent angles of the ring, from
-        # a(beta_min) to a(beta_top), miss the solar disc (both signs of a)
+        # points whose ring cannot see the Sun: the apparent angles of the ring lie
+        # between these bounds (a is not monotone below some kinks, see _fold_tops) and
+        # miss the solar disc (both signs of a)
         deviation = profile.deviation_rad.to(centre.dtype)
         a_low = (torch.asin((occluder_radius_m + profile.beta_min_m) / centre)
-                 - scale * deviation[0])
+                 - scale * deviation.max())
         a_high = (torch.asin((occluder_radius_m + profile.beta_top_m) / centre)
-                  - scale * deviation[-1])
+                  - scale * deviation.min())
         gap = (separation - sun_radius).abs()
         outer = separation + sun_radius
         dark = (a_low > outer) | (a_high < -outer) | (
