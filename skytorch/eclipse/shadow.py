@@ -392,13 +392,9 @@ class _ImpactGrid:
         return self.beta_min_m + self.span * sigma * sigma
 
     def beta_and_slope(self, s: torch.Tensor):
-        """:meth:`beta` and :meth:`dbeta_ds` from one evaluation of :meth:`sigma`."""
+        """:meth:`beta` and d beta / d s [m], from one evaluation of :meth:`sigma`."""
         sigma, slope = self.sigma(s)
         return self.beta_min_m + self.span * sigma * sigma, 2.0 * self.span * sigma * slope
-
-    def dbeta_ds(self, s: torch.Tensor) -> torch.Tensor:
-        sigma, slope = self.sigma(s)
-        return 2.0 * self.span * sigma * slope
 
     def s_of_beta(self, beta_m: torch.Tensor) -> torch.Tensor:
         sigma = torch.sqrt(torch.clamp((beta_m - self.beta_min_m) / self.span, 0.0, 1.0))
@@ -505,10 +501,6 @@ class RingProfile:
     def beta(self, s: torch.Tensor) -> torch.Tensor:
         """Impact altitude [m] at the table coordinate ``s``."""
         return self.grid.beta(s)
-
-    def dbeta_ds(self, s: torch.Tensor) -> torch.Tensor:
-        """Return derivative of :meth:`beta` [m] (one-sided at the kink nodes)."""
-        return self.grid.dbeta_ds(s)
 
     def s_of_beta(self, beta_m):
         """Table coordinate of the impact altitude ``beta_m`` [m] (float or Tensor)."""
@@ -820,6 +812,8 @@ def _breakpoints(profile: RingProfile, tables, centre, separation, sun_radius, s
     result = centre.new_ones((n, int(count.max())))
     result[point, slot] = s
     return result
+
+
 def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coefficients,
                 n_ring: int, n_arc: int, radius: float, n_split: int = 1) -> torch.Tensor:
     """Ring integral for 1-D tensors of points -> (n_point, n_batch, n_wl), unnormalised.
