@@ -63,7 +63,7 @@ from skytorch.constants import MOON_RADIUS_M, SUN_RADIUS_M
 
 __all__ = ["BAUMBACH_COEFFICIENTS", "CORONA_FLUX_FRACTION", "baumbach_corona",
            "eclipsed_second_order", "eclipsed_single_scattering", "penumbra_touches",
-           "sight_radius_m", "visible_fraction_at"]
+           "sight_radius_m", "sun_direction", "visible_fraction_at"]
 
 #: Baumbach (1937) white-light corona: :math:`I/\bar I_\odot = 10^{-6}\sum a_k\rho^{-n_k}`
 #: as (a_k, n_k), ρ in solar radii from the Sun's centre (Allen 1973, §81)
@@ -232,8 +232,12 @@ def baumbach_corona(rho, level: float = 1.0) -> torch.Tensor:
     return 1e-6 * level * total
 
 
-def _sun_direction(geometry, dtype) -> tuple[torch.Tensor, torch.Tensor]:
-    """Zenith angle and azimuth [rad] of the Sun's vector of ``geometry`` (0-d tensors)."""
+def sun_direction(geometry, dtype=torch.float64) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return the zenith angle and azimuth [rad] of the Sun's vector of ``geometry``.
+
+    From ``geometry.sun_horizontal_m`` (north, east, up), as 0-d tensors of ``dtype``;
+    the azimuth from north through east.
+    """
     north, east, up = geometry.sun_horizontal_m
     return (torch.tensor(math.atan2(math.hypot(north, east), up), dtype=dtype),
             torch.tensor(math.atan2(east, north), dtype=dtype))
@@ -299,7 +303,7 @@ def _eclipse_inputs(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad
     view_azimuth = as_tensor("view_azimuth_rad", view_azimuth_rad).to(torch.float64)
     constituents = atmosphere.constituents(wavelength)
     dtype = constituents.dtype
-    sun_zenith, sun_azimuth = _sun_direction(geometry, dtype)
+    sun_zenith, sun_azimuth = sun_direction(geometry, dtype)
 
     def visible(points):
         return visible_fraction_at(geometry, points, n_nodes=n_nodes)
