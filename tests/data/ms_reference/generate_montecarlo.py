@@ -93,14 +93,14 @@ class Optics:
     top_m: float
 
 
-def skytorch_atmosphere(aod: float) -> st.Atmosphere:
-    """Return the atmosphere of the references: U.S. 1976, no ozone, no water."""
+def skytorch_atmosphere(aod: float, ozone_du: float = 0.0) -> st.Atmosphere:
+    """Return the atmosphere of the references: U.S. 1976, no water (no ozone by default)."""
     options = dict(AEROSOL, aerosol_optical_depth=aod)
-    return st.Atmosphere.earth(ozone_du=0.0, precipitable_water_cm=0.0,
+    return st.Atmosphere.earth(ozone_du=ozone_du, precipitable_water_cm=0.0,
                                aerosol_phase_model="henyeygreenstein1941", **options)
 
 
-def optics(aod: float, wavelength_nm: float) -> Optics:
+def optics(aod: float, wavelength_nm: float, ozone_du: float = 0.0) -> Optics:
     """Optics of ``generate_sasktran2.manual_constituents`` at one wavelength.
 
     Parameters
@@ -109,13 +109,15 @@ def optics(aod: float, wavelength_nm: float) -> Optics:
         Aerosol optical depth at 550 nm [1].
     wavelength_nm : float
         Wavelength [nm].
+    ozone_du : float
+        Ozone column [DU] (0 for ``montecarlo_sky.nc``); ozone is part of the pure absorber.
 
     Returns
     -------
     Optics
         Coefficients on ``ALTITUDE_M``.
     """
-    atm = skytorch_atmosphere(aod)
+    atm = skytorch_atmosphere(aod, ozone_du)
     altitude = torch.tensor(ALTITUDE_M, dtype=torch.float64)
     wavelength = torch.tensor([wavelength_nm], dtype=torch.float64)
     scattering = atm.scattering_coefficients(altitude, wavelength)
@@ -382,8 +384,13 @@ def sun_directions(view_zenith_deg: float, relative_azimuth_deg, sun_zenith_deg)
     return np.stack([np.sin(sz) * np.cos(az), np.sin(sz) * np.sin(az), np.cos(sz)], axis=-1)
 
 
-def _nee(opt, table, x, d, w, suns):
-    """Next-event estimates towards each Sun (ray, sun) [sr^-1 per unit weight]."""
+def _nee(opt, table, x, d, w, suns, sun_weight=None):
+    """Next-event estimates towards each Sun (ray, sun) [sr^-1 per unit weight].
+
+    ``sun_weight``, when given, maps the points ``x`` (ray, 3) [m, from the planet's
+    centre] to a factor (ray, sun) on the Sun's light there (the part of the disc a Moon
+    leaves visible during a solar eclipse).
+    """
     r = np.linalg.norm(x, axis=1)
     h = r - opt.planet_radius_m
     ray, aer, _ = coefficients(opt, h)
@@ -393,10 +400,11 @@ def _nee(opt, table, x, d, w, suns):
     tau = table(np.broadcast_to(h[:, None], mu_s.shape).ravel(), mu_s.ravel())
     phase = (ray[:, None] * rayleigh_phase(cos_theta)
              + aer[:, None] * hg_phase(cos_theta, opt.asymmetry)) / sca[:, None]
-    return w[:, None] * phase * np.exp(-tau).reshape(mu_s.shape)
+    estimate = w[:, None] * phase * np.exp(-tau).reshape(mu_s.shape)
+    return estimate if sun_weight is None else estimate * sun_weight(x)
 
 
-def _los_density(opt, table, d0, suns, n_sub=8, mixture=0.5):
+def _los_density(opt, table, d0, suns, n_sub=8, mixture=0.5, sun_weight=None):
     """Piecewise-constant density of the first event on the line of sight."""
     h0 = np.array([OBSERVER_ALTITUDE_M])
     mu0 = np.array([d0[2]])
@@ -413,7 +421,7 @@ def _los_density(opt, table, d0, suns, n_sub=8, mixture=0.5):
     ray, aer, _ = coefficients(opt, np.linalg.norm(x, axis=1) - opt.planet_radius_m)
     f1 = (ray + aer) * np.exp(-tau)
     prob = f1 * width / np.sum(f1 * width)
-    f2 = _nee(opt, table, x, np.broadcast_to(d0, x.shape), f1, suns)
+    f2 = _nee(opt, table, x, np.broadcast_to(d0, x.shape), f1, suns, sun_weight)
     norm2 = np.sum(f2 * width[:, None], axis=0)
     lit = norm2 > 0.0
     if lit.any():
@@ -422,8 +430,8 @@ def _los_density(opt, table, d0, suns, n_sub=8, mixture=0.5):
     return nodes, prob / prob.sum()
 
 
-def _first_events(opt, table, d0, suns, n, rng):
-    nodes, prob = _los_density(opt, table, d0, suns)
+def _first_events(opt, table, d0, suns, n, rng, sun_weight=None):
+    nodes, prob = _los_density(opt, table, d0, suns, sun_weight=sun_weight)
     cell = np.minimum(np.searchsorted(np.cumsum(prob), rng.random(n)), len(prob) - 1)
     s = nodes[cell] + rng.random(n) * (nodes[cell + 1] - nodes[cell])
     density = prob[cell] / (nodes[cell + 1] - nodes[cell])
@@ -445,7 +453,7 @@ def _scatter(opt, x, d, rng):
     return _rotate(d, cos_theta, 2.0 * np.pi * rng.random(n))
 
 
-def _next_events(opt, table, x, d, w, suns, n_split, rng):
+def _next_events(opt, table, x, d, w, suns, n_split, rng, sun_weight=None):
     """Scatter, score the next order at ``n_split`` stratified events, continue from one."""
     n = len(w)
     d = _scatter(opt, x, d, rng)
@@ -456,14 +464,14 @@ def _next_events(opt, table, x, d, w, suns, n_split, rng):
     xs = (x[:, None, :] + s[..., None] * d[:, None, :]).reshape(-1, 3)
     ray, aer, ext = coefficients(opt, np.linalg.norm(xs, axis=1) - opt.planet_radius_m)
     ws = np.repeat(w * interaction, n_split) * (ray + aer) / ext
-    c = _nee(opt, table, xs, np.repeat(d, n_split, axis=0), ws, suns)
+    c = _nee(opt, table, xs, np.repeat(d, n_split, axis=0), ws, suns, sun_weight)
     c = c.reshape(n, n_split, -1).mean(axis=1)
     pick = np.arange(n) * n_split + rng.integers(0, n_split, n)
     return xs[pick], d, ws[pick], c
 
 
 def trace(opt: Optics, table: SunTable, d0, suns, n_photons: int, rng, batch: int = 2000,
-          n_split: int = 8):
+          n_split: int = 8, sun_weight=None):
     """Backward Monte-Carlo histories from the observer along ``d0``.
 
     Parameters
@@ -484,6 +492,9 @@ def trace(opt: Optics, table: SunTable, d0, suns, n_photons: int, rng, batch: in
         Histories traced together.
     n_split : int
         Stratified next events scored per scattering (one of them is continued).
+    sun_weight : callable, optional
+        Factor (ray, sun) on the Sun's light at points (ray, 3) [m, from the planet's
+        centre]; see ``_nee``.
 
     Returns
     -------
@@ -499,16 +510,16 @@ def trace(opt: Optics, table: SunTable, d0, suns, n_photons: int, rng, batch: in
     while done < n_photons:
         n = min(batch, n_photons - done)
         tally = np.zeros((n, k, 3))
-        x, w = _first_events(opt, table, d0, suns, n, rng)
+        x, w = _first_events(opt, table, d0, suns, n, rng, sun_weight)
         d = np.broadcast_to(d0, x.shape).copy()
         alive = np.arange(n)
-        c = _nee(opt, table, x, d, w, suns)
+        c = _nee(opt, table, x, d, w, suns, sun_weight)
         for order in range(1, MAX_ORDER + 1):
             tally[alive, :, min(order, 3) - 1] += c
             out["order"][:, order - 1] += c.sum(axis=0)
             if order == MAX_ORDER:
                 break
-            x, d, w, c = _next_events(opt, table, x, d, w, suns, n_split, rng)
+            x, d, w, c = _next_events(opt, table, x, d, w, suns, n_split, rng, sun_weight)
             if order >= ROULETTE_ORDER:
                 keep = rng.random(len(w)) < 0.5
                 w, c = 2.0 * w[keep], 2.0 * c[keep]
