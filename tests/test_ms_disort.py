@@ -1,0 +1,216 @@
+"""Sky radiance against DISORT in the plane-parallel limit (issue 14).
+
+The reference ``tests/data/ms_reference/disort_sky.nc`` was written by
+``tests/data/ms_reference/generate_disort.py`` with DisORT++ (``disortpp``, a C++
+implementation of DISORT) in its own environment, from skytorch's layer optics (U.S. 1976
+molecules, Henyey-Greenstein aerosol g = 0.7, single-scattering albedo 0.95, aerosol
+optical depth 0, 0.05, 0.3 and 1 at 550 nm; no ozone, no water; black ground), so these
+tests check the radiative transfer, not the optics. DISORT is plane-parallel and
+skytorch spherical: at the Sun zeniths of the table (30 and 60 deg) and views up to 60 deg
+from the vertical the difference is that of single scattering along curved and flat
+paths, measured below (<= 0.3 %). Radiance per unit solar irradiance normal to the beam
+[sr^-1], ground observer looking up and observer at the top (100 km) looking down.
+"""
+from __future__ import annotations
+
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import xarray as xr
+
+import skytorch as st
+
+DATA = Path(__file__).parent / "data" / "ms_reference"
+TABLE = DATA / "disort_sky.nc"
+HAS_SOLVER = importlib.util.find_spec("skytorch.atmosphere.multiple_scattering") is not None
+PERCENT = 0.01
+#: views compared: up to 60 deg from the vertical (ground) and from the nadir (top)
+VIEW_ZENITH_DEG = [0.0, 30.0, 60.0]
+NADIR_DEG = [0.0, 30.0, 60.0]
+#: molecular scale height and Earth radius of the curvature bound [m]
+SCALE_HEIGHT_M, EARTH_RADIUS_M = 8000.0, 6.371e6
+
+
+@pytest.fixture(scope="module")
+def reference() -> xr.Dataset:
+    with xr.open_dataset(TABLE) as ds:
+        return ds.load()
+
+
+def _atmosphere(aod) -> st.Atmosphere:
+    """Return the atmosphere of the reference (``generate_disort.layers``), batched over AOD."""
+    return st.Atmosphere.earth(ozone_du=0.0, precipitable_water_cm=0.0,
+                               aerosol_phase_model="henyeygreenstein1941",
+                               aerosol_optical_depth=aod, angstrom_alpha=1.3,
+                               aerosol_asymmetry=0.7, aerosol_single_scattering_albedo=0.95)
+
+
+def _plane_parallel_single_scattering(ds: xr.Dataset, sun_zenith_deg: float,
+                                      view_zenith_deg: float, azimuth_deg: float):
+    r"""Closed-form single scattering at the ground of a stack of homogeneous flat layers.
+
+    Per layer of extinction :math:`\Delta\tau` from optical depth :math:`t_1` (top) to
+    :math:`t_2`, source :math:`J = (\tau_R P_R + \tau_a P_{HG}) / (4\pi\Delta\tau)` and
+    :math:`L = \sum J\,e^{-T/\mu}\,(e^{-a t_1} - e^{-a t_2}) / (a\mu)` with
+    :math:`a = 1/\mu_0 - 1/\mu`; shape (aod, wavelength).
+    """
+    tau = ds.extinction_optical_depth.values[:, ::-1]          # (aod, layer top first, λ)
+    rayleigh = ds.rayleigh_optical_depth.values[:, ::-1]
+    aerosol = ds.aerosol_scattering_optical_depth.values[:, ::-1]
+    mu0 = math.cos(math.radians(sun_zenith_deg))
+    mu = math.cos(math.radians(view_zenith_deg))
+    sun = np.array([math.sin(math.radians(sun_zenith_deg)), 0.0, mu0])
+    view = np.array([math.sin(math.radians(view_zenith_deg)) * math.cos(math.radians(azimuth_deg)),
+                     math.sin(math.radians(view_zenith_deg)) * math.sin(math.radians(azimuth_deg)),
+                     mu])
+    cosine = float(sun @ view)
+    g = 0.7
+    phase_r = 0.75 * (1.0 + cosine ** 2)
+    phase_a = (1.0 - g * g) / (1.0 + g * g - 2.0 * g * cosine) ** 1.5
+    top = np.cumsum(tau, axis=1) - tau
+    total = tau.sum(axis=1, keepdims=True)
+    source = (rayleigh * phase_r + aerosol * phase_a) / (4.0 * math.pi * tau)
+    a = 1.0 / mu0 - 1.0 / mu
+    if abs(a) < 1e-12:
+        path = tau * np.exp(-total / mu)
+    else:
+        path = np.exp(-total / mu) * (np.exp(-a * top) - np.exp(-a * (top + tau))) / a
+    return (source * path).sum(axis=1) / mu
+
+
+def test_reference_is_converged(reference):
+    """DISORT with 32 and 64 streams agree to 0.1 %; halving every layer changes 0.01 %."""
+    for where in ("sky", "top"):
+        streams = reference[f"{where}_streams_32"] / reference[f"{where}_streams_64"] - 1
+        layers = reference[f"{where}_split_layers"] / reference[f"{where}_streams_32"] - 1
+        assert float(abs(streams).max()) < 0.1 * PERCENT
+        assert float(abs(layers).max()) < 0.01 * PERCENT
+    flux = reference.diffuse_down_streams_32 / reference.diffuse_down_streams_64 - 1
+    assert float(abs(flux).max()) < 0.1 * PERCENT
+
+
+@pytest.mark.parametrize("sun_zenith_deg", [30.0, 60.0])
+def test_direct_single_scattering_is_the_plane_parallel_limit(reference, sun_zenith_deg):
+    r"""Spherical single scattering of skytorch against the closed form on DISORT's layers.
+
+    Checks that the shipped layers are skytorch's atmosphere and that the azimuths are read
+    alike (the aureole at azimuth 0). Tolerance: 0.1 % plus the curvature of the slant
+    paths, :math:`(H/R)(\tan^2\theta_0 + \tan^2\theta)` with H = 8 km, R = 6371 km
+    (0.4 % of the slant optical depth at 60 deg); measured 0.08-0.54 % (0.3 % at the zenith
+    with the Sun at 60 deg; 1.3 % at 75 deg, not compared).
+    """
+    from skytorch.atmosphere.scattering import constituent_radiance
+
+    wavelength = torch.tensor(reference.wavelength.values, dtype=torch.float64)
+    atm = _atmosphere(torch.tensor(reference.aod.values, dtype=torch.float64))
+    one = torch.tensor(1.0, dtype=torch.float64)
+    sun = torch.tensor(math.radians(sun_zenith_deg), dtype=torch.float64)
+    for view_zenith in VIEW_ZENITH_DEG:
+        for azimuth in reference.relative_azimuth.values:
+            ours = constituent_radiance(
+                atm.constituents(wavelength), torch.tensor(math.radians(view_zenith)),
+                torch.tensor(math.radians(azimuth)), sun, 0.0 * one, one, n_samples=512)
+            flat = _plane_parallel_single_scattering(reference, sun_zenith_deg, view_zenith,
+                                                     azimuth)
+            curvature = SCALE_HEIGHT_M / EARTH_RADIUS_M * (
+                math.tan(math.radians(sun_zenith_deg)) ** 2
+                + math.tan(math.radians(view_zenith)) ** 2)
+            np.testing.assert_allclose(ours.numpy(), flat, rtol=0.1 * PERCENT + curvature)
+
+
+def _solver_radiance(reference: xr.Dataset, resolution=None, direct_single=False):
+    """Return the converged tables on the reference's grid: {"sky", "top"} DataArrays.
+
+    ``direct_single`` replaces the tables' order 1 with the ray-marched single scattering,
+    as scenes do. Dims (aod, sun_zenith, wavelength, view_zenith | nadir, relative_azimuth).
+    """
+    from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
+    from skytorch.atmosphere.scattering import constituent_radiance
+
+    aod = torch.tensor(reference.aod.values, dtype=torch.float64)
+    wavelength = torch.tensor(reference.wavelength.values, dtype=torch.float64)
+    atm = _atmosphere(aod)
+    tables = precompute_scattering(atm, wavelength, ground_albedo=0.0,
+                                   scattering_orders="converged",
+                                   resolution=resolution or TableResolution())
+    azimuth = torch.deg2rad(torch.tensor(reference.relative_azimuth.values,
+                                         dtype=torch.float64))[None, :, None]
+    one = torch.tensor(1.0, dtype=torch.float64)
+    out = {}
+    for where, name, zenith_deg, altitude in (
+            ("sky", "view_zenith", np.array(VIEW_ZENITH_DEG), 0.0),
+            ("top", "nadir", 180.0 - np.array(NADIR_DEG), tables.top_altitude_m)):
+        zenith = torch.deg2rad(torch.tensor(zenith_deg, dtype=torch.float64))[:, None, None]
+        values = []
+        for sun_zenith_deg in reference.sun_zenith.values:
+            sun = torch.tensor(math.radians(sun_zenith_deg), dtype=torch.float64)
+            height = torch.tensor(altitude, dtype=torch.float64)
+            value = tables.radiance(height, zenith, azimuth, sun)     # (view, az, aod, λ)
+            if direct_single:
+                value = value - tables.radiance(height, zenith, azimuth, sun,
+                                                scattering_orders=1)
+                value = value + constituent_radiance(
+                    atm.constituents(wavelength), zenith, azimuth, sun, 0.0 * one, height,
+                    n_samples=512)
+            values.append(value.detach().permute(2, 3, 0, 1).numpy())
+        coords = {"aod": reference.aod.values, "sun_zenith": reference.sun_zenith.values,
+                  "wavelength": reference.wavelength.values,
+                  name: VIEW_ZENITH_DEG if where == "sky" else NADIR_DEG,
+                  "relative_azimuth": reference.relative_azimuth.values}
+        out[where] = xr.DataArray(np.stack(values, axis=1), coords=coords,
+                                  dims=tuple(coords))
+    return out
+
+
+def solver_errors(reference: xr.Dataset, resolution=None, direct_single=False):
+    """Relative errors against DISORT (64 streams): {"sky", "top"} DataArrays."""
+    ours = _solver_radiance(reference, resolution, direct_single)
+    return {"sky": ours["sky"] / reference.sky_streams_64.sel(view_zenith=VIEW_ZENITH_DEG) - 1,
+            "top": ours["top"] / reference.top_streams_64.sel(nadir=NADIR_DEG) - 1}
+
+
+#: the coarse tables of the sasktran2 and Monte-Carlo comparisons (seconds to build)
+COARSE = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
+              transmittance_r=32, transmittance_mu=128)
+
+
+def _max_error(errors, **selection) -> float:
+    return max(float(abs(value.sel(**selection)).max()) for value in errors.values())
+
+
+@pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
+def test_molecular_and_thin_aerosol_sky_against_disort(reference):
+    """Coarse tables, molecules alone and aerosol optical depth 0.05, Sun 30 and 60 deg.
+
+    As scenes add them up: the ray-marched single scattering plus the tables' orders >= 2.
+    The sky seen from the ground within 3 % of DISORT at every view (the issue's day-sky
+    tolerance; measured 2.4 %); as regression bounds of the coarse tables, the radiance
+    leaving the top within 6 % (measured 4.7 %, at nadir 60 deg with the Sun at 60 deg)
+    and at nadir within 1.5 % (measured 1.1 %); 400 and 550 nm. Not the issue's 1 % (next
+    test; default tables in docs/multiple_scattering_validation.md).
+    """
+    from skytorch.atmosphere.multiple_scattering import TableResolution
+
+    errors = solver_errors(reference.sel(aod=[0.0, 0.05]), TableResolution(**COARSE),
+                           direct_single=True)
+    assert _max_error({"sky": errors["sky"]}) < 3 * PERCENT, errors["sky"].values
+    assert _max_error({"top": errors["top"]}) < 6 * PERCENT, errors["top"].values
+    assert float(abs(errors["top"].sel(nadir=0.0)).max()) < 1.5 * PERCENT
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
+@pytest.mark.xfail(strict=True, reason="default tables at 550 nm, max over views: aerosol "
+                   "optical depth 0.05 / 0.3 / 1: sky 1.6 / 18 / 44 %, top 4.6 / 4.4 / 11 % "
+                   "(the orders >= 2 of a forward-peaked aerosol, "
+                   "docs/multiple_scattering_validation.md)")
+def test_aerosol_sky_against_disort_within_one_percent():
+    """Issue 14: the plane-parallel sky within 1 % of DISORT for aerosol τ 0.05-1."""
+    with xr.open_dataset(TABLE) as ds:
+        reference = ds.load().sel(aod=[0.05, 0.3, 1.0], wavelength=[550.0])
+    errors = solver_errors(reference)
+    assert _max_error(errors) < 1 * PERCENT
