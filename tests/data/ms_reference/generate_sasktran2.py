@@ -27,9 +27,17 @@ looking down at the listed nadir angles, black ground).
 
 Run: ``OMP_NUM_THREADS=1 .venv/bin/python tests/data/ms_reference/generate_sasktran2.py``
 (about two minutes on one core).
+
+``... generate_sasktran2.py twilight`` writes ``sasktran2_twilight.nc`` instead: spherical
+successive orders with the Sun at 90-102 deg for several ``num_sza`` (the number of
+solar-zenith columns of the multiple-scattering source, spread over the range of solar
+zenith angles met along the lines of sight) at the seven views of the Monte-Carlo table
+``montecarlo_sky.nc``, 400 and 550 nm, plus a sensitivity of the Sun 94 deg Rayleigh row
+to the other successive-orders settings (see README.md; about 25 minutes on one core).
 """
 from __future__ import annotations
 
+import sys
 import time
 from importlib import metadata
 from pathlib import Path
@@ -56,6 +64,27 @@ AEROSOL = {"aerosol_optical_depth": 0.1, "angstrom_alpha": 1.3, "aerosol_asymmet
 N_MOMENTS = 64
 PLANE_PARALLEL_AOD = np.array([0.05, 0.3, 1.0])
 PLANE_PARALLEL_SUN_ZENITH_DEG = np.array([30.0, 60.0])
+TWILIGHT_SUN_ZENITH_DEG = np.array([90.0, 94.0, 98.0, 102.0])
+TWILIGHT_WAVELENGTH_NM = np.array([400.0, 550.0])
+TWILIGHT_NUM_SZA = np.array([1, 8, 16])
+#: (view_zenith, relative_azimuth) [deg] of montecarlo_sky.nc's `view` dimension
+TWILIGHT_VIEWS = ((0.0, 0.0), (60.0, 0.0), (60.0, 90.0), (60.0, 180.0), (85.0, 0.0),
+                  (85.0, 90.0), (85.0, 180.0))
+#: other successive-orders settings tried at Sun 94 deg (Rayleigh, num_sza = 1)
+TWILIGHT_SETTINGS = {
+    "default": ("SuccessiveOrders", {}),
+    "legacy_interpolation": ("SuccessiveOrders",
+                             {"successive_orders_legacy_interpolation": True}),
+    "lebedev_incoming": ("SuccessiveOrders",
+                         {"successive_orders_reduced_horizon_quadrature": False}),
+    "incoming_outgoing_302": ("SuccessiveOrders", {"num_successive_orders_incoming": 302,
+                                                   "num_successive_orders_outgoing": 302}),
+    "picard_50_iterations": ("SuccessiveOrders",
+                             {"successive_orders_anderson_depth": 0,
+                              "successive_orders_relative_tolerance": 0.0,
+                              "successive_orders_absolute_tolerance": 0.0}),
+    "legacy_source": ("SuccessiveOrdersLegacy", {}),
+}
 
 
 def skytorch_atmosphere(aod: float) -> st.Atmosphere:
@@ -65,10 +94,10 @@ def skytorch_atmosphere(aod: float) -> st.Atmosphere:
                                aerosol_phase_model="henyeygreenstein1941", **options)
 
 
-def manual_constituents(atm: st.Atmosphere) -> dict:
+def manual_constituents(atm: st.Atmosphere, wavelength_nm=WAVELENGTH_NM) -> dict:
     """Hand skytorch's optics on the sasktran2 grid over as Manual constituents."""
     altitude = torch.tensor(ALTITUDE_M, dtype=torch.float64)
-    wavelength = torch.tensor(WAVELENGTH_NM, dtype=torch.float64)
+    wavelength = torch.tensor(np.asarray(wavelength_nm, dtype=float), dtype=torch.float64)
     scattering = atm.scattering_coefficients(altitude, wavelength)
     extinction = atm.extinction_coefficient(altitude, wavelength).numpy()
     rayleigh = scattering["rayleigh"].numpy()
@@ -92,16 +121,28 @@ def manual_constituents(atm: st.Atmosphere) -> dict:
 
 
 def run(constituents: dict, sun_zenith_deg: float, source, *, plane_parallel=False,
-        state=None) -> np.ndarray:
-    """Radiance (wavelength, view_zenith, relative_azimuth) per unit solar irradiance."""
+        state=None, num_sza=1, wavelength_nm=WAVELENGTH_NM, views=None,
+        config_options=None) -> np.ndarray:
+    """Radiance (wavelength, view_zenith, relative_azimuth) per unit solar irradiance.
+
+    ``views``: optional list of (view_zenith, relative_azimuth) pairs [deg]; the result
+    is then (wavelength, view). ``num_sza``: sasktran2's number of solar-zenith
+    discretisations of the multiple-scattering source (1: the reference point only).
+    ``wavelength_nm`` must be the wavelengths the constituents were built for.
+    ``config_options``: further ``sasktran2.Config`` attributes to set (name: value).
+    """
+    wavelength_nm = np.asarray(wavelength_nm, dtype=float)
     config = sk.Config()
     config.num_stokes = 1
     config.num_threads = 1
+    config.num_sza = num_sza
     config.multiple_scatter_source = source
     config.num_streams = 16
     config.num_singlescatter_moments = N_MOMENTS
     if source == sk.MultipleScatterSource.SuccessiveOrders:
         config.num_successive_orders_iterations = 50
+    for name, value in (config_options or {}).items():
+        setattr(config, name, value)
     cos_sza = float(np.cos(np.deg2rad(sun_zenith_deg)))
     geometry = sk.Geometry1D(
         cos_sza=cos_sza, solar_azimuth=0.0, earth_radius_m=st.Atmosphere.earth().planet_radius_m,
@@ -109,13 +150,14 @@ def run(constituents: dict, sun_zenith_deg: float, source, *, plane_parallel=Fal
         geometry_type=(sk.GeometryType.PlaneParallel if plane_parallel
                        else sk.GeometryType.Spherical))
     viewing = sk.ViewingGeometry()
-    for vz in VIEW_ZENITH_DEG:
-        for az in RELATIVE_AZIMUTH_DEG:
-            cos_view = float(np.cos(np.deg2rad(vz)))
-            viewing.add_ray(sk.SolarAnglesObserverLocation(
-                cos_sza, float(np.deg2rad(az)), -cos_view if plane_parallel else cos_view,
-                TOA_OBSERVER_ALTITUDE_M if plane_parallel else OBSERVER_ALTITUDE_M))
-    atmo = sk.Atmosphere(geometry, config, wavelengths_nm=WAVELENGTH_NM)
+    pairs = (views if views is not None
+             else [(vz, az) for vz in VIEW_ZENITH_DEG for az in RELATIVE_AZIMUTH_DEG])
+    for vz, az in pairs:
+        cos_view = float(np.cos(np.deg2rad(vz)))
+        viewing.add_ray(sk.SolarAnglesObserverLocation(
+            cos_sza, float(np.deg2rad(az)), -cos_view if plane_parallel else cos_view,
+            TOA_OBSERVER_ALTITUDE_M if plane_parallel else OBSERVER_ALTITUDE_M))
+    atmo = sk.Atmosphere(geometry, config, wavelengths_nm=wavelength_nm)
     if state is not None:
         atmo.pressure_pa, atmo.temperature_k = state
     atmo.surface.albedo[:] = 0.0
@@ -123,7 +165,9 @@ def run(constituents: dict, sun_zenith_deg: float, source, *, plane_parallel=Fal
         atmo[name] = constituent
     radiance = sk.Engine(config, geometry, viewing).calculate_radiance(atmo)
     values = radiance["radiance"].values[:, :, 0]
-    return values.reshape(len(WAVELENGTH_NM), len(VIEW_ZENITH_DEG),
+    if views is not None:
+        return values.reshape(len(wavelength_nm), len(pairs))
+    return values.reshape(len(wavelength_nm), len(VIEW_ZENITH_DEG),
                           len(RELATIVE_AZIMUTH_DEG))
 
 
@@ -207,5 +251,91 @@ def main() -> None:
     print(f"wrote sasktran2_sky.nc in {time.perf_counter() - start:.0f} s")
 
 
+def twilight() -> None:
+    """Write sasktran2_twilight.nc: successive orders vs num_sza below the horizon."""
+    start = time.perf_counter()
+    cases = {"rayleigh": 0.0, "rayleigh_aerosol": float(AEROSOL["aerosol_optical_depth"])}
+    wavelength = TWILIGHT_WAVELENGTH_NM
+    shape = (len(cases), len(TWILIGHT_SUN_ZENITH_DEG), len(wavelength), len(TWILIGHT_VIEWS))
+    multiple = np.full((len(TWILIGHT_NUM_SZA), *shape), np.nan)
+    single = np.full(shape, np.nan)
+    seconds = np.full(multiple.shape[:3], np.nan)
+    settings = np.full((len(TWILIGHT_SETTINGS), len(wavelength), len(TWILIGHT_VIEWS)), np.nan)
+    settings_seconds = np.full(len(TWILIGHT_SETTINGS), np.nan)
+    so = sk.MultipleScatterSource.SuccessiveOrders
+    for i, aod in enumerate(cases.values()):
+        constituents = manual_constituents(skytorch_atmosphere(aod), wavelength)
+        if aod == 0.0:
+            for k, (source, options) in enumerate(TWILIGHT_SETTINGS.values()):
+                tick = time.perf_counter()
+                settings[k] = run(constituents, 94.0, getattr(sk.MultipleScatterSource, source),
+                                  wavelength_nm=wavelength, views=TWILIGHT_VIEWS,
+                                  config_options=options)
+                settings_seconds[k] = time.perf_counter() - tick
+        for j, sza in enumerate(TWILIGHT_SUN_ZENITH_DEG):
+            single[i, j] = run(constituents, sza, sk.MultipleScatterSource.NoSource,
+                               wavelength_nm=wavelength, views=TWILIGHT_VIEWS)
+            for n, num_sza in enumerate(TWILIGHT_NUM_SZA):
+                tick = time.perf_counter()
+                multiple[n, i, j] = run(constituents, sza, so, num_sza=int(num_sza),
+                                        wavelength_nm=wavelength, views=TWILIGHT_VIEWS)
+                seconds[n, i, j] = time.perf_counter() - tick
+                print(f"{list(cases)[i]} Sun {sza:g} num_sza {num_sza}: "
+                      f"{seconds[n, i, j]:.0f} s", flush=True)
+    dims = ("case", "sun_zenith", "wavelength", "view")
+    long_name = ("radiance per unit TOA solar irradiance normal to the beam (sasktran2, "
+                 "scalar, ground observer 1 m up)")
+    ds = xr.Dataset(
+        {"successive_orders": (("num_sza", *dims), multiple, {
+            "units": "sr-1", "long_name": f"successive-orders {long_name}",
+            "description": "spherical successive orders (MultipleScatterSource."
+                           "SuccessiveOrders, 50 iterations at most), the multiple-scattering "
+                           "source on num_sza solar-zenith columns spaced linearly in "
+                           "cos(solar zenith) over the range met along the lines of sight "
+                           "(num_sza = 1: the observer's solar zenith everywhere)"}),
+         "single_scattering": (dims, single, {
+             "units": "sr-1", "long_name": f"single-scattering {long_name}",
+             "description": "MultipleScatterSource.NoSource"}),
+         "wall_time": (("num_sza", "case", "sun_zenith"), seconds, {
+             "units": "s", "long_name": "wall time of one successive-orders run",
+             "description": "2 wavelengths, 7 lines of sight, one thread"}),
+         "settings_sensitivity": (("setting", "wavelength", "view"), settings, {
+             "units": "sr-1", "long_name": f"successive-orders {long_name}",
+             "description": "case rayleigh, Sun zenith 94 deg, num_sza = 1, one "
+                            "successive-orders setting changed per row (see the global "
+                            "attribute settings_sensitivity)"}),
+         "settings_wall_time": (("setting",), settings_seconds, {
+             "units": "s", "long_name": "wall time of one settings_sensitivity run"})},
+        coords={"num_sza": TWILIGHT_NUM_SZA, "case": list(cases),
+                "aerosol_optical_depth": ("case", list(cases.values())),
+                "sun_zenith": ("sun_zenith", TWILIGHT_SUN_ZENITH_DEG, {"units": "degree"}),
+                "wavelength": ("wavelength", wavelength, {"units": "nm"}),
+                "view": np.arange(len(TWILIGHT_VIEWS)),
+                "view_zenith": ("view", [v[0] for v in TWILIGHT_VIEWS], {"units": "degree"}),
+                "relative_azimuth": ("view", [v[1] for v in TWILIGHT_VIEWS], {
+                    "units": "degree", "description": "0: looking toward the Sun's azimuth"}),
+                "setting": list(TWILIGHT_SETTINGS)})
+    ds.attrs.update(
+        title="sasktran2 twilight sky radiance for several solar-zenith source columns",
+        source=f"sasktran2 {metadata.version('sasktran2')}, skytorch {st.__version__} optics",
+        observer_altitude_m=OBSERVER_ALTITUDE_M, ground_albedo=0.0,
+        altitude_grid_m=ALTITUDE_M, n_legendre_moments=N_MOMENTS, num_streams=16,
+        successive_orders_iterations=50, num_successive_orders_incoming=110,
+        num_successive_orders_outgoing=110, successive_orders_relative_tolerance=1e-6,
+        successive_orders_anderson_depth=3, aerosol=repr(AEROSOL), ozone_du=0.0,
+        precipitable_water_cm=0.0, refraction="none", polarisation="none (num_stokes=1)",
+        num_threads=1, views="those of montecarlo_sky.nc",
+        settings_sensitivity=repr(TWILIGHT_SETTINGS),
+        generator="tests/data/ms_reference/generate_sasktran2.py twilight",
+        wall_time_s=round(time.perf_counter() - start, 1))
+    ds.to_netcdf(HERE / "sasktran2_twilight.nc")
+    print(f"wrote sasktran2_twilight.nc in {time.perf_counter() - start:.0f} s")
+
+
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:] == ["twilight"]:
+        twilight()
+    elif sys.argv[1:]:
+        sys.exit(f"usage: {sys.argv[0]} [twilight]")
+    else:
+        main()
