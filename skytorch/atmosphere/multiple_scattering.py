@@ -35,6 +35,13 @@ scalar radiative transfer (no polarisation: up to ~8 % error in Rayleigh skies,
 refs. 3, 4); species with a nonlinear optical-depth law enter the view paths by their
 columns but contribute no local scattering.
 
+Accuracy against DISORT in the plane-parallel limit (docs/multiple_scattering_validation.md;
+default :class:`TableResolution`, Sun 30-60 deg): the sky seen from the ground is within
+1.6 % for molecules and aerosol optical depths up to 0.05 at 550 nm, but a
+forward-peaked aerosol's orders >= 2 are smeared across the table's Sun-zenith and view
+nodes: with an aerosol optical depth of 0.3 (1) the sky 60-90 deg from the Sun comes out
+up to 18 % (44 %) too bright and the aureole up to 9 % too dark.
+
 References
 ----------
 1. Bruneton, E. & Neyret, F. 2008, "Precomputed Atmospheric Scattering", Computer
