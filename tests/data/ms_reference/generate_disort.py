@@ -63,6 +63,8 @@ LEVELS_M = np.concatenate([np.arange(0.0, 2000.0, 100.0), np.arange(2000.0, 1000
 N_GAUSS = 8
 N_MOMENTS = 128
 STREAMS = (32, 64)
+#: Lambertian ground albedo of the ``ground_albedo`` run (32 streams; the others: black)
+GROUND_ALBEDO = 0.3
 
 
 def layers() -> xr.Dataset:
@@ -114,7 +116,8 @@ def layers() -> xr.Dataset:
     return ds
 
 
-def _disort(tau, ssa, moments, mu0: float, n_streams: int, mu_user, tau_user):
+def _disort(tau, ssa, moments, mu0: float, n_streams: int, mu_user, tau_user,
+            albedo: float = 0.0):
     """One DISORT run: intensities (tau_user, mu_user, phi) and fluxes at tau_user."""
     import disortpp
 
@@ -137,7 +140,7 @@ def _disort(tau, ssa, moments, mu0: float, n_streams: int, mu_user, tau_user):
     config.bc.direct_beam_flux = 1.0
     config.bc.direct_beam_mu = mu0
     config.bc.direct_beam_phi = 0.0
-    config.bc.surface_albedo = 0.0
+    config.bc.surface_albedo = albedo
     result = disortpp.DisortSolver().solve(config)
     intensity = np.array([[[result.intensities(iu, lu, j)
                             for j in range(len(RELATIVE_AZIMUTH_DEG))]
@@ -170,26 +173,30 @@ def solve(ds: xr.Dataset) -> xr.Dataset:
     mu_user = np.concatenate([mu_down, mu_up])
     order = np.argsort(mu_user)
     n_aod, n_wl, n_sun = len(AEROSOL_OPTICAL_DEPTH), len(WAVELENGTH_NM), len(SUN_ZENITH_DEG)
-    runs = {f"streams_{n}": n for n in STREAMS} | {"split_layers": STREAMS[0]}
+    # name: (streams, layers split in two, ground albedo)
+    runs = ({f"streams_{n}": (n, False, 0.0) for n in STREAMS}
+            | {"split_layers": (STREAMS[0], True, 0.0),
+               "ground_albedo": (STREAMS[0], False, GROUND_ALBEDO)})
     sky = {k: np.zeros((n_aod, n_sun, n_wl, len(VIEW_ZENITH_DEG), 3)) for k in runs}
     top = {k: np.zeros((n_aod, n_sun, n_wl, len(NADIR_DEG), 3)) for k in runs}
     diffuse = {k: np.zeros((n_aod, n_sun, n_wl)) for k in runs}
     direct = np.zeros((n_aod, n_sun, n_wl))
-    for name, n_streams in runs.items():
+    for name, (n_streams, split, albedo) in runs.items():
         for i in range(n_aod):
             for k in range(n_wl):
-                tau, ssa, moments = _mixture(ds.isel(aod=i, wavelength=k),
-                                             split=name == "split_layers")
+                tau, ssa, moments = _mixture(ds.isel(aod=i, wavelength=k), split=split)
                 for j, sza in enumerate(SUN_ZENITH_DEG):
                     mu0 = float(np.cos(np.deg2rad(sza)))
                     intensity, flux_down, flux_direct = _disort(
-                        tau, ssa, moments, mu0, n_streams, mu_user[order], [0.0, tau.sum()])
+                        tau, ssa, moments, mu0, n_streams, mu_user[order], [0.0, tau.sum()],
+                        albedo)
                     back = np.empty_like(intensity)
                     back[:, order] = intensity
                     sky[name][i, j, k] = back[1, :len(VIEW_ZENITH_DEG)]
                     top[name][i, j, k] = back[0, len(VIEW_ZENITH_DEG):]
                     diffuse[name][i, j, k] = flux_down[1]
-                    direct[i, j, k] = flux_direct[1]
+                    if name == "streams_64":
+                        direct[i, j, k] = flux_direct[1]
     dims = ("aod", "sun_zenith", "wavelength")
     out = ds.assign_coords(sun_zenith=SUN_ZENITH_DEG, view_zenith=VIEW_ZENITH_DEG,
                            nadir=NADIR_DEG, relative_azimuth=RELATIVE_AZIMUTH_DEG)
@@ -198,6 +205,11 @@ def solve(ds: xr.Dataset) -> xr.Dataset:
         out[f"top_{name}"] = (dims + ("nadir", "relative_azimuth"), top[name])
         out[f"diffuse_down_{name}"] = (dims, diffuse[name])
     out["direct_down"] = (dims, direct)
+    return _annotate(out)
+
+
+def _annotate(out: xr.Dataset) -> xr.Dataset:
+    """Units, names and provenance of the variables of :func:`solve`."""
     for var in out.data_vars:
         if var.startswith(("sky_", "top_")):
             out[var].attrs.update(units="sr-1", long_name="radiance per unit solar "
@@ -209,10 +221,14 @@ def solve(ds: xr.Dataset) -> xr.Dataset:
     for name in ("sun_zenith", "view_zenith", "nadir", "relative_azimuth"):
         out[name].attrs["units"] = "degree"
     out["relative_azimuth"].attrs["description"] = "0: looking toward the Sun's azimuth"
+    for where in ("sky", "top", "diffuse_down"):
+        out[f"{where}_ground_albedo"].attrs["description"] = (
+            f"Lambertian ground of albedo {GROUND_ALBEDO}, 32 streams (the other variables: "
+            "black ground)")
     out.attrs.update(source=f"disortpp {metadata.version('disortpp')} (DisORT++)",
                      n_legendre_moments=N_MOMENTS, delta_m="on",
                      intensity_correction="Nakajima-Tanaka",
-                     beam="plane-parallel")
+                     beam="plane-parallel", ground_albedo_run=GROUND_ALBEDO)
     return out
 
 
