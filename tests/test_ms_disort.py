@@ -248,6 +248,39 @@ def test_lambertian_ground_against_disort(reference):
     assert float(abs(errors["top"].sel(nadir=0.0)).max()) < 4 * PERCENT
 
 
+@pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
+def test_diffuse_irradiance_against_disort(reference):
+    """The diffuse horizontal irradiance of batched tables against DISORT's diffuse flux.
+
+    Coarse tables batched over the four aerosol optical depths,
+    ``ScatteringTables.diffuse_irradiance`` at the ground, Sun 30 and 60 deg, 400 and
+    550 nm: molecules and τ 0.05 within 3 % (measured 1.9 %), τ 0.3 within 5 % (measured
+    3.4 %); and a member of the batch equals the tables built for it alone.
+    """
+    from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
+
+    wavelength = torch.tensor(reference.wavelength.values, dtype=torch.float64)
+    aod = torch.tensor(reference.aod.values, dtype=torch.float64)
+    resolution = TableResolution(**COARSE)
+    batched = precompute_scattering(_atmosphere(aod), wavelength, resolution=resolution,
+                                    scattering_orders="converged")
+    sun = torch.deg2rad(torch.tensor(reference.sun_zenith.values, dtype=torch.float64))
+    ground = torch.tensor(0.0, dtype=torch.float64)
+    ours = batched.diffuse_irradiance(ground, sun[:, None])              # (sun, aod, λ)
+    assert ours.shape == (2, 4, 2)
+    theirs = reference.diffuse_down_streams_64.transpose("sun_zenith", "aod",
+                                                         "wavelength").values
+    error = np.abs(ours.numpy() / theirs - 1.0)
+    assert error[:, :2].max() < 3 * PERCENT, error
+    assert error[:, 2].max() < 5 * PERCENT, error
+    # the same number of orders ("converged" stops on the whole batch's last order)
+    alone = precompute_scattering(_atmosphere(float(aod[1])), wavelength,
+                                  resolution=resolution,
+                                  scattering_orders=batched.orders_computed)
+    np.testing.assert_allclose(alone.diffuse_irradiance(ground, sun).numpy(),
+                               ours[:, 1].numpy(), rtol=1e-10)
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
 @pytest.mark.xfail(strict=True, reason="default tables, max over views at 400 and 550 nm: aerosol "

@@ -489,7 +489,8 @@ class ScatteringTables:
 
         The radiance integrated over the upper hemisphere (Gauss-Legendre in the zenith
         cosine with ``n_mu`` nodes, trapezoid in azimuth with ``n_phi``); shape
-        (*batch ⊔ ..., wavelength).
+        (*batch ⊔ ..., wavelength) with ``...`` the broadcast shape of ``altitude_m`` and
+        ``sun_zenith_rad``.
         """
         n_mu = check_int("n_mu", n_mu, 1)
         n_phi = check_int("n_phi", n_phi, 2)
@@ -500,10 +501,12 @@ class ScatteringTables:
         mu = torch.tensor(0.5 * (x + 1.0), dtype=dtype)
         weight = torch.tensor(0.5 * w, dtype=dtype) * mu * (2.0 * math.pi / n_phi)
         az = torch.arange(n_phi, dtype=dtype) * (2.0 * math.pi / n_phi)
-        grid = (altitude[..., None, None], torch.acos(mu)[:, None], az[None, :],
-                sun[..., None, None])
+        # the quadrature dims lead: the tables' batch dims broadcast with the trailing ones
+        rest = (1,) * max(altitude.ndim, sun.ndim, len(self.batch_shape))
+        grid = (altitude[None, None], torch.acos(mu).reshape((n_mu, 1) + rest),
+                az.reshape((1, n_phi) + rest), sun[None, None])
         radiance = self.radiance(*grid, scattering_orders=scattering_orders)
-        return (radiance * weight[:, None, None]).sum((-3, -2))
+        return (radiance * weight.reshape((n_mu, 1) + rest + (1,))).sum((0, 1))
 
 
 # ---------------------------------------------------------------- precompute
