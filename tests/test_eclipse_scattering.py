@@ -51,6 +51,7 @@ def _gauss(n, a, b):
 def _optical_depth(start, direction, planet, top, species, n=40):
     """Return sum_s k_s int rho_s along start + t d (t >= 0) to the top.
 
+    ``species``: (extinction coefficient (n_wl,) [1/m], relative density of the altitude).
     Inf where it meets the planet. Gauss nodes on both sides of the periapsis, clustered towards it.
     """
     along = (start * direction).sum(-1)
@@ -65,24 +66,38 @@ def _optical_depth(start, direction, planet, top, species, n=40):
     tau = 0.0
     for t, dt in nodes:
         h = (start[:, None, :] + t[..., None] * direction[:, None, :]).norm(dim=-1) - planet
-        for k, height in species:
-            tau = tau + (torch.exp(-h / height) * dt).sum(-1)[:, None] * k
+        for k, density in species:
+            tau = tau + (density(h) * dt).sum(-1)[:, None] * k
     return torch.where(hits[:, None], torch.full_like(tau, math.inf), tau)
 
 
-def _brute_force(atmosphere, distance_m, separation_rad, rayleigh_height, aerosol_height,
-                 asymmetry=0.8, n_r=40, n_chi=300, n_phi=1, half_width_deg=22.0):
-    """E_sca / E_sun at P = (0, 0, L) for a point Sun at ``separation`` from the centre.
+def _exponential(height):
+    return lambda h: torch.exp(-h / height)
 
-    Int dV sum_i beta_i P_i(Theta) T_sun T_view / |P - S|^2 (exponential species).
-    """
-    planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
+
+def _brute_force(atmosphere, distance_m, separation_rad, rayleigh_height, aerosol_height,
+                 asymmetry=0.8, **kwargs):
+    """E_sca / E_sun for exponential Rayleigh and Henyey-Greenstein aerosol species."""
     zero = torch.zeros(1, dtype=torch.float64)
     scat = atmosphere.scattering_coefficients(zero, WAVELENGTH)
     ext = atmosphere.extinction_coefficient(zero, WAVELENGTH)[0]
     k_r, k_a = scat["rayleigh"][0], scat["aerosol"][0]
-    k_a_ext = ext - k_r  # aerosol extinction (no ozone)
-    species = [(k_r, rayleigh_height), (k_a_ext, aerosol_height)]
+    species = [(k_r, k_r, _exponential(rayleigh_height), rayleigh_phase),
+               (ext - k_r, k_a, _exponential(aerosol_height),  # aerosol extinction (no ozone)
+                lambda cos: henyey_greenstein(cos, asymmetry)[:, None])]
+    return _brute_force_species(atmosphere, distance_m, separation_rad, species, **kwargs)
+
+
+def _brute_force_species(atmosphere, distance_m, separation_rad, species, n_r=40, n_chi=300,
+                         n_phi=1, half_width_deg=22.0):
+    """E_sca / E_sun at P = (0, 0, L) for a point Sun at ``separation`` from the centre.
+
+    Int dV sum_i beta_i P_i(Theta) T_sun T_view / |P - S|^2, with ``species`` a list of
+    (extinction (n_wl,) [1/m], scattering (n_wl,) [1/m], relative density of the altitude,
+    phase function of cos(Theta) -> (n, n_wl) or (n,)).
+    """
+    planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
+    extinction = [(k_ext, density) for k_ext, _, density, _ in species]
     s, ws = _gauss(n_r, 0.0, 1.0)
     r = planet + (top - planet) * s * s
     wr = 2 * (top - planet) * s * ws
@@ -105,13 +120,15 @@ def _brute_force(atmosphere, distance_m, separation_rad, rayleigh_height, aeroso
         to_p = observer - p
         dist = to_p.norm(dim=-1)
         view = to_p / dist[:, None]
-        tau = (_optical_depth(p, sun.expand_as(p), planet, top, species)
-               + _optical_depth(p, view, planet, top, species))
+        tau = (_optical_depth(p, sun.expand_as(p), planet, top, extinction)
+               + _optical_depth(p, view, planet, top, extinction))
         cos_theta = -(view * sun).sum(-1)  # angle between s and the direction P -> S
         h = p.norm(dim=-1) - planet
-        source = (torch.exp(-h / rayleigh_height)[:, None] * k_r * rayleigh_phase(
-            cos_theta)[:, None] + torch.exp(-h / aerosol_height)[:, None] * k_a
-            * henyey_greenstein(cos_theta, asymmetry)[:, None])
+        source = 0.0
+        for _, k_sca, density, phase in species:
+            value = phase(cos_theta)
+            source = source + density(h)[:, None] * k_sca * (
+                value[:, None] if value.ndim == 1 else value)
         total = total + (wgt[:, None] * source * torch.exp(-tau) / dist[:, None] ** 2).sum(0)
     return total
 
@@ -147,6 +164,66 @@ def test_brute_force_volume_integral(case):
                             n_phi=n_phi)
     got = _module(_profile(atm), distance, separation)
     assert torch.allclose(got, expected, rtol=BRUTE_FORCE_TOLERANCE, atol=0.0), (got, expected)
+
+
+@pytest.mark.parametrize("separation", [0.0, 0.6 * EARTH_R / MOON_DISTANCE_M])
+def test_brute_force_stratospheric_layer(separation):
+    """A stratospheric sulfate layer scatters into the umbra with its own phase function.
+
+    Molecules (exponential) plus a Gaussian layer (AOD 0.05 at 550 nm, peak 20 km, width
+    3 km) whose extinction, albedo and Henyey-Greenstein asymmetry per wavelength are the
+    sulfate Mie table's. The layer's column is integrated here by the trapezoid rule. At
+    the Moon the layer adds more light than the molecules give (on the axis 1.6x the
+    molecules alone at 450 nm, 4.8x at 650 nm); a kernel without the layer's scattering
+    misses it by that factor. Measured: 0.05 % at both wavelengths (the brute force with 2x
+    nodes converges to the same value within 0.01 %).
+    """
+    from skytorch.atmosphere.aerosol import sulfate_mie_properties
+
+    aod, centre, width = 0.05, 20e3, 3e3
+    atm = _earth(stratospheric_aerosol_optical_depth=aod,
+                 stratospheric_aerosol_altitude_m=centre, stratospheric_aerosol_width_m=width)
+    zero = torch.zeros(1, dtype=torch.float64)
+    k_r = atm.scattering_coefficients(zero, WAVELENGTH)["rayleigh"][0]
+    relative, albedo, asymmetry = sulfate_mie_properties(WAVELENGTH)
+    (at_550, *_) = sulfate_mie_properties(torch.tensor([550.0], dtype=torch.float64))
+    h = torch.linspace(0.0, atm.top_altitude_m, 200001, dtype=torch.float64)
+
+    def layer(altitude):
+        return torch.exp(-0.5 * ((altitude - centre) / width) ** 2)
+
+    k_layer = aod * relative / at_550 / torch.trapezoid(layer(h), h)
+    species = [(k_r, k_r, _exponential(8000.0), rayleigh_phase),
+               (k_layer, albedo * k_layer, layer,
+                lambda cos: henyey_greenstein(cos[:, None], asymmetry[None, :]))]
+    expected = _brute_force_species(atm, MOON_DISTANCE_M, separation, species, n_r=80,
+                                    n_chi=600, n_phi=1 if separation == 0.0 else 24)
+    got = _module(_profile(atm), MOON_DISTANCE_M, separation)
+    assert torch.allclose(got, expected, rtol=0.5 * PERCENT, atol=0.0), (got, expected)
+    molecules = _module(_profile(_earth()), MOON_DISTANCE_M, separation)
+    assert bool((got > 1.3 * molecules).all()), (got, molecules)
+
+
+@pytest.mark.parametrize("options", [
+    {"aerosol_asymmetry": torch.tensor([0.6, 0.8], dtype=torch.float64),
+     "aerosol_phase_model": "henyeygreenstein1941"},
+    {"aerosol_type": "continental", "aerosol_optical_depth": torch.tensor([0.1, 0.3],
+                                                                          dtype=torch.float64)},
+], ids=["batched_asymmetry", "mie_type"])
+def test_phase_per_member_and_wavelength_equals_member_loop(options):
+    """Phase functions that differ between members or wavelengths follow each member."""
+    batched = {"aerosol_optical_depth": 0.2, **options}
+    atm = _earth(**batched)
+    distance = torch.full((3, 1), MOON_DISTANCE_M, dtype=torch.float64)
+    offset = torch.tensor([0.0, 3e6, 5e6], dtype=torch.float64)[:, None]
+    together = _profile(atm)
+    sigma = offset / MOON_DISTANCE_M
+    got = scattered_illuminance(together, distance, sigma, torch.ones_like(sigma))
+    for member in range(2):
+        single = {k: (v[member].item() if torch.is_tensor(v) else v) for k, v in batched.items()}
+        alone = scattered_illuminance(_profile(_earth(**single)), distance[:, 0], sigma[:, 0],
+                                      torch.ones(3, dtype=torch.float64))
+        assert torch.allclose(got[:, 0, member], alone[:, 0], rtol=1e-10, atol=0.0)
 
 
 def _chord_scattering(beta0, height, planet, top, b):

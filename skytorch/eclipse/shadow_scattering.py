@@ -120,7 +120,6 @@ import math
 import torch
 
 from skytorch._validate import check_int, check_positive
-from skytorch.atmosphere.scattering import phase_function, rayleigh_phase
 from skytorch.eclipse.occlusion import _nodes as _unit_gauss
 
 __all__ = [
@@ -128,6 +127,8 @@ __all__ = [
     "ScatteringProfile",
     "scattered_illuminance",
     "scattering_kernel",
+    "scattering_species",
+    "species_phase",
 ]
 
 logger = logging.getLogger(__name__)
@@ -144,6 +145,11 @@ _BLOCK = 16
 _PATH_STRETCH = 3.0
 #: points per chunk in the illuminance sum (bounds the temporaries)
 _CHUNK = 2048
+#: species whose profile is a layer aloft: their breakpoints split the impact nodes
+_LAYER_SPECIES = ("stratospheric_aerosol",)
+#: kernel values gathered at once for species with per-member or per-wavelength phase
+#: functions (bounds the temporaries: 32 MiB in float64)
+_GATHER_ELEMENTS = 1 << 22
 #: rays per chunk in the kernel precomputation
 _RAY_CHUNK = 65536
 
@@ -175,6 +181,50 @@ def _optical_depth(constituents, columns: dict, batch: tuple[int, ...]) -> torch
     return tau.permute(*range(1, len(lead) + 1), 0, len(lead) + 1)
 
 
+def scattering_species(constituents) -> tuple[str, ...]:
+    """Names of the species that scatter light into the shadow (exactly absent ones left out).
+
+    Parameters
+    ----------
+    constituents : Constituents
+        :meth:`skytorch.atmosphere.Atmosphere.constituents` at the kernel's wavelengths.
+
+    Returns
+    -------
+    tuple of str
+        In the atmosphere's order (e.g. ``("rayleigh", "aerosol", "stratospheric_aerosol")``).
+    """
+    return tuple(sp.name for sp in constituents.scatterers() if not sp.vanishes)
+
+
+def species_phase(species, cos_theta: torch.Tensor, batch: tuple[int, ...]) -> torch.Tensor:
+    """Phase function of one species at scattering angles of every member [1/sr].
+
+    Parameters
+    ----------
+    species : Species
+        A scattering species of the constituents (its ``phase`` handle).
+    cos_theta : Tensor (...)
+        Cosine of the scattering angle [1].
+    batch : tuple of int
+        Batch shape ``B`` of the atmosphere.
+
+    Returns
+    -------
+    Tensor (..., n_batch or 1, n_wavelength or 1)
+        Size 1 along the members (wavelengths) where the phase function does not depend on
+        them, in the dtype of ``cos_theta``.
+    """
+    lead = cos_theta.shape
+    value = species.phase(cos_theta.reshape(*(1,) * len(batch), *lead), extra=len(lead))
+    members = value.shape[:len(batch)]
+    value = value.reshape(*members, *lead, value.shape[-1])
+    if math.prod(members) > 1:
+        value = value.expand(*batch, *lead, value.shape[-1])
+    value = value.reshape(-1, *lead, value.shape[-1]).movedim(0, -2)
+    return value.to(cos_theta.dtype)
+
+
 def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
                       n_path: int = _BASE_NODES["n_path"], blocking_radius_m=None
                       ) -> dict[str, torch.Tensor]:
@@ -202,8 +252,11 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
     Returns
     -------
     dict of Tensor (n_impact, n_angle, n_batch, n_wavelength)
-        ``"rayleigh"`` and ``"aerosol"``: :math:`K_i = \int \beta_i\,e^{-\tau}\,dx` [1]
-        (radiance per unit solar irradiance and unit phase function), float64.
+        One entry per scattering species of the atmosphere
+        (:func:`scattering_species`: ``"rayleigh"``, ``"aerosol"``,
+        ``"stratospheric_aerosol"`` where present):
+        :math:`K_i = \int \beta_i\,e^{-\tau}\,dx` [1] (radiance per unit solar irradiance
+        and unit phase function), float64.
     """
     n_path = check_int("n_path", n_path, low=4)
     wavelength = check_positive("wavelength_nm", wavelength_nm, unit=" nm",
@@ -227,8 +280,8 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
     constituents = atmosphere.constituents(wavelength)
     # reference-level scattering coefficients per member and wavelength (n_batch, n_wl)
     # [1/m] (the species' own albedo, wavelength-dependent for Mie aerosol types)
-    k = {s: constituents[s].scattering.expand(*batch, n_wl).reshape(-1, n_wl)
-         for s in ("rayleigh", "aerosol")}
+    names = scattering_species(constituents)
+    k = {s: constituents[s].scattering.expand(*batch, n_wl).reshape(-1, n_wl) for s in names}
     with torch.no_grad():
         # view leg from S towards P (direction -v): independent of epsilon
         mu_view = torch.clamp(-x / radius, -1.0, 1.0)
@@ -236,10 +289,10 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
                                            altitude.reshape(*x.shape, *ones))
         view = {s: _members(c, batch, 2) for s, c in view.items()}  # (n_b, n_x, n_batch)
         density = {s: _members(atmosphere.relative_density(s, altitude.reshape(*x.shape, *ones)),
-                               batch, 2) for s in ("rayleigh", "aerosol")}
-        out = {s: torch.zeros(b.shape[0], eps.shape[0], k["rayleigh"].shape[0],
-                              wavelength.shape[0], dtype=torch.float64)
-               for s in ("rayleigh", "aerosol")}
+                               batch, 2) for s in names}
+        n_batch = max(math.prod(batch), 1)
+        out = {s: torch.zeros(b.shape[0], eps.shape[0], n_batch, n_wl, dtype=torch.float64)
+               for s in names}
         per_angle = max(1, _RAY_CHUNK // max(x.numel(), 1))
         for start in range(0, eps.shape[0], per_angle):
             e = eps[start:start + per_angle][None, :, None]  # (1, n_e, 1)
@@ -264,11 +317,69 @@ def scattering_kernel(atmosphere, wavelength_nm, impact_radius_m, angle_rad, *,
             tau = _optical_depth(constituents, {s: view[s][:, None] + sun[s] for s in sun},
                                  batch)  # (n_b, n_e, n_x, nb, n_wl)
             transmittance = torch.where(blocked[..., None, None], 0.0, torch.exp(-tau))
-            for s in ("rayleigh", "aerosol"):
+            for s in names:
                 beta = density[s][..., None] * k[s]  # (n_b, n_x, nb, n_wl)
                 weight = (beta * dx[..., None, None])[:, None]  # (n_b, 1, n_x, nb, n_wl)
                 out[s][:, start:start + per_angle] = (weight * transmittance).sum(2)
     return out
+
+
+def _species_breakpoints(constituents, names) -> torch.Tensor:
+    """Altitudes [m] where the density of a scattering layer changes character.
+
+    The breakpoints of the species ``names`` whose profile is a layer above the ground
+    (the stratospheric aerosol's Gaussian: its levels at multiples of the width), all
+    members together; the molecular and tropospheric profiles, smooth and decreasing
+    from the ground, are resolved by the base nodes.
+    """
+    levels = [constituents[name].profile.breakpoints_m for name in names
+              if name in _LAYER_SPECIES]
+    levels = [x.detach().reshape(-1).to(torch.float64) for x in levels if x is not None]
+    if not levels:
+        return torch.zeros(0, dtype=torch.float64)
+    return torch.unique(torch.cat(levels))
+
+
+def impact_nodes(low_radius_m: float, top_radius_m: float, breakpoints_radius_m,
+                 n_impact: int) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Gauss–Legendre nodes of the impact parameter, in panels split at breakpoints.
+
+    Nodes are placed in ``s`` with ``b = b_low + (r_top - b_low) s^2`` (dense near the
+    ground, where the density falls fastest); the breakpoints strictly between
+    ``b_low`` and ``r_top`` split ``s`` into panels, each with
+    ``max(3, round(n_impact * panel length))`` nodes, so a thin layer (a stratospheric
+    aerosol layer a few km wide) is resolved by its own panels.
+
+    Parameters
+    ----------
+    low_radius_m, top_radius_m : float
+        Lowest and highest impact parameter [m].
+    breakpoints_radius_m : Tensor (n,)
+        Radii where the integrand changes character [m] (any order; outside values are
+        ignored).
+    n_impact : int
+        Nodes of a single panel covering the whole range.
+
+    Returns
+    -------
+    tuple of Tensor (n_nodes,)
+        Impact parameters [m] and their weights [m] (the weights sum to
+        ``r_top - b_low``).
+    """
+    span = top_radius_m - low_radius_m
+    inner = torch.as_tensor(breakpoints_radius_m, dtype=torch.float64).reshape(-1)
+    inner = inner[(inner > low_radius_m) & (inner < top_radius_m)]
+    edges = torch.cat([torch.zeros(1, dtype=torch.float64),
+                       torch.sqrt((torch.sort(inner).values - low_radius_m) / span),
+                       torch.ones(1, dtype=torch.float64)])
+    nodes, weights = [], []
+    for start, end in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
+        n = n_impact if edges.shape[0] == 2 else max(3, round(n_impact * (end - start)))
+        x, w = _gauss(n)
+        nodes.append(start + (end - start) * x)
+        weights.append((end - start) * w)
+    s, ws = torch.cat(nodes), torch.cat(weights)
+    return low_radius_m + span * s * s, 2.0 * span * s * ws
 
 
 class ScatteringProfile:
@@ -290,8 +401,13 @@ class ScatteringProfile:
         Quadrature weights in ``b`` [m] (times the ray weight of terrain and clouds).
     angle_step_rad : float
         Spacing ``delta`` of the ``epsilon`` grid [rad].
-    kernel : Tensor (2, n_impact * n_angle, n_batch * n_wavelength)
-        ``K`` of Rayleigh and aerosol scattering (zero in blocks not yet computed).
+    species : tuple of str
+        The scattering species (:func:`scattering_species`), in the kernel's order.
+    constituents : Constituents
+        The atmosphere's constituents at ``wavelength_nm`` (float64; their phase
+        functions weight the kernel).
+    kernel : Tensor (n_species, n_impact, n_angle, n_batch * n_wavelength)
+        ``K`` of each species (zero in blocks not yet computed).
     n_batch, n_wavelength, n_azimuth, n_angle : int
     """
 
@@ -304,26 +420,30 @@ class ScatteringProfile:
         self.nodes = nodes
         planet, top = atmosphere.planet_radius_m, atmosphere.top_radius_m
         low = planet + float(lowest_altitude_m)
-        s, ws = _gauss(nodes["n_impact"])
-        self.impact_radius_m = low + (top - low) * s * s
-        weight = 2.0 * (top - low) * s * ws
+        self.atmosphere = atmosphere
+        self.wavelength_nm = check_positive("wavelength_nm", wavelength_nm, unit=" nm",
+                                            dtype=torch.float64).reshape(-1)
+        with torch.no_grad():
+            self.constituents = atmosphere.constituents(self.wavelength_nm)
+        self.species = scattering_species(self.constituents)
+        edges = _species_breakpoints(self.constituents, self.species)
+        self.impact_radius_m, weight = impact_nodes(low, top, planet + edges,
+                                                    nodes["n_impact"])
         if ray_weight is not None:
             weight = weight * ray_weight(self.impact_radius_m - planet)
         self.impact_weight_m = weight
         intervals = _BLOCK * math.ceil(2.0 * math.pi / (_ANGLE_STEP_RAD / resolution) / _BLOCK)
         self.n_angle = intervals + 1
         self.angle_step_rad = 2.0 * math.pi / intervals
-        self.atmosphere = atmosphere
-        self.wavelength_nm = check_positive("wavelength_nm", wavelength_nm, unit=" nm",
-                                            dtype=torch.float64).reshape(-1)
         self.blocking_radius_m = blocking_radius_m
-        self.n_batch = max(math.prod(tuple(getattr(atmosphere, "batch_shape", ()))), 1)
+        self.batch_shape = tuple(getattr(atmosphere, "batch_shape", ()))
+        self.n_batch = max(math.prod(self.batch_shape), 1)
         self.n_wavelength = int(self.wavelength_nm.shape[0])
         self.n_azimuth = nodes["n_azimuth"]
         self.planet_radius_m = planet
         n_b = self.impact_radius_m.shape[0]
-        self.kernel = torch.zeros(2, n_b, self.n_angle, self.n_batch * self.n_wavelength,
-                                  dtype=torch.float64)
+        self.kernel = torch.zeros(len(self.species), n_b, self.n_angle,
+                                  self.n_batch * self.n_wavelength, dtype=torch.float64)
         self._done = torch.zeros(intervals // _BLOCK, dtype=torch.bool)
         self._cache: dict = {}
         self._kernels: dict = {}
@@ -352,13 +472,13 @@ class ScatteringProfile:
                                        self.impact_radius_m, self.angles(nodes),
                                        n_path=self.nodes["n_path"],
                                        blocking_radius_m=self.blocking_radius_m)
-            for species, name in enumerate(("rayleigh", "aerosol")):
+            for species, name in enumerate(self.species):
                 values = kernel[name].reshape(*kernel[name].shape[:2], -1)
                 self.kernel[species][:, nodes] = values
             self._done[blocks] = True
 
     def kernel_matrix(self, dtype: torch.dtype) -> torch.Tensor:
-        """Kernel of both species as one (2 n_impact n_angle, n_batch n_wl) matrix."""
+        """Kernel of all species as one (n_species n_impact n_angle, n_batch n_wl) matrix."""
         key = (dtype, int(self._done.sum()))
         if key not in self._kernels:
             self._kernels = {key: self.kernel.reshape(-1, self.kernel.shape[-1]).to(dtype)}
@@ -375,15 +495,47 @@ class ScatteringProfile:
         return self._cache[dtype]
 
 
-def _aerosol_phase(atmosphere, cos_theta: torch.Tensor, n_batch: int) -> torch.Tensor:
-    """Aerosol phase function (..., n_batch) [1/sr] for every member."""
-    batch = tuple(getattr(atmosphere, "batch_shape", ()))
-    g = atmosphere.aerosol_asymmetry.to(cos_theta.dtype)
-    if g.ndim == 0:
-        return phase_function(cos_theta, g, atmosphere.aerosol_phase_model)[..., None].expand(
-            *cos_theta.shape, n_batch)
-    g = g.expand(batch).reshape(-1)
-    return phase_function(cos_theta[..., None], g, atmosphere.aerosol_phase_model)
+def _ring_sum(profile: ScatteringProfile, cos_theta, index, fraction, weight) -> torch.Tensor:
+    """Sum over the ring nodes of ``weight P_s(Theta) K_s(b, epsilon)`` for every species.
+
+    ``cos_theta``, ``index`` (lower ``epsilon`` node), ``fraction`` (linear interpolation
+    weight) and ``weight`` are (p, n_impact, n_azimuth); returns (p, n_batch n_wavelength).
+    Species whose phase function is the same for every member and wavelength (Rayleigh,
+    an unbatched Henyey-Greenstein) share one sparse product; the others (a Mie asymmetry
+    per wavelength, batched asymmetries) gather their kernel rows directly.
+    """
+    n_p, n_b = index.shape[:2]
+    n_e = profile.n_angle
+    block = n_b * n_e
+    kernel = profile.kernel_matrix(cos_theta.dtype)  # (n_species block, n_batch n_wl)
+    rows = (torch.arange(n_b) * n_e)[:, None] + index  # row inside a species' block
+    total = cos_theta.new_zeros(n_p, kernel.shape[-1])
+    shared_rows, shared_values = [], []
+    for s, name in enumerate(profile.species):
+        phase = species_phase(profile.constituents[name], cos_theta, profile.batch_shape)
+        if phase.shape[-2:] == (1, 1):
+            value = (weight * phase[..., 0, 0]).reshape(-1)
+            lower = rows.reshape(-1) + s * block
+            shared_rows += [lower, lower + 1]
+            shared_values += [value * (1.0 - fraction).reshape(-1), value * fraction.reshape(-1)]
+            continue
+        factor = weight[..., None, None] * phase  # (p, n_b, n_psi, n_batch?, n_wl?)
+        species_kernel = kernel[s * block:(s + 1) * block]
+        step = max(1, _GATHER_ELEMENTS // max(rows[0].numel() * kernel.shape[-1], 1))
+        parts = []
+        for first in range(0, n_p, step):
+            r, w = rows[first:first + step], fraction[first:first + step, ..., None]
+            value = species_kernel[r] * (1.0 - w) + species_kernel[r + 1] * w
+            value = value.reshape(*r.shape, profile.n_batch, profile.n_wavelength)
+            parts.append((value * factor[first:first + step]).sum((1, 2)).reshape(r.shape[0], -1))
+        total = total + torch.cat(parts)
+    if shared_rows:
+        point = torch.arange(n_p)[:, None, None].expand(index.shape).reshape(-1)
+        indices = torch.stack([point.repeat(len(shared_rows)), torch.cat(shared_rows)])
+        matrix = torch.sparse_coo_tensor(indices, torch.cat(shared_values),
+                                         (n_p, kernel.shape[0]), check_invariants=False)
+        total = total + torch.sparse.mm(matrix, kernel)
+    return total
 
 
 def scattered_illuminance(profile: ScatteringProfile, centre_distance_m, separation_rad,
@@ -409,10 +561,9 @@ def scattered_illuminance(profile: ScatteringProfile, centre_distance_m, separat
     tables = profile.tables(dtype)
     b, wb = tables["b"], tables["wb"]
     psi, wpsi = tables["psi"], tables["wpsi"]
-    n_b, n_e = b.shape[0], profile.n_angle
+    n_e = profile.n_angle
     cos_psi = torch.cos(psi)
     flat = [v.reshape(-1) for v in (centre, sigma, scale)]
-    rows = (torch.arange(n_b) * n_e)[:, None]  # (n_b, 1)
     pieces = []
     for start in range(0, flat[0].shape[0], _CHUNK):
         big_l, sg, k = (v[start:start + _CHUNK, None, None] for v in flat)
@@ -425,36 +576,9 @@ def scattered_illuminance(profile: ScatteringProfile, centre_distance_m, separat
         f = (eps + math.pi) / profile.angle_step_rad
         i = torch.clamp(torch.floor(f.detach()), 0, n_e - 2).long()
         profile.ensure(i)
-        w = (f - i.to(dtype))[..., None]
         solid = sin_t / (big_l * cos_t) * wb[:, None]  # b db / (L sqrt(L^2 - b^2))
-        weight = (solid * wpsi / (k * k))  # (p, n_b, n_psi)
-        phase = (rayleigh_phase(cos_theta)[..., None],
-                 _aerosol_phase(profile.atmosphere, cos_theta, profile.n_batch))
-        # sparse (point x kernel row) matrix: two interpolation nodes per (b, psi) sample
-        n_p = i.shape[0]
-        point = torch.arange(n_p)[:, None, None].expand(i.shape).reshape(-1)
-        column = (rows + i).reshape(-1)
-        w = w[..., 0]
-        batched_phase = profile.n_batch > 1 and bool((phase[1] != phase[1][..., :1]).any())
-        kernel = profile.kernel_matrix(dtype)
-        per_member = []
-        for member in range(profile.n_batch) if batched_phase else (0,):
-            values = []
-            for species in (0, 1):
-                value = (weight * phase[species][..., member if species else 0]).reshape(-1)
-                values += [value * (1.0 - w.reshape(-1)), value * w.reshape(-1)]
-            offset = n_b * n_e
-            indices = torch.stack([point.repeat(4),
-                                   torch.cat([column, column + 1, column + offset,
-                                              column + offset + 1])])
-            matrix = torch.sparse_coo_tensor(indices, torch.cat(values), (n_p, 2 * offset),
-                                             check_invariants=False)
-            columns = kernel.reshape(kernel.shape[0], profile.n_batch, -1)[:, member] if (
-                batched_phase) else kernel
-            per_member.append(torch.sparse.mm(matrix, columns))
-        total = (torch.stack(per_member, dim=1) if batched_phase else per_member[0].reshape(
-            n_p, profile.n_batch, profile.n_wavelength))
-        pieces.append(total)
+        weight = solid * wpsi / (k * k)  # (p, n_b, n_psi)
+        pieces.append(_ring_sum(profile, cos_theta, i, f - i.to(dtype), weight))
     result = torch.cat(pieces) if pieces else centre.new_zeros(
-        (0, profile.n_batch, profile.n_wavelength))
+        (0, profile.n_batch * profile.n_wavelength))
     return result.reshape(*shape, profile.n_batch, profile.n_wavelength)
