@@ -333,8 +333,9 @@ def test_scattering_adds_light_and_float32_gradients(dtype):
     The atmosphere is the stratospheric one of 2015 (the Calbuco year,
     ``eclipse_atmosphere("2015-09-28")``). At the umbra centre at 450 nm the scattered
     light outweighs the refracted light, so scattering more than doubles the illuminance
-    (measured 8.2x, 88 % scattered, most of it by the sulfate layer; García Muñoz et al. 2011 find diffuse light a major
-    component below 600 nm); at 650 nm it adds 0.05 %. Gradients with respect to the
+    (measured 8.2x, 88 % scattered, most of it by the sulfate layer; García Muñoz et al.
+    2011 find diffuse light a major component below 600 nm); at 680 nm it adds 0.2 %.
+    Gradients with respect to the
     position are finite and match finite differences.
     """
     from skytorch.eclipse import eclipse_atmosphere
