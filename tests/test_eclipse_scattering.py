@@ -388,3 +388,28 @@ def test_shadow_table_and_lunar_eclipse_with_scattering():
     dark = lunar_eclipse("2015-09-28", shadow=Shadow.earth(atm, n_altitude=101), **kwargs)
     middle = 2
     assert float(bright["v_magnitude"][middle]) < float(dark["v_magnitude"][middle])
+
+
+def test_shared_shadow_across_threads():
+    """One scattering Shadow shared by a thread pool gives the serial results.
+
+    Each task needs other blocks of the lazily computed kernel (distances from 120 000 km
+    to the Moon's), in float32 (a cast copy of the kernel) and float64.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    distances = [1.2e8, 2.0e8, 3.844e8] * 2
+    dtypes = [torch.float32] * 3 + [torch.float64] * 3
+    offset = torch.tensor([0.0, 2e6, 5e6], dtype=torch.float64)
+
+    def evaluate(shadow, distance, dtype):
+        return shadow.relative_illuminance(torch.full((3,), distance, dtype=dtype),
+                                           offset.to(dtype), WAVELENGTH.to(dtype))
+
+    shared = Shadow.earth(n_altitude=101, scattering=True)
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        results = list(pool.map(lambda job: evaluate(shared, *job), zip(distances, dtypes,
+                                                                         strict=True)))
+    for result, distance, dtype in zip(results, distances, dtypes, strict=True):
+        alone = evaluate(Shadow.earth(n_altitude=101, scattering=True), distance, dtype)
+        assert torch.equal(result, alone), (distance, dtype)

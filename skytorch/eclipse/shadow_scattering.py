@@ -116,6 +116,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 
 import torch
 
@@ -447,14 +448,19 @@ class ScatteringProfile:
         self._done = torch.zeros(intervals // _BLOCK, dtype=torch.bool)
         self._cache: dict = {}
         self._kernels: dict = {}
+        self._lock = threading.Lock()
 
     def angles(self, index) -> torch.Tensor:
         """``epsilon`` of grid nodes ``index`` [rad]."""
         return -math.pi + self.angle_step_rad * torch.as_tensor(index, dtype=torch.float64)
 
     def ensure(self, index: torch.Tensor) -> None:
-        """Compute the blocks holding nodes ``index`` and ``index + 1`` (if missing)."""
-        with torch.no_grad():
+        """Compute the blocks holding nodes ``index`` and ``index + 1`` (if missing).
+
+        Thread-safe: the blocks are computed under the profile's lock (a profile shared by
+        the threads of a sweep computes each block once).
+        """
+        with self._lock, torch.no_grad():
             if index.numel() == 0:
                 return
             first = int(index.min()) // _BLOCK
@@ -479,10 +485,11 @@ class ScatteringProfile:
 
     def kernel_matrix(self, dtype: torch.dtype) -> torch.Tensor:
         """Kernel of all species as one (n_species n_impact n_angle, n_batch n_wl) matrix."""
-        key = (dtype, int(self._done.sum()))
-        if key not in self._kernels:
-            self._kernels = {key: self.kernel.reshape(-1, self.kernel.shape[-1]).to(dtype)}
-        return self._kernels[key]
+        with self._lock:
+            key = (dtype, int(self._done.sum()))
+            if key not in self._kernels:
+                self._kernels = {key: self.kernel.reshape(-1, self.kernel.shape[-1]).to(dtype)}
+            return self._kernels[key]
 
     def tables(self, dtype: torch.dtype) -> dict[str, torch.Tensor]:
         """Nodes and weights cast to ``dtype`` (cached)."""
