@@ -125,7 +125,11 @@ from skytorch.eclipse.occlusion import (
     sun_visible_fraction,
 )
 from skytorch.eclipse.occlusion import _nodes as _unit_gauss
-from skytorch.eclipse.shadow_scattering import ScatteringProfile, scattered_illuminance
+from skytorch.eclipse.shadow_scattering import (
+    ScatteringProfile,
+    scattered_illuminance,
+    scattered_radiance,
+)
 
 __all__ = [
     "EARTH_MEAN_TERRAIN_HEIGHT_M",
@@ -1388,18 +1392,25 @@ class Shadow(nn.Module):
         wavelength = _check_wavelength(wavelength_nm, torch.float64)
         key = tuple(round(float(x), 9) for x in wavelength)
         if key not in self._scattering_profiles:
-            closed = self.cloud_fraction >= 1.0
-            cloud = self.cloud_top_altitude_m
-            weights = RingProfile(0.0, 1.0, torch.zeros(3), torch.zeros(3, 1), torch.zeros(3),
-                                  self.terrain_height_m, cloud_top_m=0.0 if closed else cloud,
-                                  cloud_fraction=0.0 if closed else self.cloud_fraction,
-                                  cloud_cover=self.cloud_cover)
-            self._scattering_profiles[key] = ScatteringProfile(
-                self.atmosphere, wavelength, lowest_altitude_m=cloud if closed else 0.0,
-                ray_weight=lambda h: _ray_weight(h, weights),
-                resolution=self.scattering_resolution,
-                blocking_radius_m=self.occluder_radius_m + (cloud if closed else 0.0))
+            self._scattering_profiles[key] = self._new_scattering_profile(wavelength)
         return self._scattering_profiles[key]
+
+    def _new_scattering_profile(self, wavelength, impact_radius_m=None) -> ScatteringProfile:
+        """Scattering kernel with this shadow's terrain, clouds and resolution.
+
+        Over the ring's quadrature nodes, or (``impact_radius_m``) on given lines of sight.
+        """
+        closed = self.cloud_fraction >= 1.0
+        cloud = self.cloud_top_altitude_m
+        weights = RingProfile(0.0, 1.0, torch.zeros(3), torch.zeros(3, 1), torch.zeros(3),
+                              self.terrain_height_m, cloud_top_m=0.0 if closed else cloud,
+                              cloud_fraction=0.0 if closed else self.cloud_fraction,
+                              cloud_cover=self.cloud_cover)
+        return ScatteringProfile(
+            self.atmosphere, wavelength, lowest_altitude_m=cloud if closed else 0.0,
+            ray_weight=lambda h: _ray_weight(h, weights), resolution=self.scattering_resolution,
+            blocking_radius_m=self.occluder_radius_m + (cloud if closed else 0.0),
+            impact_radius_m=impact_radius_m)
 
     # ------------------------------------------------------------------ illuminance
     def _geometry(self, distance_m, offset_m, sun_distance_m, dtype):
@@ -1525,7 +1536,9 @@ class Shadow(nn.Module):
         wavelength_nm : Tensor (n_wavelength,)
             Wavelengths [nm].
         n_azimuth, n_altitude, oversample : int
-            Image size and supersampling per bin.
+            Image size and supersampling per bin. The altitude bins span the lowest
+            transmitting refracted ray to the top of the atmosphere, or with
+            ``scattering=True`` the ground (or a closed cloud deck's top) to the top.
         sun_distance_m : float or Tensor (...), optional
             Sun–occluder distance [m].
 
@@ -1533,7 +1546,10 @@ class Shadow(nn.Module):
         -------
         dict of Tensor
             ``radiance`` (..., altitude, azimuth, n_wavelength): radiance relative to the
-            radiance at the centre of the solar disc [1]; ``altitude_m`` (altitude,) impact
+            radiance at the centre of the solar disc [1] (the refracted solar image plus,
+            with ``scattering=True``, the single-scattered light of every line of sight:
+            :func:`~skytorch.eclipse.shadow_scattering.scattered_radiance`, whose part is
+            also returned as ``scattered_radiance``); ``altitude_m`` (altitude,) impact
             altitude of the bin centres [m]; ``azimuth_rad`` (azimuth,) [rad];
             ``elevation_rad`` (..., altitude) apparent angular radius from the occluder's
             centre [rad]; ``solid_angle_sr`` (..., altitude, azimuth) [sr].
@@ -1551,13 +1567,18 @@ class Shadow(nn.Module):
             raise ValueError("limb_view needs an unbatched atmosphere; got batch shape "
                              f"{self.batch_shape}")
         tables = profile.tables(dtype)
-        span = profile.beta_top_m - profile.beta_min_m
+        # with scattering the image reaches down to the lowest line of sight (the lines
+        # below the lowest transmitting refracted ray still scatter sunlight)
+        lowest = self._lowest_line_of_sight_m() if self.scattering else profile.beta_min_m
+        span = profile.beta_top_m - lowest
         shape = angles["centre_distance_m"].shape
         # sample points: altitude (uniform in beta within each bin), azimuth
         n_b, n_p = n_altitude * oversample, n_azimuth * oversample
-        beta = profile.beta_min_m + span * (torch.arange(n_b, dtype=dtype) + 0.5) / n_b
+        beta = lowest + span * (torch.arange(n_b, dtype=dtype) + 0.5) / n_b
         psi = (torch.arange(n_p, dtype=dtype) + 0.5) * (2.0 * math.pi / n_p) - math.pi
-        values = _spline(tables["all"], profile.s_of_beta(beta))
+        refracted = beta >= profile.beta_min_m  # no refracted light below the lowest ray
+        values = _spline(tables["all"], profile.s_of_beta(
+            torch.where(refracted, beta, torch.full_like(beta, profile.beta_min_m))))
         deviation, periapsis = values[:, 0], values[:, 1]
         optical = values[:, 2:] @ tables["basis"]
         centre = angles["centre_distance_m"][..., None]
@@ -1576,19 +1597,52 @@ class Shadow(nn.Module):
         a0, a1, a2 = _law_coefficients(self.law, self.limb_darkening.to(dtype), dtype)
         radiance = torch.where(inside, a0 + a1 * mu + a2 * mu * mu, 0.0) / (a0 + a1 + a2)
         transmittance = torch.exp(-torch.clamp(optical, min=0.0)) * _ray_weight(
-            periapsis, profile)[:, None]  # (n_b, n_wl)
+            periapsis, profile)[:, None] * refracted[:, None]  # (n_b, n_wl)
         image = radiance[..., None] * transmittance[:, None, :]  # (..., n_b, n_p, n_wl)
-        image = image.reshape(*shape, n_altitude, oversample, n_azimuth, oversample, -1)
-        image = image.mean(dim=(-4, -2))
-        edges = profile.beta_min_m + span * torch.arange(n_altitude + 1, dtype=dtype) / n_altitude
+        scattered = self._scattered_limb(wavelength, b, psi, angles, scale[..., 0])
+        if scattered is not None:
+            image = image + scattered
+
+        def bins(samples):
+            samples = samples.reshape(*shape, n_altitude, oversample, n_azimuth, oversample, -1)
+            return samples.mean(dim=(-4, -2))
+
+        image = bins(image)
+        edges = lowest + span * torch.arange(n_altitude + 1, dtype=dtype) / n_altitude
         theta_edges = torch.asin((self.occluder_radius_m + edges) / centre)
         solid = (torch.cos(theta_edges[..., :-1]) - torch.cos(theta_edges[..., 1:])) * (
             2.0 * math.pi / n_azimuth)
         centres_b = 0.5 * (edges[:-1] + edges[1:])
-        return {
+        out = {
             "radiance": image,
             "altitude_m": centres_b,
             "azimuth_rad": psi.reshape(n_azimuth, oversample).mean(-1),
             "elevation_rad": torch.asin((self.occluder_radius_m + centres_b) / centre),
             "solid_angle_sr": solid[..., :, None].expand(*shape, n_altitude, n_azimuth),
         }
+        if scattered is not None:
+            out["scattered_radiance"] = bins(scattered)
+        return out
+
+    def _lowest_line_of_sight_m(self) -> float:
+        """Tangent altitude of the lowest line of sight through the atmosphere [m].
+
+        The ground, or the top of a closed cloud deck.
+        """
+        return self.cloud_top_altitude_m if self.cloud_fraction >= 1.0 else 0.0
+
+    def _scattered_limb(self, wavelength, impact_radius_m, azimuth_rad, angles, scale):
+        """Single-scattered radiance of the limb samples relative to the Sun's centre.
+
+        (..., n_b, n_p, n_wavelength), or ``None`` with ``scattering=False``.
+        """
+        if self.scattering_profile(wavelength) is None:
+            return None
+        lines = self._new_scattering_profile(wavelength.to(torch.float64),
+                                             impact_radius_m=impact_radius_m.detach())
+        radiance = scattered_radiance(lines, angles["centre_distance_m"],
+                                      angles["separation_rad"], scale, azimuth_rad)
+        normalisation = solar_normalisation(angles["sun_radius_rad"],
+                                            self.limb_darkening.to(scale.dtype), self.law)
+        # E_sun / L_centre [sr]: radiance per unit irradiance -> relative to the centre
+        return radiance[..., 0, :] * normalisation[..., None, None, None]

@@ -127,6 +127,7 @@ __all__ = [
     "DEFAULT_SCATTERING_RESOLUTION",
     "ScatteringProfile",
     "scattered_illuminance",
+    "scattered_radiance",
     "scattering_kernel",
     "scattering_species",
     "species_phase",
@@ -383,6 +384,20 @@ def impact_nodes(low_radius_m: float, top_radius_m: float, breakpoints_radius_m,
     return low_radius_m + span * s * s, 2.0 * span * s * ws
 
 
+def _lines_of_sight(impact_radius_m, low_radius_m: float, top_radius_m: float) -> torch.Tensor:
+    """Check given impact parameters [m] (1-D, in the ring); return them as float64."""
+    b = torch.as_tensor(impact_radius_m, dtype=torch.float64)
+    if b.ndim != 1 or b.numel() == 0:
+        raise ValueError(f"impact_radius_m must have shape (n_impact,); got shape "
+                         f"{tuple(b.shape)}")
+    outside = (b < low_radius_m) | (b > top_radius_m)
+    if bool(outside.any()):
+        raise ValueError(f"impact_radius_m must lie in [{low_radius_m:.6g}, "
+                         f"{top_radius_m:.6g}] m (the occluder's surface and the top of "
+                         f"the atmosphere); got {float(b[outside][0]):.6g} m")
+    return b
+
+
 class ScatteringProfile:
     """Tabulated single-scattering kernel of an atmosphere ring (see module docstring).
 
@@ -394,12 +409,34 @@ class ScatteringProfile:
     the Moon, 400 for Mars seen from Phobos, all of them for a shadow table reaching down
     to the occluder).
 
+    Parameters
+    ----------
+    atmosphere : Atmosphere
+        The occluder's atmosphere.
+    wavelength_nm : Tensor (n_wavelength,)
+        Wavelengths [nm].
+    lowest_altitude_m : float
+        Lowest tangent altitude of the lines of sight (a closed cloud deck) [m].
+    ray_weight : callable, optional
+        Weight of a line of sight by its tangent altitude [m] (terrain, partial clouds).
+    resolution : float
+        Factor on the node counts.
+    blocking_radius_m : float, optional
+        Sun rays passing below this radius are blocked [m].
+    impact_radius_m : Tensor (n_impact,), optional
+        Lines of sight to tabulate instead of the quadrature nodes (an image of the
+        ring, :func:`scattered_radiance`) [m], between the occluder's radius and the top
+        of the atmosphere; those below ``lowest_altitude_m`` get weight 0.
+
     Attributes
     ----------
     impact_radius_m : Tensor (n_impact,)
         Gauss nodes of the impact parameter ``b`` [m].
     impact_weight_m : Tensor (n_impact,)
-        Quadrature weights in ``b`` [m] (times the ray weight of terrain and clouds).
+        Quadrature weights in ``b`` [m] (times the ray weight of terrain and clouds); for
+        given lines of sight (``impact_radius_m``) the ray weight alone [1].
+    is_quadrature : bool
+        The impact nodes are a quadrature over the ring (``impact_radius_m`` not given).
     angle_step_rad : float
         Spacing ``delta`` of the ``epsilon`` grid [rad].
     species : tuple of str
@@ -414,7 +451,7 @@ class ScatteringProfile:
 
     def __init__(self, atmosphere, wavelength_nm, *, lowest_altitude_m: float = 0.0,
                  ray_weight=None, resolution: float = DEFAULT_SCATTERING_RESOLUTION,
-                 blocking_radius_m=None):
+                 blocking_radius_m=None, impact_radius_m=None):
         resolution = float(check_positive("scattering_resolution", resolution))
         nodes = {key: max(4, int(round(value * resolution)))
                  for key, value in _BASE_NODES.items()}
@@ -427,9 +464,14 @@ class ScatteringProfile:
         with torch.no_grad():
             self.constituents = atmosphere.constituents(self.wavelength_nm)
         self.species = scattering_species(self.constituents)
-        edges = _species_breakpoints(self.constituents, self.species)
-        self.impact_radius_m, weight = impact_nodes(low, top, planet + edges,
-                                                    nodes["n_impact"])
+        if impact_radius_m is None:
+            edges = _species_breakpoints(self.constituents, self.species)
+            self.impact_radius_m, weight = impact_nodes(low, top, planet + edges,
+                                                        nodes["n_impact"])
+        else:  # given lines of sight (an image of the ring), not a quadrature; those
+            # below the lowest altitude (a closed cloud deck) are blocked
+            self.impact_radius_m = _lines_of_sight(impact_radius_m, planet, top)
+            weight = (self.impact_radius_m >= low).to(torch.float64)
         if ray_weight is not None:
             weight = weight * ray_weight(self.impact_radius_m - planet)
         self.impact_weight_m = weight
@@ -449,6 +491,7 @@ class ScatteringProfile:
         self._cache: dict = {}
         self._kernels: dict = {}
         self._lock = threading.Lock()
+        self.is_quadrature = impact_radius_m is None
 
     def angles(self, index) -> torch.Tensor:
         """``epsilon`` of grid nodes ``index`` [rad]."""
@@ -502,6 +545,32 @@ class ScatteringProfile:
         return self._cache[dtype]
 
 
+def _kernel_at(profile, species_kernel, rows, fraction) -> torch.Tensor:
+    """One species' kernel rows (...) interpolated in epsilon -> (..., n_batch, n_wl)."""
+    w = fraction[..., None]
+    value = species_kernel[rows] * (1.0 - w) + species_kernel[rows + 1] * w
+    return value.reshape(*rows.shape, profile.n_batch, profile.n_wavelength)
+
+
+def _ring_geometry(profile, big_l, sg, cos_psi, b):
+    """Scattering angle, epsilon node and interpolation weight of ring lines of sight.
+
+    ``big_l``, ``sg`` (p, 1, 1), ``b`` (n_b,), ``cos_psi`` (n_psi,) -> ``sin_t``,
+    ``cos_t`` (p, n_b, 1) and ``cos_theta``, ``index``, ``fraction`` (p, n_b, n_psi);
+    the kernel blocks of the nodes are computed.
+    """
+    sin_t = b[:, None] / big_l  # (p, n_b, 1)
+    cos_t = torch.sqrt((1.0 - sin_t) * (1.0 + sin_t))
+    cos_theta = torch.clamp(cos_t * torch.cos(sg) + sin_t * torch.sin(sg) * cos_psi,
+                            -1.0, 1.0)  # (p, n_b, n_psi)
+    s_e = (cos_t * cos_theta - torch.cos(sg)) / sin_t
+    eps = torch.atan2(s_e, cos_theta)
+    f = (eps + math.pi) / profile.angle_step_rad
+    i = torch.clamp(torch.floor(f.detach()), 0, profile.n_angle - 2).long()
+    profile.ensure(i)
+    return sin_t, cos_t, cos_theta, i, f - i.to(f.dtype)
+
+
 def _ring_sum(profile: ScatteringProfile, cos_theta, index, fraction, weight) -> torch.Tensor:
     """Sum over the ring nodes of ``weight P_s(Theta) K_s(b, epsilon)`` for every species.
 
@@ -531,9 +600,8 @@ def _ring_sum(profile: ScatteringProfile, cos_theta, index, fraction, weight) ->
         step = max(1, _GATHER_ELEMENTS // max(rows[0].numel() * kernel.shape[-1], 1))
         parts = []
         for first in range(0, n_p, step):
-            r, w = rows[first:first + step], fraction[first:first + step, ..., None]
-            value = species_kernel[r] * (1.0 - w) + species_kernel[r + 1] * w
-            value = value.reshape(*r.shape, profile.n_batch, profile.n_wavelength)
+            r = rows[first:first + step]
+            value = _kernel_at(profile, species_kernel, r, fraction[first:first + step])
             parts.append((value * factor[first:first + step]).sum((1, 2)).reshape(r.shape[0], -1))
         total = total + torch.cat(parts)
     if shared_rows:
@@ -568,24 +636,76 @@ def scattered_illuminance(profile: ScatteringProfile, centre_distance_m, separat
     tables = profile.tables(dtype)
     b, wb = tables["b"], tables["wb"]
     psi, wpsi = tables["psi"], tables["wpsi"]
-    n_e = profile.n_angle
     cos_psi = torch.cos(psi)
     flat = [v.reshape(-1) for v in (centre, sigma, scale)]
+    if not profile.is_quadrature:
+        raise ValueError("this ScatteringProfile holds given lines of sight (impact_radius_m), "
+                         "not a quadrature over the ring: use scattered_radiance")
     pieces = []
     for start in range(0, flat[0].shape[0], _CHUNK):
         big_l, sg, k = (v[start:start + _CHUNK, None, None] for v in flat)
-        sin_t = b[:, None] / big_l  # (p, n_b, 1)
-        cos_t = torch.sqrt((1.0 - sin_t) * (1.0 + sin_t))
-        cos_theta = torch.clamp(cos_t * torch.cos(sg) + sin_t * torch.sin(sg) * cos_psi,
-                                -1.0, 1.0)  # (p, n_b, n_psi)
-        s_e = (cos_t * cos_theta - torch.cos(sg)) / sin_t
-        eps = torch.atan2(s_e, cos_theta)
-        f = (eps + math.pi) / profile.angle_step_rad
-        i = torch.clamp(torch.floor(f.detach()), 0, n_e - 2).long()
-        profile.ensure(i)
+        sin_t, cos_t, cos_theta, i, fraction = _ring_geometry(profile, big_l, sg, cos_psi, b)
         solid = sin_t / (big_l * cos_t) * wb[:, None]  # b db / (L sqrt(L^2 - b^2))
         weight = solid * wpsi / (k * k)  # (p, n_b, n_psi)
-        pieces.append(_ring_sum(profile, cos_theta, i, f - i.to(dtype), weight))
+        pieces.append(_ring_sum(profile, cos_theta, i, fraction, weight))
     result = torch.cat(pieces) if pieces else centre.new_zeros(
         (0, profile.n_batch * profile.n_wavelength))
     return result.reshape(*shape, profile.n_batch, profile.n_wavelength)
+
+
+def scattered_radiance(profile: ScatteringProfile, centre_distance_m, separation_rad,
+                       deviation_scale, azimuth_rad) -> torch.Tensor:
+    r"""Single-scattered radiance of the ring's lines of sight, per unit solar irradiance.
+
+    The image of the scattering ring seen from points in the shadow: the lines of sight at
+    the profile's impact parameters ``b`` and ring azimuths ``psi``,
+
+    .. math::
+
+        \frac{L_{sca}}{E_\odot} = k^{-2} w(b) \sum_i P_i(\Theta)\,K_i(b, \varepsilon)
+        \quad [\mathrm{sr}^{-1}],
+
+    (module docstring; ``w`` the ray weight of terrain and clouds). Its integral over the
+    ring's solid angle is :func:`scattered_illuminance`.
+
+    Parameters
+    ----------
+    profile : ScatteringProfile
+        Kernel on the lines of sight (built with ``impact_radius_m``).
+    centre_distance_m, separation_rad, deviation_scale : Tensor (...)
+        ``L`` [m], ``sigma`` [rad] and ``k`` [1] (module docstring).
+    azimuth_rad : Tensor (n_azimuth,)
+        Ring azimuths ``psi`` (0 towards the Sun) [rad].
+
+    Returns
+    -------
+    Tensor (..., n_impact, n_azimuth, n_batch, n_wavelength)
+        Radiance over the unobstructed solar irradiance [1/sr].
+    """
+    centre, sigma, scale = torch.broadcast_tensors(centre_distance_m, separation_rad,
+                                                   deviation_scale)
+    dtype = centre.dtype
+    psi = torch.as_tensor(azimuth_rad, dtype=dtype).reshape(-1)
+    b = profile.impact_radius_m.to(dtype)
+    if profile.is_quadrature:
+        raise ValueError("scattered_radiance needs a ScatteringProfile built on lines of "
+                         "sight (impact_radius_m=...); this one is a quadrature over the ring")
+    ray_weight = profile.impact_weight_m.to(dtype)
+    flat = [v.reshape(-1) for v in (centre, sigma, scale)]
+    n_b, n_e = b.shape[0], profile.n_angle
+    pieces = []
+    for start in range(0, flat[0].shape[0], 1):
+        big_l, sg, k = (v[start:start + 1, None, None] for v in flat)
+        _, _, cos_theta, i, fraction = _ring_geometry(profile, big_l, sg, torch.cos(psi), b)
+        kernel = profile.kernel_matrix(dtype)
+        rows = (torch.arange(n_b) * n_e)[:, None] + i
+        total = 0.0
+        for s, name in enumerate(profile.species):
+            phase = species_phase(profile.constituents[name], cos_theta, profile.batch_shape)
+            species_kernel = kernel[s * n_b * n_e:(s + 1) * n_b * n_e]
+            total = total + phase * _kernel_at(profile, species_kernel, rows, fraction)
+        total = total * ray_weight[:, None, None, None]
+        pieces.append(total / (k[..., None, None] ** 2))
+    result = torch.cat(pieces) if pieces else centre.new_zeros(
+        (0, n_b, psi.shape[0], profile.n_batch, profile.n_wavelength))
+    return result.reshape(*centre.shape, *result.shape[1:])
