@@ -388,23 +388,31 @@ def limb_views(quick: bool):
     from skytorch.eclipse.shadow import Shadow
     from skytorch.spectrum import solar_irradiance, spectrum_to_xyz
 
-    shadow = Shadow.earth(_atmospheres()["aerosols"])
+    shadow = Shadow.earth(_atmospheres()["aerosols"], scattering=True)
     step = 40.0 if quick else 20.0
     wavelength = torch.arange(400.0, 720.0 + 0.5 * step, step, dtype=torch.float64)
     offset = torch.tensor([0.0, 2.5e6, 4.4e6], dtype=torch.float64)
     view = shadow.limb_view(torch.tensor(MEAN_EARTH_MOON_DISTANCE_M, dtype=torch.float64),
                             offset, wavelength, n_azimuth=90 if quick else 360,
                             n_altitude=8 if quick else 32, oversample=4 if quick else 8)
-    radiance = view["radiance"] * solar_irradiance(wavelength)
-    xyz = spectrum_to_xyz(radiance, wavelength)
-    images = _display(xyz, 3)  # common exposure per view
+    solar = solar_irradiance(wavelength)
+    images = _display(spectrum_to_xyz(view["radiance"] * solar, wavelength), 3)
+    scattered = _display(spectrum_to_xyz(view["scattered_radiance"] * solar, wavelength), 3)
+    dims = ("offset", "altitude", "azimuth", "wavelength")
     dataset = build_dataset(
-        {"radiance": variable(("offset", "altitude", "azimuth", "wavelength"),
-                              view["radiance"].numpy(),
+        {"radiance": variable(dims, view["radiance"].numpy(),
                               VariableSpec("1", "relative radiance of the limb",
-                                           "radiance / radiance at the centre of the Sun")),
+                                           "radiance / radiance at the centre of the Sun; "
+                                           "refracted and single-scattered light")),
+         "scattered_radiance": variable(dims, view["scattered_radiance"].numpy(),
+                                        VariableSpec("1", "relative scattered radiance",
+                                                     "single-scattered part of radiance")),
          "image": variable(("offset", "altitude", "azimuth", "channel"), images.numpy(),
-                           VariableSpec("1", "sRGB", "common exposure per view"))},
+                           VariableSpec("1", "sRGB", "common exposure per view")),
+         "scattered_image": variable(("offset", "altitude", "azimuth", "channel"),
+                                     scattered.numpy(),
+                                     VariableSpec("1", "sRGB", "scattered light alone, "
+                                                  "its own exposure per view"))},
         {"offset": coordinate("offset", offset.numpy(),
                               VariableSpec("m", "distance from the shadow axis", "")),
          "altitude": coordinate("altitude", view["altitude_m"].numpy(),
@@ -419,16 +427,26 @@ def limb_views(quick: bool):
         parameters=shadow.parameters_dict())
     import matplotlib.pyplot as plt
 
-    figure, axes = plt.subplots(3, 1, figsize=(10, 5.5))
+    figure, axes = plt.subplots(3, 2, figsize=(14, 5.5))
     top = float(view["altitude_m"][-1]) / 1e3
-    for axis, image, km in zip(axes, images.numpy(), offset.numpy() / 1e3, strict=True):
-        axis.imshow(image, aspect="auto", origin="lower", extent=(-180, 180, 0, top))
-        axis.set_ylabel("impact alt. [km]")
-        axis.set_title(f"seen from {km:.0f} km off the shadow axis (exposure per view)",
-                       fontsize=9)
-    axes[-1].set_xlabel("ring azimuth from the Sun's direction [degree]")
+    for row, km in enumerate(offset.numpy() / 1e3):
+        for axis, image, what in ((axes[row, 0], images[row], "refracted + scattered"),
+                                  (axes[row, 1], scattered[row], "scattered alone")):
+            axis.imshow(image.numpy(), aspect="auto", origin="lower",
+                        extent=(-180, 180, 0, top))
+            axis.set_ylabel("impact alt. [km]")
+            axis.set_title(f"{what}, seen from {km:.0f} km off the shadow axis "
+                           "(exposure per view)", fontsize=8)
+    for axis in axes[-1]:
+        axis.set_xlabel("ring azimuth from the Sun's direction [degree]")
+    flux = view["scattered_radiance"] * view["solid_angle_sr"][..., None]
+    high = flux[:, view["altitude_m"] > 20e3].sum((1, 2))  # (offset, wavelength)
+    blue, red = int(torch.argmin((wavelength - 440.0).abs())), int(
+        torch.argmin((wavelength - 680.0).abs()))
+    summary = {f"limb_scattered_above_20km_440_over_680_at_{km:.0f}km":
+               float(high[i, blue] / high[i, red]) for i, km in enumerate(offset / 1e3)}
     figure.tight_layout()
-    return dataset, figure
+    return dataset, figure, summary
 
 
 def main(argv=None) -> int:
