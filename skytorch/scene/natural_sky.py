@@ -21,9 +21,11 @@ r"""The natural night sky per view direction: zodiacal light, airglow and starli
 Each is dimmed by the V-band extinction along the line of sight of a source of solar
 colour (:func:`skytorch.stars.extinction` on the scene's extinction table, refracted paths
 when ``knobs.refraction``): the zodiacal light and starlight by the whole extinction, the
-airglow relative to the zenith, as its level is an observed one. Light of the glowing
-sky scattered into the line of sight (which makes up part of that loss near the
-horizon) needs the multiple-scattering solver and is not included.
+airglow relative to the zenith, as its level is an observed one. The airglow scattered
+once into the line of sight (:mod:`skytorch.nightsky.scattered_light`: the layer lights
+the air over the whole sky; near the horizon this makes up for much of the extinction)
+is added, the sum scaled so that the zenith keeps the observed level; the scattered
+zodiacal light and starlight and higher orders are not included.
 
 References
 ----------
@@ -108,11 +110,13 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
 
     Notes
     -----
-    .. math:: L = \bigl[L_{ZL} + L_\star\bigr] 10^{-0.4\,\Delta m(h)} + L_{AG,0}\,V(z)\,
-              10^{-0.4\,[\Delta m(h) - \Delta m(90°)]},
+    .. math:: L = \bigl[L_{ZL} + L_\star\bigr] 10^{-0.4\,\Delta m(h)} + L_{AG,0}\,
+              \frac{V(z)\,10^{-0.4\,\Delta m(h)} + s(z, \lambda)}
+                   {10^{-0.4\,\Delta m(90°)} + s_V(0)},
 
-    with :math:`\Delta m` the V-band extinction, :math:`V(z)` the van Rhijn factor and
-    :math:`L_{AG,0}` the observed zenith airglow.
+    with :math:`\Delta m` the V-band extinction, :math:`V(z)` the van Rhijn factor,
+    :math:`s` the singly scattered airglow per unit zenith emission and :math:`L_{AG,0}`
+    the observed zenith airglow.
     """
     from skytorch.nightsky import (
         airglow_zenith_mag,
@@ -157,11 +161,33 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
 
     delta, delta_zenith = _extinction_mag(resources, view, knobs)
     space = 10.0 ** (-0.4 * delta)
-    relative = 10.0 ** (-0.4 * (delta - delta_zenith))
-    image = ((zodiacal + starlight) * space[..., None]
-             + (airglow_level * path * relative)[..., None] * flat)
+    airglow = _airglow(resources, knobs, zenith, wl, path * space, 10.0 ** (-0.4 * delta_zenith))
+    image = (zodiacal + starlight) * space[..., None] + airglow_level * airglow
     valid = view.valid[..., None].to(torch.float64)
     return (image * valid).to(knobs.dtype)
+
+
+def _airglow(resources, knobs, zenith, wavelength, direct, direct_zenith) -> torch.Tensor:
+    r"""Airglow per unit observed zenith level (*view, wavelength) [1].
+
+    Direct (van Rhijn path times extinction, ``direct``) plus the airglow scattered once
+    into the line of sight (:meth:`SceneResources.scattered_airglow_table`, log-interpolated
+    in wavelength and linear in zenith angle), divided by the same sum at the zenith in
+    the V band, so that the zenith keeps the observed level:
+    :math:`[V(z) T(z) + s(z, \lambda)] / [T(0) + s_V(0)]`.
+    """
+    from skytorch.scene.render import interpolate_wavelength
+
+    nodes, node_wavelength, table = resources.scattered_airglow_table(
+        knobs.elevation_m, knobs.airglow_height_m)
+    table = interpolate_wavelength(table, node_wavelength, wavelength)  # (zenith, wl)
+    position = torch.bucketize(zenith.clamp(max=float(nodes[-1])).contiguous(), nodes)
+    upper = position.clamp(1, nodes.numel() - 1)
+    t = ((zenith - nodes[upper - 1]) / (nodes[upper] - nodes[upper - 1]))[..., None]
+    scattered = (1.0 - t) * table[upper - 1] + t * table[upper]
+    flat = torch.ones_like(wavelength)
+    zenith_scattered = 10.0 ** (-0.4 * (_v_mag(table[0], wavelength) - _v_mag(flat, wavelength)))
+    return (direct[..., None] + scattered) / (direct_zenith + zenith_scattered)
 
 
 def view_icrs_matrix(knobs) -> torch.Tensor:

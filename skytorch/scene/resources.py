@@ -123,6 +123,14 @@ class SceneSpec:
                    tuple(scene.wavelength_nm().tolist()))
 
 
+#: view zenith nodes of :meth:`SceneResources.scattered_airglow_table` [degree]
+SCATTERED_AIRGLOW_ZENITH_DEG = (0.0, 20.0, 40.0, 55.0, 65.0, 72.0, 78.0, 82.0, 85.0, 87.0,
+                                88.5, 90.0)
+#: wavelength nodes of that table [nm] (log-interpolated between them; clear of the O2
+#: A and B and the strongest water bands)
+SCATTERED_AIRGLOW_WAVELENGTH_NM = (380.0, 440.0, 500.0, 560.0, 620.0, 660.0, 800.0, 870.0,
+                                   1000.0)
+
 class SceneResources:
     """Tables shared by the planner and renderers of scenes with one :class:`SceneSpec`.
 
@@ -260,6 +268,41 @@ class SceneResources:
             return extinction_table(self.atmosphere, elevation_m, refraction=refraction)
 
         return self._get(("extinction", elevation_m, refraction), build)
+
+    def scattered_airglow_table(self, elevation_m: float, layer_height_m: float):
+        """Airglow scattered once into lines of sight, per unit zenith emission (cached).
+
+        :func:`skytorch.nightsky.scattered_light.scattered_diffuse_radiance` of a thin
+        layer at ``layer_height_m`` (van Rhijn brightening of each incoming ray, zero at
+        points above the layer) on :data:`SCATTERED_AIRGLOW_ZENITH_DEG` ×
+        :data:`SCATTERED_AIRGLOW_WAVELENGTH_NM`; returns ``(zenith_rad, wavelength_nm,
+        radiance)`` with radiance (zenith, wavelength) [1] in units of the layer's zenith
+        radiance.
+        """
+        elevation_m, layer_height_m = float(elevation_m), float(layer_height_m)
+
+        def build():
+            from skytorch.nightsky.scattered_light import scattered_diffuse_radiance
+
+            planet = float(self.atmosphere.planet_radius_m)
+            layer = planet + layer_height_m
+
+            def incident(mu, altitude):
+                # path through the layer relative to the vertical, from radius R + h
+                r = planet + altitude
+                sin2 = (r / layer) ** 2 * (1.0 - mu * mu)
+                below = (altitude < layer_height_m) & (sin2 < 1.0)
+                path = 1.0 / torch.sqrt(torch.where(below, 1.0 - sin2, 1.0))
+                return torch.where(below, path, 0.0)[..., None]
+
+            zenith = torch.deg2rad(torch.tensor(SCATTERED_AIRGLOW_ZENITH_DEG,
+                                                dtype=torch.float64))
+            wavelength = torch.tensor(SCATTERED_AIRGLOW_WAVELENGTH_NM, dtype=torch.float64)
+            radiance = scattered_diffuse_radiance(self.atmosphere, zenith, wavelength,
+                                                  incident, altitude_m=elevation_m)
+            return zenith, wavelength, radiance
+
+        return self._get(("scattered_airglow", elevation_m, layer_height_m), build)
 
     def star_site_tables(self, elevation_m: float, refraction: bool):
         """Return the refraction and extinction tables at an observer height [m].
