@@ -51,3 +51,31 @@ def test_every_render_has_a_limiting_magnitude_map():
     assert 6.3 <= float(limit.isel(y=16, x=16)) <= 7.0
     day = Scene(time="2026-03-20T16:00:00", size=32, **PARANAL).render()
     assert float(day.limiting_magnitude.isel(y=16, x=16)) < 0.0
+
+
+def test_scattered_airglow_brightens_the_horizon_not_the_zenith(monkeypatch):
+    """The airglow scattered into the line of sight: zenith level kept, horizon brighter.
+
+    Against the same render with the scattered-airglow table set to zero (direct airglow
+    only). Measured at Paranal: zenith unchanged, 0.1 mag or more within ~5° of the
+    horizon (docs/nightsky.md).
+    """
+    from skytorch.scene.resources import SceneResources
+
+    def row(scattered):
+        original = SceneResources.scattered_airglow_table
+
+        def table(self, elevation_m, layer_height_m):
+            zenith, wavelength, radiance = original(self, elevation_m, layer_height_m)
+            return zenith, wavelength, radiance if scattered else 0.0 * radiance
+
+        monkeypatch.setattr(SceneResources, "scattered_airglow_table", table)
+        scene = Scene(time=PATAT_NIGHT, size=32, natural_model="leinert1998",
+                      solar_flux_sfu=70.0, exclude=("stars",), **PARANAL)
+        image = scene.render().component_v_mag_arcsec2.sel(component="natural")
+        return image.isel(y=16).values[16:]
+
+    with_light, direct_only = row(True), row(False)
+    assert abs(with_light[0] - direct_only[0]) < 0.01  # zenith [mag]
+    assert direct_only[-1] - with_light[-1] > 0.1  # lowest pixel [mag]
+    assert bool((with_light <= direct_only + 1e-9).all())
