@@ -359,3 +359,34 @@ def test_observe_tensors_in_place_path_matches_the_gradient_path(atm, dtype):
     assert bool(in_place["above_horizon"].any()) and not bool(in_place["above_horizon"].all())
     (gradient,) = torch.autograd.grad(recorded["magnitude"].sum(), vmag_grad)
     assert torch.allclose(gradient, torch.full_like(gradient, float(len(times))))
+
+
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+def test_star_color_table_shared_rows_match_the_per_star_table(atm, dtype):
+    """Check the no-gradient colour table (one block per distinct B−V) against the per-star one.
+
+    Without gradients stars of equal B−V share a block of rows, and values and slopes sit
+    side by side (one gather in star_color); with gradients every star has its own block.
+    Both give the same colours, and the site tables' complex pairs hold the same values
+    and slopes as the real tables.
+    """
+    from skytorch.stars.observation import refraction_table, site_tables
+    from skytorch.stars.photometry import apparent_color_table, star_color, star_color_table
+
+    table = apparent_color_table(atm, 0.0)
+    bv = torch.tensor([0.65, -0.2, 0.65, 1.5, 3.5, -0.2, 0.65, 0.0], dtype=dtype)
+    shared = star_color_table(bv, table)
+    per_star = star_color_table(bv.clone().requires_grad_(True), table)
+    assert "rows" in shared and "rows" not in per_star
+    assert shared["rows"].shape == (5 * table["linear_srgb"].shape[0], 6)
+    assert shared["offsets"][0] == shared["offsets"][2] == shared["offsets"][6]
+    altitude = torch.deg2rad(torch.linspace(-3.0, 90.0, 7 * 8, dtype=dtype)).reshape(7, 8)
+    colour = star_color(altitude, shared)
+    expected = star_color(altitude, {**per_star, "values": per_star["values"].detach(),
+                                     "slopes": per_star["slopes"].detach()})
+    assert colour.shape == (7, 8, 3)
+    assert torch.allclose(colour, expected, rtol=0.0, atol=1e-12 if dtype == torch.float64
+                          else 1e-6)
+    tables = site_tables(refraction_table(atm, 0.0), extinction_table(atm, 0.0), dtype)
+    assert torch.equal(tables["pairs"].real, tables["values"])
+    assert torch.equal(tables["pairs"].imag, tables["slopes"])

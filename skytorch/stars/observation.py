@@ -174,7 +174,8 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
     -------
     dict
         ``values`` (4, n) and ``slopes`` (4, n): refraction [rad], extinction offset A
-        and colour term B [mag], air mass, on true altitudes −2° … 90° every 0.01°
+        and colour term B [mag], air mass, on true altitudes −2° … 90° every 0.01°;
+        ``pairs`` (4, n), complex: ``values + i slopes``, both gathered by one look-up
         (``low_rad``, ``step_rad``; from further down for an elevated observer, whose
         horizon lies below −2°); ``horizon_rad``: the apparent altitude of the horizon
         (the ground), the first node of the extinction table
@@ -211,8 +212,9 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
             airmass = 1.0 / torch.sin(apparent).clamp_min(1.0 / 40.0)
     values = torch.stack([bend, offset, colour, airmass]).to(dtype)
     slopes = torch.diff(values, dim=-1, append=values[:, -1:])
-    return {"values": values, "slopes": slopes, "low_rad": low, "step_rad": step,
-            "count": count, "horizon_rad": horizon}
+    pairs = torch.view_as_complex(torch.stack([values, slopes], dim=-1))
+    return {"values": values, "slopes": slopes, "pairs": pairs, "low_rad": low,
+            "step_rad": step, "count": count, "horizon_rad": horizon}
 
 
 #: observer elevation accepted by :func:`observe` [m]: within the ephemeris' range and the
@@ -303,6 +305,18 @@ def _lerp_take(values: torch.Tensor, slopes: torch.Tensor, index: torch.Tensor,
                      out=out if scratch.enabled else None)
 
 
+def _lerp_pairs(pairs: torch.Tensor, index: torch.Tensor, weight: torch.Tensor,
+                scratch: Scratch, out: torch.Tensor) -> torch.Tensor:
+    """:func:`_lerp_take` with one gather of the (value, slope) pairs (enabled scratch).
+
+    The same products and sums as :func:`_lerp_take`, hence the same values.
+    """
+    taken = torch.view_as_real(torch.take(pairs, index,
+                                          out=scratch("pairs", index.shape, pairs.dtype)))
+    product = torch.mul(taken[..., 1], weight, out=scratch("taken", index.shape, out.dtype))
+    return torch.add(taken[..., 0], product, out=out)
+
+
 def _observe_chunk(stars_t: torch.Tensor, operators: torch.Tensor, vmag: torch.Tensor,
                    bv: torch.Tensor, tables: dict, scratch: Scratch,
                    rows: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
@@ -335,14 +349,18 @@ def _observe_chunk(stars_t: torch.Tensor, operators: torch.Tensor, vmag: torch.T
     index = scratch("index", shape, torch.int64)
     index = floor.long() if index is None else index.copy_(floor)
     values, slopes = tables["values"], tables["slopes"]
-    altitude = _lerp_take(values[0], slopes[0], index, weight, scratch, rows["altitude"])
-    altitude = torch.add(altitude, true, out=rows["altitude"])
-    colour_term = _lerp_take(values[2], slopes[2], index, weight, scratch,
-                             scratch("colour_term", shape, dtype))
-    magnitude = _lerp_take(values[1], slopes[1], index, weight, scratch, rows["magnitude"])
-    magnitude = torch.addcmul(magnitude, colour_term, bv, out=rows["magnitude"])
+
+    def lookup(row: int, out: torch.Tensor | None) -> torch.Tensor:
+        if scratch.enabled:
+            return _lerp_pairs(tables["pairs"][row], index, weight, scratch, out)
+        return _lerp_take(values[row], slopes[row], index, weight, scratch, out)
+
+    altitude = torch.add(lookup(0, rows["altitude"]), true, out=rows["altitude"])
+    colour_term = lookup(2, scratch("colour_term", shape, dtype))
+    magnitude = torch.addcmul(lookup(1, rows["magnitude"]), colour_term, bv,
+                              out=rows["magnitude"])
     magnitude = torch.add(magnitude, vmag, out=rows["magnitude"])
-    airmass = _lerp_take(values[3], slopes[3], index, weight, scratch, rows["airmass"])
+    airmass = lookup(3, rows["airmass"])
     return {"altitude": altitude, "azimuth": azimuth, "magnitude": magnitude,
             "airmass": airmass}
 

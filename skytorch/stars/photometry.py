@@ -654,10 +654,14 @@ def star_color_table(bv: torch.Tensor, table: dict[str, torch.Tensor], gamma: bo
     Returns
     -------
     dict of torch.Tensor
-        ``values`` and ``slopes`` (star · n_nodes, 3): the colour of star s at node i in
-        row s n_nodes + i and its difference to node i + 1; ``n_nodes`` (int),
-        ``offsets`` (star,) = s n_nodes and ``low_rad`` (float, the first node). Input of
-        :func:`star_color`.
+        ``values`` and ``slopes`` (row, 3): the colour at node i of the table row block
+        that starts at ``offsets[s]`` (star s's colour at node i is row
+        ``offsets[s] + i``) and its difference to node i + 1; ``n_nodes`` (int),
+        ``offsets`` (star,) and ``low_rad`` (float, the first node). Input of
+        :func:`star_color`. Without gradients the stars that share a B−V share one
+        block (8 916 Hipparcos stars have 1 911 distinct values), and ``rows`` (row, 6)
+        holds ``values`` and ``slopes`` side by side (``values`` and ``slopes`` are
+        views of it): :func:`star_color` gathers both with one look-up.
     """
     _check_table("apparent_color_table", table, ("bv", "linear_srgb"))
     bv = check_finite("bv", as_tensor("bv", bv))
@@ -666,19 +670,36 @@ def star_color_table(bv: torch.Tensor, table: dict[str, torch.Tensor], gamma: bo
     gamma = check_flag("gamma", gamma)
     by_bv = table["linear_srgb"].to(bv.dtype).transpose(0, 1).contiguous()  # (bv, h, 3)
     n_nodes = by_bv.shape[1]
-    lower, w = _bv_weights(bv, table["bv"])
+    if (torch.is_grad_enabled() and bv.requires_grad) or by_bv.requires_grad:
+        lower, w = _bv_weights(bv, table["bv"])
+        values = _normalised_colour(by_bv[lower + 1], by_bv[lower], w[:, :, None], gamma)
+        slopes = torch.diff(values, dim=1, append=values[:, -1:]).reshape(-1, 3)
+        return {"values": values.reshape(-1, 3), "slopes": slopes, "n_nodes": n_nodes,
+                "offsets": n_nodes * torch.arange(bv.numel()), "low_rad": table_low(table)}
+    distinct, inverse = torch.unique(bv, return_inverse=True)
+    rows = _distinct_colour_rows(distinct, by_bv, table["bv"], gamma)
+    flat = rows.view(-1, 6)
+    return {"values": flat[:, :3], "slopes": flat[:, 3:], "rows": flat, "n_nodes": n_nodes,
+            "offsets": n_nodes * inverse.reshape(-1), "low_rad": table_low(table)}
+
+
+def _distinct_colour_rows(bv: torch.Tensor, by_bv: torch.Tensor, grid: torch.Tensor,
+                          gamma: bool) -> torch.Tensor:
+    """Return (bv, node, 6): the colour at each node and its difference to the next node.
+
+    Built in blocks of :data:`STAR_BLOCK` B−V values, which keeps the temporaries small;
+    the last node's difference is 0 (as ``torch.diff`` with the last node appended).
+    """
+    lower, w = _bv_weights(bv, grid)
     w = w[:, :, None]
-    if w.requires_grad or by_bv.requires_grad:
-        values = _normalised_colour(by_bv[lower + 1], by_bv[lower], w, gamma)
-    else:  # blocks of stars keep the temporaries small
-        values = torch.empty(bv.numel(), n_nodes, 3, dtype=bv.dtype)
-        for start in range(0, bv.numel(), STAR_BLOCK):
-            block = slice(start, start + STAR_BLOCK)
-            values[block] = _normalised_colour(by_bv[lower[block] + 1], by_bv[lower[block]],
-                                               w[block], gamma)
-    slopes = torch.diff(values, dim=1, append=values[:, -1:]).reshape(-1, 3)
-    return {"values": values.reshape(-1, 3), "slopes": slopes, "n_nodes": n_nodes,
-            "offsets": n_nodes * torch.arange(bv.numel()), "low_rad": table_low(table)}
+    rows = torch.empty(bv.numel(), by_bv.shape[1], 6, dtype=bv.dtype)
+    for start in range(0, bv.numel(), STAR_BLOCK):
+        block = slice(start, start + STAR_BLOCK)
+        rows[block, :, :3] = _normalised_colour(by_bv[lower[block] + 1], by_bv[lower[block]],
+                                                w[block], gamma)
+    torch.sub(rows[:, 1:, :3], rows[:, :-1, :3], out=rows[:, :-1, 3:])
+    rows[:, -1, 3:] = 0.0
+    return rows
 
 
 def star_color(apparent_altitude_rad: torch.Tensor, per_star: dict[str, torch.Tensor],
@@ -707,24 +728,32 @@ def star_color(apparent_altitude_rad: torch.Tensor, per_star: dict[str, torch.Te
 
     Notes
     -----
-    The three channels of a node are gathered as one row (:func:`torch.index_select`)
-    straight into the output.
+    The three channels of a node are gathered as one row (:func:`torch.index_select`);
+    with the table's ``rows`` one gather brings the colour and its slope together.
     """
     index, weight = table_lookup(apparent_altitude_rad, per_star["n_nodes"],
                                  per_star["low_rad"], scratch)
     flat = index.add_(per_star["offsets"]).reshape(-1)
+    shape = (*apparent_altitude_rad.shape, 3)
     values, slopes = per_star["values"], per_star["slopes"]
     if weight.requires_grad or values.requires_grad:
         colour = torch.addcmul(torch.index_select(values, 0, flat),
                                torch.index_select(slopes, 0, flat), weight.reshape(-1, 1))
-        colour = colour.reshape(*apparent_altitude_rad.shape, 3)
         if out is not None:
-            out.copy_(colour)
+            out.copy_(colour.reshape(shape))
             return out
-        return colour
+        return colour.reshape(shape)
     rows = None if out is None else out.view(-1, 3)
+    if "rows" in per_star:  # values and slopes side by side: one gather
+        gathered = torch.index_select(
+            per_star["rows"], 0, flat,
+            out=None if scratch is None else scratch("colour_rows", (flat.numel(), 6),
+                                                     values.dtype))
+        colour = torch.addcmul(gathered[:, :3], gathered[:, 3:], weight.reshape(-1, 1),
+                               out=rows)
+        return colour.reshape(shape)
     colour = torch.index_select(values, 0, flat, out=rows)
     gathered = None if scratch is None else scratch("colour_slopes", (flat.numel(), 3),
                                                     slopes.dtype)
     colour.addcmul_(torch.index_select(slopes, 0, flat, out=gathered), weight.reshape(-1, 1))
-    return colour.reshape(*apparent_altitude_rad.shape, 3)
+    return colour.reshape(shape)
