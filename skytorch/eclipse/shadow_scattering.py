@@ -350,7 +350,9 @@ def impact_nodes(low_radius_m: float, top_radius_m: float, breakpoints_radius_m,
     ground, where the density falls fastest); the breakpoints strictly between
     ``b_low`` and ``r_top`` split ``s`` into panels, each with
     ``max(3, round(n_impact * panel length))`` nodes, so a thin layer (a stratospheric
-    aerosol layer a few km wide) is resolved by its own panels.
+    aerosol layer a few km wide) is resolved by its own panels. Breakpoints closer than
+    ``1 / n_impact`` in ``s`` to the previous kept one (or to the top) are dropped, which
+    bounds the panels at ``n_impact`` when many members' layers differ.
 
     Parameters
     ----------
@@ -371,9 +373,12 @@ def impact_nodes(low_radius_m: float, top_radius_m: float, breakpoints_radius_m,
     span = top_radius_m - low_radius_m
     inner = torch.as_tensor(breakpoints_radius_m, dtype=torch.float64).reshape(-1)
     inner = inner[(inner > low_radius_m) & (inner < top_radius_m)]
-    edges = torch.cat([torch.zeros(1, dtype=torch.float64),
-                       torch.sqrt((torch.sort(inner).values - low_radius_m) / span),
-                       torch.ones(1, dtype=torch.float64)])
+    kept = [0.0]
+    for edge in torch.sqrt((torch.sort(inner).values - low_radius_m) / span).tolist():
+        # panels narrower than a base node spacing merge (many members' layers)
+        if edge - kept[-1] >= 1.0 / n_impact and 1.0 - edge >= 1.0 / n_impact:
+            kept.append(edge)
+    edges = torch.tensor([*kept, 1.0], dtype=torch.float64)
     nodes, weights = [], []
     for start, end in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
         n = n_impact if edges.shape[0] == 2 else max(3, round(n_impact * (end - start)))
