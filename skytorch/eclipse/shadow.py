@@ -1401,16 +1401,16 @@ class Shadow(nn.Module):
         Over the ring's quadrature nodes, or (``impact_radius_m``) on given lines of sight.
         """
         closed = self.cloud_fraction >= 1.0
-        cloud = self.cloud_top_altitude_m
         weights = RingProfile(0.0, 1.0, torch.zeros(3), torch.zeros(3, 1), torch.zeros(3),
-                              self.terrain_height_m, cloud_top_m=0.0 if closed else cloud,
+                              self.terrain_height_m,
+                              cloud_top_m=0.0 if closed else self.cloud_top_altitude_m,
                               cloud_fraction=0.0 if closed else self.cloud_fraction,
                               cloud_cover=self.cloud_cover)
+        lowest = self._lowest_line_of_sight_m()
         return ScatteringProfile(
-            self.atmosphere, wavelength, lowest_altitude_m=cloud if closed else 0.0,
+            self.atmosphere, wavelength, lowest_altitude_m=lowest,
             ray_weight=lambda h: _ray_weight(h, weights), resolution=self.scattering_resolution,
-            blocking_radius_m=self.occluder_radius_m + (cloud if closed else 0.0),
-            impact_radius_m=impact_radius_m)
+            blocking_radius_m=self.occluder_radius_m + lowest, impact_radius_m=impact_radius_m)
 
     # ------------------------------------------------------------------ illuminance
     def _geometry(self, distance_m, offset_m, sun_distance_m, dtype):
