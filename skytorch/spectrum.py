@@ -86,6 +86,7 @@ __all__ = [
     "bv_to_temperature",
     "cie_xyz_cmf",
     "i_band_response",
+    "interpolate_wavelength",
     "photopic_luminous_efficiency",
     "r_band_response",
     "solar_irradiance",
@@ -855,3 +856,27 @@ def bv_to_temperature(bv) -> torch.Tensor:
     value = check_range("bv", bv, *BV_RANGE_MAG, unit=" mag")
     return 4600.0 * (1.0 / (0.92 * value + 1.7) + 1.0 / (0.92 * value + 0.62))
 
+
+def interpolate_wavelength(values: torch.Tensor, nodes: torch.Tensor,
+                           wavelength: torch.Tensor) -> torch.Tensor:
+    r"""Interpolate a spectrum (..., node) at increasing nodes [nm] to wavelengths [nm].
+
+    Linear in :math:`\ln` of the values between the two nodes around each wavelength
+    (linear in the values where either is not positive); the nodes span the wavelengths
+    (e.g. :meth:`~skytorch.scene.resources.SceneResources.scattering_nodes`), a
+    wavelength outside them raises ``ValueError``. Returns (..., wavelength).
+    """
+    wl = wavelength.to(nodes.dtype)
+    if bool((wl < nodes[0] - 1e-9).any() or (wl > nodes[-1] + 1e-9).any()):
+        raise ValueError(f"wavelength must lie within the nodes [{float(nodes[0])}, "
+                         f"{float(nodes[-1])}] nm; got {wl.tolist()}")
+    if nodes.numel() == 1:
+        return values[..., [0] * wl.numel()]
+    upper = torch.searchsorted(nodes, wl.contiguous()).clamp(1, nodes.numel() - 1)
+    lower = upper - 1
+    t = ((wl - nodes[lower]) / (nodes[upper] - nodes[lower]))
+    left, right = values[..., lower], values[..., upper]
+    positive = (left > 0) & (right > 0)
+    logs = torch.exp((1.0 - t) * torch.log(torch.where(positive, left, 1.0))
+                     + t * torch.log(torch.where(positive, right, 1.0)))
+    return torch.where(positive, logs, (1.0 - t) * left + t * right)

@@ -46,6 +46,7 @@ __all__ = [
     "constituent_radiance",
     "single_scattering_radiance",
     "cornette_shanks",
+    "cumulative_columns",
     "henyey_greenstein",
     "phase_function",
     "rayleigh_phase",
@@ -212,7 +213,7 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
                                 n_samples=n_samples, table=table, sun_steps=sun_steps)
 
 
-def _cumulative_columns(densities, step):
+def cumulative_columns(densities, step):
     """Trapezoid columns (..., n) [m] of each density from the first sample to each sample.
 
     ``densities`` maps species to (..., n) samples, ``step`` (..., n - 1) the distances
@@ -279,7 +280,7 @@ def constituent_radiance(constituents, view_zenith, view_azimuth, sun_zenith, su
         tau_sun = constituents.optical_depth(columns, extra=1)
     # view path: cumulative trapezoid columns of every species along the samples
     step = s[..., 1:] - s[..., :-1]
-    tau_view = constituents.optical_depth(_cumulative_columns(densities, step), extra=1)
+    tau_view = constituents.optical_depth(cumulative_columns(densities, step), extra=1)
     shadow = _ray_hits_ground(r, mu_sun, planet)[..., None]
     sun_transmittance = torch.where(shadow, torch.zeros_like(tau_sun), torch.exp(-tau_sun))
     source = None
@@ -436,6 +437,6 @@ def second_order_radiance(constituents, view_zenith, view_azimuth, sun_zenith, s
         term = densities[species.name][..., None] * species.scattering * inscattered
         source = term if source is None else source + term
     step = s[..., 1:] - s[..., :-1]
-    columns = _cumulative_columns(densities, step)
+    columns = cumulative_columns(densities, step)
     integrand = source * torch.exp(-constituents.optical_depth(columns, extra=1))
     return (0.5 * step[..., None] * (integrand[..., 1:, :] + integrand[..., :-1, :])).sum(-2)

@@ -52,7 +52,8 @@ import torch
 
 from skytorch._validate import as_tensor, check_int, check_range
 from skytorch.atmosphere.constituents import insert_dims
-from skytorch.atmosphere.scattering import _cumulative_columns
+from skytorch.atmosphere.geometry import distance_to_top
+from skytorch.atmosphere.scattering import cumulative_columns
 
 __all__ = ["scattered_diffuse_radiance"]
 
@@ -124,8 +125,6 @@ def scattered_diffuse_radiance(atmosphere, view_zenith_rad, wavelength_nm, incid
 
 def _chunk(constituents, zenith, incident, altitude_m, n_steps, n_mu, n_azimuth):
     """:func:`scattered_diffuse_radiance` for a few view rays (n_view, n_wavelength)."""
-    from skytorch.atmosphere.geometry import distance_to_top
-
     dtype = zenith.dtype
     planet, top = constituents.planet_radius_m, constituents.top_radius_m
     r0 = planet + altitude_m
@@ -160,6 +159,6 @@ def _chunk(constituents, zenith, incident, altitude_m, n_steps, n_mu, n_azimuth)
         source = source + (densities[species.name][..., None]
                            * insert_dims(species.scattering, 2, 1) * in_scattered)
     step = s[:, 1:] - s[:, :-1]
-    tau_view = constituents.optical_depth(_cumulative_columns(densities, step), extra=2)
+    tau_view = constituents.optical_depth(cumulative_columns(densities, step), extra=2)
     integrand = source * torch.exp(-tau_view)
     return (0.5 * (integrand[:, 1:] + integrand[:, :-1]) * step[..., None]).sum(1)

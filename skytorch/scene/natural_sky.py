@@ -41,6 +41,8 @@ import math
 import numpy as np
 import torch
 
+from skytorch.spectrum import interpolate_wavelength, solar_irradiance
+
 __all__ = ["DEFAULT_SOLAR_FLUX_SFU", "ecliptic_coordinates", "natural_component",
            "view_icrs_vectors"]
 
@@ -125,7 +127,6 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
         van_rhijn,
         zodiacal_spectral_radiance,
     )
-    from skytorch.spectrum import solar_irradiance
 
     wl = wavelength.to(torch.float64).reshape(-1)
     zenith = view.zenith_rad.to(torch.float64)
@@ -176,8 +177,6 @@ def _airglow(resources, knobs, zenith, wavelength, direct, direct_zenith) -> tor
     the V band, so that the zenith keeps the observed level:
     :math:`[V(z) T(z) + s(z, \lambda)] / [T(0) + s_V(0)]`.
     """
-    from skytorch.scene.render import interpolate_wavelength
-
     nodes, node_wavelength, table = resources.scattered_airglow_table(
         knobs.elevation_m, knobs.airglow_height_m)
     table = interpolate_wavelength(table, node_wavelength, wavelength)  # (zenith, wl)

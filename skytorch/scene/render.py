@@ -173,31 +173,6 @@ def _lookup(table: torch.Tensor, zenith: torch.Tensor, relative_azimuth: torch.T
     return out[0, :, 0, :].T.reshape(*zenith.shape, n_wl)
 
 
-def interpolate_wavelength(values: torch.Tensor, nodes: torch.Tensor,
-                           wavelength: torch.Tensor) -> torch.Tensor:
-    r"""Interpolate a spectrum (..., node) at increasing nodes [nm] to wavelengths [nm].
-
-    Linear in :math:`\ln` of the values between the two nodes around each wavelength
-    (linear in the values where either is not positive); the nodes span the wavelengths
-    (:meth:`~skytorch.scene.resources.SceneResources.scattering_nodes`), a wavelength
-    outside them raises ``ValueError``. Returns (..., wavelength).
-    """
-    wl = wavelength.to(nodes.dtype)
-    if bool((wl < nodes[0] - 1e-9).any() or (wl > nodes[-1] + 1e-9).any()):
-        raise ValueError(f"wavelength must lie within the nodes [{float(nodes[0])}, "
-                         f"{float(nodes[-1])}] nm; got {wl.tolist()}")
-    if nodes.numel() == 1:
-        return values[..., [0] * wl.numel()]
-    upper = torch.searchsorted(nodes, wl.contiguous()).clamp(1, nodes.numel() - 1)
-    lower = upper - 1
-    t = ((wl - nodes[lower]) / (nodes[upper] - nodes[lower]))
-    left, right = values[..., lower], values[..., upper]
-    positive = (left > 0) & (right > 0)
-    logs = torch.exp((1.0 - t) * torch.log(torch.where(positive, left, 1.0))
-                     + t * torch.log(torch.where(positive, right, 1.0)))
-    return torch.where(positive, logs, (1.0 - t) * left + t * right)
-
-
 def higher_orders(resources, knobs, source_zenith_rad: float, zenith, relative_azimuth,
                   wavelength, orders: int) -> torch.Tensor:
     r"""Orders 2..N of the sky per unit irradiance of a point source (..., wl) [sr^-1].
@@ -207,7 +182,7 @@ def higher_orders(resources, knobs, source_zenith_rad: float, zenith, relative_a
     wavelength nodes of the fidelity preset): ``radiance(N) - radiance(1)`` at the
     view zenith angles and azimuths relative to the source, for a source at
     ``source_zenith_rad``, interpolated from the nodes to ``wavelength`` in log radiance
-    (:func:`interpolate_wavelength`).
+    (:func:`skytorch.spectrum.interpolate_wavelength`).
     """
     tables = resources.scattering_tables(knobs.scattering_orders["tables"],
                                          knobs["ms_tables"], knobs["ms_wavelength_nodes"])
@@ -216,6 +191,8 @@ def higher_orders(resources, knobs, source_zenith_rad: float, zenith, relative_a
             source)
     higher = (tables.radiance(*args, scattering_orders=orders)
               - tables.radiance(*args, scattering_orders=1))
+    from skytorch.spectrum import interpolate_wavelength
+
     return interpolate_wavelength(higher, tables.wavelength_nm, wavelength)
 
 

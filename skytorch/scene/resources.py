@@ -127,7 +127,7 @@ class SceneSpec:
 SCATTERED_AIRGLOW_ZENITH_DEG = (0.0, 20.0, 40.0, 55.0, 65.0, 72.0, 78.0, 82.0, 85.0, 87.0,
                                 88.5, 90.0)
 #: wavelength nodes of that table [nm] (log-interpolated between them; clear of the O2
-#: A and B and the strongest water bands)
+#: A and B and the strongest water bands), with the scene's shortest and longest added
 SCATTERED_AIRGLOW_WAVELENGTH_NM = (380.0, 440.0, 500.0, 560.0, 620.0, 660.0, 800.0, 870.0,
                                    1000.0)
 
@@ -274,12 +274,15 @@ class SceneResources:
 
         :func:`skytorch.nightsky.scattered_light.scattered_diffuse_radiance` of a thin
         layer at ``layer_height_m`` (van Rhijn brightening of each incoming ray, zero at
-        points above the layer) on :data:`SCATTERED_AIRGLOW_ZENITH_DEG` ×
-        :data:`SCATTERED_AIRGLOW_WAVELENGTH_NM`; returns ``(zenith_rad, wavelength_nm,
-        radiance)`` with radiance (zenith, wavelength) [1] in units of the layer's zenith
-        radiance.
+        points above the layer) on :data:`SCATTERED_AIRGLOW_ZENITH_DEG` × the nodes of
+        :data:`SCATTERED_AIRGLOW_WAVELENGTH_NM` inside the scene's wavelength range plus
+        its two ends; returns ``(zenith_rad, wavelength_nm, radiance)`` with radiance
+        (zenith, wavelength) [1] in units of the layer's zenith radiance.
         """
         elevation_m, layer_height_m = float(elevation_m), float(layer_height_m)
+        low, high = min(self.spec.wavelengths), max(self.spec.wavelengths)
+        nodes = sorted({low, high, *(x for x in SCATTERED_AIRGLOW_WAVELENGTH_NM
+                                     if low < x < high)})
 
         def build():
             from skytorch.nightsky.scattered_light import scattered_diffuse_radiance
@@ -297,12 +300,12 @@ class SceneResources:
 
             zenith = torch.deg2rad(torch.tensor(SCATTERED_AIRGLOW_ZENITH_DEG,
                                                 dtype=torch.float64))
-            wavelength = torch.tensor(SCATTERED_AIRGLOW_WAVELENGTH_NM, dtype=torch.float64)
+            wavelength = torch.tensor(nodes, dtype=torch.float64)
             radiance = scattered_diffuse_radiance(self.atmosphere, zenith, wavelength,
                                                   incident, altitude_m=elevation_m)
             return zenith, wavelength, radiance
 
-        return self._get(("scattered_airglow", elevation_m, layer_height_m), build)
+        return self._get(("scattered_airglow", elevation_m, layer_height_m, low, high), build)
 
     def star_site_tables(self, elevation_m: float, refraction: bool):
         """Return the refraction and extinction tables at an observer height [m].
