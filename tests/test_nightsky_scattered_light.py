@@ -24,9 +24,9 @@ from skytorch.constants import PERCENT
 from skytorch.nightsky.scattered_light import scattered_diffuse_radiance
 
 WAVELENGTH = torch.tensor([450.0, 550.0, 650.0], dtype=torch.float64)
-#: Gauss nodes vs the brute-force sphere (measured 0.13-0.23 %; the brute force with 2x
-#: path points and 2x directions moves by 0.03 %)
-BRUTE_FORCE_TOLERANCE = 0.5 * PERCENT
+#: Gauss nodes vs the brute-force sphere (measured 0.003-0.005 %; the brute force with 2x
+#: path points and 2x directions moves by 0.03 %, which bounds what can be checked)
+BRUTE_FORCE_TOLERANCE = 0.1 * PERCENT
 
 
 def _atmosphere():
@@ -91,7 +91,7 @@ def _brute_force(atm, view_zenith, n_path=100, n_directions=4000):
 
 @pytest.mark.parametrize("view_deg", [0.0, 85.0])
 def test_uniform_source_against_brute_force_sphere(view_deg):
-    """Measured: 0.15-0.17 % at the zenith, 0.13-0.23 % at 85° (450-650 nm)."""
+    """Measured: 0.003 % at the zenith, 0.003-0.005 % at 85° (450-650 nm)."""
     atm = _atmosphere()
     got = scattered_diffuse_radiance(atm, torch.tensor([math.radians(view_deg)]), WAVELENGTH,
                                      lambda mu, h: torch.ones_like(mu)[..., None])[0]
@@ -122,7 +122,7 @@ def test_sphere_exceeds_plane_parallel_by_the_horizontal_light(view_deg):
 
 
 def test_converged_and_source_law():
-    """Default nodes within 0.5 % of 4x nodes; a source twice as bright scatters twice."""
+    """Default nodes within 0.5 % of finer ones (measured 0.09 %); linear in the source."""
     atm = _atmosphere()
     zenith = torch.tensor([0.0, 1.2, 1.5, 0.5 * math.pi], dtype=torch.float64)
     one = scattered_diffuse_radiance(atm, zenith, WAVELENGTH,

@@ -71,7 +71,7 @@ def _unit_gauss(n: int, dtype) -> tuple[torch.Tensor, torch.Tensor]:
 
 
 def scattered_diffuse_radiance(atmosphere, view_zenith_rad, wavelength_nm, incident, *,
-                               altitude_m: float = 0.0, n_steps: int = 48, n_mu: int = 16,
+                               altitude_m: float = 0.0, n_steps: int = 96, n_mu: int = 16,
                                n_azimuth: int = 8) -> torch.Tensor:
     """Single-scattered radiance of lines of sight lit by a diffuse source above the air.
 
