@@ -5,7 +5,9 @@
 * :mod:`~skytorch.nightsky.starlight` — Gaia catalogue stars fainter than a limit, as a
   surface-brightness map (the Milky Way of the catalogue);
 * :mod:`~skytorch.nightsky.faint_starlight` — the Pioneer 10/11 starlight (Leinert et al.
-  1998 Table 35) fainter than the catalogue.
+  1998 Table 35) fainter than the catalogue;
+* :mod:`~skytorch.nightsky.scattered_light` — light of a source above the air (the
+  airglow layer) scattered once into the line of sight.
 
 The per-direction sum for a scene is :func:`skytorch.scene.natural_sky.natural_component`.
 """
@@ -21,6 +23,7 @@ from skytorch.nightsky.faint_starlight import (
     faint_starlight_table,
     faint_starlight_v_radiance,
 )
+from skytorch.nightsky.scattered_light import scattered_diffuse_radiance
 from skytorch.nightsky.starlight import (
     catalogue_starlight_map,
     galactic_coordinates,
@@ -43,6 +46,7 @@ __all__ = [
     "faint_starlight_table",
     "faint_starlight_v_radiance",
     "galactic_coordinates",
+    "scattered_diffuse_radiance",
     "starlight_v_radiance",
     "van_rhijn",
     "zodiacal_brightness_500",
