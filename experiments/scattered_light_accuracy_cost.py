@@ -27,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._harness import median_seconds  # noqa: E402
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from skytorch.atmosphere import Atmosphere  # noqa: E402
+from skytorch.nightsky.airglow import layer_path_factor  # noqa: E402
 from skytorch.nightsky.scattered_light import scattered_diffuse_radiance  # noqa: E402
 from skytorch.scene.resources import SCATTERED_AIRGLOW_ZENITH_DEG  # noqa: E402
 
@@ -37,14 +38,9 @@ LAYER_HEIGHT_M = 90_000.0
 
 
 def _airglow(planet_radius_m: float):
-    layer = planet_radius_m + LAYER_HEIGHT_M
-
     def incident(mu, altitude):
-        r = planet_radius_m + altitude
-        sin2 = (r / layer) ** 2 * (1.0 - mu * mu)
-        below = (altitude < LAYER_HEIGHT_M) & (sin2 < 1.0)
-        return torch.where(below, 1.0 / torch.sqrt(torch.where(below, 1.0 - sin2, 1.0)),
-                           0.0)[..., None]
+        return layer_path_factor(mu, altitude, layer_height_m=LAYER_HEIGHT_M,
+                                 planet_radius_m=planet_radius_m)[..., None]
 
     return incident
 

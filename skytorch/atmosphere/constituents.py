@@ -166,6 +166,10 @@ class Profile:
     support : bool
         The density vanishes outside [first, last breakpoint] (only that range is
         integrated).
+    aloft : bool
+        The density peaks above the ground (a layer, e.g. stratospheric aerosol): tables
+        over tangent altitude split their nodes at its breakpoints
+        (:func:`skytorch.eclipse.shadow_scattering.impact_nodes`).
     state, from_state : callable, optional
         Given together: the density as ``from_state(state(altitude_m), **parameters)``,
         equal to ``function(altitude_m, **parameters)``. ``state`` is a pure function of
@@ -183,6 +187,7 @@ class Profile:
     relative_breakpoints_m: torch.Tensor | None = None
     truncate: bool = False
     support: bool = False
+    aloft: bool = False
     state: Callable[[torch.Tensor], tuple] | None = None
     from_state: Callable[..., torch.Tensor] | None = None
 

@@ -1560,7 +1560,7 @@ def _stratospheric_profile(atm, dtype) -> Profile:
                          * torch.tensor(_GAUSSIAN_LEVELS, dtype=dtype), min=0.0)
     height = _aerosol.gaussian_layer_column(center, width, atm.top_altitude_m)
     return Profile(_aerosol.gaussian_layer, {"center_m": center, "width_m": width}, height,
-                   breakpoints_m=levels)
+                   breakpoints_m=levels, aloft=True)
 
 
 def _stratospheric_species(atm, wavelength, dtype, profile) -> Species:

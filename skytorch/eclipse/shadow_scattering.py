@@ -147,8 +147,6 @@ _BLOCK = 16
 _PATH_STRETCH = 3.0
 #: points per chunk in the illuminance sum (bounds the temporaries)
 _CHUNK = 2048
-#: species whose profile is a layer aloft: their breakpoints split the impact nodes
-_LAYER_SPECIES = ("stratospheric_aerosol",)
 #: kernel values gathered at once for species with per-member or per-wavelength phase
 #: functions (bounds the temporaries: 32 MiB in float64)
 _GATHER_ELEMENTS = 1 << 22
@@ -330,12 +328,12 @@ def _species_breakpoints(constituents, names) -> torch.Tensor:
     """Altitudes [m] where the density of a scattering layer changes character.
 
     The breakpoints of the species ``names`` whose profile is a layer above the ground
-    (the stratospheric aerosol's Gaussian: its levels at multiples of the width), all
-    members together; the molecular and tropospheric profiles, smooth and decreasing
-    from the ground, are resolved by the base nodes.
+    (``Profile.aloft``: the stratospheric aerosol's Gaussian, its levels at multiples of
+    the width), all members together; the molecular and tropospheric profiles, smooth
+    and decreasing from the ground, are resolved by the base nodes.
     """
     levels = [constituents[name].profile.breakpoints_m for name in names
-              if name in _LAYER_SPECIES]
+              if constituents[name].profile.aloft]
     levels = [x.detach().reshape(-1).to(torch.float64) for x in levels if x is not None]
     if not levels:
         return torch.zeros(0, dtype=torch.float64)

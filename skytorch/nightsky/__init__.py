@@ -17,6 +17,7 @@ from skytorch.nightsky.airglow import (
     AIRGLOW_ZENITH_V_130SFU,
     airglow_solar_factor,
     airglow_zenith_mag,
+    layer_path_factor,
     van_rhijn,
 )
 from skytorch.nightsky.faint_starlight import (
@@ -46,6 +47,7 @@ __all__ = [
     "faint_starlight_table",
     "faint_starlight_v_radiance",
     "galactic_coordinates",
+    "layer_path_factor",
     "scattered_diffuse_radiance",
     "starlight_v_radiance",
     "van_rhijn",

@@ -43,6 +43,7 @@ __all__ = [
     "AIRGLOW_ZENITH_V_130SFU",
     "airglow_solar_factor",
     "airglow_zenith_mag",
+    "layer_path_factor",
     "van_rhijn",
 ]
 
@@ -130,3 +131,36 @@ def van_rhijn(zenith_rad, *, layer_height_m: float = AIRGLOW_HEIGHT_M,
     ratio = (planet_radius_m + observer_height_m) / (planet_radius_m + layer_height_m)
     sine = torch.sin(zenith)
     return torch.rsqrt(1.0 - ratio * ratio * sine * sine)
+
+
+def layer_path_factor(cos_zenith, altitude_m, *, layer_height_m: float = AIRGLOW_HEIGHT_M,
+                      planet_radius_m: float = 6_371_000.0) -> torch.Tensor:
+    r"""Path through the thin layer, relative to the vertical, of rays from any altitude.
+
+    The van Rhijn factor :math:`[1 - ((R + h)/(R + h_L))^2 (1 - \mu^2)]^{-1/2}` of the ray
+    that reaches altitude ``h`` from local zenith cosine ``mu`` (of either sign: a ray from
+    slightly below the local horizontal has crossed the layer on its way down to the
+    point), and 0 at points at or above the layer (its light reaches them from below,
+    where the air is negligible). The incoming airglow of
+    :func:`skytorch.nightsky.scattered_light.scattered_diffuse_radiance`, per unit zenith
+    emission.
+
+    Parameters
+    ----------
+    cos_zenith : Tensor (...)
+        Local zenith cosine of the incoming ray's direction (towards the layer) [1].
+    altitude_m : Tensor (...)
+        Altitude of the point [m].
+    layer_height_m, planet_radius_m : float
+        Height of the layer and the planet's radius [m].
+
+    Returns
+    -------
+    Tensor (...)
+        Path factor [1] (1 at the zenith below the layer).
+    """
+    layer = planet_radius_m + layer_height_m
+    radius = planet_radius_m + altitude_m
+    sin2 = (radius / layer) ** 2 * (1.0 - cos_zenith * cos_zenith)
+    below = (altitude_m < layer_height_m) & (sin2 < 1.0)
+    return torch.where(below, 1.0 / torch.sqrt(torch.where(below, 1.0 - sin2, 1.0)), 0.0)

@@ -285,18 +285,14 @@ class SceneResources:
                                      if low < x < high)})
 
         def build():
+            from skytorch.nightsky.airglow import layer_path_factor
             from skytorch.nightsky.scattered_light import scattered_diffuse_radiance
 
             planet = float(self.atmosphere.planet_radius_m)
-            layer = planet + layer_height_m
 
             def incident(mu, altitude):
-                # path through the layer relative to the vertical, from radius R + h
-                r = planet + altitude
-                sin2 = (r / layer) ** 2 * (1.0 - mu * mu)
-                below = (altitude < layer_height_m) & (sin2 < 1.0)
-                path = 1.0 / torch.sqrt(torch.where(below, 1.0 - sin2, 1.0))
-                return torch.where(below, path, 0.0)[..., None]
+                return layer_path_factor(mu, altitude, layer_height_m=layer_height_m,
+                                         planet_radius_m=planet)[..., None]
 
             zenith = torch.deg2rad(torch.tensor(SCATTERED_AIRGLOW_ZENITH_DEG,
                                                 dtype=torch.float64))
