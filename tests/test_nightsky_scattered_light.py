@@ -148,3 +148,33 @@ def test_bad_input():
         scattered_diffuse_radiance(Atmosphere.earth(turbidity=torch.tensor([2.0, 3.0])),
                                    torch.tensor([0.0]), WAVELENGTH,
                                    lambda mu, h: torch.ones_like(mu)[..., None])
+
+
+def test_layer_path_factor_is_van_rhijn_from_the_ground_and_dark_above_the_layer():
+    """The incoming airglow law: van Rhijn (its own implementation) for a ground point."""
+    from skytorch.nightsky import layer_path_factor, van_rhijn
+
+    zenith = torch.linspace(0.0, 0.5 * math.pi, 7, dtype=torch.float64)
+    path = layer_path_factor(torch.cos(zenith), torch.zeros_like(zenith))
+    assert torch.allclose(path, van_rhijn(zenith), rtol=1e-12, atol=0.0)
+    above = layer_path_factor(torch.tensor([1.0, 0.0]), torch.tensor([90e3, 95e3]))
+    assert bool((above == 0.0).all())
+    # a ray from just below the local horizontal at 20 km crossed the layer: finite, > 1
+    grazing = layer_path_factor(torch.tensor([-0.05]), torch.tensor([20e3]))
+    assert bool(torch.isfinite(grazing).all() and (grazing > 1.0).all())
+
+
+def test_gradient_with_respect_to_view_zenith_matches_finite_differences():
+    atm = _atmosphere()
+    zenith = torch.tensor([0.7, 1.3], dtype=torch.float64, requires_grad=True)
+
+    def radiance(z):
+        return scattered_diffuse_radiance(atm, z, WAVELENGTH[:1],
+                                          lambda mu, h: torch.ones_like(mu)[..., None],
+                                          n_steps=32, n_mu=8, n_azimuth=4)[:, 0]
+
+    (grad,) = torch.autograd.grad(radiance(zenith).sum(), zenith)
+    step = 1e-5
+    with torch.no_grad():
+        numeric = (radiance(zenith + step) - radiance(zenith - step)) / (2.0 * step)
+    assert torch.allclose(grad, numeric, rtol=1e-5, atol=0.0), (grad, numeric)

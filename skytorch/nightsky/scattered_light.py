@@ -50,24 +50,16 @@ import math
 
 import torch
 
+from skytorch._quadrature import unit_nodes
 from skytorch._validate import as_tensor, check_int, check_range
 from skytorch.atmosphere.constituents import insert_dims
-from skytorch.atmosphere.geometry import distance_to_top
+from skytorch.atmosphere.geometry import distance_to_top, safe_sqrt
 from skytorch.atmosphere.scattering import cumulative_columns
 
 __all__ = ["scattered_diffuse_radiance"]
 
 #: view rays per chunk (bounds the (view, path, mu', phi) temporaries)
 _VIEW_CHUNK = 16
-
-
-def _unit_gauss(n: int, dtype) -> tuple[torch.Tensor, torch.Tensor]:
-    """Gauss–Legendre nodes and weights on [0, 1]."""
-    import numpy as np
-
-    x, w = np.polynomial.legendre.leggauss(n)
-    return (torch.as_tensor(0.5 * (x + 1.0), dtype=dtype),
-            torch.as_tensor(0.5 * w, dtype=dtype))
 
 
 def scattered_diffuse_radiance(atmosphere, view_zenith_rad, wavelength_nm, incident, *,
@@ -97,7 +89,9 @@ def scattered_diffuse_radiance(atmosphere, view_zenith_rad, wavelength_nm, incid
     Returns
     -------
     Tensor (n_view, n_wavelength)
-        Scattered radiance, in the unit of ``incident``.
+        Scattered radiance, in the unit of ``incident``; computed and returned in
+        float64 (a one-off table, where the long slant columns near the horizon need
+        the precision), differentiable with respect to ``view_zenith_rad``.
     """
     if not callable(incident):
         raise TypeError(f"incident must be a callable (cos_zenith, altitude_m); got "
@@ -135,8 +129,8 @@ def _chunk(constituents, zenith, incident, altitude_m, n_steps, n_mu, n_azimuth)
     height = (r - planet).clamp(min=0.0)
     mu_local = ((r0 * mu_view[:, None] + s) / r).clamp(-1.0, 1.0)  # line of sight at s
     # incoming directions: Gauss nodes in x, mu' = mu_hor + (1 - mu_hor) x^2
-    x, wx = _unit_gauss(n_mu, dtype)
-    mu_hor = -torch.sqrt((1.0 - (planet / r) ** 2).clamp(min=0.0))  # (v, n)
+    x, wx = unit_nodes(n_mu, dtype)
+    mu_hor = -safe_sqrt(1.0 - (planet / r) ** 2)  # (v, n); 0 at the ground, finite gradient
     mu_in = mu_hor[..., None] + (1.0 - mu_hor[..., None]) * x * x  # (v, n, m)
     weight_mu = (1.0 - mu_hor[..., None]) * 2.0 * x * wx
     columns = constituents.column_integrals(r[..., None].expand_as(mu_in), mu_in, extra=3)
@@ -144,9 +138,9 @@ def _chunk(constituents, zenith, incident, altitude_m, n_steps, n_mu, n_azimuth)
     source_top = incident(mu_in, height[..., None].expand_as(mu_in))
     radiance_in = transmittance * source_top * weight_mu[..., None]  # (v, n, m, wl)
     # azimuth-averaged phase function between the incoming and the viewing directions
-    phi, wphi = _unit_gauss(n_azimuth, dtype)
-    sin_v = torch.sqrt((1.0 - mu_local * mu_local).clamp(min=0.0))[..., None, None]
-    sin_in = torch.sqrt((1.0 - mu_in * mu_in).clamp(min=0.0))[..., None]
+    phi, wphi = unit_nodes(n_azimuth, dtype)
+    sin_v = safe_sqrt(1.0 - mu_local * mu_local)[..., None, None]
+    sin_in = safe_sqrt(1.0 - mu_in * mu_in)[..., None]
     cos_theta = (mu_local[..., None, None] * mu_in[..., None]
                  + sin_v * sin_in * torch.cos(math.pi * phi)).clamp(-1.0, 1.0)  # (v, n, m, p)
     densities = constituents.densities(height)
