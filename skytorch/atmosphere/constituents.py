@@ -280,6 +280,10 @@ class Species:
         ``law(column, extra)``: with the path column ``column`` (*B', *extra) [m] the
         optical depth (*B', *extra, wavelength) [1]. ``None``: linear,
         :math:`\tau = k_{ext}\,u`.
+    law_indices : Tensor (band,) of int64, optional
+        With ``law``: the wavelength indices where the law can be nonzero (a band); the
+        law then returns the optical depth at those wavelengths only
+        (*B', *extra, band), and zero elsewhere is implied.
     vanishes : bool
         The species is exactly absent (a zero amount that needs no gradient): its
         columns are zero without integration.
@@ -291,6 +295,7 @@ class Species:
     scattering: torch.Tensor | None = None
     phase: Callable[..., torch.Tensor] | None = None
     law: Callable[[torch.Tensor, int], torch.Tensor] | None = None
+    law_indices: torch.Tensor | None = None
     vanishes: bool = False
 
     def __post_init__(self):
@@ -299,6 +304,8 @@ class Species:
             raise TypeError(f"a species name must be a non-empty string; got {self.name!r}")
         if self.scattering is not None and self.phase is None:
             raise ValueError(f"species {self.name!r} scatters but has no phase function")
+        if self.law_indices is not None and self.law is None:
+            raise ValueError(f"species {self.name!r} has law_indices but no law")
 
     @property
     def single_scattering_albedo(self) -> torch.Tensor:
@@ -315,9 +322,13 @@ class Species:
 
     def optical_depth(self, column: torch.Tensor, extra: int = 0) -> torch.Tensor:
         """Optical depth (*B', *extra, wavelength) [1] of the path column (*B', *extra) [m]."""
-        if self.law is not None:
-            return self.law(column, extra)
-        return column[..., None] * insert_dims(self.extinction, extra, 1)
+        if self.law is None:
+            return column[..., None] * insert_dims(self.extinction, extra, 1)
+        tau = self.law(column, extra)
+        if self.law_indices is None:
+            return tau
+        return tau.new_zeros(*tau.shape[:-1], self.extinction.shape[-1]).index_copy(
+            -1, self.law_indices, tau)
 
 
 @dataclass(frozen=True)
@@ -366,7 +377,8 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
         Species whose columns are zero (not integrated).
     batch_shape : tuple
         Batch shape of the parameters; without batch dims large ray sets are integrated
-        in chunks of :data:`CHUNK` rays.
+        in chunks of :data:`CHUNK` rays, their nodes in blocks of
+        :data:`skytorch.atmosphere.optical_depth.NODE_BLOCK_BYTES`.
 
     Returns
     -------
@@ -384,6 +396,9 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
                   for i in range(0, count, CHUNK)]
         return {name: torch.cat([piece[name] for piece in pieces]).reshape(shape)
                 for name in profiles}
+    # unbatched parameters: the nodes may be evaluated in cache-sized blocks of rays
+    block_bytes = _od.NODE_BLOCK_BYTES if tuple(batch_shape) == () else None
+    legs = _od.crossing_legs(r, mu, planet_radius_m, top_radius_m)  # shared by the groups
     columns = {}
     for group in _quadrature_groups(profiles, vanishing, method):
         first = profiles[group[0]]
@@ -397,7 +412,7 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
         values = _od.column_integral(
             density, r, mu, planet_radius_m, top_radius_m, first.levels(extra),
             method=method, n_steps=n_steps, rtol=rtol, truncate=first.truncate,
-            support=first.support)
+            support=first.support, block_bytes=block_bytes, legs=legs)
         columns.update(zip(group, values if len(group) > 1 else (values,), strict=True))
     columns = {name: columns[name] for name in profiles if name in columns}
     if vanishing:
@@ -406,6 +421,33 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
             columns[name] = torch.zeros_like(reference)
         columns = {name: columns[name] for name in profiles}
     return columns
+
+
+def _accumulate(total, owned: bool, species: Species, column: torch.Tensor, extra: int):
+    """Add the optical depth of ``species`` to ``total``; return it and whether it is owned.
+
+    ``owned``: ``total`` is a tensor of this sum's own, updated in place where the term fits
+    its shape and dtype.
+    """
+    if species.law is None and owned:
+        coefficient = insert_dims(species.extinction, extra, 1)
+        if _fits(total, column.shape + (1,), coefficient.shape,
+                 dtype=torch.promote_types(column.dtype, coefficient.dtype)):
+            return total.addcmul_(column[..., None], coefficient), True
+    if species.law_indices is not None and owned:
+        band = species.law(column, extra)
+        if _fits(total, band.shape[:-1] + (1,), dtype=band.dtype):
+            return total.index_add_(-1, species.law_indices,
+                                    band.expand(*total.shape[:-1], band.shape[-1])), True
+        value = band.new_zeros(*band.shape[:-1], species.extinction.shape[-1]).index_copy(
+            -1, species.law_indices, band)
+        return total + value, True
+    value = species.optical_depth(column, extra)
+    if total is None:
+        return value, False
+    if owned and _fits(total, value.shape, dtype=value.dtype):
+        return total.add_(value), True
+    return total + value, True
 
 
 def _fits(total: torch.Tensor, *shapes, dtype: torch.dtype) -> bool:
@@ -567,25 +609,33 @@ class Constituents:
             result = {s.name: s.optical_depth(columns[s.name], extra) for s in self.species}
             # every species with the shape of the total (Dataset-ready; views, no copies)
             return dict(zip(result, torch.broadcast_tensors(*result.values()), strict=True))
-        # the sum accumulated in place in a tensor of its own (in species order), linear
-        # species added as column x coefficient in one pass
-        total, owned = None, False
-        for s in self.species:
-            column = columns[s.name]
-            if s.law is None and owned:
-                coefficient = insert_dims(s.extinction, extra, 1)
-                if _fits(total, column.shape + (1,), coefficient.shape,
-                         dtype=torch.promote_types(column.dtype, coefficient.dtype)):
-                    total.addcmul_(column[..., None], coefficient)
-                    continue
-            value = s.optical_depth(column, extra)
-            if total is None:
-                total = value
-            elif owned and _fits(total, value.shape, dtype=value.dtype):
-                total.add_(value)
-            else:
-                total, owned = total + value, True
+        # the sum accumulated in place in a tensor of its own: linear species with
+        # unbatched spectra as one matrix product, others as column x coefficient (in species
+        # order), species with a band law added at their band's wavelengths only
+        total, owned, rest = self._linear_product(columns), True, self.species
+        if total is None:
+            owned = False
+        else:
+            rest = tuple(s for s in self.species if s.law is not None)
+        for s in rest:
+            total, owned = _accumulate(total, owned, s, columns[s.name], extra)
         return total
+
+    def _linear_product(self, columns: Mapping[str, torch.Tensor]) -> torch.Tensor | None:
+        """Optical depth of the linear species as one matrix product, or None.
+
+        None unless their spectra are 1-D (unbatched) and their columns share shape and
+        dtype with the spectra.
+        """
+        linear = [s for s in self.species if s.law is None]
+        if not linear or any(s.extinction.ndim != 1 for s in linear):
+            return None
+        stack = [columns[s.name] for s in linear]
+        if (len({(c.shape, c.dtype) for c in stack}) != 1
+                or stack[0].dtype != linear[0].extinction.dtype):
+            return None
+        return torch.stack(stack, -1) @ torch.stack([s.extinction for s in linear])
+
 
     # ------------------------------------------------------------------ local coefficients
     def extinction_coefficients(self, altitude_m: torch.Tensor, extra: int = 0

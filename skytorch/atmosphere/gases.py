@@ -80,11 +80,11 @@ Examples
 >>> import torch
 >>> from skytorch.atmosphere.gases import (mixed_gas_optical_depth,
 ...                                        water_vapour_optical_depth)
->>> wl = torch.tensor([690.0, 762.5, 937.0])
->>> mixed_gas_optical_depth(wl, air_path=1.0)   # one standard vertical column
-tensor([0.0564, 0.3516, 0.0000])
->>> water_vapour_optical_depth(wl, water_path_cm=1.4)
-tensor([4.5204e-03, 3.3386e-06, 6.7420e-01])
+>>> wl = torch.tensor([690.0, 762.5, 937.0], dtype=torch.float64)
+>>> mixed_gas_optical_depth(wl, air_path=1.0).round(decimals=4)  # one standard vertical column
+tensor([0.0564, 0.3516, 0.0000], dtype=torch.float64)
+>>> water_vapour_optical_depth(wl, water_path_cm=1.4).round(decimals=5)   # 0.674195 at 937 nm
+tensor([0.0045, 0.0000, 0.6742], dtype=torch.float64)
 """
 
 from __future__ import annotations
@@ -283,7 +283,9 @@ def _curve_of_growth(k: torch.Tensor, u: torch.Tensor, p, curve) -> torch.Tensor
     """:func:`curve_of_growth` of checked inputs (the kernel of the band species' laws)."""
     scale, saturation, exponent = curve
     x = k * u
-    return scale * x * torch.pow(1.0 + saturation * x / p, -exponent)
+    # the fresh temporaries updated in place (autograd keeps what the backward needs)
+    base = saturation * x / p if isinstance(p, torch.Tensor) else x * (saturation / p)
+    return base.add_(1.0).pow_(-exponent).mul_(x).mul_(scale)
 
 
 def water_vapour_optical_depth(wavelength_nm, water_path_cm, pressure_ratio=1.0
@@ -403,7 +405,7 @@ STANDARD_AIR_COLUMN_M2 = 101325.0 * 6.02214076e23 / (28.9649e-3 * 9.80616)
 
 def _us1976_pressure_ratio(altitude_m: torch.Tensor) -> torch.Tensor:
     """p(h)/p(0) of the U.S. Standard Atmosphere 1976: density ratio times T/T0 [1]."""
-    return _profiles.us1976(altitude_m) * _ozone._us1976_temperature(
+    return _profiles.us1976(altitude_m) * _profiles.us1976_temperature(
         torch.clamp(altitude_m, min=0.0)) / _US1976_T0_K
 
 
@@ -605,8 +607,9 @@ def water_vapour_species(atm, wavelength_nm, dtype, profile, exponent: float = P
     else:
         a_w, _ = bird_coefficients(wavelength_nm)
     per_m = water * _pressure_factor(atm, dtype, float(exponent)) / profile.column_height_m
-    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_w),
-                   law=_band_law(a_w, per_m, WATER_CURVE))
+    law, indices = _band_law(a_w, per_m, WATER_CURVE)
+    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_w), law=law,
+                   law_indices=indices)
 
 
 def oxygen_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSURE_EXPONENT,
@@ -624,16 +627,18 @@ def oxygen_species(atm, wavelength_nm, dtype, profile, exponent: float = PRESSUR
     # parameter ranges (the ratio does not)
     columns = (atm.molecular_column_m2(torch.float64) / STANDARD_AIR_COLUMN_M2).to(dtype)
     per_m = columns * _pressure_factor(atm, dtype, float(exponent)) / profile.column_height_m
-    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_u),
-                   law=_band_law(a_u, per_m, MIXED_GAS_CURVE))
+    law, indices = _band_law(a_u, per_m, MIXED_GAS_CURVE)
+    return Species(name, profile, torch.zeros_like(per_m[..., None] * a_u), law=law,
+                   law_indices=indices)
 
 
 def _band_law(coefficient, per_m, curve):
-    """Return the optical-depth law of a band species.
+    """Return the optical-depth law of a band species and its band's wavelength indices.
 
     The law is the curve of growth of the amount ``column * per_m``, evaluated at the
     wavelengths inside the band only (where the band coefficient is zero the optical
-    depth is exactly zero).
+    depth is exactly zero); the indices are ``None`` where the band covers every
+    wavelength.
     """
     inside = torch.nonzero(coefficient > 0).reshape(-1)
     everywhere = inside.numel() == coefficient.numel()
@@ -642,12 +647,9 @@ def _band_law(coefficient, per_m, curve):
     def law(column, extra):
         amount = (column * insert_dims(per_m, extra, 0))[..., None]
         # amounts are path columns (>= 0 by construction), the band coefficients > 0
-        tau = _curve_of_growth(band, amount, 1.0, curve)
-        if everywhere:
-            return tau
-        return tau.new_zeros(*tau.shape[:-1], coefficient.numel()).index_copy(-1, inside, tau)
+        return _curve_of_growth(band, amount, 1.0, curve)
 
-    return law
+    return law, None if everywhere else inside
 
 
 def o2o2_species(atm, wavelength_nm, dtype, profile):

@@ -72,6 +72,7 @@ from skytorch.atmosphere.geometry import _ray_segment, _safe_divide, safe_sqrt
 __all__ = [
     "DEFAULT_STEPS",
     "METHODS",
+    "NODE_BLOCK_BYTES",
     "chapman",
     "chapman_horizontal",
     "check_rtol",
@@ -81,6 +82,10 @@ __all__ = [
 
 #: integration methods
 METHODS = ("gauss", "trapezoid", "adaptive")
+#: bytes of the nodes of one block of rays (one float tensor) in column integrals of many
+#: rays: the density's temporaries then stay in a core's cache (1e6 rays x 72 nodes of the
+#: US 1976 group: blocks of 2**19 bytes take 0.57 of the time of blocks 4x larger)
+NODE_BLOCK_BYTES = 2 ** 19
 #: default number of nodes per piece ("gauss") or steps ("trapezoid")
 DEFAULT_STEPS = {"gauss": 6, "trapezoid": 500, "adaptive": 4}
 _MAX_ADAPTIVE_NODES = 128
@@ -154,13 +159,24 @@ def ray_legs(r, mu, planet_radius: float, top_radius: float) -> list[dict[str, t
             {"lo": down_lo, "c_lo": down_c, "length": down_len, "excess": excess}]
 
 
-def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support=False):
+def crossing_legs(r, mu, planet_radius: float, top_radius: float
+                  ) -> list[dict[str, torch.Tensor]]:
+    """Return the legs of :func:`ray_legs` that some ray crosses (a nonzero length)."""
+    return [leg for leg in ray_legs(r, mu, planet_radius, top_radius)
+            if bool((leg["length"] > 0).any())]
+
+
+def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support=False,
+               block_bytes=None):
     """Composite Gauss–Legendre integral over one leg, cut at ``levels_m``.
 
     With ``truncate`` the last level ends the integration (where the density of an
     exponential profile has dropped below a negligible fraction of the leg's maximum);
     with ``support`` the density vanishes outside [first level, last level] and only that
-    range is integrated.
+    range is integrated. With ``block_bytes`` (rays along one dim, parameters without batch
+    dims) the nodes are evaluated on blocks of rays whose nodes take at most that many
+    bytes, so that the temporaries of the density stay in a core's cache; the values are
+    those of one evaluation.
     """
     lo, c_lo, length = leg["lo"], leg["c_lo"], leg["length"]
     dtype = lo.dtype
@@ -186,8 +202,24 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support
                            length[..., None].expand(*shape, 1)], dim=-1)
     width = edges[..., 1:] - edges[..., :-1]
     nodes, weights = unit_nodes(n_nodes, dtype)
+    per_ray = width.shape[-1] * n_nodes * width.element_size()
+    block = None if block_bytes is None else max(1, block_bytes // per_ray)
+    if block is None or len(shape) != 1 or shape[0] <= block:
+        return _piece_integrals(density, c_lo, lo, edges, width, nodes, weights, planet_radius)
+    c_lo, lo = c_lo.expand(shape), lo.expand(shape)
+    parts = [_piece_integrals(density, c_lo[i:i + block], lo[i:i + block],
+                              edges[i:i + block], width[i:i + block], nodes, weights,
+                              planet_radius)
+             for i in range(0, shape[0], block)]
+    if isinstance(parts[0], tuple):
+        return tuple(torch.cat(columns) for columns in zip(*parts, strict=True))
+    return torch.cat(parts)
+
+
+def _piece_integrals(density, c_lo, lo, edges, width, nodes, weights, planet_radius):
+    """Sum over the pieces (..., piece) of one leg of their Gauss–Legendre integrals."""
     u = torch.addcmul(edges[..., :-1, None], width[..., None], nodes)  # (..., pieces, nodes)
-    n_pieces = u.shape[-2]
+    n_pieces, n_nodes = u.shape[-2:]
     altitude = _altitude(c_lo[..., None, None], lo[..., None, None], u, planet_radius)
     values = density(altitude.reshape(*altitude.shape[:-2], n_pieces * n_nodes))
 
@@ -227,7 +259,9 @@ def _trapezoid_leg(density, leg, planet_radius, n_steps):
 def column_integral(density: Density, r, mu, planet_radius: float, top_radius: float,
                     levels_m: torch.Tensor, *, method: str = "gauss",
                     n_steps: int | None = None, rtol: float = 1e-9,
-                    truncate: bool = False, support: bool = False) -> torch.Tensor:
+                    truncate: bool = False, support: bool = False,
+                    block_bytes: int | None = None,
+                    legs: list[dict[str, torch.Tensor]] | None = None) -> torch.Tensor:
     r"""Path integral :math:`\int \rho(h(s))\,ds` of a density profile along a straight ray.
 
     Parameters
@@ -258,6 +292,14 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     support : bool
         The profile vanishes below the first and above the last level (ozone tent): only
         that range is integrated.
+    block_bytes : int, optional
+        ``"gauss"`` and ``"adaptive"`` with rays along one dim and a ``density`` whose
+        parameters have no batch dims: evaluate the density on blocks of rays whose nodes
+        take at most this many bytes per tensor (:data:`NODE_BLOCK_BYTES` keeps the
+        temporaries in a core's cache; the values are those of one evaluation).
+    legs : list of dict, optional
+        :func:`crossing_legs` of these rays, shared by profiles integrated along the same
+        rays (computed here when not given).
 
     Returns
     -------
@@ -268,6 +310,8 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     check_choice("method", method, METHODS)
     n_steps = check_int("n_steps", DEFAULT_STEPS[method] if n_steps is None else n_steps, 1)
     check_rtol(rtol)
+    if block_bytes is not None:
+        block_bytes = check_int("block_bytes", block_bytes, 1)
     if not (isinstance(r, torch.Tensor) and isinstance(mu, torch.Tensor)
             and r.is_floating_point() and mu.is_floating_point()):
         r = as_tensor("r", r)
@@ -277,8 +321,8 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     except ValueError:
         raise ValueError(f"shapes do not broadcast: r {tuple(r.shape)}, mu "
                          f"{tuple(mu.shape)}") from None
-    legs = [leg for leg in ray_legs(r, mu, planet_radius, top_radius)
-            if bool((leg["length"] > 0).any())]
+    if legs is None:
+        legs = crossing_legs(r, mu, planet_radius, top_radius)
     zero = 0.0 * (r * mu)  # keeps the graph: empty paths have a zero (not missing) gradient
     if method == "trapezoid":
         # n_steps uniform steps along each leg
@@ -291,11 +335,16 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
         total = zero
         for leg in legs:
             total = _add(total, _gauss_leg(density, leg, planet_radius, levels_m, n,
-                                           truncate, support))
+                                           truncate, support, block_bytes))
         return total if legs else _empty(density, r, zero)
 
     if method == "gauss":
         return integrate(n_steps)
+    return _adaptive(integrate, n_steps, rtol)
+
+
+def _adaptive(integrate, n_steps: int, rtol: float):
+    """``integrate(n)`` with n doubled from ``n_steps`` until converged to ``rtol``."""
     previous = integrate(n_steps)
     n = n_steps
     while n < _MAX_ADAPTIVE_NODES:

@@ -68,6 +68,7 @@ import torch
 
 from skytorch._data import data_path
 from skytorch._validate import as_tensor, check_broadcastable, check_finite, check_range
+from skytorch.atmosphere.profiles import us1976_temperature
 
 __all__ = ["OZONE_RANGE_NM", "OZONE_REFERENCE_TEMPERATURE_K", "OZONE_TABLE",
            "OZONE_TEMPERATURE_RANGE_K", "RATIO_RANGE_NM", "ozone_cross_section",
@@ -208,19 +209,6 @@ def ozone_cross_section(wavelength_nm, temperature_k=OZONE_REFERENCE_TEMPERATURE
     return at * (1.0 - v) + above * v
 
 
-def _us1976_temperature(altitude_m: torch.Tensor) -> torch.Tensor:
-    """U.S. Standard Atmosphere 1976 temperature [K] at geometric altitude [m]."""
-    from skytorch.atmosphere import profiles
-
-    radius = profiles._US1976_EARTH_RADIUS_M
-    geopotential = radius * altitude_m / (radius + altitude_m)
-    tables = profiles._us1976_tables(altitude_m.dtype, altitude_m.device)
-    layer = torch.clamp(torch.bucketize(geopotential.detach(), tables["base"][1:], right=True),
-                        0, tables["base"].numel() - 1)
-    return tables["temperature"][layer] + tables["lapse"][layer] * (
-        geopotential - tables["base"][layer])
-
-
 #: nodes of the tent average (per half of the tent; trapezoid rule)
 _TENT_NODES = 801
 
@@ -254,5 +242,5 @@ def ozone_effective_temperature(peak_altitude_m, half_width_m) -> torch.Tensor:
     x = torch.linspace(-1.0, 1.0, 2 * _TENT_NODES - 1, dtype=dtype)
     altitude = center + width * x
     weight = (1.0 - x.abs()) * (altitude >= 0.0)
-    temperature = _us1976_temperature(torch.clamp(altitude, min=0.0))
+    temperature = us1976_temperature(torch.clamp(altitude, min=0.0))
     return torch.trapezoid(weight * temperature, x) / torch.trapezoid(weight, x)

@@ -86,7 +86,7 @@ def _us1976_layers() -> tuple[list[float], list[float], list[float]]:
     return temperatures, log_pressures, log_density
 
 
-_US1976_TEMPERATURE, _US1976_LOG_PRESSURE, _ = _us1976_layers()
+_US1976_TEMPERATURE, _, _US1976_LOG_DENSITY = _us1976_layers()
 
 #: geometric altitudes of the US 1976 layer bases above the ground, z = r0 H / (r0 - H)
 #: [m]: the lapse rate, hence the density gradient, jumps there (kinks of the profile)
@@ -158,8 +158,7 @@ def us1976(altitude_m) -> torch.Tensor:
     :math:`p/p_b = \exp(-g_0 M (H - H_b)/(R T_b))`. Density ratio
     :math:`(p/p_0)(T_0/T)`. Geopotential altitude :math:`H = r_0 z/(r_0 + z)`.
     """
-    log_p, temperature = _us1976_state(as_tensor("altitude_m", altitude_m))
-    return torch.exp(log_p - torch.log(temperature / _US1976_T0))
+    return torch.exp(_us1976_state(as_tensor("altitude_m", altitude_m))[0])
 
 
 def us1976_temperature(altitude_m) -> torch.Tensor:
@@ -175,7 +174,8 @@ def us1976_pressure_ratio(altitude_m) -> torch.Tensor:
 
     At geometric altitude [m] (same layers and continuations as :func:`us1976`).
     """
-    return torch.exp(_us1976_state(as_tensor("altitude_m", altitude_m))[0])
+    log_density, temperature = _us1976_state(as_tensor("altitude_m", altitude_m))
+    return torch.exp(log_density) * (temperature / _US1976_T0)
 
 
 def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -205,21 +205,30 @@ def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, 
     >>> bool(torch.equal(density, us1976(torch.tensor([0.0, 11_000.0], dtype=torch.float64))))
     True
     """
-    log_p, temperature = _us1976_state(altitude_m)
-    density = torch.exp(log_p - torch.log(temperature / _US1976_T0))
-    ground = torch.where(altitude_m < 0.0, torch.full_like(temperature, _US1976_T0),
-                         temperature)
-    return altitude_m, density, density * ground / _US1976_T0
+    log_density, temperature = _us1976_state(altitude_m)
+    density = torch.exp(log_density)
+    # the temperature exceeds T_0 only below the ground (the lowest layer continued), where
+    # it is held at T_0: min(T, T_0)
+    held = torch.clamp(temperature, max=_US1976_T0)
+    return altitude_m, density, density * (held * (1.0 / _US1976_T0))
 
 
 def us1976_air_from_state(state, exponent, power) -> torch.Tensor:
     r""":math:`\rho^{power}\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
-    return _power(state[1], power) * _power(state[2], exponent)
+    return _times_power(_power(state[1], power), state[2], exponent)
 
 
 def us1976_water_from_state(state, scale_height_m, exponent) -> torch.Tensor:
     r""":math:`e^{-z/H_w}\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
-    return torch.exp(-state[0] / scale_height_m) * _power(state[2], exponent)
+    return _times_power(torch.exp(-state[0] / scale_height_m), state[2], exponent)
+
+
+def _times_power(value: torch.Tensor, base: torch.Tensor, exponent) -> torch.Tensor:
+    """Return ``value * base ** exponent`` (``value`` itself for a constant exponent 0)."""
+    if not isinstance(exponent, torch.Tensor) or not exponent.requires_grad:
+        if float(exponent) == 0.0:
+            return value
+    return value * _power(base, exponent)
 
 
 def _power(base: torch.Tensor, exponent) -> torch.Tensor:
@@ -243,36 +252,38 @@ def _power(base: torch.Tensor, exponent) -> torch.Tensor:
 
 
 def _us1976_state(z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Log pressure ratio and temperature [K] of the standard at geometric altitude z."""
+    """Log density ratio [1] and temperature [K] of the standard at geometric altitude z."""
     geopotential = _US1976_EARTH_RADIUS_M * z / (_US1976_EARTH_RADIUS_M + z)
     # the constants of each point's layer, gathered once (the lowest layer is continued
-    # below the ground, the highest above 84.852 km)
+    # below the ground, the highest above 84.852 km; bucketize gives 0 ... n_layer - 1)
     tables = _us1976_tables(geopotential.dtype, geopotential.device)
-    layer = torch.clamp(torch.bucketize(geopotential.detach(), tables["base"][1:], right=True),
-                        0, len(_US1976_BASE_HEIGHT_M) - 1)
-    base, lapse, t_base, log_p_base, per_log, per_height = (
-        tables[key].take(layer) for key in ("base", "lapse", "temperature", "log_pressure",
-                                            "per_log_temperature", "per_height"))
+    layer = torch.bucketize(geopotential.detach(), tables["base"][1:], right=True).reshape(-1)
+    base, lapse, t_base, log_density_base, per_log, per_height = (
+        tables[key].index_select(0, layer).reshape(z.shape)
+        for key in ("base", "lapse", "temperature", "log_density", "per_log_temperature",
+                    "per_height"))
     dh = geopotential - base
-    temperature = torch.clamp(t_base + lapse * dh, min=1.0)
+    temperature = torch.addcmul(t_base, lapse, dh)
     # log p = log p_b - g M/(R L) log(T/T_b) in a layer with a lapse rate L, and
-    # log p_b - g M (H - H_b)/(R T_b) in an isothermal one (the other coefficient is 0)
-    log_p = log_p_base - (per_log * torch.log(temperature / t_base) + per_height * dh)
-    return log_p, temperature
+    # log p_b - g M (H - H_b)/(R T_b) in an isothermal one (the other coefficient is 0);
+    # log rho = log p - log(T/T_0) = log rho_b - (g M/(R L) + 1) log(T/T_b) - ...
+    log_density = log_density_base - per_log * torch.log(temperature / t_base) - per_height * dh
+    return log_density, temperature
 
 
 @functools.lru_cache(maxsize=8)
 def _us1976_tables(dtype: torch.dtype, device: torch.device) -> dict[str, torch.Tensor]:
     """Constants of the standard's layers.
 
-    Bases [m], lapse rates [K/m], base temperatures [K], log pressure ratios and the
-    coefficients of the log pressure: g M/(R L) [1] of log(T/T_b) where L != 0,
-    g M/(R T_b) [1/m] of H - H_b where L = 0 (each zero in the other kind of layer).
+    Bases [m], lapse rates [K/m], base temperatures [K], log density ratios and the
+    coefficients of the log density: g M/(R L) + 1 [1] of log(T/T_b) where L != 0,
+    g M/(R T_b) [1/m] of H - H_b where L = 0 (the first zero in isothermal layers, the
+    second in the others).
     """
     g_over_r = _US1976_G0 * _US1976_MOLAR_MASS / _US1976_GAS_CONSTANT
     values = {"base": _US1976_BASE_HEIGHT_M, "lapse": _US1976_LAPSE_K_PER_M,
-              "temperature": _US1976_TEMPERATURE, "log_pressure": _US1976_LOG_PRESSURE,
-              "per_log_temperature": tuple(0.0 if lapse == 0.0 else g_over_r / lapse
+              "temperature": _US1976_TEMPERATURE, "log_density": _US1976_LOG_DENSITY,
+              "per_log_temperature": tuple(0.0 if lapse == 0.0 else g_over_r / lapse + 1.0
                                            for lapse in _US1976_LAPSE_K_PER_M),
               "per_height": tuple(g_over_r / t_base if lapse == 0.0 else 0.0
                                   for lapse, t_base in zip(_US1976_LAPSE_K_PER_M,
