@@ -109,8 +109,9 @@ from skytorch.atmosphere import optical_depth as _od
 __all__ = ["CHUNK", "Constituents", "Profile", "Species", "SpeciesBuilder", "column_integrals",
            "insert_dims"]
 
-#: rays per chunk in column integrals of unbatched parameters (keeps intermediates in cache)
-CHUNK = 4096
+#: rays per chunk in column integrals of unbatched parameters (the per-ray temporaries; the
+#: nodes are evaluated in smaller blocks, see optical_depth.NODE_BLOCK_BYTES)
+CHUNK = 16384
 
 
 def insert_dims(tensor: torch.Tensor, extra: int, core: int) -> torch.Tensor:
@@ -178,6 +179,11 @@ class Profile:
         ``altitude_m``; profiles naming the same ``state`` function and the same
         quadrature (breakpoints, ``truncate``, ``support``) are integrated on one set of
         nodes where the state is evaluated once for all of them.
+    piecewise_state : bool
+        ``state`` takes a second argument, an altitude in the same layer as (broadcasting
+        against) the first (:func:`skytorch.atmosphere.profiles.us1976_state`), and the
+        breakpoints include every layer boundary of the state: along a path the layer is
+        then looked up once per quadrature piece (at its middle) instead of at every node.
     """
 
     function: Callable[..., torch.Tensor]
@@ -190,6 +196,7 @@ class Profile:
     aloft: bool = False
     state: Callable[[torch.Tensor], tuple] | None = None
     from_state: Callable[..., torch.Tensor] | None = None
+    piecewise_state: bool = False
 
     def __post_init__(self):
         """Check that exactly one kind of breakpoints is given."""
@@ -198,6 +205,8 @@ class Profile:
                              "relative_breakpoints_m")
         if (self.state is None) != (self.from_state is None):
             raise ValueError("a Profile takes state and from_state together (or neither)")
+        if self.piecewise_state and (self.state is None or self.breakpoints_m is None):
+            raise ValueError("piecewise_state needs a state and absolute breakpoints_m")
         object.__setattr__(self, "parameters", _frozen(self.parameters))
 
     def __call__(self, altitude_m: torch.Tensor, extra: int = 0) -> torch.Tensor:
@@ -226,10 +235,11 @@ class Profile:
     def _same_quadrature(self, other: Profile) -> bool:
         """Whether ``other`` has the same quadrature pieces along every path.
 
-        Same pieces: equal breakpoints (constants, not needing a gradient), ``truncate`` and
-        ``support``.
+        Same pieces: equal breakpoints (constants, not needing a gradient), ``truncate``,
+        ``support`` and ``piecewise_state``.
         """
-        if (self.truncate, self.support) != (other.truncate, other.support):
+        if ((self.truncate, self.support, self.piecewise_state)
+                != (other.truncate, other.support, other.piecewise_state)):
             return False
         for mine, theirs in ((self.breakpoints_m, other.breakpoints_m),
                              (self.relative_breakpoints_m, other.relative_breakpoints_m)):
@@ -402,17 +412,11 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
     columns = {}
     for group in _quadrature_groups(profiles, vanishing, method):
         first = profiles[group[0]]
-        if len(group) == 1:
-            def density(h, p=first):
-                return p._evaluate(h, extra, {})
-        else:
-            def density(h, members=tuple(profiles[name] for name in group)):
-                states = {}  # each state evaluated once on these nodes
-                return tuple(p._evaluate(h, extra, states) for p in members)
         values = _od.column_integral(
-            density, r, mu, planet_radius_m, top_radius_m, first.levels(extra),
-            method=method, n_steps=n_steps, rtol=rtol, truncate=first.truncate,
-            support=first.support, block_bytes=block_bytes, legs=legs)
+            _group_density(tuple(profiles[name] for name in group), extra), r, mu,
+            planet_radius_m, top_radius_m, first.levels(extra), method=method,
+            n_steps=n_steps, rtol=rtol, truncate=first.truncate, support=first.support,
+            block_bytes=block_bytes, legs=legs, piecewise=first.piecewise_state)
         columns.update(zip(group, values if len(group) > 1 else (values,), strict=True))
     columns = {name: columns[name] for name in profiles if name in columns}
     if vanishing:
@@ -421,6 +425,29 @@ def column_integrals(profiles: Mapping[str, Profile], r, mu, planet_radius_m: fl
             columns[name] = torch.zeros_like(reference)
         columns = {name: columns[name] for name in profiles}
     return columns
+
+
+def _group_density(members: tuple[Profile, ...], extra: int):
+    """Return the density callable of profiles integrated on the same nodes.
+
+    ``density(altitude_m, piece_altitude_m=None)``: the relative density of one profile, or
+    a tuple of them, at ``altitude_m`` (..., n_sample). With ``piece_altitude_m``
+    (:attr:`Profile.piecewise_state`), ``altitude_m`` is (..., piece, node) and the states
+    are looked up once per piece; the densities come back flattened to (..., piece * node).
+    """
+    def density(altitude_m, piece_altitude_m=None):
+        states = {}  # each state evaluated once on these nodes
+        if piece_altitude_m is not None:
+            for profile in members:
+                if profile.state is not None and profile.state not in states:
+                    states[profile.state] = tuple(
+                        value.reshape(*value.shape[:-2], -1)
+                        for value in profile.state(altitude_m, piece_altitude_m))
+            altitude_m = altitude_m.reshape(*altitude_m.shape[:-2], -1)
+        values = tuple(profile._evaluate(altitude_m, extra, states) for profile in members)
+        return values if len(members) > 1 else values[0]
+
+    return density
 
 
 def _accumulate(total, owned: bool, species: Species, column: torch.Tensor, extra: int):

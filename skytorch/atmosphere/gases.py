@@ -571,7 +571,7 @@ def _air_profile(atm, dtype: torch.dtype, exponent: float, power: float):
                        torch.tensor(column, dtype=dtype),
                        breakpoints_m=torch.tensor(_US1976_LEVELS_M, dtype=dtype),
                        state=_profiles.us1976_state,
-                       from_state=_profiles.us1976_air_from_state)
+                       from_state=_profiles.us1976_air_from_state, piecewise_state=True)
     air = atm.rayleigh_scale_height_m.to(dtype)
     rate = power + exponent
     height = air / rate

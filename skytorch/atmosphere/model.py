@@ -1197,9 +1197,11 @@ class Atmosphere(nn.Module):
         """
         zenith = zenith.expand(shape).reshape(-1)
         altitude = altitude.expand(shape).reshape(-1)
+        constituents = self._constituents(wavelength)  # built once for all the chunks
         parts = [self._optical_depth(wavelength, zenith[start:start + RAY_CHUNK],
                                      altitude[start:start + RAY_CHUNK], method=method,
-                                     n_steps=n_steps, per_species=per_species)
+                                     n_steps=n_steps, per_species=per_species,
+                                     constituents=constituents)
                  for start in range(0, zenith.numel(), RAY_CHUNK)]
         if per_species:
             return {key: torch.cat([part[key] for part in parts]).reshape(
@@ -1207,13 +1209,15 @@ class Atmosphere(nn.Module):
         return torch.cat(parts).reshape(*shape, wavelength.numel())
 
     def _optical_depth(self, wavelength, zenith, altitude, *, method="gauss", n_steps=None,
-                       rtol=1e-9, per_species=False, extra: int = 0):
+                       rtol=1e-9, per_species=False, extra: int = 0, constituents=None):
         """Straight-ray optical depth of checked inputs.
 
         ``extra`` geometry dims follow the parameters' batch dims (e.g. samples along a view ray),
-        before the wavelength.
+        before the wavelength; ``constituents`` (those of ``wavelength``) are built when not
+        given.
         """
-        constituents = self._constituents(wavelength)
+        if constituents is None:
+            constituents = self._constituents(wavelength)
         columns = constituents.column_integrals(self.planet_radius_m + altitude,
                                                 torch.cos(zenith), method=method,
                                                 n_steps=n_steps, rtol=rtol, extra=extra)
@@ -1457,7 +1461,8 @@ def _rayleigh_profile(atm: Atmosphere, dtype: torch.dtype) -> Profile:
         return Profile(_profiles.us1976, {}, torch.tensor(_us1976_column_height_m(),
                                                           dtype=dtype),
                        breakpoints_m=torch.tensor(_US1976_BREAKS_M, dtype=dtype),
-                       state=_profiles.us1976_state, from_state=_us1976_density)
+                       state=_profiles.us1976_state, from_state=_us1976_density,
+                       piecewise_state=True)
     height = atm._p("rayleigh_scale_height_m", dtype)
     return Profile(_profiles.exponential, {"scale_height_m": height}, height,
                    relative_breakpoints_m=height[..., None]

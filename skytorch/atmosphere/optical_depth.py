@@ -167,7 +167,7 @@ def crossing_legs(r, mu, planet_radius: float, top_radius: float
 
 
 def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support=False,
-               block_bytes=None):
+               block_bytes=None, piecewise=False):
     """Composite Gauss–Legendre integral over one leg, cut at ``levels_m``.
 
     With ``truncate`` the last level ends the integration (where the density of an
@@ -176,7 +176,7 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support
     range is integrated. With ``block_bytes`` (rays along one dim, parameters without batch
     dims) the nodes are evaluated on blocks of rays whose nodes take at most that many
     bytes, so that the temporaries of the density stay in a core's cache; the values are
-    those of one evaluation.
+    those of one evaluation. ``piecewise``: see :func:`column_integral`.
     """
     lo, c_lo, length = leg["lo"], leg["c_lo"], leg["length"]
     dtype = lo.dtype
@@ -205,23 +205,31 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support
     per_ray = width.shape[-1] * n_nodes * width.element_size()
     block = None if block_bytes is None else max(1, block_bytes // per_ray)
     if block is None or len(shape) != 1 or shape[0] <= block:
-        return _piece_integrals(density, c_lo, lo, edges, width, nodes, weights, planet_radius)
+        return _piece_integrals(density, c_lo, lo, edges, width, nodes, weights, planet_radius,
+                                piecewise)
     c_lo, lo = c_lo.expand(shape), lo.expand(shape)
     parts = [_piece_integrals(density, c_lo[i:i + block], lo[i:i + block],
                               edges[i:i + block], width[i:i + block], nodes, weights,
-                              planet_radius)
+                              planet_radius, piecewise)
              for i in range(0, shape[0], block)]
     if isinstance(parts[0], tuple):
         return tuple(torch.cat(columns) for columns in zip(*parts, strict=True))
     return torch.cat(parts)
 
 
-def _piece_integrals(density, c_lo, lo, edges, width, nodes, weights, planet_radius):
+def _piece_integrals(density, c_lo, lo, edges, width, nodes, weights, planet_radius,
+                     piecewise=False):
     """Sum over the pieces (..., piece) of one leg of their Gauss–Legendre integrals."""
     u = torch.addcmul(edges[..., :-1, None], width[..., None], nodes)  # (..., pieces, nodes)
     n_pieces, n_nodes = u.shape[-2:]
-    altitude = _altitude(c_lo[..., None, None], lo[..., None, None], u, planet_radius)
-    values = density(altitude.reshape(*altitude.shape[:-2], n_pieces * n_nodes))
+    c_lo, lo = c_lo[..., None, None], lo[..., None, None]
+    altitude = _altitude(c_lo, lo, u, planet_radius)
+    if piecewise:
+        middle = _altitude(c_lo, lo, torch.add(edges[..., :-1], width, alpha=0.5)[..., None],
+                           planet_radius)
+        values = density(altitude, middle)
+    else:
+        values = density(altitude.reshape(*altitude.shape[:-2], n_pieces * n_nodes))
 
     def reduce(value):
         value = value.reshape(*value.shape[:-1], n_pieces, n_nodes)
@@ -261,7 +269,8 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
                     n_steps: int | None = None, rtol: float = 1e-9,
                     truncate: bool = False, support: bool = False,
                     block_bytes: int | None = None,
-                    legs: list[dict[str, torch.Tensor]] | None = None) -> torch.Tensor:
+                    legs: list[dict[str, torch.Tensor]] | None = None,
+                    piecewise: bool = False) -> torch.Tensor:
     r"""Path integral :math:`\int \rho(h(s))\,ds` of a density profile along a straight ray.
 
     Parameters
@@ -300,6 +309,11 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
     legs : list of dict, optional
         :func:`crossing_legs` of these rays, shared by profiles integrated along the same
         rays (computed here when not given).
+    piecewise : bool
+        ``"gauss"`` and ``"adaptive"`` call ``density(altitude_m, piece_altitude_m)`` with
+        the nodes as (..., piece, node) and the altitude of each piece's middle
+        (..., piece, 1), and take back densities of shape (..., piece * node) (a density
+        whose character is looked up once per piece: the levels include its boundaries).
 
     Returns
     -------
@@ -335,7 +349,7 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
         total = zero
         for leg in legs:
             total = _add(total, _gauss_leg(density, leg, planet_radius, levels_m, n,
-                                           truncate, support, block_bytes))
+                                           truncate, support, block_bytes, piecewise))
         return total if legs else _empty(density, r, zero)
 
     if method == "gauss":

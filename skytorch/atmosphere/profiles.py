@@ -178,7 +178,8 @@ def us1976_pressure_ratio(altitude_m) -> torch.Tensor:
     return torch.exp(log_density) * (temperature / _US1976_T0)
 
 
-def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def us1976_state(altitude_m: torch.Tensor, layer_altitude_m: torch.Tensor | None = None
+                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     r"""One evaluation of the U.S. Standard Atmosphere 1976.
 
     Shared by the profiles that follow it (:attr:`skytorch.atmosphere.constituents.Profile.state`).
@@ -187,6 +188,12 @@ def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, 
     ----------
     altitude_m : Tensor (...)
         Geometric altitude [m].
+    layer_altitude_m : Tensor, optional
+        An altitude [m] in the same layer of the standard as each ``altitude_m`` (broadcasting
+        against it, e.g. one per quadrature piece that does not cross a layer boundary): the
+        layer is looked up there, once for all the points that share it. Near a boundary a
+        point on its other side takes the neighbouring layer's formula, which is continuous
+        there (the temperature and the density have kinks, not jumps).
 
     Returns
     -------
@@ -205,7 +212,7 @@ def us1976_state(altitude_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, 
     >>> bool(torch.equal(density, us1976(torch.tensor([0.0, 11_000.0], dtype=torch.float64))))
     True
     """
-    log_density, temperature = _us1976_state(altitude_m)
+    log_density, temperature = _us1976_state(altitude_m, layer_altitude_m)
     density = torch.exp(log_density)
     # the temperature exceeds T_0 only below the ground (the lowest layer continued), where
     # it is held at T_0: min(T, T_0)
@@ -251,15 +258,25 @@ def _power(base: torch.Tensor, exponent) -> torch.Tensor:
     return base ** exponent
 
 
-def _us1976_state(z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Log density ratio [1] and temperature [K] of the standard at geometric altitude z."""
-    geopotential = _US1976_EARTH_RADIUS_M * z / (_US1976_EARTH_RADIUS_M + z)
+def _geopotential(z: torch.Tensor) -> torch.Tensor:
+    """Geopotential altitude [m] of the geometric altitude z [m]."""
+    return _US1976_EARTH_RADIUS_M * z / (_US1976_EARTH_RADIUS_M + z)
+
+
+def _us1976_state(z: torch.Tensor, layer_z: torch.Tensor | None = None
+                  ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Log density ratio [1] and temperature [K] of the standard at geometric altitude z.
+
+    The layer of each point is that of ``layer_z`` (broadcasting against ``z``) when given.
+    """
+    geopotential = _geopotential(z)
     # the constants of each point's layer, gathered once (the lowest layer is continued
     # below the ground, the highest above 84.852 km; bucketize gives 0 ... n_layer - 1)
     tables = _us1976_tables(geopotential.dtype, geopotential.device)
-    layer = torch.bucketize(geopotential.detach(), tables["base"][1:], right=True).reshape(-1)
+    layer_h = geopotential if layer_z is None else _geopotential(layer_z)
+    layer = torch.bucketize(layer_h.detach(), tables["base"][1:], right=True)
     base, lapse, t_base, log_density_base, per_log, per_height = (
-        tables[key].index_select(0, layer).reshape(z.shape)
+        tables[key].index_select(0, layer.reshape(-1)).reshape(layer.shape)
         for key in ("base", "lapse", "temperature", "log_density", "per_log_temperature",
                     "per_height"))
     dh = geopotential - base
