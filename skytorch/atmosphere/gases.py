@@ -534,14 +534,17 @@ def water_vapour_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXP
     if _air_shape(atm) == "sounding":
         return _sounding_water_profile(atm, dtype, m)
     if _air_shape(atm) == "us1976":
+        # the levels of the air (the standard's layer boundaries, where (p/p_s)^m has kinks,
+        # and 1, 2, 4, 8 km): integrated on the air's nodes with its state; against
+        # converged columns 1e-10 (ground) to 4e-8 (15 km observers) relative, where
+        # levels in water scale heights from each leg's base gave 1e-7 to 5e-7
         column = _us1976_column_height("h2o", m, atm.top_altitude_m)
-        scale = 1.0 / (1.0 / WATER_VAPOUR_SCALE_HEIGHT_M + m / 8000.0)
         return Profile(_us1976_water, {"scale_height_m": height_w,
                                        "exponent": torch.tensor(m, dtype=dtype)},
                        torch.tensor(column, dtype=dtype),
-                       relative_breakpoints_m=scale * torch.tensor(_LEVELS, dtype=dtype),
-                       truncate=True, state=_profiles.us1976_state,
-                       from_state=_profiles.us1976_water_from_state)
+                       breakpoints_m=torch.tensor(_US1976_LEVELS_M, dtype=dtype),
+                       state=_profiles.us1976_state,
+                       from_state=_profiles.us1976_water_from_state, piecewise_state=True)
     air = atm.rayleigh_scale_height_m.to(dtype)
     scale = 1.0 / (1.0 / height_w + m / air)
     return Profile(_exponential_water, {"scale_height_m": height_w + 0.0 * air,
