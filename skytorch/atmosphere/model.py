@@ -1192,8 +1192,8 @@ class Atmosphere(nn.Module):
 
         Scalar parameters and a fixed quadrature only: every ray is then integrated on its
         own, so the values are those of one call, and the temporaries of a chunk stay in
-        cache (1e6 rays × 60 wavelengths: 6.3–6.8 s in chunks of 16 384 against 9.7–12.8 s
-        in one piece, 2 threads).
+        cache (docs/refraction_elevated.md); the constituents are built once for all the
+        chunks.
         """
         zenith = zenith.expand(shape).reshape(-1)
         altitude = altitude.expand(shape).reshape(-1)
