@@ -155,3 +155,24 @@ def test_water_on_the_air_nodes_is_converged(atmosphere):
                                  method="adaptive", rtol=1e-13)["h2o"]
     default = c.column_integrals(r, mu)["h2o"]
     assert torch.allclose(default, converged, rtol=1e-7, atol=0.0)
+
+
+def test_water_seen_from_above_is_converged(atmosphere):
+    """Limb rays from 37 km grazing just above the 20 km layer boundary (the worst case).
+
+    Measured over 50 000 random rays from above 20 km with columns above 1 m: at most
+    9.2e-6 relative, on such rays (tangent 20.1-20.5 km: the air's piece up to 32 km is
+    wide for the water there); rays looking down to the ground 7e-11.
+    """
+    c = atmosphere.constituents(WAVELENGTH)
+    observer = c.planet_radius_m + 37e3
+    tangent = c.planet_radius_m + torch.tensor([20.14e3, 20.4e3, 21e3, 25e3],
+                                               dtype=torch.float64)
+    mu = torch.cat([-torch.sqrt(1.0 - (tangent / observer) ** 2),
+                    torch.tensor([-0.5, -1.0], dtype=torch.float64)])
+    r = torch.full_like(mu, observer)
+    converged = column_integrals({"h2o": c.profiles["h2o"]}, r, mu, c.planet_radius_m,
+                                 c.top_radius_m, method="adaptive", rtol=1e-13)["h2o"]
+    default = c.column_integrals(r, mu)["h2o"]
+    assert bool((converged > 0.1).all())
+    assert torch.allclose(default, converged, rtol=2e-5, atol=0.0)

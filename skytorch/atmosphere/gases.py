@@ -535,9 +535,11 @@ def water_vapour_profile(atm, dtype: torch.dtype, exponent: float = PRESSURE_EXP
         return _sounding_water_profile(atm, dtype, m)
     if _air_shape(atm) == "us1976":
         # the levels of the air (the standard's layer boundaries, where (p/p_s)^m has kinks,
-        # and 1, 2, 4, 8 km): integrated on the air's nodes with its state; against
-        # converged columns 1e-10 (ground) to 4e-8 (15 km observers) relative, where
-        # levels in water scale heights from each leg's base gave 1e-7 to 5e-7
+        # and 1, 2, 4, 8 km): integrated on the air's nodes with its state. Against
+        # converged columns (50 000 random rays from 0-120 km, columns > 1 m): 8.5e-9
+        # relative from below 5 km, 1.2e-6 from 5-20 km, 9.2e-6 from higher up looking
+        # down; levels in water scale heights from each leg's base gave 7.1e-7, 1.3e-6
+        # and 4.8e-7; the largest absolute error fell from 1.7e-2 m to 6.7e-4 m
         column = _us1976_column_height("h2o", m, atm.top_altitude_m)
         return Profile(_us1976_water, {"scale_height_m": height_w,
                                        "exponent": torch.tensor(m, dtype=dtype)},

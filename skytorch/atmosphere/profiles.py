@@ -227,7 +227,7 @@ def us1976_air_from_state(state, exponent, power) -> torch.Tensor:
 
 def us1976_water_from_state(state, scale_height_m, exponent) -> torch.Tensor:
     r""":math:`e^{-z/H_w}\,(p/p_0)^{exponent}` of a :func:`us1976_state` [1]."""
-    return _times_power(torch.exp(-state[0] / scale_height_m), state[2], exponent)
+    return _times_power(torch.exp(state[0] * (-1.0 / scale_height_m)), state[2], exponent)
 
 
 def _times_power(value: torch.Tensor, base: torch.Tensor, exponent) -> torch.Tensor:
