@@ -334,7 +334,10 @@ class Species:
         """Optical depth (*B', *extra, wavelength) [1] of the path column (*B', *extra) [m]."""
         if self.law is None:
             return column[..., None] * insert_dims(self.extinction, extra, 1)
-        tau = self.law(column, extra)
+        return self._spectrum(self.law(column, extra))
+
+    def _spectrum(self, tau: torch.Tensor) -> torch.Tensor:
+        """Return the law's optical depth ``tau`` at every wavelength (zero outside the band)."""
         if self.law_indices is None:
             return tau
         return tau.new_zeros(*tau.shape[:-1], self.extinction.shape[-1]).index_copy(
@@ -466,9 +469,7 @@ def _accumulate(total, owned: bool, species: Species, column: torch.Tensor, extr
         if _fits(total, band.shape[:-1] + (1,), dtype=band.dtype):
             return total.index_add_(-1, species.law_indices,
                                     band.expand(*total.shape[:-1], band.shape[-1])), True
-        value = band.new_zeros(*band.shape[:-1], species.extinction.shape[-1]).index_copy(
-            -1, species.law_indices, band)
-        return total + value, True
+        return total + species._spectrum(band), True
     value = species.optical_depth(column, extra)
     if total is None:
         return value, False

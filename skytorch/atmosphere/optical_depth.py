@@ -305,7 +305,8 @@ def column_integral(density: Density, r, mu, planet_radius: float, top_radius: f
         ``"gauss"`` and ``"adaptive"`` with rays along one dim and a ``density`` whose
         parameters have no batch dims: evaluate the density on blocks of rays whose nodes
         take at most this many bytes per tensor (:data:`NODE_BLOCK_BYTES` keeps the
-        temporaries in a core's cache; the values are those of one evaluation).
+        temporaries in a core's cache; the values are those of one evaluation, bit for bit
+        in float64).
     legs : list of dict, optional
         :func:`crossing_legs` of these rays, shared by profiles integrated along the same
         rays (computed here when not given).

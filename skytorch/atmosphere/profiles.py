@@ -203,6 +203,11 @@ def us1976_state(altitude_m: torch.Tensor, layer_altitude_m: torch.Tensor | None
         continued and the temperature held at its ground value, as the gas profiles of
         :mod:`skytorch.atmosphere.gases` do).
 
+    Raises
+    ------
+    ValueError
+        ``layer_altitude_m`` does not broadcast against ``altitude_m``.
+
     Examples
     --------
     >>> import torch
@@ -212,6 +217,13 @@ def us1976_state(altitude_m: torch.Tensor, layer_altitude_m: torch.Tensor | None
     >>> bool(torch.equal(density, us1976(torch.tensor([0.0, 11_000.0], dtype=torch.float64))))
     True
     """
+    if layer_altitude_m is not None:
+        try:
+            torch.broadcast_shapes(altitude_m.shape, layer_altitude_m.shape)
+        except RuntimeError:
+            raise ValueError(f"layer_altitude_m of shape {tuple(layer_altitude_m.shape)} does "
+                             f"not broadcast against altitude_m of shape "
+                             f"{tuple(altitude_m.shape)}") from None
     log_density, temperature = _us1976_state(altitude_m, layer_altitude_m)
     density = torch.exp(log_density)
     # the temperature exceeds T_0 only below the ground (the lowest layer continued), where
