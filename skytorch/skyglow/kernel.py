@@ -445,7 +445,9 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     azimuth_rad : Tensor (...)
         Azimuth θ of the view ray, measured from the direction of the source [rad].
     elevation_rad : Tensor (...)
-        Elevation φ of the view ray above the observer's horizon, in [0, π/2] [rad].
+        Elevation φ of the view ray above the observer's horizon, in [−π/2, π/2] [rad]; a
+        ray below the horizon ends where it meets the ground (black) or, grazing above it,
+        passes its lowest point and climbs to the top.
     distance_m : Tensor (...)
         Ground (arc) distance r from the observer to the source [m], ≥ 0.
     source_altitude_m, observer_altitude_m : Tensor (...)
@@ -478,8 +480,11 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
 
     Notes
     -----
-    Only the part of each view ray below the top of the atmosphere contributes; view rays
-    start upwards (``φ ≥ 0``) so no ray reaches the ground.
+    Only the part of each view ray inside the atmosphere and above the ground contributes.
+    The optical depth from the observer to a point of the ray is a difference of two
+    look-ups of the table of optical depths to the top along upward directions: for a
+    descending ray taken from the point back to the observer, and around the ray's lowest
+    point as the sum of its two upward halves.
 
     Examples
     --------
@@ -503,7 +508,8 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     dtype = common_dtype(*(v for _, v in inputs))
     values = [as_tensor(n, v, dtype=dtype) for n, v in inputs]
     check_range("azimuth_rad", values[0], unit=" rad")  # finite (any angle)
-    check_range("elevation_rad", values[1], -1e-9, math.pi / 2 + 1e-9, unit=" rad")
+    check_range("elevation_rad", values[1], -math.pi / 2 - 1e-9, math.pi / 2 + 1e-9,
+                unit=" rad")
     check_range("distance_m", values[2], 0.0, unit=" m")
     check_range("source_altitude_m", values[3], 0.0, medium.top_altitude_m, unit=" m")
     check_range("observer_altitude_m", values[4], 0.0, medium.top_altitude_m, unit=" m")
@@ -520,6 +526,51 @@ def kernel_radiance(medium: Medium, azimuth_rad, elevation_rad, distance_m,
     result = torch.cat(out) if out else torch.zeros(0, medium.wavelength_nm.numel(),
                                                      dtype=dtype)
     return result.reshape(*shape, medium.wavelength_nm.numel())
+
+
+def _ray_end(medium: Medium, h_o, ro, sphi):
+    """Distance [m] from the observer to the top of the atmosphere or to the ground.
+
+    A ray of elevation sine ``sphi`` from radius ``ro`` (altitude ``h_o``) meets the ground
+    when it descends and its lowest point lies below the planet's surface; every length is
+    formed from altitudes (``r² − R² = h (h + 2R)``) so that float32 keeps it accurate.
+    """
+    big_r = medium.planet_radius_m
+    top_gap = (medium.top_altitude_m - h_o) * (ro + medium.top_radius_m)  # r_t² − r_o²
+    to_top = top_gap / (ro * sphi + torch.sqrt(ro * ro * sphi * sphi + top_gap)).clamp_min(1e-30)
+    above_ground = h_o * (h_o + 2.0 * big_r)  # r_o² − R²
+    discriminant = ro * ro * sphi * sphi - above_ground
+    hits = (sphi < 0) & (discriminant > 0)
+    # the branch not taken is evaluated on harmless values, so that no infinite slope
+    # (a square root at 0) turns into a NaN gradient
+    root = torch.sqrt(torch.where(hits, discriminant, torch.ones_like(discriminant)))
+    descent = torch.where(hits, root - ro * sphi, torch.ones_like(root))
+    return torch.where(hits, above_ground / descent, to_top)
+
+
+def _observer_leg_optical_depth(medium: Medium, h_o, ro, cphi, sphi, hp, mu_p_view):
+    """Optical depth (n, nodes, wavelength) from the observer to the view ray's nodes.
+
+    Upward rays: τ_top(O) − τ_top(P). A descending ray before its lowest point is taken
+    from P back to O, which climbs: τ_top(P, −μ_P) − τ_top(O, −μ_O). Past the lowest point
+    L the path is the sum of its two climbing halves, [τ_top(L, 0) − τ_top(O, −μ_O)] +
+    [τ_top(L, 0) − τ_top(P, μ_P)].
+    """
+    depth = medium.optical_depth_from_altitude
+    big_r = medium.planet_radius_m
+    observer_up = depth(h_o, sphi)[:, None]
+    observer_down = depth(h_o, -sphi)[:, None]
+    point_up = depth(hp, mu_p_view)
+    point_down = depth(hp, -mu_p_view)
+    # lowest point of the line: r_L = r_o cos φ, its altitude without cancellation
+    h_low = ((h_o * (h_o + 2.0 * big_r) - ro * ro * sphi * sphi) / (ro * cphi + big_r)
+             ).clamp_min(0.0)
+    lowest = depth(h_low, torch.zeros_like(h_low))[:, None]
+    descending = (sphi < 0)[:, None, None]
+    past_lowest = descending & (mu_p_view > 0)[..., None]
+    tau = torch.where(descending, point_down - observer_down, observer_up - point_up)
+    tau = torch.where(past_lowest, 2.0 * lowest - observer_down - point_up, tau)
+    return tau.clamp_min(0.0)
 
 
 def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_parameters, a,
@@ -553,8 +604,7 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     off_line2 = (vz * dy) ** 2 + cross_y * cross_y + (vx * dy) ** 2
     rho2 = torch.where(u_proj > 0, off_line2, vx * vx + vz * vz)
     rho_e = torch.sqrt(rho2 + a * a)
-    top_gap = (medium.top_altitude_m - h_o) * (ro + medium.top_radius_m)  # r_t² − r_o²
-    u_top = top_gap / (ro * sphi + torch.sqrt(ro * ro * sphi * sphi + top_gap)).clamp_min(1e-30)
+    u_end = _ray_end(medium, h_o, ro, sphi)
     # the lit part of the ray lies above the source's horizon plane (n_S . (P - S) > 0):
     # integrating only there keeps a discontinuous emission function (Garstang's ψ^4 term
     # at ψ = 90°) out of the quadrature
@@ -562,12 +612,12 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     d_n = dx * nsx + dz * nsz
     safe = torch.where(d_n.abs() > 1e-15, d_n, torch.full_like(d_n, 1e-15))
     u_h = (height_o / safe).clamp(0.0)
-    u_h = torch.minimum(u_h, u_top)
+    u_h = torch.minimum(u_h, u_end)
     all_lit = height_o < 0
     u_lo = torch.where(d_n > 0, u_h, torch.zeros_like(u_h))
-    u_hi = torch.where(d_n < 0, torch.where(height_o < 0, u_h, torch.zeros_like(u_h)), u_top)
+    u_hi = torch.where(d_n < 0, torch.where(height_o < 0, u_h, torch.zeros_like(u_h)), u_end)
     u_lo = torch.where(d_n.abs() <= 1e-15, torch.zeros_like(u_lo), u_lo)
-    u_hi = torch.where(d_n.abs() <= 1e-15, torch.where(all_lit, u_top, torch.zeros_like(u_hi)),
+    u_hi = torch.where(d_n.abs() <= 1e-15, torch.where(all_lit, u_end, torch.zeros_like(u_hi)),
                        u_hi)
     t_lo = torch.atan((u_lo - u_c) / rho_e)
     t_hi = torch.atan((u_hi - u_c) / rho_e)
@@ -604,8 +654,7 @@ def _kernel_chunk(medium, theta, phi, r, h_c, h_o, xg, wg, emission, emission_pa
     mu_p_view = (u + ro[:, None] * sphi[:, None]) / rp  # d . (P - C) / r_P
     tau_src = (medium.optical_depth_from_altitude(h_c[:, None].expand_as(hp), cos_psi)
                - medium.optical_depth_from_altitude(hp, mu_p_src)).clamp_min(0.0)
-    tau_obs = (medium.optical_depth_from_altitude(h_o, sphi)[:, None]
-               - medium.optical_depth_from_altitude(hp, mu_p_view)).clamp_min(0.0)
+    tau_obs = _observer_leg_optical_depth(medium, h_o, ro, cphi, sphi, hp, mu_p_view)
     beta = medium.scattering(hp)  # (n, nodes, species, wl)
     scatter = None  # Σ_s β_s p_s, (n, nodes, wl): explicit sum over the few species
     for i, species in enumerate(medium.species):
