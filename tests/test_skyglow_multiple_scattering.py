@@ -196,3 +196,52 @@ def test_bad_input_names_the_parameter(medium, keyword, value, message):
 def test_medium_type_is_checked():
     with pytest.raises(TypeError, match="Medium"):
         skyglow_scattering_orders(object(), 0.0, 0.5, 1e3)
+
+
+@pytest.fixture(scope="module")
+def models():
+    """One small model with single scattering and one with every order (kernels kept)."""
+    from skytorch.skyglow.model import SkyglowModel
+
+    atmosphere = Atmosphere.earth(turbidity=2.0)
+    options = {"n_azimuth": 16, "n_elevation": 6, "n_distance": 8, "n_components": 6,
+               "max_distance_m": 20e3, "progress": False, "keep_kernel": True,
+               "wavelength_nm": [450.0, 550.0]}
+    single = SkyglowModel.precompute(atmosphere, **options)
+    multiple = SkyglowModel.precompute(atmosphere, scattering_orders="converged",
+                                       multiple_scattering_paths=500, **options)
+    return single, multiple
+
+
+def test_model_multiplies_the_kernel_by_the_monte_carlo_factor(models):
+    """Every kernel sample grows by a factor within the Monte Carlo's coarse factors."""
+    single, multiple = models
+    record = multiple.parameters_used["multiple_scattering"]
+    ratio = multiple.kernel / single.kernel
+    assert multiple.parameters_used["scattering_orders"] == "converged"
+    assert single.parameters_used["scattering_orders"] == 1
+    assert float(ratio.min()) >= record["factor_min"] * (1.0 - 1e-9)
+    assert float(ratio.max()) <= record["factor_max"] * (1.0 + 1e-9)
+    assert record["factor_min"] >= 1.0
+
+
+def test_model_panorama_brighter_with_every_order(models):
+    """The rendered skyglow with every order is brighter, by the factors' range."""
+    from skytorch.skyglow.citymap import point_sources
+
+    single, multiple = models
+    city = point_sources(64, 28e3, 1000.0)
+    one = single.render(city)
+    every = multiple.render(city)
+    ratio = (every.luminance / one.luminance).values
+    record = multiple.parameters_used["multiple_scattering"]
+    assert ratio.min() > 1.0 and ratio.max() <= record["factor_max"]
+    assert "any number of times" in every.radiance.attrs["description"]
+
+
+def test_model_scattering_orders_checked():
+    from skytorch.skyglow.model import SkyglowModel
+
+    with pytest.raises(ValueError, match="scattering_orders"):
+        SkyglowModel.precompute(Atmosphere.earth(), n_azimuth=4, n_elevation=2, n_distance=2,
+                                scattering_orders=0, progress=False)

@@ -57,6 +57,7 @@ from skytorch._validate import (
 from skytorch.skyglow.basis import fit_basis, resolve_components
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
 from skytorch.skyglow.lamps import luminance_weights
+from skytorch.skyglow.multiple_scattering import multiple_scattering_factor
 from skytorch.skyglow.units import (
     NATURAL_ZENITH_SKY_MAG_ARCSEC2,
     artificial_to_natural_ratio,
@@ -433,6 +434,34 @@ class SplatPlan:
         return out.reshape(n_t, n_r, n_h, n_obs).permute(3, 0, 1, 2)
 
 
+def _radiance_description(parameters: Mapping) -> str:
+    """Describe the panorama's radiance: which orders of scattering it holds."""
+    orders = parameters.get("scattering_orders", 1)
+    times = "any number of" if orders == "converged" else f"up to {orders}"
+    light = ("Singly scattered light of the city lights" if orders == 1 else
+             f"Light of the city lights scattered {times} times (single-scattering kernel "
+             "times the Monte-Carlo factor of the higher orders)")
+    return (f"{light} (PCA + FFT convolution, Dobashi et al. 2023), lamp power averaged "
+            "over each wavelength's band.")
+
+
+def _multiple_scattering_record(summaries, n_paths: int) -> dict:
+    """Plain record of the Monte-Carlo factors of each observer altitude (for attrs)."""
+    first = summaries[0]
+    return {
+        "method": "backward Monte Carlo, skytorch.skyglow.multiple_scattering",
+        "paths_per_line_of_sight": n_paths, "orders": first["orders"],
+        "distance_m": first["distance_m"].tolist(),
+        "azimuth_deg": torch.rad2deg(first["azimuth_rad"]).tolist(),
+        "elevation_deg": torch.rad2deg(first["elevation_rad"]).tolist(),
+        "factor": [s["factor"].tolist() for s in summaries],
+        "factor_error": [s["factor_error"].tolist() for s in summaries],
+        "factor_min": min(float(s["factor"].min()) for s in summaries),
+        "factor_max": max(float(s["factor"].max()) for s in summaries),
+        "largest_error": max(float(s["factor_error"].max()) for s in summaries),
+    }
+
+
 class SkyglowModel(nn.Module):
     """Precomputed PCA + FFT skyglow tables for one atmosphere.
 
@@ -516,7 +545,8 @@ class SkyglowModel(nn.Module):
                    keep_kernel: bool = False, chunk_size: int = 4096,
                    medium: Medium | None = None, quadrature: str = "single",
                    compute_dtype: torch.dtype = torch.float64,
-                   n_workers: int | None = None) -> SkyglowModel:
+                   n_workers: int | None = None, scattering_orders: int | str = 1,
+                   multiple_scattering_paths: int = 2000) -> SkyglowModel:
         """Tabulate kernels, fit the PCA basis and transform it over azimuth.
 
         Parameters
@@ -574,6 +604,17 @@ class SkyglowModel(nn.Module):
             operations (torch's and the BLAS thread counts are set to 1 while they run and
             restored after). Default ``torch.get_num_threads()``; 1 computes them one after
             another with the current thread settings. The result does not depend on it.
+        scattering_orders : int or "converged"
+            1 (default): the single-scattering kernel of Dobashi et al. 2023. N ≥ 2 or
+            ``"converged"``: the kernel multiplied, before the PCA, by the factor of all
+            orders up to N over the first, measured per observer altitude by backward
+            Monte Carlo on a coarse grid of lines of sight and interpolated
+            (:func:`~skytorch.skyglow.multiple_scattering.multiple_scattering_factor`, sources
+            at the middle of ``source_altitude_range_m``); the coarse factors and their
+            errors go into ``parameters_used["multiple_scattering"]``.
+        multiple_scattering_paths : int
+            Monte-Carlo paths per coarse line of sight and wavelength (the factor's
+            standard error falls as its inverse square root; ``docs/skyglow.md``).
 
         Returns
         -------
@@ -598,6 +639,11 @@ class SkyglowModel(nn.Module):
                                  f"{value!r:.60}")
         normalize = check_flag("normalize", normalize)
         progress = check_flag("progress", progress)
+        if scattering_orders != "converged":
+            scattering_orders = check_int("scattering_orders", scattering_orders, low=1,
+                                          high=1000)
+        multiple_scattering_paths = check_int("multiple_scattering_paths",
+                                              multiple_scattering_paths, low=2)
         keep_kernel = check_flag("keep_kernel", keep_kernel)
         chunk_size = check_int("chunk_size", chunk_size, low=1)
         if compute_dtype not in (torch.float64, torch.float32):
@@ -625,6 +671,8 @@ class SkyglowModel(nn.Module):
         kernel_arguments = {"emission": emission, "emission_parameters": emission_parameters,
                             "source_radius_m": float(source_radius_m),
                             "quadrature": quadrature}
+        kernel_arguments_ms = {key: kernel_arguments[key] for key in
+                               ("emission", "emission_parameters", "source_radius_m")}
         if n_steps is None:
             n_steps, change = converged_steps(medium, quadrature_tolerance, **kernel_arguments)
             logger.info("kernel quadrature: %d nodes per half ray (relative change %.2g)",
@@ -659,6 +707,14 @@ class SkyglowModel(nn.Module):
                     n_steps=n_steps, chunk_size=chunk_size, **kernel_arguments)
                 table[start:stop] = values.to(torch.float64)
                 bar.update(stop - start)
+            ms_summary = None
+            if scattering_orders != 1:
+                factor, ms_summary = multiple_scattering_factor(
+                    medium, distance, azimuth[:half], elevation,
+                    float(source_altitude.mean()), float(h_o),
+                    scattering_orders=scattering_orders, n_paths=multiple_scattering_paths,
+                    **kernel_arguments_ms)
+                table *= factor[:, None]
             seconds = [time.perf_counter() - clock, time.thread_time() - cpu_clock]
             clock, cpu_clock = time.perf_counter(), time.thread_time()
             fit = fit_basis(table.reshape(n_distance * n_source_altitude, -1), n_components,
@@ -666,7 +722,7 @@ class SkyglowModel(nn.Module):
             fit.basis = fit.basis.reshape(-1, half, n_elevation * wavelength.numel())[
                 :, mirror].reshape(fit.basis.shape[0], -1)
             seconds += [time.perf_counter() - clock, time.thread_time() - cpu_clock]
-            return fit, (table[:, :, mirror] if keep_kernel else None), seconds
+            return fit, (table[:, :, mirror] if keep_kernel else None), seconds, ms_summary
 
         workers = min(n_workers or torch.get_num_threads(), n_observer_altitude)
         if workers > 1:
@@ -686,10 +742,10 @@ class SkyglowModel(nn.Module):
                 torch.set_num_threads(previous_threads)
         else:
             results = [fit_altitude(h_o) for h_o in observer_altitude]
-        fits = [fit for fit, _, _ in results]
-        kernels = [kernel for _, kernel, _ in results if kernel is not None]
+        fits = [fit for fit, _, _, _ in results]
+        kernels = [kernel for _, kernel, _, _ in results if kernel is not None]
         kernel_seconds, kernel_cpu_seconds, pca_seconds, pca_cpu_seconds = (
-            sum(seconds[i] for _, _, seconds in results) for i in range(4))
+            sum(seconds[i] for _, _, seconds, _ in results) for i in range(4))
         bar.close()
         basis, coefficients, ratio = _stack_fits(
             fits, (n_azimuth, n_elevation, wavelength.numel()), (n_distance, n_source_altitude))
@@ -720,7 +776,11 @@ class SkyglowModel(nn.Module):
             "precompute_kernel_cpu_seconds": kernel_cpu_seconds,
             "precompute_pca_cpu_seconds": pca_cpu_seconds,
             "precompute_threads": torch.get_num_threads(),
+            "scattering_orders": scattering_orders,
         }
+        if scattering_orders != 1:
+            parameters["multiple_scattering"] = _multiple_scattering_record(
+                [summary for _, _, _, summary in results], multiple_scattering_paths)
         model = cls(azimuth_rad=azimuth, elevation_rad=elevation, distance_m=distance,
                     distance_edges_m=edges, source_altitude_m=source_altitude,
                     observer_altitude_m=observer_altitude, wavelength_nm=wavelength,
@@ -1260,8 +1320,7 @@ class SkyglowModel(nn.Module):
             "radiance": variable((*prefix, "elevation", "azimuth", "wavelength"),
                                  outputs["radiance"], VariableSpec(
                 "W m-2 sr-1 nm-1", "artificial sky spectral radiance",
-                "Singly scattered light of the city lights (PCA + FFT convolution, "
-                "Dobashi et al. 2023), lamp power averaged over each wavelength's band.")),
+                _radiance_description(self.parameters_used))),
             "luminance": variable((*prefix, "elevation", "azimuth"), luminance, VariableSpec(
                 "cd m-2", "artificial sky luminance",
                 "K_m ∫ s(λ) V(λ) b(λ) dλ summed over the lighting cells.")),

@@ -56,7 +56,9 @@ from skytorch._validate import (
 )
 from skytorch.skyglow.kernel import Medium, emission_intensity, kernel_radiance
 
-__all__ = ["ESTIMATORS", "ScatteringOrders", "skyglow_scattering_orders"]
+__all__ = ["CONVERGED_ORDERS", "ESTIMATORS", "FACTOR_AZIMUTHS_DEG", "FACTOR_DISTANCES",
+           "FACTOR_ELEVATIONS_DEG", "ScatteringOrders", "multiple_scattering_factor",
+           "skyglow_scattering_orders"]
 
 #: how the orders are scored: along each new direction by the kernel, or at each collision
 ESTIMATORS = ("line", "collision")
@@ -578,3 +580,104 @@ def _trace(paths: _Paths, estimator: str, max_orders: int, tallies: torch.Tensor
         if estimator == "line":
             add(order + 1, rows, paths.weight[rows] * paths.line_score(rows))
     tallies[4, :, 0].index_add_(0, slots, paths.weight.to(torch.float64))
+
+
+#: elevations [deg], azimuths from the source [deg] and number of distances (geometric,
+#: over the model's range) at which :func:`multiple_scattering_factor` runs the Monte Carlo
+FACTOR_ELEVATIONS_DEG = (1.0, 8.0, 20.0, 45.0, 89.0)
+FACTOR_AZIMUTHS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
+FACTOR_DISTANCES = 6
+#: orders followed for ``scattering_orders="converged"`` (the light left after them is
+#: below 1e-6 of the paths' weight in every case measured, docs/skyglow.md)
+CONVERGED_ORDERS = 30
+
+
+def _linear_weights(nodes: torch.Tensor, values: torch.Tensor):
+    """Left node index and fraction of ``values`` on increasing ``nodes`` (held outside)."""
+    index = (torch.searchsorted(nodes, values.contiguous()) - 1).clamp(0, nodes.numel() - 2)
+    fraction = ((values - nodes[index]) / (nodes[index + 1] - nodes[index])).clamp(0.0, 1.0)
+    return index, fraction
+
+
+def _interpolate_axis(table: torch.Tensor, dim: int, nodes, values) -> torch.Tensor:
+    """Linear interpolation of ``table`` along ``dim`` from ``nodes`` to ``values``."""
+    index, fraction = _linear_weights(nodes, values)
+    shape = [1] * table.dim()
+    shape[dim] = -1
+    left = table.index_select(dim, index)
+    right = table.index_select(dim, index + 1)
+    return left + fraction.reshape(shape) * (right - left)
+
+
+def multiple_scattering_factor(medium: Medium, distance_m, azimuth_rad, elevation_rad,
+                               source_altitude_m: float = 0.0,
+                               observer_altitude_m: float = 0.0, *,
+                               scattering_orders: int | str = "converged",
+                               n_paths: int = 2000, seed: int = 0,
+                               emission: str = "garstang1986",
+                               emission_parameters: Mapping[str, float] | None = None,
+                               source_radius_m: float = 10.0):
+    """Multiple-scattering factor of the skyglow kernel on a grid of lines of sight.
+
+    The Monte Carlo (:func:`skyglow_scattering_orders`, line estimator) runs on a coarse
+    grid — :data:`FACTOR_DISTANCES` distances spaced geometrically over the requested ones,
+    the elevations :data:`FACTOR_ELEVATIONS_DEG` and azimuths :data:`FACTOR_AZIMUTHS_DEG` —
+    and the factor (all orders over the first) is interpolated, its logarithm linearly in
+    log distance, azimuth and elevation, to the requested grid (held constant beyond the
+    coarse nodes).
+
+    Parameters
+    ----------
+    medium : Medium
+        The atmosphere's tables; every wavelength of the medium.
+    distance_m, azimuth_rad, elevation_rad : Tensor (n,)
+        The grid's distances [m] (> 0), azimuths from the source in [0, π] and elevations
+        in [0, π/2] [rad], each increasing.
+    source_altitude_m, observer_altitude_m : float
+        Altitudes of the sources and the observer [m].
+    scattering_orders : int ≥ 2 or "converged"
+        Orders summed (:data:`CONVERGED_ORDERS` for "converged").
+    n_paths : int
+        Paths per coarse line of sight and wavelength.
+    seed, emission, emission_parameters, source_radius_m
+        As for :func:`skyglow_scattering_orders`.
+
+    Returns
+    -------
+    factor : Tensor (distance, azimuth, elevation, wavelength)
+        All orders over the first [1].
+    summary : dict
+        The coarse nodes, the factor there and its standard error, the paths and orders.
+    """
+    if scattering_orders == "converged":
+        max_orders = CONVERGED_ORDERS
+    else:
+        max_orders = check_int("scattering_orders", scattering_orders, 2, 1000)
+    distance = as_tensor("distance_m", distance_m, dtype=torch.float64).reshape(-1)
+    azimuth = as_tensor("azimuth_rad", azimuth_rad, dtype=torch.float64).reshape(-1)
+    elevation = as_tensor("elevation_rad", elevation_rad, dtype=torch.float64).reshape(-1)
+    check_positive("distance_m", distance, unit=" m")
+    check_range("azimuth_rad", azimuth, 0.0, math.pi, unit=" rad")
+    check_range("elevation_rad", elevation, 0.0, math.pi / 2, unit=" rad")
+    low, high = float(distance.min()), float(distance.max())
+    distance_nodes = torch.logspace(math.log10(low), math.log10(max(high, low * 1.001)),
+                                    FACTOR_DISTANCES, dtype=torch.float64)
+    azimuth_nodes = torch.deg2rad(torch.tensor(FACTOR_AZIMUTHS_DEG, dtype=torch.float64))
+    elevation_nodes = torch.deg2rad(torch.tensor(FACTOR_ELEVATIONS_DEG,
+                                                 dtype=torch.float64))
+    orders = skyglow_scattering_orders(
+        medium, azimuth_nodes[None, :, None], elevation_nodes[None, None, :],
+        distance_nodes[:, None, None], source_altitude_m, observer_altitude_m,
+        emission=emission, emission_parameters=emission_parameters,
+        source_radius_m=source_radius_m, n_paths=n_paths, max_orders=max_orders, seed=seed)
+    coarse = orders.factor  # (distance, azimuth, elevation, wavelength)
+    # in log factor: it grows by an order of magnitude towards far, low lines of sight
+    log_factor = _interpolate_axis(torch.log(coarse), 0, torch.log(distance_nodes),
+                                   torch.log(distance))
+    log_factor = _interpolate_axis(log_factor, 1, azimuth_nodes, azimuth)
+    factor = torch.exp(_interpolate_axis(log_factor, 2, elevation_nodes, elevation))
+    summary = {"distance_m": distance_nodes, "azimuth_rad": azimuth_nodes,
+               "elevation_rad": elevation_nodes, "factor": coarse,
+               "factor_error": orders.factor_error, "n_paths": n_paths,
+               "orders": max_orders, "truncated_weight": orders.truncated_weight}
+    return factor, summary
