@@ -213,20 +213,36 @@ def models():
     return single, multiple
 
 
-def test_model_multiplies_the_kernel_by_the_monte_carlo_factor(models):
-    """Every kernel sample grows by a factor within the Monte Carlo's coarse factors."""
+def test_model_adds_the_higher_orders(models):
+    """The model's kernel gains the Monte-Carlo radiance of the higher orders.
+
+    At kernel grid points between the coarse Monte-Carlo nodes (500 paths each), the added
+    radiance against a direct run at that line of sight (2e4 paths). Measured: −11.5 …
+    +6.9 % of the direct higher orders (their standard error 2.5–4.4 %), −4.5 … +2.7 % of
+    the total radiance.
+    """
     single, multiple = models
-    record = multiple.parameters_used["multiple_scattering"]
-    ratio = multiple.kernel / single.kernel
+    added = multiple.kernel - single.kernel  # (h_o, distance, h_c, azimuth, elevation, wl)
+    assert bool((added > 0).all())
     assert multiple.parameters_used["scattering_orders"] == "converged"
     assert single.parameters_used["scattering_orders"] == 1
-    assert float(ratio.min()) >= record["factor_min"] * (1.0 - 1e-9)
-    assert float(ratio.max()) <= record["factor_max"] * (1.0 + 1e-9)
+    record = multiple.parameters_used["multiple_scattering"]
     assert record["factor_min"] >= 1.0
+    medium = Medium(Atmosphere.earth(turbidity=2.0), [450.0, 550.0])
+    radius = multiple.parameters_used["source_radius_m"]
+    for i, j, k in ((2, 3, 2), (5, 6, 4), (6, 1, 1)):
+        orders = skyglow_scattering_orders(
+            medium, multiple.azimuth_rad[j], multiple.elevation_rad[k],
+            multiple.distance_m[i], n_paths=20_000, source_radius_m=radius, seed=13)
+        direct = orders.radiance[..., 1:].sum(-1)
+        error = orders.standard_error[..., 1:].sum(-1)
+        model = added[0, i, 0, j, k]
+        assert bool(((model - direct).abs() <= SIGMAS * error + 0.10 * direct).all()), (
+            i, j, k, model / direct - 1.0, error / direct)
 
 
 def test_model_panorama_brighter_with_every_order(models):
-    """The rendered skyglow with every order is brighter, by the factors' range."""
+    """The rendered skyglow with every order is brighter than with single scattering."""
     from skytorch.skyglow.citymap import point_sources
 
     single, multiple = models
@@ -234,8 +250,7 @@ def test_model_panorama_brighter_with_every_order(models):
     one = single.render(city)
     every = multiple.render(city)
     ratio = (every.luminance / one.luminance).values
-    record = multiple.parameters_used["multiple_scattering"]
-    assert ratio.min() > 1.0 and ratio.max() <= record["factor_max"]
+    assert ratio.min() > 1.0 and ratio.max() < 3.0
     assert "any number of times" in every.radiance.attrs["description"]
 
 

@@ -57,7 +57,7 @@ from skytorch._validate import (
 from skytorch.skyglow.basis import fit_basis, resolve_components
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
 from skytorch.skyglow.lamps import luminance_weights
-from skytorch.skyglow.multiple_scattering import multiple_scattering_factor
+from skytorch.skyglow.multiple_scattering import higher_order_radiance
 from skytorch.skyglow.units import (
     NATURAL_ZENITH_SKY_MAG_ARCSEC2,
     artificial_to_natural_ratio,
@@ -440,13 +440,19 @@ def _radiance_description(parameters: Mapping) -> str:
     times = "any number of" if orders == "converged" else f"up to {orders}"
     light = ("Singly scattered light of the city lights" if orders == 1 else
              f"Light of the city lights scattered {times} times (single-scattering kernel "
-             "times the Monte-Carlo factor of the higher orders)")
+             "plus the Monte-Carlo radiance of the higher orders)")
     return (f"{light} (PCA + FFT convolution, Dobashi et al. 2023), lamp power averaged "
             "over each wavelength's band.")
 
 
 def _multiple_scattering_record(summaries, n_paths: int) -> dict:
-    """Plain record of the Monte-Carlo factors of each observer altitude (for attrs)."""
+    """Summarise the Monte-Carlo factors of the observer altitudes (for attrs).
+
+    Only the coarse grid and the factors' range and largest error: the record is
+    serialised into every rendered Dataset's attributes, so it stays small;
+    :func:`~skytorch.skyglow.multiple_scattering.higher_order_radiance` gives the
+    factors themselves.
+    """
     first = summaries[0]
     return {
         "method": "backward Monte Carlo, skytorch.skyglow.multiple_scattering",
@@ -454,8 +460,6 @@ def _multiple_scattering_record(summaries, n_paths: int) -> dict:
         "distance_m": first["distance_m"].tolist(),
         "azimuth_deg": torch.rad2deg(first["azimuth_rad"]).tolist(),
         "elevation_deg": torch.rad2deg(first["elevation_rad"]).tolist(),
-        "factor": [s["factor"].tolist() for s in summaries],
-        "factor_error": [s["factor_error"].tolist() for s in summaries],
         "factor_min": min(float(s["factor"].min()) for s in summaries),
         "factor_max": max(float(s["factor"].max()) for s in summaries),
         "largest_error": max(float(s["factor_error"].max()) for s in summaries),
@@ -546,7 +550,7 @@ class SkyglowModel(nn.Module):
                    medium: Medium | None = None, quadrature: str = "single",
                    compute_dtype: torch.dtype = torch.float64,
                    n_workers: int | None = None, scattering_orders: int | str = 1,
-                   multiple_scattering_paths: int = 2000) -> SkyglowModel:
+                   multiple_scattering_paths: int = 1000) -> SkyglowModel:
         """Tabulate kernels, fit the PCA basis and transform it over azimuth.
 
         Parameters
@@ -606,12 +610,13 @@ class SkyglowModel(nn.Module):
             another with the current thread settings. The result does not depend on it.
         scattering_orders : int or "converged"
             1 (default): the single-scattering kernel of Dobashi et al. 2023. N ≥ 2 or
-            ``"converged"``: the kernel multiplied, before the PCA, by the factor of all
-            orders up to N over the first, measured per observer altitude by backward
-            Monte Carlo on a coarse grid of lines of sight and interpolated
-            (:func:`~skytorch.skyglow.multiple_scattering.multiple_scattering_factor`, sources
-            at the middle of ``source_altitude_range_m``); the coarse factors and their
-            errors go into ``parameters_used["multiple_scattering"]``.
+            ``"converged"``: the radiance of the orders 2 … N added to the kernel before the
+            PCA, measured per observer altitude by backward Monte Carlo on a coarse grid of
+            lines of sight and interpolated
+            (:func:`~skytorch.skyglow.multiple_scattering.higher_order_radiance`, sources at
+            the middle of ``source_altitude_range_m``); the coarse factors (all orders over
+            the first) and their errors are summarised in
+            ``parameters_used["multiple_scattering"]``.
         multiple_scattering_paths : int
             Monte-Carlo paths per coarse line of sight and wavelength (the factor's
             standard error falls as its inverse square root; ``docs/skyglow.md``).
@@ -709,12 +714,12 @@ class SkyglowModel(nn.Module):
                 bar.update(stop - start)
             ms_summary = None
             if scattering_orders != 1:
-                factor, ms_summary = multiple_scattering_factor(
+                higher, ms_summary = higher_order_radiance(
                     medium, distance, azimuth[:half], elevation,
                     float(source_altitude.mean()), float(h_o),
                     scattering_orders=scattering_orders, n_paths=multiple_scattering_paths,
                     **kernel_arguments_ms)
-                table *= factor[:, None]
+                table += higher[:, None]
             seconds = [time.perf_counter() - clock, time.thread_time() - cpu_clock]
             clock, cpu_clock = time.perf_counter(), time.thread_time()
             fit = fit_basis(table.reshape(n_distance * n_source_altitude, -1), n_components,

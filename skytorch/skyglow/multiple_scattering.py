@@ -57,7 +57,7 @@ from skytorch._validate import (
 from skytorch.skyglow.kernel import Medium, emission_intensity, kernel_radiance
 
 __all__ = ["CONVERGED_ORDERS", "ESTIMATORS", "FACTOR_AZIMUTHS_DEG", "FACTOR_DISTANCES",
-           "FACTOR_ELEVATIONS_DEG", "ScatteringOrders", "multiple_scattering_factor",
+           "FACTOR_ELEVATIONS_DEG", "ScatteringOrders", "higher_order_radiance",
            "skyglow_scattering_orders"]
 
 #: how the orders are scored: along each new direction by the kernel, or at each collision
@@ -583,10 +583,10 @@ def _trace(paths: _Paths, estimator: str, max_orders: int, tallies: torch.Tensor
 
 
 #: elevations [deg], azimuths from the source [deg] and number of distances (geometric,
-#: over the model's range) at which :func:`multiple_scattering_factor` runs the Monte Carlo
-FACTOR_ELEVATIONS_DEG = (1.0, 8.0, 20.0, 45.0, 89.0)
-FACTOR_AZIMUTHS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
-FACTOR_DISTANCES = 6
+#: over the model's range) at which :func:`higher_order_radiance` runs the Monte Carlo
+FACTOR_ELEVATIONS_DEG = (1.0, 4.0, 10.0, 20.0, 35.0, 55.0, 89.0)
+FACTOR_AZIMUTHS_DEG = (0.0, 30.0, 60.0, 90.0, 120.0, 150.0, 180.0)
+FACTOR_DISTANCES = 10
 #: orders followed for ``scattering_orders="converged"`` (the light left after them is
 #: below 1e-6 of the paths' weight in every case measured, docs/skyglow.md)
 CONVERGED_ORDERS = 30
@@ -609,22 +609,23 @@ def _interpolate_axis(table: torch.Tensor, dim: int, nodes, values) -> torch.Ten
     return left + fraction.reshape(shape) * (right - left)
 
 
-def multiple_scattering_factor(medium: Medium, distance_m, azimuth_rad, elevation_rad,
-                               source_altitude_m: float = 0.0,
-                               observer_altitude_m: float = 0.0, *,
-                               scattering_orders: int | str = "converged",
-                               n_paths: int = 2000, seed: int = 0,
-                               emission: str = "garstang1986",
-                               emission_parameters: Mapping[str, float] | None = None,
-                               source_radius_m: float = 10.0):
-    """Multiple-scattering factor of the skyglow kernel on a grid of lines of sight.
+def higher_order_radiance(medium: Medium, distance_m, azimuth_rad, elevation_rad,
+                          source_altitude_m: float = 0.0, observer_altitude_m: float = 0.0, *,
+                          scattering_orders: int | str = "converged", n_paths: int = 1000,
+                          seed: int = 0, emission: str = "garstang1986",
+                          emission_parameters: Mapping[str, float] | None = None,
+                          source_radius_m: float = 10.0):
+    """Radiance of the orders 2 … N of a unit ground source on a grid of lines of sight.
 
     The Monte Carlo (:func:`skyglow_scattering_orders`, line estimator) runs on a coarse
     grid — :data:`FACTOR_DISTANCES` distances spaced geometrically over the requested ones,
     the elevations :data:`FACTOR_ELEVATIONS_DEG` and azimuths :data:`FACTOR_AZIMUTHS_DEG` —
-    and the factor (all orders over the first) is interpolated, its logarithm linearly in
-    log distance, azimuth and elevation, to the requested grid (held constant beyond the
-    coarse nodes).
+    and the logarithm of the radiance of the higher orders is interpolated linearly in log
+    distance, azimuth and elevation to the requested grid (held constant beyond the coarse
+    nodes). Added to the single-scattering kernel it gives every order. The light scattered
+    more than once is a smooth function of the geometry, unlike the first order, which
+    vanishes along long low lines of sight away from the source; so it is this radiance,
+    not the factor on the kernel, that is interpolated.
 
     Parameters
     ----------
@@ -636,7 +637,7 @@ def multiple_scattering_factor(medium: Medium, distance_m, azimuth_rad, elevatio
     source_altitude_m, observer_altitude_m : float
         Altitudes of the sources and the observer [m].
     scattering_orders : int ≥ 2 or "converged"
-        Orders summed (:data:`CONVERGED_ORDERS` for "converged").
+        Highest order (:data:`CONVERGED_ORDERS` for "converged").
     n_paths : int
         Paths per coarse line of sight and wavelength.
     seed, emission, emission_parameters, source_radius_m
@@ -644,10 +645,11 @@ def multiple_scattering_factor(medium: Medium, distance_m, azimuth_rad, elevatio
 
     Returns
     -------
-    factor : Tensor (distance, azimuth, elevation, wavelength)
-        All orders over the first [1].
+    radiance : Tensor (distance, azimuth, elevation, wavelength)
+        Orders 2 … N per unit source flux [m^-2 sr^-1].
     summary : dict
-        The coarse nodes, the factor there and its standard error, the paths and orders.
+        The coarse nodes; there the factor (all orders over the first), its standard error,
+        the higher orders' radiance and their standard error; paths and orders.
     """
     if scattering_orders == "converged":
         max_orders = CONVERGED_ORDERS
@@ -670,14 +672,18 @@ def multiple_scattering_factor(medium: Medium, distance_m, azimuth_rad, elevatio
         distance_nodes[:, None, None], source_altitude_m, observer_altitude_m,
         emission=emission, emission_parameters=emission_parameters,
         source_radius_m=source_radius_m, n_paths=n_paths, max_orders=max_orders, seed=seed)
-    coarse = orders.factor  # (distance, azimuth, elevation, wavelength)
-    # in log factor: it grows by an order of magnitude towards far, low lines of sight
-    log_factor = _interpolate_axis(torch.log(coarse), 0, torch.log(distance_nodes),
-                                   torch.log(distance))
-    log_factor = _interpolate_axis(log_factor, 1, azimuth_nodes, azimuth)
-    factor = torch.exp(_interpolate_axis(log_factor, 2, elevation_nodes, elevation))
+    higher = orders.radiance[..., 1:].sum(-1)  # (distance, azimuth, elevation, wavelength)
+    higher_error = orders.standard_error[..., 1:].sum(-1)
+    if not bool((higher > 0).all()):
+        raise ValueError(f"no path scattered twice on some coarse line of sight with "
+                         f"n_paths={n_paths}; raise n_paths")
+    log_radiance = _interpolate_axis(torch.log(higher), 0, torch.log(distance_nodes),
+                                     torch.log(distance))
+    log_radiance = _interpolate_axis(log_radiance, 1, azimuth_nodes, azimuth)
+    radiance = torch.exp(_interpolate_axis(log_radiance, 2, elevation_nodes, elevation))
     summary = {"distance_m": distance_nodes, "azimuth_rad": azimuth_nodes,
-               "elevation_rad": elevation_nodes, "factor": coarse,
-               "factor_error": orders.factor_error, "n_paths": n_paths,
+               "elevation_rad": elevation_nodes, "factor": orders.factor,
+               "factor_error": orders.factor_error, "higher_orders": higher,
+               "higher_orders_error": higher_error, "n_paths": n_paths,
                "orders": max_orders, "truncated_weight": orders.truncated_weight}
-    return factor, summary
+    return radiance, summary
