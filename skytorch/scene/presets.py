@@ -101,7 +101,8 @@ FIDELITY = {
         "moon_disc_quadrature": 48,
         "scattering_orders": "converged", "ms_tables": _MS_COARSE, "ms_wavelength_nodes": 8,
         "skyglow": {"n_azimuth": 128, "n_elevation": 32, "n_distance": 64,
-                    "n_components": 16, "max_distance_m": 40_000.0}},
+                    "n_components": 16, "max_distance_m": 40_000.0,
+                    "scattering_orders": "converged"}},
 }
 
 #: names of the fidelity presets
