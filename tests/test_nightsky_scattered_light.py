@@ -178,3 +178,45 @@ def test_gradient_with_respect_to_view_zenith_matches_finite_differences():
     with torch.no_grad():
         numeric = (radiance(zenith + step) - radiance(zenith - step)) / (2.0 * step)
     assert torch.allclose(grad, numeric, rtol=1e-5, atol=0.0), (grad, numeric)
+
+
+def test_zenith_response_reproduces_a_piecewise_linear_source():
+    """Σ_k L(z_k) R_k equals the scattered light of L(z) itself for L linear between nodes.
+
+    The hats of the nodes represent a piecewise-linear source exactly, so the response's
+    contraction must give :func:`scattered_diffuse_radiance` of that source (to round-off);
+    a uniform source is the sum of all hats.
+    """
+    from skytorch.nightsky.scattered_light import scattered_zenith_response
+
+    atm = Atmosphere.earth()
+    views = torch.deg2rad(torch.tensor([0.0, 50.0, 80.0, 89.0], dtype=torch.float64))
+    nodes = torch.deg2rad(torch.tensor([0.0, 30.0, 60.0, 90.0, 105.0], dtype=torch.float64))
+    values = torch.tensor([1.0, 1.5, 3.0, 5.0, 0.5], dtype=torch.float64)
+    response = scattered_zenith_response(atm, views, WAVELENGTH, nodes, n_steps=48)
+
+    def source(mu, altitude):
+        zenith = torch.acos(mu.clamp(-1.0, 1.0)).clamp(0.0, float(nodes[-1]))
+        index = torch.bucketize(zenith.contiguous(), nodes).clamp(1, nodes.numel() - 1)
+        t = (zenith - nodes[index - 1]) / (nodes[index] - nodes[index - 1])
+        return ((1.0 - t) * values[index - 1] + t * values[index])[..., None]
+
+    direct = scattered_diffuse_radiance(atm, views, WAVELENGTH, source, n_steps=48)
+    contracted = (values[:, None, None] * response).sum(0)
+    torch.testing.assert_close(contracted, direct, rtol=1e-12, atol=0.0)
+    uniform = scattered_diffuse_radiance(atm, views, WAVELENGTH,
+                                         lambda mu, h: torch.ones_like(mu)[..., None],
+                                         n_steps=48)
+    torch.testing.assert_close(response.sum(0), uniform, rtol=1e-12, atol=0.0)
+    assert bool((response >= 0).all())
+
+
+def test_zenith_response_rejects_unordered_nodes():
+    from skytorch.nightsky.scattered_light import scattered_zenith_response
+
+    with pytest.raises(ValueError, match="source_zenith_rad"):
+        scattered_zenith_response(Atmosphere.earth(), torch.tensor([0.0]), WAVELENGTH,
+                                  torch.tensor([0.5, 0.2]))
+    with pytest.raises(ValueError, match="source_zenith_rad"):
+        scattered_zenith_response(Atmosphere.earth(), torch.tensor([0.0]), WAVELENGTH,
+                                  torch.tensor([0.0, 4.0]))

@@ -24,8 +24,11 @@ when ``knobs.refraction``): the zodiacal light and starlight by the whole extinc
 airglow relative to the zenith, as its level is an observed one. The airglow scattered
 once into the line of sight (:mod:`skytorch.nightsky.scattered_light`: the layer lights
 the air over the whole sky; near the horizon this makes up for much of the extinction)
-is added, the sum scaled so that the zenith keeps the observed level; the scattered
-zodiacal light and starlight and higher orders are not included.
+is added, the sum scaled so that the zenith keeps the observed level. The zodiacal light
+and starlight scattered once into the line of sight are added as well (their radiance
+above the air averaged over azimuth at each zenith angle, times the response of
+:func:`skytorch.nightsky.scattered_light.scattered_zenith_response`); higher orders are not
+included.
 
 References
 ----------
@@ -112,45 +115,29 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
 
     Notes
     -----
-    .. math:: L = \bigl[L_{ZL} + L_\star\bigr] 10^{-0.4\,\Delta m(h)} + L_{AG,0}\,
+    .. math:: L = \bigl[L_{ZL} + L_\star\bigr] 10^{-0.4\,\Delta m(h)}
+              + \sum_k \langle L_{ZL} + L_\star\rangle_k R_k(z, \lambda) + L_{AG,0}\,
               \frac{V(z)\,10^{-0.4\,\Delta m(h)} + s(z, \lambda)}
                    {10^{-0.4\,\Delta m(90°)} + s_V(0)},
 
     with :math:`\Delta m` the V-band extinction, :math:`V(z)` the van Rhijn factor,
-    :math:`s` the singly scattered airglow per unit zenith emission and :math:`L_{AG,0}`
-    the observed zenith airglow.
+    :math:`s` the singly scattered airglow per unit zenith emission, :math:`L_{AG,0}`
+    the observed zenith airglow, :math:`\langle\cdot\rangle_k` the azimuthal mean above
+    the air at the zenith angle of node :math:`k` and :math:`R_k` the scattered response
+    to it (:meth:`SceneResources.scattered_sky_response`).
     """
     from skytorch.nightsky import (
         airglow_zenith_mag,
-        catalogue_starlight_map,
-        starlight_v_radiance,
         van_rhijn,
-        zodiacal_spectral_radiance,
     )
 
     wl = wavelength.to(torch.float64).reshape(-1)
     zenith = view.zenith_rad.to(torch.float64)
     icrs = view_icrs_vectors(view, knobs)
-    lon, lat = ecliptic_coordinates(icrs)
     sun_h = torch.tensor(geometry.sun_horizontal_m, dtype=torch.float64)
     sun_lon, _ = ecliptic_coordinates(
         (sun_h / torch.linalg.vector_norm(sun_h)) @ view_icrs_matrix(knobs))
-    zodiacal = zodiacal_spectral_radiance(lon - sun_lon, lat, wl)
-
-    solar = solar_irradiance(wl)
-    solar_mag = _v_mag(solar, wl)
-    from skytorch.nightsky.faint_starlight import (
-        faint_starlight_table,
-        faint_starlight_v_radiance,
-    )
-
-    # catalogue stars from the point-star limit to V = 10.15, then the Pioneer 10/11
-    # starlight fainter than the catalogue (V > 10.15 and diffuse galactic light)
-    star_v = (starlight_v_radiance(icrs, catalogue_starlight_map(float(knobs.star_limit_mag)))
-              + faint_starlight_v_radiance(icrs, faint_starlight_table()))
-    star_mag_per_unit = -2.5 * math.log10(_ARCSEC2_SR / _V_ZERO_FLUX)  # V of 1 W m^-2 sr^-1 nm^-1
-    star_scale = 10.0 ** (-0.4 * (star_mag_per_unit - solar_mag))  # solar shape at V = 1 unit
-    starlight = (star_v * star_scale)[..., None] * solar
+    above_air = _zodiacal_and_starlight(icrs, sun_lon, wl, knobs)
 
     flux = knobs.solar_flux_sfu
     flat = torch.ones_like(wl)
@@ -163,9 +150,71 @@ def natural_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
     delta, delta_zenith = _extinction_mag(resources, view, knobs)
     space = 10.0 ** (-0.4 * delta)
     airglow = _airglow(resources, knobs, zenith, wl, path * space, 10.0 ** (-0.4 * delta_zenith))
-    image = (zodiacal + starlight) * space[..., None] + airglow_level * airglow
+    scattered = _scattered_zodiacal_and_starlight(resources, knobs, zenith, sun_lon, wl)
+    image = above_air * space[..., None] + scattered + airglow_level * airglow
     valid = view.valid[..., None].to(torch.float64)
     return (image * valid).to(knobs.dtype)
+
+
+def _zodiacal_and_starlight(icrs, sun_lon, wavelength, knobs) -> torch.Tensor:
+    """Zodiacal light and integrated starlight above the air (..., wl) [W m^-2 sr^-1 nm^-1].
+
+    At ICRS unit vectors (..., 3); ``sun_lon`` the Sun's ecliptic longitude [rad].
+    """
+    from skytorch.nightsky import (
+        catalogue_starlight_map,
+        starlight_v_radiance,
+        zodiacal_spectral_radiance,
+    )
+    from skytorch.nightsky.faint_starlight import (
+        faint_starlight_table,
+        faint_starlight_v_radiance,
+    )
+
+    lon, lat = ecliptic_coordinates(icrs)
+    zodiacal = zodiacal_spectral_radiance(lon - sun_lon, lat, wavelength)
+    solar = solar_irradiance(wavelength)
+    solar_mag = _v_mag(solar, wavelength)
+    # catalogue stars from the point-star limit to V = 10.15, then the Pioneer 10/11
+    # starlight fainter than the catalogue (V > 10.15 and diffuse galactic light)
+    star_v = (starlight_v_radiance(icrs, catalogue_starlight_map(float(knobs.star_limit_mag)))
+              + faint_starlight_v_radiance(icrs, faint_starlight_table()))
+    star_mag_per_unit = -2.5 * math.log10(_ARCSEC2_SR / _V_ZERO_FLUX)  # V of 1 W m^-2 sr^-1 nm^-1
+    star_scale = 10.0 ** (-0.4 * (star_mag_per_unit - solar_mag))  # solar shape at V = 1 unit
+    return zodiacal + (star_v * star_scale)[..., None] * solar
+
+
+def _scattered_zodiacal_and_starlight(resources, knobs, zenith, sun_lon, wavelength,
+                                      source=None) -> torch.Tensor:
+    r"""Zodiacal light and starlight scattered once into the lines of sight (..., wl).
+
+    Their radiance above the air averaged over azimuth at the zenith angles of
+    :data:`~skytorch.scene.resources.SCATTERED_SKY_SOURCE_ZENITH_DEG` (the sky below the
+    horizon included: rays from there reach the air at altitude), times the response of
+    :meth:`SceneResources.scattered_sky_response` (interpolated in zenith angle and, in
+    log, in wavelength). The azimuthal structure of the sources (the Milky Way's band, the
+    zodiacal cone) is averaged out of the scattered light (exact for the zenith's line of
+    sight, whose scattering angles depend on the incoming zenith angle alone). ``source``
+    (default :func:`_zodiacal_and_starlight`) gives the radiance above the air.
+    """
+    source = _zodiacal_and_starlight if source is None else source
+    from skytorch.scene.resources import SCATTERED_SKY_SOURCE_AZIMUTHS
+
+    views, node_wavelength, source_zenith, response = resources.scattered_sky_response(
+        knobs.elevation_m)
+    azimuth = torch.arange(SCATTERED_SKY_SOURCE_AZIMUTHS, dtype=torch.float64) * (
+        2.0 * math.pi / SCATTERED_SKY_SOURCE_AZIMUTHS)
+    z, a = torch.broadcast_tensors(source_zenith[:, None], azimuth[None, :])
+    horizontal = torch.stack([torch.sin(z) * torch.cos(a), torch.sin(z) * torch.sin(a),
+                              torch.cos(z)], dim=-1)
+    incident = source(horizontal @ view_icrs_matrix(knobs), sun_lon, wavelength,
+                      knobs).mean(1)  # (source node, wl)
+    response = interpolate_wavelength(response, node_wavelength, wavelength)
+    table = (incident[:, None, :] * response).sum(0)  # (view node, wl)
+    position = torch.bucketize(zenith.clamp(max=float(views[-1])).contiguous(), views)
+    upper = position.clamp(1, views.numel() - 1)
+    t = ((zenith - views[upper - 1]) / (views[upper] - views[upper - 1]))[..., None]
+    return (1.0 - t) * table[upper - 1] + t * table[upper]
 
 
 def _airglow(resources, knobs, zenith, wavelength, direct, direct_zenith) -> torch.Tensor:

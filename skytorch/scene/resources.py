@@ -130,6 +130,13 @@ SCATTERED_AIRGLOW_ZENITH_DEG = (0.0, 20.0, 40.0, 55.0, 65.0, 72.0, 78.0, 82.0, 8
 #: A and B and the strongest water bands), with the scene's shortest and longest added
 SCATTERED_AIRGLOW_WAVELENGTH_NM = (380.0, 440.0, 500.0, 560.0, 620.0, 660.0, 800.0, 870.0,
                                    1000.0)
+#: zenith angles [deg] between which the zodiacal light and starlight arriving at the
+#: scattering points is interpolated (azimuthal means; rays from up to ~10° below the
+#: horizontal still reach the air above the ground's horizon)
+SCATTERED_SKY_SOURCE_ZENITH_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 70.0, 80.0, 85.0, 90.0, 95.0,
+                                   100.0, 105.0)
+#: azimuths over which those means are taken
+SCATTERED_SKY_SOURCE_AZIMUTHS = 24
 
 class SceneResources:
     """Tables shared by the planner and renderers of scenes with one :class:`SceneSpec`.
@@ -302,6 +309,35 @@ class SceneResources:
             return zenith, wavelength, radiance
 
         return self._get(("scattered_airglow", elevation_m, layer_height_m, low, high), build)
+
+    def scattered_sky_response(self, elevation_m: float):
+        """Sky light scattered once into lines of sight, per unit incident radiance (cached).
+
+        :func:`skytorch.nightsky.scattered_light.scattered_zenith_response` on
+        :data:`SCATTERED_AIRGLOW_ZENITH_DEG` lines of sight and the wavelength nodes of
+        :meth:`scattered_airglow_table`, for an incident radiance interpolated linearly in
+        zenith angle between :data:`SCATTERED_SKY_SOURCE_ZENITH_DEG`; returns
+        ``(view_zenith_rad, wavelength_nm, source_zenith_rad, response)`` with response
+        (source node, view, wavelength) [1].
+        """
+        elevation_m = float(elevation_m)
+        low, high = min(self.spec.wavelengths), max(self.spec.wavelengths)
+        nodes = sorted({low, high, *(x for x in SCATTERED_AIRGLOW_WAVELENGTH_NM
+                                     if low < x < high)})
+
+        def build():
+            from skytorch.nightsky.scattered_light import scattered_zenith_response
+
+            zenith = torch.deg2rad(torch.tensor(SCATTERED_AIRGLOW_ZENITH_DEG,
+                                                dtype=torch.float64))
+            source = torch.deg2rad(torch.tensor(SCATTERED_SKY_SOURCE_ZENITH_DEG,
+                                                dtype=torch.float64))
+            wavelength = torch.tensor(nodes, dtype=torch.float64)
+            response = scattered_zenith_response(self.atmosphere, zenith, wavelength, source,
+                                                 altitude_m=elevation_m)
+            return zenith, wavelength, source, response
+
+        return self._get(("scattered_sky", elevation_m, low, high), build)
 
     def star_site_tables(self, elevation_m: float, refraction: bool):
         """Return the refraction and extinction tables at an observer height [m].
