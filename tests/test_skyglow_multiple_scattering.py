@@ -260,3 +260,33 @@ def test_model_scattering_orders_checked():
     with pytest.raises(ValueError, match="scattering_orders"):
         SkyglowModel.precompute(Atmosphere.earth(), n_azimuth=4, n_elevation=2, n_distance=2,
                                 scattering_orders=0, progress=False)
+
+
+@pytest.mark.parametrize("geometry", [
+    {"azimuth_rad": 0.0, "elevation_rad": math.pi / 2, "distance_m": 0.0},
+    {"azimuth_rad": 0.0, "elevation_rad": -math.pi / 2, "distance_m": 0.0,
+     "observer_altitude_m": 3000.0},
+    {"azimuth_rad": 1.0, "elevation_rad": 0.0, "distance_m": 5e3, "source_altitude_m": 500.0,
+     "observer_altitude_m": 1000.0},
+    {"azimuth_rad": 0.0, "elevation_rad": 0.0, "distance_m": 0.0,
+     "observer_altitude_m": 99_000.0},
+])
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+def test_hard_geometries_stay_finite(medium, geometry, dtype):
+    """Source right below, looking straight down at it, horizontal lines, the top."""
+    orders = skyglow_scattering_orders(medium, **geometry, n_paths=500, dtype=dtype,
+                                       source_radius_m=100.0)
+    assert bool(torch.isfinite(orders.radiance).all())
+    assert bool((orders.radiance >= 0).all())
+    assert bool((orders.factor >= 1.0).all())
+
+
+def test_float32_paths_agree_with_float64(medium):
+    """The same lines of sight in float32 arithmetic: the factor within the errors."""
+    geometry = (0.0, 0.3, 20e3)
+    double = skyglow_scattering_orders(medium, *geometry, n_paths=5000, seed=4,
+                                       source_radius_m=250.0)
+    single = skyglow_scattering_orders(medium, *geometry, n_paths=5000, seed=5,
+                                       source_radius_m=250.0, dtype=torch.float32)
+    combined = torch.hypot(double.factor_error, single.factor_error)
+    assert bool(((double.factor - single.factor).abs() <= SIGMAS * combined).all())

@@ -155,7 +155,8 @@ def _sample_angle(theta: torch.Tensor, cumulative: torch.Tensor, uniform: torch.
     """Angles [rad] distributed as ``cumulative`` on ``theta`` (linear inverse)."""
     index = torch.searchsorted(cumulative, uniform).clamp(1, theta.numel() - 1)
     low, high = cumulative[index - 1], cumulative[index]
-    fraction = ((uniform - low) / (high - low).clamp_min(1e-300)).clamp(0.0, 1.0)
+    step = (high - low).clamp_min(torch.finfo(high.dtype).tiny)
+    fraction = ((uniform - low) / step).clamp(0.0, 1.0)
     return theta[index - 1] + fraction * (theta[index] - theta[index - 1])
 
 
@@ -274,7 +275,7 @@ def skyglow_scattering_orders(medium: Medium, azimuth_rad, elevation_rad, distan
     -------
     ScatteringOrders
         Arrays over the broadcast shape of the geometry inputs, the medium's wavelengths
-        and the orders.
+        and the orders (float64 whatever ``dtype``: the tallies are accumulated in it).
 
     Raises
     ------
@@ -370,7 +371,7 @@ class _SourceCone:
         cosine = (axis * direction).sum(-1).clamp(-1.0, 1.0)
         sine = torch.sqrt((1.0 - cosine * cosine).clamp_min(0.0))
         gamma = torch.atan2(sine, cosine)
-        ratio = torch.where(gamma > 1e-6, gamma / sine.clamp_min(1e-300),
+        ratio = torch.where(gamma > 1e-6, gamma / sine.clamp_min(torch.finfo(sine.dtype).tiny),
                             torch.ones_like(gamma))
         value = ratio / (math.pi * self.log_range * (gamma * gamma + self.width2))
         return torch.where(gamma <= _CONE_HALF_ANGLE, value, torch.zeros_like(value))
@@ -478,7 +479,8 @@ class _Paths:
         cosine = (up * source_up).sum(-1)
         towards = source_up - cosine[:, None] * up
         sine = torch.linalg.vector_norm(towards, dim=-1)
-        towards = towards / sine.clamp_min(1e-300)[:, None]
+        # right above the source any azimuth will do: the kernel does not depend on it
+        towards = towards / sine.clamp_min(torch.finfo(sine.dtype).tiny)[:, None]
         across = torch.linalg.cross(up, towards, dim=-1)
         d = self.direction[rows]
         elevation = torch.asin((d * up).sum(-1).clamp(-1.0, 1.0))
