@@ -384,3 +384,14 @@ def test_paths_reproduce_the_independent_sky_monte_carlo():
         expected = reference[name].values
         deviation = np.abs(value - expected) / (3.5 * sigma + 0.01 * expected)
         assert deviation.max() < 1.0, (name, (value / expected).round(3))
+
+
+def test_model_with_an_azimuth_grid_ending_an_ulp_beyond_pi():
+    """n_azimuth = 50: 25 · 2π/50 rounds one ulp above π; the higher orders still build."""
+    from skytorch.skyglow.model import SkyglowModel
+
+    model = SkyglowModel.precompute(Atmosphere.earth(turbidity=2.0), n_azimuth=50,
+                                    n_elevation=3, n_distance=3, n_components=3,
+                                    wavelength_nm=[550.0], scattering_orders=2,
+                                    multiple_scattering_paths=50, n_steps=4, progress=False)
+    assert model.parameters_used["multiple_scattering"]["factor_min"] >= 1.0

@@ -194,8 +194,11 @@ def _scattered_zodiacal_and_starlight(resources, knobs, zenith, sun_lon, wavelen
     :meth:`SceneResources.scattered_sky_response` (interpolated in zenith angle and, in
     log, in wavelength). The azimuthal structure of the sources (the Milky Way's band, the
     zodiacal cone) is averaged out of the scattered light (exact for the zenith's line of
-    sight, whose scattering angles depend on the incoming zenith angle alone). ``source``
-    (default :func:`_zodiacal_and_starlight`) gives the radiance above the air.
+    sight, whose scattering angles depend on the incoming zenith angle alone; near the
+    horizon rings the 24 azimuths sample the Milky Way's band coarsely). ``source``
+    (default :func:`_zodiacal_and_starlight`) gives the radiance above the air; the stars
+    drawn as points (brighter than ``knobs.star_limit_mag``) are not in it, so their
+    scattered light is left out.
     """
     source = _zodiacal_and_starlight if source is None else source
     from skytorch.scene.resources import SCATTERED_SKY_SOURCE_AZIMUTHS

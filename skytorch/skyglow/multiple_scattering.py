@@ -266,7 +266,8 @@ def skyglow_scattering_orders(medium: Medium, azimuth_rad, elevation_rad, distan
     seed : int
         Seed of the call's own random generator (the result is reproducible).
     chunk_paths : int
-        Paths traced at once (bounds the memory, about 200 bytes per path).
+        Paths traced at once, at least the ``n_paths`` of one line of sight and wavelength
+        (about 200 bytes per path).
     dtype : torch.dtype
         Arithmetic of the paths (float64 default; float32 is faster and enough for
         factors at the percent level).
@@ -275,7 +276,10 @@ def skyglow_scattering_orders(medium: Medium, azimuth_rad, elevation_rad, distan
     -------
     ScatteringOrders
         Arrays over the broadcast shape of the geometry inputs, the medium's wavelengths
-        and the orders (float64 whatever ``dtype``: the tallies are accumulated in it).
+        and the orders (float64 whatever ``dtype``: the tallies are accumulated in it). The
+        orders end at the last one any path scored (so their number depends on the run);
+        a line of sight that sees no lit air (e.g. down to the ground next to the
+        observer) has a first order of 0 and a factor of NaN.
 
     Raises
     ------
@@ -661,8 +665,11 @@ def higher_order_radiance(medium: Medium, distance_m, azimuth_rad, elevation_rad
     azimuth = as_tensor("azimuth_rad", azimuth_rad, dtype=torch.float64).reshape(-1)
     elevation = as_tensor("elevation_rad", elevation_rad, dtype=torch.float64).reshape(-1)
     check_positive("distance_m", distance, unit=" m")
-    check_range("azimuth_rad", azimuth, 0.0, math.pi, unit=" rad")
-    check_range("elevation_rad", elevation, 0.0, math.pi / 2, unit=" rad")
+    # grids built as k · 2π/n may end one ulp beyond π (or π/2): a rounding, held at it
+    check_range("azimuth_rad", azimuth, -1e-9, math.pi + 1e-9, unit=" rad")
+    check_range("elevation_rad", elevation, -1e-9, math.pi / 2 + 1e-9, unit=" rad")
+    azimuth = azimuth.clamp(0.0, math.pi)
+    elevation = elevation.clamp(0.0, math.pi / 2)
     low, high = float(distance.min()), float(distance.max())
     distance_nodes = torch.logspace(math.log10(low), math.log10(max(high, low * 1.001)),
                                     FACTOR_DISTANCES, dtype=torch.float64)
