@@ -304,7 +304,13 @@ def _gather_rays(table, ray_corners, sun_corners):
     as :func:`_gather4` (multilinear in r, mu, phi, geometric in mu_s), done in two
     stages: contiguous (mu_s, phi) blocks are interpolated in (r, mu) once per sample,
     then looked up in (mu_s, phi). Returns (b, *g, m3, m4, λ').
+
+    Parameter sets are looked up one at a time: the temporaries of a whole batch outgrow
+    the caches (a 10 × 10 batch took 4.6 s per set against 0.9 s alone).
     """
+    if table.shape[0] > 1:
+        return torch.cat([_gather_rays(table[i:i + 1], ray_corners, sun_corners)
+                          for i in range(table.shape[0])])
     (i1, w1), (i2, w2) = ray_corners
     n3, n4, channels = table.shape[3:]
     ray = 0.0
