@@ -312,12 +312,15 @@ def _gather_rays(table, ray_corners, sun_corners):
         return torch.cat([_gather_rays(table[i:i + 1], ray_corners, sun_corners)
                           for i in range(table.shape[0])])
     (i1, w1), (i2, w2) = ray_corners
-    n3, n4, channels = table.shape[3:]
-    ray = 0.0
+    n1, n2, n3, n4, channels = table.shape[1:]
+    # the (mu_s, phi, λ') block of each (r, mu) node is one row of this view
+    blocks = table.reshape(n1 * n2, n3 * n4 * channels)
+    ray = None
     for d1 in (0, 1):
         for d2 in (0, 1):
-            w = (w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2)
-            ray = ray + w[..., None, None, None] * table[:, i1 + d1, i2 + d2]
+            w = ((w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2)).reshape(-1, 1)
+            rows = torch.index_select(blocks, 0, ((i1 + d1) * n2 + (i2 + d2)).reshape(-1))
+            ray = rows * w if ray is None else ray.addcmul_(rows, w)
     b, n_g = table.shape[0], i1.numel()
     flat = ray.reshape(-1, channels)                             # (b * g * n3 * n4, λ')
     (i3, w3), (i4, w4) = sun_corners
