@@ -59,6 +59,9 @@ _SOLAR_BV = 0.65
 _V_ZERO_FLUX = 3.631e-11
 #: one square arcsecond [sr]
 _ARCSEC2_SR = (math.pi / 180.0 / 3600.0) ** 2
+#: azimuths over which the zodiacal light and starlight above the air are averaged at each
+#: zenith node of :data:`skytorch.scene.resources.SCATTERED_SKY_SOURCE_ZENITH_DEG`
+SCATTERED_SKY_SOURCE_AZIMUTHS = 24
 
 
 def ecliptic_coordinates(icrs_unit: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -201,8 +204,6 @@ def _scattered_zodiacal_and_starlight(resources, knobs, zenith, sun_lon, wavelen
     scattered light is left out.
     """
     source = _zodiacal_and_starlight if source is None else source
-    from skytorch.scene.resources import SCATTERED_SKY_SOURCE_AZIMUTHS
-
     views, node_wavelength, source_zenith, response = resources.scattered_sky_response(
         knobs.elevation_m)
     azimuth = torch.arange(SCATTERED_SKY_SOURCE_AZIMUTHS, dtype=torch.float64) * (

@@ -135,8 +135,6 @@ SCATTERED_AIRGLOW_WAVELENGTH_NM = (380.0, 440.0, 500.0, 560.0, 620.0, 660.0, 800
 #: horizontal still reach the air above the ground's horizon)
 SCATTERED_SKY_SOURCE_ZENITH_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 70.0, 80.0, 85.0, 90.0, 95.0,
                                    100.0, 105.0)
-#: azimuths over which those means are taken
-SCATTERED_SKY_SOURCE_AZIMUTHS = 24
 
 class SceneResources:
     """Tables shared by the planner and renderers of scenes with one :class:`SceneSpec`.
