@@ -293,3 +293,89 @@ def test_aerosol_sky_against_disort_within_one_percent():
         reference = ds.load().sel(aod=[0.05, 0.3, 1.0], wavelength=[550.0])
     errors = solver_errors(reference)
     assert _max_error(errors) < 1 * PERCENT
+
+
+def gathered_errors(reference: xr.Dataset, resolution, ground_albedo=False):
+    """Relative errors of the final gather against DISORT: {"sky", "top"} DataArrays.
+
+    Per aerosol optical depth (the gather takes scalar parameters): converged tables, the
+    tables' order 1 (with the Sun reflected once by the ground) or, over a black ground,
+    the ray-marched single scattering, plus
+    :func:`skytorch.atmosphere.final_gather.higher_orders_gathered` at its defaults.
+    """
+    from skytorch.atmosphere.final_gather import higher_orders_gathered
+    from skytorch.atmosphere.multiple_scattering import precompute_scattering
+    from skytorch.atmosphere.scattering import constituent_radiance
+
+    albedo = float(reference.attrs["ground_albedo_run"]) if ground_albedo else 0.0
+    run = "ground_albedo" if ground_albedo else "streams_64"
+    wavelength = torch.tensor(reference.wavelength.values, dtype=torch.float64)
+    azimuth = torch.deg2rad(torch.tensor(reference.relative_azimuth.values,
+                                         dtype=torch.float64))[None, :]
+    errors = {"sky": [], "top": []}
+    for aod in reference.aod.values:
+        atm = _atmosphere(float(aod))
+        tables = precompute_scattering(atm, wavelength, ground_albedo=albedo,
+                                       scattering_orders="converged", resolution=resolution)
+        for where, name, zenith_deg, altitude in (
+                ("sky", "view_zenith", np.array(VIEW_ZENITH_DEG), 0.0),
+                ("top", "nadir", 180.0 - np.array(NADIR_DEG), tables.top_altitude_m)):
+            zenith = torch.deg2rad(torch.tensor(zenith_deg, dtype=torch.float64))[:, None]
+            height = torch.tensor(altitude, dtype=torch.float64)
+            per_sun = []
+            for sun_zenith_deg in reference.sun_zenith.values:
+                sun = torch.tensor(math.radians(sun_zenith_deg), dtype=torch.float64)
+                if albedo:
+                    first = tables.radiance(height, zenith, azimuth, sun, scattering_orders=1)
+                else:
+                    first = constituent_radiance(atm.constituents(wavelength), zenith, azimuth,
+                                                 sun, 0.0 * sun, height, n_samples=512)
+                ours = first + higher_orders_gathered(tables, atm, height, zenith, azimuth, sun)
+                theirs = reference[f"{where}_{run}"].sel(aod=aod, sun_zenith=sun_zenith_deg)
+                theirs = theirs.sel({name: VIEW_ZENITH_DEG if where == "sky" else NADIR_DEG})
+                theirs = theirs.transpose(name, "relative_azimuth", "wavelength").values
+                per_sun.append(ours.numpy() / theirs - 1.0)
+            errors[where].append(per_sun)
+    dims = ("aod", "sun_zenith", "view", "relative_azimuth", "wavelength")
+    return {where: xr.DataArray(np.array(value), dims=dims,
+                                coords={"aod": reference.aod.values,
+                                        "sun_zenith": reference.sun_zenith.values})
+            for where, value in errors.items()}
+
+
+@pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
+def test_final_gather_removes_the_aerosol_smearing(reference):
+    """The last scattering gathered along the line of sight, coarse tables (issue 14).
+
+    Aerosol optical depth 0.3 and 1, Sun 30 and 60 deg, 400 and 550 nm, nine views: the
+    tables alone (scenes' sum) are 23 % and 51 % off DISORT in the sky; with the final
+    gather the sky is within 5 % at τ 0.3 (measured 3.3 %) and 20 % at τ 1 (measured
+    17 %; 11 % on the default tables), the radiance leaving the top within 5 % at τ 0.3
+    (measured 3.5 %). These are regression bounds of the coarse tables; the issue's 1 %
+    is the strict xfail above.
+    """
+    from skytorch.atmosphere.multiple_scattering import TableResolution
+
+    errors = gathered_errors(reference.sel(aod=[0.3, 1.0]), TableResolution(**COARSE))
+    sky, top = abs(errors["sky"]), abs(errors["top"])
+    assert float(sky.sel(aod=0.3).max()) < 5 * PERCENT, sky.sel(aod=0.3).values
+    assert float(top.sel(aod=0.3).max()) < 5 * PERCENT, top.sel(aod=0.3).values
+    assert float(sky.sel(aod=1.0).max()) < 20 * PERCENT, sky.sel(aod=1.0).values
+
+
+@pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
+def test_final_gather_over_a_lambertian_ground(reference):
+    """Ground albedo 0.3 (DISORT's Lambertian run), coarse tables, final gather.
+
+    The gather adds the ground's reflection of the tables' diffuse irradiance at the end
+    of lines of sight that meet the ground. Molecules and aerosol τ 0.05 and 0.3: the sky
+    within 5 % (measured 0.9 / 4.1 / 3.9 %; the tables alone 1.2 / 4.2 / 22 %), the
+    radiance leaving the top at nadir, where the lit ground dominates, within 4 %
+    (measured 3.1 %; tables alone 3.6 %). Regression bounds of the coarse tables.
+    """
+    from skytorch.atmosphere.multiple_scattering import TableResolution
+
+    errors = gathered_errors(reference.sel(aod=[0.0, 0.05, 0.3]), TableResolution(**COARSE),
+                             ground_albedo=True)
+    assert float(abs(errors["sky"]).max()) < 5 * PERCENT, errors["sky"].values
+    assert float(abs(errors["top"].isel(view=0)).max()) < 4 * PERCENT

@@ -1279,7 +1279,7 @@ class Atmosphere(nn.Module):
                      sun_zenith_rad=0.0, sun_azimuth_rad=0.0, altitude_m=0.0, *,
                      solar_irradiance: bool = False, n_samples: int = 128, table=None,
                      sun_steps: int | None = None, scattering_orders=1, ground_albedo=0.0,
-                     tables=None) -> torch.Tensor:
+                     tables=None, final_gather: bool = False) -> torch.Tensor:
         """Sky radiance (..., wavelength), single or multiple scattering.
 
         Per unit solar irradiance [sr^-1], or with ``solar_irradiance=True`` times the
@@ -1298,16 +1298,27 @@ class Atmosphere(nn.Module):
         tables built on each call by ``precompute_scattering`` at the default resolution
         (seconds per order for a few wavelengths: pass ``tables`` when calling more than
         once).
+
+        ``final_gather=True`` (orders >= 2, an atmosphere with scalar parameters) does the
+        last scattering along the line of sight instead of looking the orders >= 2 up
+        (:func:`skytorch.atmosphere.final_gather.higher_orders_gathered`, default
+        quadrature): the sky of a forward-peaked aerosol without the tables' smearing
+        (against DISORT at aerosol optical depth 0.3: 3 % instead of 23 % on coarse
+        tables), at ~65 000 table look-ups per line of sight.
         """
         from skytorch.atmosphere import multiple_scattering as _ms
         from skytorch.atmosphere.scattering import single_scattering_radiance
 
         _check_flag("solar_irradiance", solar_irradiance)
+        _check_flag("final_gather", final_gather)
         if not (scattering_orders == "converged" or (
                 not isinstance(scattering_orders, (bool, str))
                 and isinstance(scattering_orders, int) and scattering_orders >= 1)):
             raise ValueError("scattering_orders must be an integer >= 1 or 'converged'; "
                              f"got {scattering_orders!r}")
+        if final_gather and scattering_orders == 1:
+            raise ValueError("final_gather=True gathers the orders >= 2; scattering_orders=1 "
+                             "has none (pass 2 or more, or 'converged')")
         black = (not torch.is_tensor(ground_albedo) and ground_albedo == 0.0)
         if tables is None and scattering_orders == 1 and black:
             radiance = single_scattering_radiance(self, wavelength_nm, view_zenith_rad,
@@ -1331,9 +1342,19 @@ class Atmosphere(nn.Module):
                 raise ValueError("tables were built for other wavelengths: "
                                  f"{tables.wavelength_nm.tolist()} nm, not "
                                  f"{wavelength.tolist()} nm")
-            radiance = tables.radiance(altitude_m, view_zenith_rad, view_azimuth_rad,
-                                       sun_zenith_rad, sun_azimuth_rad,
-                                       scattering_orders=scattering_orders)
+            if final_gather:
+                from skytorch.atmosphere.final_gather import higher_orders_gathered
+
+                radiance = tables.radiance(altitude_m, view_zenith_rad, view_azimuth_rad,
+                                           sun_zenith_rad, sun_azimuth_rad,
+                                           scattering_orders=1)
+                radiance = radiance + higher_orders_gathered(
+                    tables, self, altitude_m, view_zenith_rad, view_azimuth_rad,
+                    sun_zenith_rad, sun_azimuth_rad, scattering_orders=scattering_orders)
+            else:
+                radiance = tables.radiance(altitude_m, view_zenith_rad, view_azimuth_rad,
+                                           sun_zenith_rad, sun_azimuth_rad,
+                                           scattering_orders=scattering_orders)
         if solar_irradiance:
             from skytorch.spectrum import solar_irradiance as irradiance
 

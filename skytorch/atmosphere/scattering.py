@@ -24,6 +24,7 @@ Examples
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import torch
 
@@ -43,6 +44,8 @@ from skytorch.atmosphere.inputs import altitude_tensor, check_atmosphere, wavele
 __all__ = [
     "PHASE_FUNCTIONS",
     "SECOND_ORDER_SPACING_POWER",
+    "GatheredLineOfSight",
+    "gather_on_line_of_sight",
     "constituent_radiance",
     "single_scattering_radiance",
     "cornette_shanks",
@@ -326,6 +329,126 @@ def _rotation_to(up: torch.Tensor) -> torch.Tensor:
     return torch.stack(rows, -2)
 
 
+def _line_of_sight_spacing(n_view: int, ends_on_ground, dtype) -> torch.Tensor:
+    """Fractions (..., n_view) of the line of sight at its samples.
+
+    Crowding as the cube of a uniform parameter towards the observer
+    (:data:`SECOND_ORDER_SPACING_POWER`) and, on lines that end on the ground, towards
+    the ground as well (the two halves mirrored), where the aerosol is densest.
+    """
+    u = torch.linspace(0.0, 1.0, n_view, dtype=dtype)
+    towards_observer = u ** SECOND_ORDER_SPACING_POWER
+    half = 0.5 * (2.0 * torch.minimum(u, 1.0 - u)) ** SECOND_ORDER_SPACING_POWER
+    both_ends = torch.where(u <= 0.5, half, 1.0 - half)
+    return torch.where(ends_on_ground[..., None], both_ends, towards_observer)
+
+
+class GatheredLineOfSight(NamedTuple):
+    """Result of :func:`gather_on_line_of_sight`.
+
+    Attributes
+    ----------
+    radiance : Tensor (..., wavelength)
+        The scattered source integrated along the line of sight [sr^-1 per unit source].
+    transmittance : Tensor (..., wavelength)
+        Transmittance from the observer to the end of the line of sight [1].
+    ends_on_ground : Tensor (...)
+        Whether the line of sight ends on the ground.
+    end_sun_zenith : Tensor (...)
+        The Sun's zenith angle at the end of the line of sight [rad].
+    """
+
+    radiance: torch.Tensor
+    transmittance: torch.Tensor
+    ends_on_ground: torch.Tensor
+    end_sun_zenith: torch.Tensor
+
+
+def gather_on_line_of_sight(constituents, view_zenith, view_azimuth, sun_zenith,
+                            sun_azimuth, altitude, incoming, *, n_view: int, n_mu: int,
+                            n_phi: int) -> GatheredLineOfSight:
+    r"""Scatter a radiance field into a line of sight and integrate it along the line.
+
+    .. math::
+
+        L = \int_0^{L} T(0 \to s) \sum_i \beta_i(h)
+            \int_{4\pi} P_i(\hat\omega\cdot\hat v)\,L_{in}(\mathbf p(s), \hat\omega)
+            \,d\Omega\,ds
+
+    by the trapezoid rule on ``n_view`` samples spaced as the cube of a uniform parameter
+    (:data:`SECOND_ORDER_SPACING_POWER`; from both ends on lines that end on the ground)
+    and a product quadrature over the sphere at every
+    sample (Gauss-Legendre with ``n_mu`` nodes per hemisphere of the local zenith cosine,
+    ``n_phi`` uniform azimuths).
+
+    ``incoming(zenith, azimuth, sun_zenith, sun_azimuth, height, to_observer)`` returns the
+    radiance :math:`L_{in}` (..., k, d, wavelength) arriving at the ``k`` samples from the
+    ``d`` directions, given in the local frame of each sample (its vertical, its north in
+    the plane of the observer's north and that vertical): ``zenith``, ``azimuth`` (d,),
+    the Sun's local ``sun_zenith``, ``sun_azimuth`` and ``height`` (..., k, 1) [rad, m];
+    ``to_observer`` maps points (..., k, d, n, 3) of the local frames to the observer's
+    (north, east, up) frame [m].
+    """
+    dtype = constituents.dtype
+    planet, top = constituents.planet_radius_m, constituents.top_radius_m
+    view = _direction(view_zenith, view_azimuth)
+    sun = _direction(sun_zenith, sun_azimuth)
+    view, sun = torch.broadcast_tensors(view, sun)
+    altitude = altitude.expand(view.shape[:-1])
+    r0 = planet + altitude
+    mu_v = view[..., 2]
+    hits = _ray_hits_ground(r0, mu_v, planet)
+    length = torch.where(hits, _distance_to_ground(r0, mu_v, planet),
+                         _distance_to_top(r0, mu_v, top))
+    s = length[..., None] * _line_of_sight_spacing(n_view, hits, dtype)  # (..., k)
+    points = s[..., None] * view[..., None, :]  # (..., k, 3) from the observer
+    centre = points + torch.stack([torch.zeros_like(r0), torch.zeros_like(r0), r0],
+                                  -1)[..., None, :]
+    radius = torch.linalg.vector_norm(centre, dim=-1)
+    height = torch.clamp(radius - planet, 0.0, constituents.top_altitude_m)
+    rotation = _rotation_to(centre / radius[..., None])  # (..., k, 3, 3)
+    local_sun = (rotation @ sun[..., None, :, None])[..., 0]
+    local_view = (rotation @ view[..., None, :, None])[..., 0]
+    # the sphere of directions at each sample, in its local frame
+    # double Gauss: each hemisphere on its own, nodes crowding towards the horizon, where
+    # the radiance of long near-horizontal paths peaks
+    x, w = unit_nodes(n_mu, dtype)
+    mu, w = torch.cat([-x.flip(0), x]), torch.cat([w.flip(0), w])
+    phi = (torch.arange(n_phi, dtype=dtype) + 0.5) * (2.0 * math.pi / n_phi)
+    dir_zenith = torch.acos(mu)[:, None].expand(2 * n_mu, n_phi).reshape(-1)
+    dir_azimuth = phi[None, :].expand(2 * n_mu, n_phi).reshape(-1)
+    dir_weight = w[:, None].expand(2 * n_mu, n_phi).reshape(-1) * (2.0 * math.pi / n_phi)
+    directions = _direction(dir_zenith, dir_azimuth)  # (d, 3)
+    sun_zenith_local = torch.acos(torch.clamp(local_sun[..., 2], -1.0, 1.0))
+    sun_azimuth_local = torch.atan2(local_sun[..., 1], local_sun[..., 0])
+
+    def to_observer(local_points):  # (..., k, d, n, 3) local -> the observer's frame
+        back = torch.einsum("...ji,...dnj->...dni", rotation, local_points)
+        return back + points[..., None, None, :]
+
+    field = incoming(dir_zenith, dir_azimuth, sun_zenith_local[..., None],
+                     sun_azimuth_local[..., None], height[..., None],
+                     to_observer)  # (..., k, d, wavelength)
+    cosine = torch.clamp(local_view @ directions.T, -1.0, 1.0)  # (..., k, d)
+    densities = constituents.densities(height)
+    source = None
+    for species in constituents.scatterers():
+        if species.vanishes:
+            continue
+        inscattered = ((species.phase(cosine) * field) * dir_weight[:, None]).sum(-2)
+        term = densities[species.name][..., None] * species.scattering * inscattered
+        source = term if source is None else source + term
+    step = s[..., 1:] - s[..., :-1]
+    columns = cumulative_columns(densities, step)
+    transmittance = torch.exp(-constituents.optical_depth(columns, extra=1))
+    if source is None:
+        source = torch.zeros_like(transmittance)
+    integrand = source * transmittance
+    radiance = (0.5 * step[..., None] * (integrand[..., 1:, :] + integrand[..., :-1, :])).sum(-2)
+    return GatheredLineOfSight(radiance, transmittance[..., -1, :], hits,
+                               sun_zenith_local[..., -1])
+
+
 def second_order_radiance(constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth,
                           altitude, *, n_view: int = 24, n_mu: int = 4, n_phi: int = 16,
                           n_samples: int = 16, table=None, source_weight=None
@@ -355,7 +478,8 @@ def second_order_radiance(constituents, view_zenith, view_azimuth, sun_zenith, s
         As :func:`constituent_radiance` (azimuths in the observer's frame).
     n_view : int
         Samples along the line of sight (spaced as the cube of a uniform parameter,
-        :data:`SECOND_ORDER_SPACING_POWER`; trapezoid rule), >= 2.
+        :data:`SECOND_ORDER_SPACING_POWER`, from both ends on lines that end on the
+        ground; trapezoid rule), >= 2.
     n_mu, n_phi : int
         Gauss–Legendre nodes in the direction cosine per hemisphere (double Gauss) and
         uniform azimuths of the sphere of directions at each sample, >= 1.
@@ -385,58 +509,16 @@ def second_order_radiance(constituents, view_zenith, view_azimuth, sun_zenith, s
     if len(constituents.batch_shape):
         raise ValueError("second_order_radiance takes an atmosphere with scalar parameters; "
                          f"got batch shape {tuple(constituents.batch_shape)}")
-    dtype = constituents.dtype
-    planet, top = constituents.planet_radius_m, constituents.top_radius_m
-    view = _direction(view_zenith, view_azimuth)
-    sun = _direction(sun_zenith, sun_azimuth)
-    view, sun = torch.broadcast_tensors(view, sun)
-    altitude = altitude.expand(view.shape[:-1])
-    r0 = planet + altitude
-    mu_v = view[..., 2]
-    length = torch.where(_ray_hits_ground(r0, mu_v, planet),
-                         _distance_to_ground(r0, mu_v, planet),
-                         _distance_to_top(r0, mu_v, top))
-    spacing = torch.linspace(0.0, 1.0, n_view, dtype=dtype) ** SECOND_ORDER_SPACING_POWER
-    s = length[..., None] * spacing  # (..., k)
-    points = s[..., None] * view[..., None, :]  # (..., k, 3) from the observer
-    centre = points + torch.stack([torch.zeros_like(r0), torch.zeros_like(r0), r0],
-                                  -1)[..., None, :]
-    radius = torch.linalg.vector_norm(centre, dim=-1)
-    height = torch.clamp(radius - planet, 0.0, constituents.top_altitude_m)
-    rotation = _rotation_to(centre / radius[..., None])  # (..., k, 3, 3)
-    local_sun = (rotation @ sun[..., None, :, None])[..., 0]
-    local_view = (rotation @ view[..., None, :, None])[..., 0]
-    # the sphere of directions at each sample, in its local frame
-    # double Gauss: each hemisphere on its own, nodes crowding towards the horizon, where
-    # the radiance of long near-horizontal paths peaks
-    x, w = unit_nodes(n_mu, dtype)
-    mu, w = torch.cat([-x.flip(0), x]), torch.cat([w.flip(0), w])
-    phi = (torch.arange(n_phi, dtype=dtype) + 0.5) * (2.0 * math.pi / n_phi)
-    dir_zenith = torch.acos(mu)[:, None].expand(2 * n_mu, n_phi).reshape(-1)
-    dir_azimuth = phi[None, :].expand(2 * n_mu, n_phi).reshape(-1)
-    dir_weight = w[:, None].expand(2 * n_mu, n_phi).reshape(-1) * (2.0 * math.pi / n_phi)
-    directions = _direction(dir_zenith, dir_azimuth)  # (d, 3)
-    sun_zenith_local = torch.acos(torch.clamp(local_sun[..., 2], -1.0, 1.0))
-    sun_azimuth_local = torch.atan2(local_sun[..., 1], local_sun[..., 0])
-    weight = None
-    if source_weight is not None:
-        def weight(local_points):  # (..., k, d, n, 3) local -> the observer's frame
-            back = torch.einsum("...ji,...dnj->...dni", rotation, local_points)
-            return source_weight(back + points[..., None, None, :])
-    first = constituent_radiance(
-        constituents, dir_zenith, dir_azimuth, sun_zenith_local[..., None],
-        sun_azimuth_local[..., None], height[..., None], n_samples=n_samples, table=table,
-        source_weight=weight)  # (..., k, d, wavelength)
-    cosine = torch.clamp(local_view @ directions.T, -1.0, 1.0)  # (..., k, d)
-    densities = constituents.densities(height)
-    source = None
-    for species in constituents.scatterers():
-        if species.vanishes:
-            continue
-        inscattered = ((species.phase(cosine) * first) * dir_weight[:, None]).sum(-2)
-        term = densities[species.name][..., None] * species.scattering * inscattered
-        source = term if source is None else source + term
-    step = s[..., 1:] - s[..., :-1]
-    columns = cumulative_columns(densities, step)
-    integrand = source * torch.exp(-constituents.optical_depth(columns, extra=1))
-    return (0.5 * step[..., None] * (integrand[..., 1:, :] + integrand[..., :-1, :])).sum(-2)
+
+    def first_order(zenith, azimuth, sun_zenith_local, sun_azimuth_local, height, to_observer):
+        weight = None
+        if source_weight is not None:
+            def weight(local_points):  # (..., k, d, n, 3) in the samples' local frames
+                return source_weight(to_observer(local_points))
+        return constituent_radiance(constituents, zenith, azimuth, sun_zenith_local,
+                                    sun_azimuth_local, height, n_samples=n_samples,
+                                    table=table, source_weight=weight)
+
+    return gather_on_line_of_sight(constituents, view_zenith, view_azimuth, sun_zenith,
+                                   sun_azimuth, altitude, first_order, n_view=n_view,
+                                   n_mu=n_mu, n_phi=n_phi).radiance
