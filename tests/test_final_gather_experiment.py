@@ -1,0 +1,25 @@
+"""The final-gather accuracy-vs-cost experiment runs end to end in --quick mode."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+from skytorch.dataset import open_dataset
+
+SCRIPT = (Path(__file__).resolve().parents[1] / "experiments"
+          / "final_gather_accuracy_cost.py")
+
+
+def test_experiment_quick(tmp_path):
+    spec = importlib.util.spec_from_file_location("final_gather_accuracy_cost", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--quick", "--output-dir", str(tmp_path)]) == 0
+    ds = open_dataset(tmp_path / "final_gather_accuracy_cost.nc")
+    assert (tmp_path / "final_gather_accuracy_cost.png").stat().st_size > 0
+    assert ds["sky_error"].shape == (1, 2, 1, 2)
+    # at aerosol optical depth 0.3 the gather is closer to DISORT than the tables
+    tables, gathered = ds["sky_error"].isel(resolution=0, aod=0).transpose("method", ...)
+    assert bool((gathered < tables).all())
+    assert ds["quadrature_error_disort"].shape == (1, 2)
