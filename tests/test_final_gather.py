@@ -138,7 +138,7 @@ def test_bad_input(hazy_tables):
     with pytest.raises(ValueError, match="scattering_orders"):
         higher_orders_gathered(tables, atm, zero, zero, zero, zero, scattering_orders=1)
     with pytest.raises(ValueError, match="sun_zenith_rad"):
-        higher_orders_gathered(tables, atm, zero, zero, zero, torch.tensor(2.0))
+        higher_orders_gathered(tables, atm, zero, zero, zero, torch.tensor(3.5))
     with pytest.raises(ValueError, match="n_view"):
         higher_orders_gathered(tables, atm, zero, zero, zero, zero, n_view=1)
     batched = _hazy(torch.tensor([0.1, 0.3], dtype=torch.float64))

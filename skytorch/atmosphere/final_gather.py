@@ -92,7 +92,8 @@ def higher_orders_gathered(tables, atmosphere, altitude_m, view_zenith_rad,
         Direction of the line of sight [rad] (zenith in [0, pi], azimuth from north
         through east).
     sun_zenith_rad, sun_azimuth_rad : Tensor (...)
-        Direction of the Sun [rad]; zenith in [0, 108 deg].
+        Direction of the Sun [rad]; zenith in [0, pi] (the field is zero at the samples
+        where the Sun is more than 18 deg below the local horizon).
     scattering_orders : int or "converged"
         N >= 2: the tables' orders 1..N-1 are gathered ("converged": every order of the
         tables).
@@ -124,8 +125,7 @@ def higher_orders_gathered(tables, atmosphere, altitude_m, view_zenith_rad,
                            dtype=dtype)
     view_zenith = check_range("view_zenith_rad", view_zenith_rad, 0.0, math.pi, dtype=dtype)
     view_azimuth = check_range("view_azimuth_rad", view_azimuth_rad, dtype=dtype)
-    sun_zenith = check_range("sun_zenith_rad", sun_zenith_rad, 0.0, _SUN_ZENITH_MAX,
-                             dtype=dtype)
+    sun_zenith = check_range("sun_zenith_rad", sun_zenith_rad, 0.0, math.pi, dtype=dtype)
     sun_azimuth = check_range("sun_azimuth_rad", sun_azimuth_rad, dtype=dtype)
     constituents = atmosphere.constituents(tables.wavelength_nm)
     if len(constituents.batch_shape):

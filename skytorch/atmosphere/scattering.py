@@ -329,18 +329,29 @@ def _rotation_to(up: torch.Tensor) -> torch.Tensor:
     return torch.stack(rows, -2)
 
 
-def _line_of_sight_spacing(n_view: int, ends_on_ground, dtype) -> torch.Tensor:
-    """Fractions (..., n_view) of the line of sight at its samples.
+def _line_of_sight_spacing(n_view: int, r0, mu, length, ends_on_ground) -> torch.Tensor:
+    """Distances (..., n_view) [m] of the samples along lines of sight.
 
-    Crowding as the cube of a uniform parameter towards the observer
-    (:data:`SECOND_ORDER_SPACING_POWER`) and, on lines that end on the ground, towards
-    the ground as well (the two halves mirrored), where the aerosol is densest.
+    The samples crowd as the cube of a uniform parameter
+    (:data:`SECOND_ORDER_SPACING_POWER`) towards the lowest point of the line, where the
+    air and the aerosol are densest: the observer for lines going up, the point of closest
+    approach to the ground for lines that pass it (the limb seen from above; the samples
+    on either side in proportion to its length), and for lines that end on the ground
+    both ends (the two halves mirrored).
     """
-    u = torch.linspace(0.0, 1.0, n_view, dtype=dtype)
-    towards_observer = u ** SECOND_ORDER_SPACING_POWER
-    half = 0.5 * (2.0 * torch.minimum(u, 1.0 - u)) ** SECOND_ORDER_SPACING_POWER
+    u = torch.linspace(0.0, 1.0, n_view, dtype=length.dtype)
+    power = SECOND_ORDER_SPACING_POWER
+    half = 0.5 * (2.0 * torch.minimum(u, 1.0 - u)) ** power
     both_ends = torch.where(u <= 0.5, half, 1.0 - half)
-    return torch.where(ends_on_ground[..., None], both_ends, towards_observer)
+    # fraction of the line at its lowest point (0 for lines going up)
+    lowest = torch.clamp(-r0 * mu / length, 0.0, 1.0)[..., None]
+    tiny = torch.finfo(length.dtype).tiny
+    before = lowest * (1.0 - torch.clamp(1.0 - u / lowest.clamp(min=tiny), min=0.0) ** power)
+    after = (1.0 - lowest) * torch.clamp((u - lowest) / (1.0 - lowest).clamp(min=tiny),
+                                         min=0.0) ** power
+    around_lowest = torch.where(u < lowest, before, lowest + after)
+    fraction = torch.where(ends_on_ground[..., None], both_ends, around_lowest)
+    return length[..., None] * fraction
 
 
 class GatheredLineOfSight(NamedTuple):
@@ -376,10 +387,10 @@ def gather_on_line_of_sight(constituents, view_zenith, view_azimuth, sun_zenith,
             \,d\Omega\,ds
 
     by the trapezoid rule on ``n_view`` samples spaced as the cube of a uniform parameter
-    (:data:`SECOND_ORDER_SPACING_POWER`; from both ends on lines that end on the ground)
-    and a product quadrature over the sphere at every
-    sample (Gauss-Legendre with ``n_mu`` nodes per hemisphere of the local zenith cosine,
-    ``n_phi`` uniform azimuths).
+    (:data:`SECOND_ORDER_SPACING_POWER`) towards the lowest point of the line (the
+    observer, the point of closest approach, or both ends of a line to the ground) and a
+    product quadrature over the sphere at every sample (Gauss-Legendre with ``n_mu`` nodes
+    per hemisphere of the local zenith cosine, ``n_phi`` uniform azimuths).
 
     ``incoming(zenith, azimuth, sun_zenith, sun_azimuth, height, to_observer)`` returns the
     radiance :math:`L_{in}` (..., k, d, wavelength) arriving at the ``k`` samples from the
@@ -400,7 +411,7 @@ def gather_on_line_of_sight(constituents, view_zenith, view_azimuth, sun_zenith,
     hits = _ray_hits_ground(r0, mu_v, planet)
     length = torch.where(hits, _distance_to_ground(r0, mu_v, planet),
                          _distance_to_top(r0, mu_v, top))
-    s = length[..., None] * _line_of_sight_spacing(n_view, hits, dtype)  # (..., k)
+    s = _line_of_sight_spacing(n_view, r0, mu_v, length, hits)  # (..., k)
     points = s[..., None] * view[..., None, :]  # (..., k, 3) from the observer
     centre = points + torch.stack([torch.zeros_like(r0), torch.zeros_like(r0), r0],
                                   -1)[..., None, :]
@@ -477,9 +488,10 @@ def second_order_radiance(constituents, view_zenith, view_azimuth, sun_zenith, s
     view_zenith, view_azimuth, sun_zenith, sun_azimuth, altitude : Tensor (...)
         As :func:`constituent_radiance` (azimuths in the observer's frame).
     n_view : int
-        Samples along the line of sight (spaced as the cube of a uniform parameter,
-        :data:`SECOND_ORDER_SPACING_POWER`, from both ends on lines that end on the
-        ground; trapezoid rule), >= 2.
+        Samples along the line of sight (crowding as the cube of a uniform parameter,
+        :data:`SECOND_ORDER_SPACING_POWER`, towards the observer, or the line's lowest
+        point when it passes one, or both ends of a line to the ground; trapezoid rule),
+        >= 2.
     n_mu, n_phi : int
         Gauss–Legendre nodes in the direction cosine per hemisphere (double Gauss) and
         uniform azimuths of the sphere of directions at each sample, >= 1.

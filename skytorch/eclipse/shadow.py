@@ -125,6 +125,9 @@ from skytorch.eclipse.occlusion import (
     sun_visible_fraction,
 )
 from skytorch.eclipse.occlusion import _nodes as _unit_gauss
+from skytorch.eclipse.shadow_multiple_scattering import (
+    multiple_scattered_illuminance as _multiple_scattered_illuminance,
+)
 from skytorch.eclipse.shadow_scattering import (
     ScatteringProfile,
     scattered_illuminance,
@@ -1400,17 +1403,67 @@ class Shadow(nn.Module):
 
         Over the ring's quadrature nodes, or (``impact_radius_m``) on given lines of sight.
         """
+        lowest = self._lowest_line_of_sight_m()
+        return ScatteringProfile(
+            self.atmosphere, wavelength, lowest_altitude_m=lowest,
+            ray_weight=self._scattering_ray_weight(), resolution=self.scattering_resolution,
+            blocking_radius_m=self.occluder_radius_m + lowest, impact_radius_m=impact_radius_m)
+
+    def _scattering_ray_weight(self):
+        """Weight of a scattering line of sight by its tangent altitude [m] (terrain, clouds)."""
         closed = self.cloud_fraction >= 1.0
         weights = RingProfile(0.0, 1.0, torch.zeros(3), torch.zeros(3, 1), torch.zeros(3),
                               self.terrain_height_m,
                               cloud_top_m=0.0 if closed else self.cloud_top_altitude_m,
                               cloud_fraction=0.0 if closed else self.cloud_fraction,
                               cloud_cover=self.cloud_cover)
-        lowest = self._lowest_line_of_sight_m()
-        return ScatteringProfile(
-            self.atmosphere, wavelength, lowest_altitude_m=lowest,
-            ray_weight=lambda h: _ray_weight(h, weights), resolution=self.scattering_resolution,
-            blocking_radius_m=self.occluder_radius_m + lowest, impact_radius_m=impact_radius_m)
+        return lambda h: _ray_weight(h, weights)
+
+    def multiple_scattered_illuminance(self, distance_m, offset_m, tables, *,
+                                       sun_distance_m=None, scattering_orders="converged",
+                                       n_impact: int = 16, n_azimuth: int = 8
+                                       ) -> torch.Tensor:
+        """Illuminance of the light scattered two or more times into the shadow.
+
+        Relative to the unobstructed Sun, to add to :meth:`relative_illuminance` (which
+        holds the single scattering with ``scattering=True``): the final gather of the
+        occluder's multiple-scattering ``tables`` along every line of sight through the
+        ring (:func:`skytorch.eclipse.shadow_multiple_scattering.
+        multiple_scattered_illuminance`), with this shadow's lowest line of sight, terrain
+        and clouds. Seconds per point.
+
+        Parameters
+        ----------
+        distance_m, offset_m : Tensor (...)
+            As :meth:`relative_illuminance` [m].
+        tables : ScatteringTables
+            Built for this shadow's atmosphere (scalar parameters) at the wavelengths
+            wanted (:func:`skytorch.atmosphere.multiple_scattering.precompute_scattering`).
+        sun_distance_m : float or Tensor (...), optional
+            Sun-occluder distance [m]; default the preset's.
+        scattering_orders : int or "converged"
+            N >= 2: the orders 2..N.
+        n_impact, n_azimuth : int
+            Nodes over the ring's impact parameter and azimuth.
+
+        Returns
+        -------
+        Tensor (..., n_wavelength)
+        """
+        if self.atmosphere is None:
+            raise ValueError("an airless occluder scatters no light into its shadow")
+        if self.batch_shape:
+            raise ValueError("multiple_scattered_illuminance takes a shadow of an atmosphere "
+                             f"with scalar parameters; got batch shape {self.batch_shape}")
+        dtype = common_dtype(distance_m, offset_m)
+        angles = self._geometry(distance_m, offset_m, sun_distance_m, dtype)
+        scale = (self.sun_distance_m if sun_distance_m is None
+                 else angles["sun_distance_m"]) / angles["sun_range_m"]
+        return _multiple_scattered_illuminance(
+            tables, self.atmosphere, angles["centre_distance_m"], angles["separation_rad"],
+            scale, lowest_altitude_m=self._lowest_line_of_sight_m(),
+            ray_weight=self._scattering_ray_weight(), scattering_orders=scattering_orders,
+            n_impact=n_impact, n_azimuth=n_azimuth)
 
     # ------------------------------------------------------------------ illuminance
     def _geometry(self, distance_m, offset_m, sun_distance_m, dtype):
