@@ -52,12 +52,9 @@ import torch
 
 from skytorch._quadrature import unit_nodes
 from skytorch._validate import check_int, check_positive, check_range
-from skytorch.atmosphere.final_gather import higher_orders_gathered
+from skytorch.atmosphere.final_gather import LINES_PER_CALL, higher_orders_gathered
 
 __all__ = ["limb_line_geometry", "multiple_scattered_illuminance", "ring_integral"]
-
-#: lines of sight per call of the gather (bounds the memory of its table look-ups)
-_LINES_PER_CALL = 4
 
 
 def limb_line_geometry(centre_distance_m, separation_rad, impact_radius_m, azimuth_rad,
@@ -162,7 +159,7 @@ def ring_integral(line_radiance, planet_radius_m: float, top_altitude_m: float,
     docstring) with ``line_radiance(view_zenith, sun_zenith, sun_azimuth)`` giving the
     radiance per unit solar irradiance (n, wavelength) [sr^-1] of lines of sight given by
     their geometry at the entry point (:func:`limb_line_geometry`; the observer at the top
-    of the atmosphere, view azimuth 0), called with at most :data:`_LINES_PER_CALL` lines.
+    of the atmosphere, view azimuth 0), called with at most :data:`LINES_PER_CALL` lines.
 
     Returns
     -------
@@ -191,8 +188,8 @@ def ring_integral(line_radiance, planet_radius_m: float, top_altitude_m: float,
     view_zenith, sun_zenith, sun_azimuth = limb_line_geometry(
         flat[0], flat[1], b[:, None], psi[None, :], top)  # (p, n_b, n_psi)
     lines = [t.reshape(-1) for t in (view_zenith, sun_zenith, sun_azimuth)]
-    parts = [line_radiance(*(t[first:first + _LINES_PER_CALL] for t in lines))
-             for first in range(0, lines[0].shape[0], _LINES_PER_CALL)]
+    parts = [line_radiance(*(t[first:first + LINES_PER_CALL] for t in lines))
+             for first in range(0, lines[0].shape[0], LINES_PER_CALL)]
     radiance = torch.cat(parts).reshape(*view_zenith.shape, -1)  # (p, n_b, n_psi, wl)
     sin_t = b[:, None] / flat[0]  # (p, n_b, 1)
     solid = sin_t / (flat[0] * torch.sqrt((1.0 - sin_t) * (1.0 + sin_t))) * weight_b[:, None]
