@@ -117,3 +117,41 @@ def test_bad_input():
     with pytest.raises(ValueError, match="lowest_altitude_m"):
         multiple_scattered_illuminance(tables, shadow.atmosphere, one, 0 * one, 1 + 0 * one,
                                        lowest_altitude_m=-1.0)
+
+
+def test_limb_view_orders_two_and_more_integrate_to_the_illuminance():
+    """``limb_view(tables=...)``: the image of the orders >= 2 integrates to the illuminance.
+
+    Mars seen from Phobos' orbit on the axis and 800 km off it, 16 x 8 bins (radiance at
+    the bin centres, relative to the Sun's centre), summed with the bins' solid angles and
+    divided by E_sun / L_centre, against ``multiple_scattered_illuminance`` (Gauss nodes):
+    within 4 % on the axis (measured 1.8 %) and 1 % off it (measured 0.36 %), two
+    quadratures of the same radiance. The scattered limb is part of ``radiance``.
+    """
+    from skytorch.eclipse.shadow import solar_normalisation
+
+    shadow = Shadow.mars(scattering=True)
+    tables = precompute_scattering(shadow.atmosphere, WAVELENGTH,
+                                   scattering_orders="converged", resolution=COARSE)
+    distance = torch.tensor([PHOBOS_DISTANCE_M, PHOBOS_DISTANCE_M], dtype=torch.float64)
+    offset = torch.tensor([0.0, 800e3], dtype=torch.float64)
+    view = shadow.limb_view(distance, offset, WAVELENGTH, n_azimuth=16, n_altitude=8,
+                            oversample=1, tables=tables)
+    higher = view["multiple_scattered_radiance"]
+    assert higher.shape == (2, 8, 16, 2)
+    single_only = Shadow.mars(scattering=True).limb_view(distance, offset, WAVELENGTH,
+                                                         n_azimuth=16, n_altitude=8,
+                                                         oversample=1)
+    torch.testing.assert_close(view["radiance"], single_only["radiance"] + higher)
+    angles = shadow._geometry(distance, offset, None, torch.float64)
+    normalisation = solar_normalisation(angles["sun_radius_rad"],
+                                        shadow.limb_darkening.to(torch.float64), shadow.law)
+    integral = ((higher * view["solid_angle_sr"][..., None]).sum((-3, -2))
+                / normalisation[:, None])
+    illuminance = shadow.multiple_scattered_illuminance(distance, offset, tables)
+    error = (integral / illuminance - 1.0).abs()
+    assert float(error[0].max()) < 0.04, error
+    assert float(error[1].max()) < 0.01, error
+    with pytest.raises(ValueError, match="scattering=True"):
+        Shadow.mars().limb_view(distance, offset, WAVELENGTH, n_azimuth=4, n_altitude=2,
+                                tables=tables)

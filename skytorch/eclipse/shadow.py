@@ -128,6 +128,9 @@ from skytorch.eclipse.occlusion import _nodes as _unit_gauss
 from skytorch.eclipse.shadow_multiple_scattering import (
     multiple_scattered_illuminance as _multiple_scattered_illuminance,
 )
+from skytorch.eclipse.shadow_multiple_scattering import (
+    multiple_scattered_radiance as _multiple_scattered_radiance,
+)
 from skytorch.eclipse.shadow_scattering import (
     ScatteringProfile,
     scattered_illuminance,
@@ -1573,7 +1576,7 @@ class Shadow(nn.Module):
     # ------------------------------------------------------------------ limb view
     def limb_view(self, distance_m, offset_m, wavelength_nm, *, n_azimuth: int = 256,
                   n_altitude: int = 16, oversample: int = 4,
-                  sun_distance_m=None) -> dict[str, torch.Tensor]:
+                  sun_distance_m=None, tables=None) -> dict[str, torch.Tensor]:
         """Radiance of the atmosphere ring seen from points in the shadow.
 
         The ring is divided into ``n_azimuth`` bins of ring azimuth ``psi`` (0 towards the
@@ -1594,6 +1597,11 @@ class Shadow(nn.Module):
             ``scattering=True`` the ground (or a closed cloud deck's top) to the top.
         sun_distance_m : float or Tensor (...), optional
             Sun–occluder distance [m].
+        tables : ScatteringTables, optional
+            The atmosphere's multiple-scattering tables at ``wavelength_nm``: with
+            ``scattering=True``, adds the light scattered two or more times at the centre
+            of every bin (:func:`~skytorch.eclipse.shadow_multiple_scattering.
+            multiple_scattered_radiance`; ~30 ms per bin and point).
 
         Returns
         -------
@@ -1602,7 +1610,8 @@ class Shadow(nn.Module):
             radiance at the centre of the solar disc [1] (the refracted solar image plus,
             with ``scattering=True``, the single-scattered light of every line of sight:
             :func:`~skytorch.eclipse.shadow_scattering.scattered_radiance`, whose part is
-            also returned as ``scattered_radiance``); ``altitude_m`` (altitude,) impact
+            also returned as ``scattered_radiance``, and with ``tables`` the orders >= 2,
+            also returned as ``multiple_scattered_radiance``); ``altitude_m`` (altitude,) impact
             altitude of the bin centres [m]; ``azimuth_rad`` (azimuth,) [rad];
             ``elevation_rad`` (..., altitude) apparent angular radius from the occluder's
             centre [rad]; ``solid_angle_sr`` (..., altitude, azimuth) [sr].
@@ -1610,6 +1619,7 @@ class Shadow(nn.Module):
         n_azimuth = check_int("n_azimuth", n_azimuth, low=1)
         n_altitude = check_int("n_altitude", n_altitude, low=1)
         oversample = check_int("oversample", oversample, low=1)
+        scattering_tables = tables
         dtype = common_dtype(distance_m, offset_m)
         wavelength = _check_wavelength(wavelength_nm, dtype)
         angles = self._geometry(distance_m, offset_m, sun_distance_m, dtype)
@@ -1662,6 +1672,11 @@ class Shadow(nn.Module):
 
         image = bins(image)
         edges = lowest + span * torch.arange(n_altitude + 1, dtype=dtype) / n_altitude
+        higher = self._multiple_scattered_limb(
+            scattering_tables, self.occluder_radius_m + 0.5 * (edges[:-1] + edges[1:]),
+            psi.reshape(n_azimuth, oversample).mean(-1), angles, scale[..., 0])
+        if higher is not None:
+            image = image + higher
         theta_edges = torch.asin((self.occluder_radius_m + edges) / centre)
         solid = (torch.cos(theta_edges[..., :-1]) - torch.cos(theta_edges[..., 1:])) * (
             2.0 * math.pi / n_azimuth)
@@ -1675,7 +1690,26 @@ class Shadow(nn.Module):
         }
         if scattered is not None:
             out["scattered_radiance"] = bins(scattered)
+        if higher is not None:
+            out["multiple_scattered_radiance"] = higher
         return out
+
+    def _multiple_scattered_limb(self, tables, impact_radius_m, azimuth_rad, angles, scale):
+        """Orders >= 2 of the limb's bin centres relative to the Sun's centre, or ``None``.
+
+        (..., n_b, n_p, n_wavelength); ``None`` without ``tables``.
+        """
+        if tables is None:
+            return None
+        if not self.scattering:
+            raise ValueError("limb_view(tables=...) adds the orders >= 2 to the scattered "
+                             "light: build the shadow with scattering=True")
+        radiance = _multiple_scattered_radiance(
+            tables, self.atmosphere, angles["centre_distance_m"], angles["separation_rad"],
+            scale, impact_radius_m, azimuth_rad, ray_weight=self._scattering_ray_weight())
+        normalisation = solar_normalisation(angles["sun_radius_rad"],
+                                            self.limb_darkening.to(scale.dtype), self.law)
+        return radiance * normalisation[..., None, None, None]
 
     def _lowest_line_of_sight_m(self) -> float:
         """Tangent altitude of the lowest line of sight through the atmosphere [m].

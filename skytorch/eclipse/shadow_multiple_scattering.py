@@ -54,7 +54,8 @@ from skytorch._quadrature import unit_nodes
 from skytorch._validate import check_int, check_positive, check_range
 from skytorch.atmosphere.final_gather import LINES_PER_CALL, higher_orders_gathered
 
-__all__ = ["limb_line_geometry", "multiple_scattered_illuminance", "ring_integral"]
+__all__ = ["limb_line_geometry", "multiple_scattered_illuminance",
+           "multiple_scattered_radiance", "ring_integral"]
 
 
 def limb_line_geometry(centre_distance_m, separation_rad, impact_radius_m, azimuth_rad,
@@ -147,6 +148,60 @@ def multiple_scattered_illuminance(tables, atmosphere, centre_distance_m, separa
                          centre_distance_m, separation_rad, deviation_scale,
                          lowest_altitude_m=lowest_altitude_m, ray_weight=ray_weight,
                          n_impact=n_impact, n_azimuth=n_azimuth, dtype=dtype)
+
+
+def multiple_scattered_radiance(tables, atmosphere, centre_distance_m, separation_rad,
+                                deviation_scale, impact_radius_m, azimuth_rad, *,
+                                ray_weight=None, scattering_orders="converged",
+                                n_view: int = 32, n_mu: int = 16, n_phi: int = 64
+                                ) -> torch.Tensor:
+    r"""Radiance of the orders >= 2 of given ring lines of sight, per unit solar irradiance.
+
+    The image of the ring's multiply scattered light seen from points in the shadow:
+    :math:`k^{-2} w(b) L_{2..N}(b, \psi) / E_\odot` [sr^-1] (module docstring; ``w`` the
+    ray weight of terrain and clouds); its integral over the ring's solid angle is
+    :func:`multiple_scattered_illuminance`.
+
+    Parameters
+    ----------
+    tables, atmosphere, scattering_orders, n_view, n_mu, n_phi
+        As :func:`multiple_scattered_illuminance`.
+    centre_distance_m, separation_rad, deviation_scale : Tensor (...)
+        ``L`` [m], ``sigma`` [rad], ``k`` [1] of the points.
+    impact_radius_m : Tensor (n_impact,)
+        Impact parameters ``b`` of the lines of sight [m], above the ground and below the
+        top of the atmosphere.
+    azimuth_rad : Tensor (n_azimuth,)
+        Ring azimuths ``psi`` (0 towards the Sun) [rad].
+    ray_weight : callable, optional
+        Weight of a line of sight by its tangent altitude [m] -> [1].
+
+    Returns
+    -------
+    Tensor (..., n_impact, n_azimuth, wavelength)
+    """
+    dtype = tables.wavelength_nm.dtype
+    planet, top = tables.planet_radius_m, tables.planet_radius_m + tables.top_altitude_m
+    big_l = check_range("centre_distance_m", centre_distance_m, top, unit=" m", dtype=dtype)
+    sigma = check_range("separation_rad", separation_rad, 0.0, math.pi, dtype=dtype)
+    scale = check_positive("deviation_scale", deviation_scale, dtype=dtype)
+    b = check_range("impact_radius_m", impact_radius_m, planet, top, unit=" m",
+                    dtype=dtype).reshape(-1)
+    psi = check_range("azimuth_rad", azimuth_rad, dtype=dtype).reshape(-1)
+    big_l, sigma, scale = torch.broadcast_tensors(big_l, sigma, scale)
+    flat = [t.reshape(-1, 1, 1) for t in (big_l, sigma, scale)]
+    view_zenith, sun_zenith, sun_azimuth = limb_line_geometry(
+        flat[0], flat[1], b[:, None], psi[None, :], top)  # (p, n_b, n_psi)
+    altitude = torch.tensor(tables.top_altitude_m, dtype=dtype)
+    radiance = higher_orders_gathered(
+        tables, atmosphere, altitude, view_zenith, torch.zeros_like(view_zenith), sun_zenith,
+        sun_azimuth, scattering_orders=scattering_orders, n_view=n_view, n_mu=n_mu,
+        n_phi=n_phi)  # (p, n_b, n_psi, wl)
+    weight = 1.0 / (flat[2] * flat[2])
+    if ray_weight is not None:
+        weight = weight * ray_weight(b - planet)[:, None]
+    radiance = radiance * weight[..., None]
+    return radiance.reshape(*big_l.shape, *radiance.shape[1:])
 
 
 def ring_integral(line_radiance, planet_radius_m: float, top_altitude_m: float,
