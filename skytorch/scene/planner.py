@@ -518,6 +518,13 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
         else:
             skipped[name] = reason
     decision, reason = orders.decide(computed, tol, moon_total)
+    gather = FIDELITY[scene.fidelity].get("ms_final_gather")
+    gathered_sky = decision["sky"] > 1 and "solar_eclipse" not in computed
+    if gather is not None and (gathered_sky or decision["moon"] > 1):
+        reason += ("; orders >= 2 corrected by their final gather on {} x {} sky nodes "
+                   "(quadrature {} x {} x {})".format(*gather["lut"], gather["quadrature"][0],
+                                                       2 * gather["quadrature"][1],
+                                                       gather["quadrature"][2]))
     result = Plan(tuple(computed), skipped, shares, g, _time.perf_counter() - start,
                   decision, reason)
     logger.info("plan: computed %s; skipped %s", result.computed, result.skipped)

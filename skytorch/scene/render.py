@@ -191,9 +191,42 @@ def higher_orders(resources, knobs, source_zenith_rad: float, zenith, relative_a
             source)
     higher = (tables.radiance(*args, scattering_orders=orders)
               - tables.radiance(*args, scattering_orders=1))
+    correction = final_gather_correction(resources, knobs, tables, source_zenith_rad, orders)
+    if correction is not None:
+        higher = higher * _lookup(correction, zenith, relative_azimuth)
     from skytorch.spectrum import interpolate_wavelength
 
     return interpolate_wavelength(higher, tables.wavelength_nm, wavelength)
+
+
+def final_gather_correction(resources, knobs, tables, source_zenith_rad: float, orders: int):
+    """Gathered over looked-up orders 2..N on the preset's coarse sky grid, or ``None``.
+
+    With the fidelity knob ``ms_final_gather`` (``{"lut": (n_z, n_a), "quadrature":
+    (n_view, n_mu, n_phi)}``), the ratio of
+    :func:`skytorch.atmosphere.final_gather.higher_orders_gathered` to the tables' look-up
+    at ``n_z`` zenith x ``n_a`` relative-azimuth nodes (those of the sky table), shape
+    (n_z, n_a, table wavelengths): it removes the smearing of a forward-peaked aerosol's
+    orders >= 2 by the tables' grid (docs/multiple_scattering_validation.md) at the cost of
+    ``n_z n_a`` gathered lines of sight per source.
+    """
+    setting = knobs["ms_final_gather"]
+    if setting is None or orders < 2:
+        return None
+    from skytorch.atmosphere.final_gather import higher_orders_gathered
+
+    n_view, n_mu, n_phi = setting["quadrature"]
+    zenith = _zenith_nodes(setting["lut"][0], torch.float64)
+    azimuth = _azimuth_nodes(setting["lut"][1], torch.float64)
+    z, a = torch.meshgrid(zenith, azimuth, indexing="ij")
+    source = torch.full_like(z, source_zenith_rad)
+    altitude = torch.tensor(float(knobs.elevation_m), dtype=torch.float64)
+    looked_up = (tables.radiance(altitude, z, a, source, scattering_orders=orders)
+                 - tables.radiance(altitude, z, a, source, scattering_orders=1))
+    gathered = higher_orders_gathered(tables, resources.atmosphere, altitude, z, a, source,
+                                      scattering_orders=orders, n_view=n_view, n_mu=n_mu,
+                                      n_phi=n_phi)
+    return gathered / looked_up
 
 
 def sky_table(resources, geometry, knobs, wavelength):
