@@ -182,14 +182,10 @@ def multiple_scattered_radiance(tables, atmosphere, centre_distance_m, separatio
     """
     dtype = tables.wavelength_nm.dtype
     planet, top = tables.planet_radius_m, tables.planet_radius_m + tables.top_altitude_m
-    big_l = check_range("centre_distance_m", centre_distance_m, top, unit=" m", dtype=dtype)
-    sigma = check_range("separation_rad", separation_rad, 0.0, math.pi, dtype=dtype)
-    scale = check_positive("deviation_scale", deviation_scale, dtype=dtype)
+    shape, flat = _points(centre_distance_m, separation_rad, deviation_scale, top, dtype)
     b = check_range("impact_radius_m", impact_radius_m, planet, top, unit=" m",
                     dtype=dtype).reshape(-1)
     psi = check_range("azimuth_rad", azimuth_rad, dtype=dtype).reshape(-1)
-    big_l, sigma, scale = torch.broadcast_tensors(big_l, sigma, scale)
-    flat = [t.reshape(-1, 1, 1) for t in (big_l, sigma, scale)]
     view_zenith, sun_zenith, sun_azimuth = limb_line_geometry(
         flat[0], flat[1], b[:, None], psi[None, :], top)  # (p, n_b, n_psi)
     altitude = torch.tensor(tables.top_altitude_m, dtype=dtype)
@@ -201,7 +197,7 @@ def multiple_scattered_radiance(tables, atmosphere, centre_distance_m, separatio
     if ray_weight is not None:
         weight = weight * ray_weight(b - planet)[:, None]
     radiance = radiance * weight[..., None]
-    return radiance.reshape(*big_l.shape, *radiance.shape[1:])
+    return radiance.reshape(*shape, *radiance.shape[1:])
 
 
 def ring_integral(line_radiance, planet_radius_m: float, top_altitude_m: float,
@@ -226,10 +222,7 @@ def ring_integral(line_radiance, planet_radius_m: float, top_altitude_m: float,
     planet, top = planet_radius_m, planet_radius_m + top_altitude_m
     lowest = float(check_range("lowest_altitude_m", lowest_altitude_m, 0.0, top_altitude_m,
                                unit=" m", dtype=torch.float64))
-    big_l = check_range("centre_distance_m", centre_distance_m, top, unit=" m", dtype=dtype)
-    sigma = check_range("separation_rad", separation_rad, 0.0, math.pi, dtype=dtype)
-    scale = check_positive("deviation_scale", deviation_scale, dtype=dtype)
-    big_l, sigma, scale = torch.broadcast_tensors(big_l, sigma, scale)
+    shape, flat = _points(centre_distance_m, separation_rad, deviation_scale, top, dtype)
     x, w = unit_nodes(n_impact, dtype)  # on [0, 1]
     low = planet + lowest
     b = low + (top - low) * x * x
@@ -238,8 +231,6 @@ def ring_integral(line_radiance, planet_radius_m: float, top_altitude_m: float,
         weight_b = weight_b * ray_weight(b - planet)
     y, v = unit_nodes(n_azimuth, dtype)
     psi, weight_psi = math.pi * y, 2.0 * math.pi * v  # both halves of the ring
-    shape = big_l.shape
-    flat = [t.reshape(-1, 1, 1) for t in (big_l, sigma, scale)]
     view_zenith, sun_zenith, sun_azimuth = limb_line_geometry(
         flat[0], flat[1], b[:, None], psi[None, :], top)  # (p, n_b, n_psi)
     lines = [t.reshape(-1) for t in (view_zenith, sun_zenith, sun_azimuth)]
@@ -251,3 +242,13 @@ def ring_integral(line_radiance, planet_radius_m: float, top_altitude_m: float,
     weight = solid * weight_psi / (flat[2] * flat[2])  # (p, n_b, n_psi)
     illuminance = (radiance * weight[..., None]).sum((1, 2))
     return illuminance.reshape(*shape, illuminance.shape[-1])
+
+
+def _points(centre_distance_m, separation_rad, deviation_scale, top_radius_m: float, dtype):
+    """Check points in the shadow; return their shape and ``L``, ``sigma``, ``k`` (p, 1, 1)."""
+    big_l = check_range("centre_distance_m", centre_distance_m, top_radius_m, unit=" m",
+                        dtype=dtype)
+    sigma = check_range("separation_rad", separation_rad, 0.0, math.pi, dtype=dtype)
+    scale = check_positive("deviation_scale", deviation_scale, dtype=dtype)
+    big_l, sigma, scale = torch.broadcast_tensors(big_l, sigma, scale)
+    return big_l.shape, [t.reshape(-1, 1, 1) for t in (big_l, sigma, scale)]
