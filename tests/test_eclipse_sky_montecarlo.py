@@ -90,13 +90,11 @@ def test_second_order_at_totality_against_montecarlo(reference, model):
     assert deviation.max() < 1.0, (model[1] / mc).round(3)
 
 
-#: views of the orders >= 3 checks: the zenith, 60 and 85 deg across the Sun's vertical
-HIGHER_VIEWS = [0, 2, 5]
 
 
 @pytest.fixture(scope="module")
 def higher(reference):
-    """Orders >= 3 (site, wavelength, view of HIGHER_VIEWS): the dimmed clear-sky gather.
+    """Orders >= 3 (site, wavelength, view): the dimmed clear-sky gather.
 
     Coarse clear-sky tables (8 x 32 x 16 x 6, every order), 8 samples along the line of
     sight, the other quadratures at their defaults.
@@ -117,23 +115,26 @@ def higher(reference):
         _, date, lat, lon = next(s for s in generator.SITES if s[0] == site)
         _, geometry = generator.site_geometry(date, lat, lon)
         views, _ = generator.view_directions(geometry)
-        zenith = torch.tensor(np.radians(reference.view_zenith.values[HIGHER_VIEWS]))
-        azimuth = torch.tensor(np.arctan2(views[HIGHER_VIEWS, 1], views[HIGHER_VIEWS, 0]))
+        zenith = torch.tensor(np.radians(reference.view_zenith.values))
+        azimuth = torch.tensor(np.arctan2(views[:, 1], views[:, 0]))
         out.append(eclipsed_higher_orders(atmosphere, wavelength, zenith, azimuth, geometry,
                                           generator.mc.OBSERVER_ALTITUDE_M, tables=tables,
-                                          table=table, n_view=8).T.numpy())
+                                          table=table).T.numpy())
     return np.array(out)
 
 
 def test_higher_orders_at_totality_against_montecarlo(reference, higher):
-    # one step of diffusion into the umbra for every order >= 2 of the incoming field
-    # (eclipse_higher_orders, approximations): 0.63-0.93 of the reference at Lowman,
-    # 0.98-1.24 at Burgos over these views (docs/solar_eclipse_sky.md); allowed 0.55-1.4
-    # of the reference, 3 standard errors added on each side
-    mc = reference.order_3plus.values[..., HIGHER_VIEWS]
-    error = reference.order_3plus_stderr.values[..., HIGHER_VIEWS]
-    assert np.all(higher > 0.55 * mc - 3.0 * error), (higher / mc).round(3)
-    assert np.all(higher < 1.4 * mc + 3.0 * error), (higher / mc).round(3)
+    # one step of diffusion into the umbra for every order >= 2 of the incoming field, an
+    # isotropic dimming of the light scattered towards the line of sight (module docstring
+    # of eclipse_higher_orders): at the zenith 0.77-1.11 of the reference, elsewhere
+    # 0.65-1.78, the largest towards the low Sun at Burgos (docs/solar_eclipse_sky.md);
+    # allowed 0.7-1.3 at the zenith and 0.5-2.0 elsewhere, 3 standard errors added
+    mc, error = reference.order_3plus.values, reference.order_3plus_stderr.values
+    low = np.full(mc.shape[-1], 0.5)
+    high = np.full(mc.shape[-1], 2.0)
+    low[0], high[0] = 0.7, 1.3
+    assert np.all(higher > low * mc - 3.0 * error), (higher / mc).round(3)
+    assert np.all(higher < high * mc + 3.0 * error), (higher / mc).round(3)
 
 
 def test_every_order_makes_the_zenith_at_totality(reference, model, higher):

@@ -81,6 +81,7 @@ import numpy as np
 import torch
 
 from skytorch._validate import check_int, check_range
+from skytorch.atmosphere.geometry import safe_sqrt
 from skytorch.atmosphere.inputs import check_atmosphere, wavelength_tensor
 
 __all__ = ["MU_S_MIN", "ScatteringTables", "TableResolution", "precompute_scattering"]
@@ -157,8 +158,9 @@ class _Shell:
         self.H = math.sqrt(top * top - planet * planet)
 
     def rho(self, r):
-        # (r - R)(r + R): no cancellation of r^2 - R^2 in float32
-        return torch.sqrt(torch.clamp((r - self.R) * (r + self.R), min=0.0))
+        # (r - R)(r + R): no cancellation of r^2 - R^2 in float32; a zero (not infinite)
+        # gradient on the ground, where the horizon distance is 0
+        return safe_sqrt((r - self.R) * (r + self.R))
 
     def mu_horizon(self, r):
         return -self.rho(r) / r

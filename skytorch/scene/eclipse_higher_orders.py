@@ -64,8 +64,8 @@ Examples
 >>> wl = torch.tensor([550.0], dtype=torch.float64)
 >>> tables = precompute_scattering(atm, wl, scattering_orders=3,
 ...                                resolution=TableResolution.tiny())
->>> sun, moon = (0.0, 7.48e10, 1.296e11), (0.0, 1.87e8, 3.24e8)   # Sun 30 deg from zenith
->>> g = Geometry(30.0, 90.0, 30.0, 90.0, 3.74e8, 1.496e11, math.pi, 0.0, 0.0, 0.0, 0.0,
+>>> sun, moon = (0.0, 7.48e10, 1.296e11), (0.0, 1.87e8, 3.24e8)   # Sun 60 deg high
+>>> g = Geometry(60.0, 90.0, 60.0, 90.0, 3.74e8, 1.496e11, math.pi, 0.0, 0.0, 0.0, 0.0,
 ...              sun_horizontal_m=sun, moon_horizontal_m=moon)
 >>> zero = torch.tensor([0.0], dtype=torch.float64)
 >>> higher = eclipsed_higher_orders(atm, wl, zero, zero, g, tables=tables, n_view=4,
@@ -78,13 +78,18 @@ Examples
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
 from skytorch._quadrature import unit_nodes
 from skytorch._validate import check_int, check_positive, check_range
-from skytorch.atmosphere.geometry import _distance_to_ground, _distance_to_top, _ray_hits_ground
+from skytorch.atmosphere.geometry import (
+    _distance_to_ground,
+    _distance_to_top,
+    _ray_hits_ground,
+    safe_sqrt,
+)
 from skytorch.atmosphere.multiple_scattering import MU_S_MIN, ScatteringTables
 from skytorch.atmosphere.scattering import _direction, gather_on_line_of_sight
 from skytorch.scene.solar_eclipse_sky import _eclipse_inputs, visible_fraction_at
@@ -118,6 +123,9 @@ class _Dimming:
     direction_weights: torch.Tensor  # (d,) [sr]
     n_path: int
     path_length_m: float
+    across: tuple  # two unit vectors across the axis: (nearest the zenith, the other)
+    share_table: torch.Tensor | None = None  # G (wavelength, height, across 0, across 1)
+    half_width_m: float = 0.0
 
     def visible(self, points: torch.Tensor) -> torch.Tensor:
         """Visible fraction at points (..., 3) from the distance to the shadow's axis."""
@@ -181,7 +189,68 @@ class _Dimming:
             sampled = sampled[..., None]
         return (weight * sampled).sum(-2), weight.sum(-2)
 
+    def shadow_coordinates(self, points: torch.Tensor):
+        """Offsets (..., 2) [m] across the shadow's axis and heights (...) [m] of points."""
+        offset = points - self.moon
+        across = torch.stack([offset @ self.across[0], offset @ self.across[1]], dim=-1)
+        radius = torch.linalg.vector_norm(points - self.centre, dim=-1)
+        height = (radius - self.constituents.planet_radius_m).clamp(
+            0.0, self.constituents.top_altitude_m)
+        return across, height
+
+    def tabulate(self, n_across: int, n_height: int, half_width_m: float) -> _Dimming:
+        r"""Return a copy whose :meth:`order_one_share` interpolates a table of :math:`G`.
+
+        :math:`G` on ``n_across``\ :sup:`2` offsets across the shadow's axis within
+        ±``half_width_m`` (:func:`_offset_nodes`: 3.8 times denser at the axis, where the
+        umbra is, than at the edge) by ``n_height`` heights (uniform in the square root of the
+        height, denser near the ground): each node the point of that offset and height
+        nearest to the observer. Beyond the offsets :math:`G` is taken as the visible
+        fraction (the penumbra varies over thousands of kilometres), and so at offsets whose
+        line parallel to the axis never comes down to that height.
+        """
+        dtype = self.moon.dtype
+        offsets = half_width_m * _offset_nodes(torch.linspace(-1.0, 1.0, n_across,
+                                                              dtype=dtype))
+        top = self.constituents.top_altitude_m
+        heights = top * torch.linspace(0.0, 1.0, n_height, dtype=dtype) ** 2
+        a, b, h = torch.meshgrid(offsets, offsets, heights, indexing="ij")
+        start = self.moon + a[..., None] * self.across[0] + b[..., None] * self.across[1]
+        q = start - self.centre
+        along = q @ self.axis
+        radius = self.constituents.planet_radius_m + h
+        disc = along ** 2 - (q * q).sum(-1) + radius ** 2
+        root = torch.sqrt(disc.clamp(min=0.0))
+        candidates = torch.stack([-along - root, -along + root], dim=-1)  # (..., 2)
+        points = start[..., None, :] + candidates[..., None] * self.axis
+        nearest = torch.linalg.vector_norm(points, dim=-1).argmin(-1)
+        points = torch.gather(points, -2, nearest[..., None, None].expand(
+            *nearest.shape, 1, 3))[..., 0, :]
+        reached = disc >= 0
+        share = self.order_one_share(points)
+        visible = self.visible(points)[..., None].expand_as(share)
+        share = torch.where(reached[..., None], share, visible)
+        # (wavelength, height, offset a, offset b) for grid_sample
+        return replace(self, share_table=share.permute(3, 2, 0, 1).contiguous(),
+                       half_width_m=float(half_width_m))
+
     def order_one_share(self, points: torch.Tensor) -> torch.Tensor:
+        """:math:`G` at points (..., 3) -> (..., wl): from the table when tabulated."""
+        if self.share_table is None:
+            return self._order_one_share_direct(points)
+        across, height = self.shadow_coordinates(points)
+        top = self.constituents.top_altitude_m
+        flat_across = _offset_coordinate(across / self.half_width_m).reshape(1, 1, 1, -1, 2)
+        grid = torch.cat([flat_across.flip(-1), (2.0 * safe_sqrt(height / top) - 1.0
+                                                 ).reshape(1, 1, 1, -1, 1)], dim=-1)
+        sampled = torch.nn.functional.grid_sample(
+            self.share_table[None], grid.to(self.share_table.dtype), mode="bilinear",
+            padding_mode="border", align_corners=True)[0, :, 0, 0, :].T
+        inside = (across.abs() <= self.half_width_m).all(-1).reshape(-1)
+        visible = self.visible(points).reshape(-1, 1).expand_as(sampled)
+        return torch.where(inside[:, None], sampled, visible).reshape(*points.shape[:-1], -1)
+
+    def _order_one_share_direct(self, points: torch.Tensor) -> torch.Tensor:
         """:math:`G`: eclipsed share of the order-1 field at points (..., 3) -> (..., wl)."""
         flat = points.reshape(-1, 3)
         n_dir = self.directions.shape[0]
@@ -199,10 +268,12 @@ class _Dimming:
 
 def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad,
                            geometry, altitude_m: float = 0.0, *, tables, table=None,
-                           n_view: int = 12, n_mu: int = 4, n_phi: int = 12,
+                           scattering_orders="converged", n_view: int = 12, n_mu: int = 4,
+                           n_phi: int = 12,
                            n_neighbourhood_mu: int = 4, n_neighbourhood_phi: int = 12,
                            n_path: int = 12, path_length_m: float = 800e3,
-                           n_nodes: int = 8) -> torch.Tensor:
+                           neighbourhood_grid=(31, 20, 250e3), n_nodes: int = 8
+                           ) -> torch.Tensor:
     r"""Orders >= 3 of the sky during a solar eclipse per unit solar irradiance [1/sr].
 
     Parameters
@@ -222,7 +293,10 @@ def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azim
         precompute_scattering`), with at least 2 orders; orders 2 to all computed are
         gathered.
     table : TransmittanceTable, optional
-        The Sun's transmittance (built when not given).
+        The Sun's transmittance at ``wavelength_nm`` (built when not given).
+    scattering_orders : int or "converged"
+        N >= 3: the orders 3..N (the tables' orders 2..N - 1 gathered); "converged": every
+        order of the tables gathered (orders 3..computed + 1).
     n_view, n_mu, n_phi : int
         Final gather: samples along the line of sight (>= 2), Gauss nodes per hemisphere
         and azimuths of the sphere at each sample (>= 1).
@@ -232,6 +306,11 @@ def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azim
         Samples along each path of :math:`F` and :math:`G` (>= 2).
     path_length_m : float
         Longest path [m] (> 0).
+    neighbourhood_grid : (int, int, float) or None
+        :math:`G` tabulated on ``n_across`` x ``n_across`` offsets across the shadow's
+        axis within ± ``half_width_m`` by ``n_height`` heights (>= 2 each; half width
+        > 0 [m]) and interpolated; ``None`` computes it at every point (for checks: some
+        thirty times slower per line of sight).
     n_nodes : int
         Quadrature nodes of the visible fraction.
 
@@ -251,14 +330,7 @@ def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azim
     """
     from skytorch.atmosphere.tables import TransmittanceTable
 
-    if not isinstance(tables, ScatteringTables):
-        raise TypeError(f"tables must be a ScatteringTables; got {type(tables).__name__}")
-    if len(tables.batch_shape):
-        raise ValueError("eclipsed_higher_orders takes tables of an atmosphere with scalar "
-                         f"parameters; got batch shape {tuple(tables.batch_shape)}")
-    if tables.orders_computed < 2:
-        raise ValueError("tables must hold at least 2 orders (orders 2..N are dimmed and "
-                         f"gathered); got {tables.orders_computed}")
+    orders = _incoming_orders(tables, scattering_orders)
     n_view = check_int("n_view", n_view, 2)
     n_mu = check_int("n_mu", n_mu, 1)
     n_phi = check_int("n_phi", n_phi, 1)
@@ -284,7 +356,8 @@ def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azim
                                          n_r=32)
     dimming = _dimming(constituents, table, geometry, float(altitude), n_neighbourhood_mu,
                        n_neighbourhood_phi, n_path, path_length_m, n_nodes)
-    orders = tables.orders_computed
+    if neighbourhood_grid is not None:
+        dimming = dimming.tabulate(*_grid_setting(neighbourhood_grid))
 
     def incoming(zenith, azimuth, sun_zenith_local, sun_azimuth_local, height, to_observer):
         inside = sun_zenith_local <= _SUN_ZENITH_MAX
@@ -309,6 +382,48 @@ def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azim
     return line.radiance
 
 
+def _incoming_orders(tables, scattering_orders) -> int:
+    """Check the tables and return the last order of their field to gather (N - 1)."""
+    if not isinstance(tables, ScatteringTables):
+        raise TypeError(f"tables must be a ScatteringTables; got {type(tables).__name__}")
+    if len(tables.batch_shape):
+        raise ValueError("eclipsed_higher_orders takes tables of an atmosphere with scalar "
+                         f"parameters; got batch shape {tuple(tables.batch_shape)}")
+    if tables.orders_computed < 2:
+        raise ValueError("tables must hold at least 2 orders (orders 2..N are dimmed and "
+                         f"gathered); got {tables.orders_computed}")
+    if scattering_orders == "converged":
+        return tables.orders_computed
+    return check_int("scattering_orders", scattering_orders, 3, tables.orders_computed + 1) - 1
+
+
+def _grid_setting(neighbourhood_grid) -> tuple[int, int, float]:
+    """Check ``neighbourhood_grid`` = (n_across, n_height, half_width_m)."""
+    if not isinstance(neighbourhood_grid, (tuple, list)) or len(neighbourhood_grid) != 3:
+        raise TypeError("neighbourhood_grid must be (n_across, n_height, half_width_m) or "
+                        f"None; got {neighbourhood_grid!r}")
+    return (check_int("neighbourhood_grid n_across", neighbourhood_grid[0], 2),
+            check_int("neighbourhood_grid n_height", neighbourhood_grid[1], 2),
+            float(check_positive("neighbourhood_grid half_width_m", neighbourhood_grid[2],
+                                 unit=" m")))
+
+
+#: stretch of the offsets of the dimming's table: sinh(k u) / sinh(k) for u uniform in
+#: [-1, 1] is k / sinh(k) = 0.55 times the uniform spacing at the axis, k cosh(k) / sinh(k)
+#: = 2.07 times at the edge
+_OFFSET_STRETCH = 2.0
+
+
+def _offset_nodes(u: torch.Tensor) -> torch.Tensor:
+    """Offsets across the axis (in half widths) of the uniform coordinates ``u`` in [-1, 1]."""
+    return torch.sinh(_OFFSET_STRETCH * u) / math.sinh(_OFFSET_STRETCH)
+
+
+def _offset_coordinate(offset: torch.Tensor) -> torch.Tensor:
+    """Inverse of :func:`_offset_nodes`."""
+    return torch.asinh(offset * math.sinh(_OFFSET_STRETCH)) / _OFFSET_STRETCH
+
+
 def _dimming(constituents, table, geometry, altitude: float, n_mu: int, n_phi: int,
              n_path: int, path_length_m: float, n_nodes: int) -> _Dimming:
     """Build the shadow's axis, its visible-fraction table and the neighbourhood sphere."""
@@ -317,13 +432,15 @@ def _dimming(constituents, table, geometry, altitude: float, n_mu: int, n_phi: i
     moon = torch.tensor(geometry.moon_horizontal_m, dtype=dtype)
     axis = (sun - moon) / torch.linalg.vector_norm(sun - moon)
     foot = moon + axis * ((-moon) @ axis)  # the axis's point nearest to the observer
-    across = torch.linalg.cross(axis, torch.tensor([0.0, 0.0, 1.0], dtype=dtype))
-    if float(torch.linalg.vector_norm(across)) < 1e-9:  # the Sun at the zenith
-        across = torch.tensor([1.0, 0.0, 0.0], dtype=dtype)
-    across = across / torch.linalg.vector_norm(across)
+    up = torch.tensor([0.0, 0.0, 1.0], dtype=dtype)
+    first = up - (up @ axis) * axis
+    if float(torch.linalg.vector_norm(first)) < 1e-9:  # the Sun at the zenith
+        first = torch.tensor([1.0, 0.0, 0.0], dtype=dtype)
+    first = first / torch.linalg.vector_norm(first)
+    across = torch.linalg.cross(axis, first)
     n_table = int(round(_AXIS_DISTANCE_MAX_M / _AXIS_DISTANCE_STEP_M)) + 1
     distance = torch.arange(n_table, dtype=dtype) * _AXIS_DISTANCE_STEP_M
-    visible = visible_fraction_at(geometry, foot + distance[:, None] * across,
+    visible = visible_fraction_at(geometry, foot + distance[:, None] * first,
                                   n_nodes=n_nodes)
     x, w = unit_nodes(n_mu, dtype)
     mu, w = torch.cat([-x.flip(0), x]), torch.cat([w.flip(0), w])
@@ -333,4 +450,5 @@ def _dimming(constituents, table, geometry, altitude: float, n_mu: int, n_phi: i
     weights = w[:, None].expand(-1, n_phi).reshape(-1) * (2.0 * math.pi / n_phi)
     centre = torch.tensor([0.0, 0.0, -(constituents.planet_radius_m + altitude)], dtype=dtype)
     return _Dimming(constituents, table, centre, sun / torch.linalg.vector_norm(sun), moon,
-                    axis, visible, directions, weights, n_path, path_length_m)
+                    axis, visible, directions, weights, n_path, path_length_m,
+                    (first, across))
