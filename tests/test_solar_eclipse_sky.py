@@ -192,3 +192,45 @@ def test_the_planner_keeps_two_orders_during_the_eclipse():
     assert "solar_eclipse" in plan.computed
     assert plan.scattering_orders["sky"] == 2
     assert "orders >= 3 are not computed" in plan.scattering_reason
+    assert "the 'reference' preset computes them" in plan.scattering_reason
+
+
+def test_the_reference_preset_adds_the_higher_orders_at_totality():
+    """The plan records orders 3..N; the scene's table holds eclipsed_higher_orders' values.
+
+    The table's zenith row is the zenith line of sight of the function at the tables'
+    wavelength nodes (no interpolation there), every azimuth alike, the first azimuth
+    repeated after the last; without the knob the table refuses.
+    """
+    from skytorch.scene.eclipse_higher_orders import eclipsed_higher_orders
+    from skytorch.scene.presets import FIDELITY
+    from skytorch.scene.render import Knobs, eclipse_higher_orders_table
+    from skytorch.spectrum import solar_irradiance
+
+    plan = st.Scene(time=TOTALITY, lat_deg=BURGOS[0], lon_deg=BURGOS[1],
+                    elevation_m=BURGOS[2], size=16, fidelity="reference").plan()
+    assert plan.scattering_orders["sky"] >= 3
+    assert "dimmed by one step of diffusion" in plan.scattering_reason
+    scene = st.Scene(time=TOTALITY, lat_deg=BURGOS[0], lon_deg=BURGOS[1],
+                     elevation_m=BURGOS[2], size=16, fidelity="fast")
+    resources = scene.resources()
+    setting = {"lut": (2, 3), "quadrature": (6, 3, 8)}
+    knobs = Knobs({**FIDELITY["fast"], "eclipse_higher": setting}, torch.float64, TOTALITY,
+                  *BURGOS, solar_eclipse=True,
+                  scattering_orders={"sky": 5, "moon": 1, "tables": 4})
+    tables = resources.scattering_tables(4, FIDELITY["fast"]["ms_tables"],
+                                         FIDELITY["fast"]["ms_wavelength_nodes"])
+    geometry = _geometry(TOTALITY, *BURGOS)
+    table = eclipse_higher_orders_table(resources, geometry, knobs, tables.wavelength_nm)
+    assert table.shape == (2, 4, tables.wavelength_nm.numel())
+    zero = torch.zeros(1, dtype=torch.float64)
+    direct = eclipsed_higher_orders(resources.atmosphere, tables.wavelength_nm, zero, zero,
+                                    geometry, BURGOS[2], tables=tables, scattering_orders=5,
+                                    n_view=6, n_mu=3, n_phi=8)[0]
+    expected = direct * solar_irradiance(tables.wavelength_nm)
+    assert torch.allclose(table[0], expected.expand(4, -1), rtol=1e-9, atol=0.0)
+    assert torch.equal(table[:, 0], table[:, -1])
+    with pytest.raises(ValueError, match="eclipse_higher"):
+        eclipse_higher_orders_table(resources, geometry, Knobs(
+            FIDELITY["fast"], torch.float64, TOTALITY, *BURGOS, solar_eclipse=True,
+            scattering_orders={"sky": 5, "moon": 1, "tables": 4}), tables.wavelength_nm)

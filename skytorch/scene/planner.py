@@ -536,6 +536,7 @@ class _OrderEstimate:
 
     def __init__(self, scene, resources, geometry, elevation_m):
         self.requested = requested_orders(scene)
+        self.eclipse_higher = FIDELITY[scene.fidelity].get("eclipse_higher")
         self.geometry, self.elevation_m = geometry, elevation_m
         self.sun_zenith = math.radians(90.0 - geometry.sun_altitude_deg)
         self.sun_in_tables = self.sun_zenith <= MS_MAX_SOURCE_ZENITH_RAD
@@ -564,12 +565,26 @@ class _OrderEstimate:
             return result, "single scattering (scattering_orders 1)"
         if "sky" not in computed:
             reasons.append("sky: not computed")
-        elif "solar_eclipse" in computed:
-            # the eclipse sky's orders come from a direct quadrature that stops at two
+        elif "solar_eclipse" in computed and (
+                self.eclipse_higher is None or self.tables is None
+                or (self.requested != "converged" and int(self.requested) < 3)):
+            # the eclipse sky's orders 1 and 2 come from a direct quadrature
             result["sky"] = 2
             reasons.append("sky: 2 orders (the solar-eclipse sky: single and second order "
                            "with the Sun's visible fraction at every scattering; orders >= 3 "
-                           "are not computed)")
+                           "are not computed: 0.5-2.8 times order 2 at the zenith at "
+                           "totality; the 'reference' preset computes them)")
+        elif "solar_eclipse" in computed:
+            last = (self.tables.orders_computed + 1 if self.requested == "converged"
+                    else int(self.requested))
+            result["sky"] = last
+            lut, quadrature = self.eclipse_higher["lut"], self.eclipse_higher["quadrature"]
+            reasons.append(
+                f"sky: {last} orders (the solar-eclipse sky: single and second order with the "
+                "Sun's visible fraction at every scattering; orders 3.." + str(last)
+                + " from the clear sky's tables dimmed by one step of diffusion into the "
+                f"umbra on {lut[0]} x {lut[1]} sky nodes, quadrature {quadrature[0]} x "
+                f"{2 * quadrature[1]} x {quadrature[2]})")
         elif not self.sun_in_tables:
             reasons.append("sky: single scattering (Sun below the tables' 18 deg depression)")
         else:

@@ -76,7 +76,10 @@ _MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 24, "n_phi": 6, "n_ray": 24, "n_sp
 #: resolution of the tables of orders >= 2 and ``ms_wavelength_nodes`` their wavelengths;
 #: ``ms_final_gather`` (or None) corrects the looked-up orders >= 2 by their final gather
 #: (:mod:`skytorch.atmosphere.final_gather`, ``quadrature`` = n_view, n_mu, n_phi) on a
-#: coarse (zenith, relative azimuth) grid ``lut`` (docs/scene.md)
+#: coarse (zenith, relative azimuth) grid ``lut`` (docs/scene.md); ``eclipse_higher`` (or
+#: None) adds the orders >= 3 of the sky at a solar eclipse
+#: (:func:`skytorch.scene.eclipse_higher_orders.eclipsed_higher_orders`, ``quadrature`` =
+#: n_view, n_mu, n_phi) on a (zenith, absolute azimuth) grid ``lut`` (docs/solar_eclipse_sky.md)
 FIDELITY = {
     "fast": {
         "eclipse_sky_lut": (12, 24), "eclipse_samples": 24,
@@ -85,7 +88,7 @@ FIDELITY = {
         "moon_lut": (8, 9), "moon_steps": 16, "moon_quadrature": 8,
         "moon_disc_quadrature": 12,
         "scattering_orders": 1, "ms_tables": _MS_SMALL, "ms_wavelength_nodes": 6,
-        "ms_final_gather": None,
+        "ms_final_gather": None, "eclipse_higher": None,
         "skyglow": {"n_azimuth": 32, "n_elevation": 8, "n_distance": 16, "n_components": 4,
                     "max_distance_m": 30_000.0}},
     "default": {
@@ -95,7 +98,7 @@ FIDELITY = {
         "moon_lut": (12, 13), "moon_steps": 32, "moon_quadrature": 16,
         "moon_disc_quadrature": 24,
         "scattering_orders": "converged", "ms_tables": _MS_SMALL, "ms_wavelength_nodes": 6,
-        "ms_final_gather": None,
+        "ms_final_gather": None, "eclipse_higher": None,
         "skyglow": {"n_azimuth": 64, "n_elevation": 16, "n_distance": 32, "n_components": 8,
                     "max_distance_m": 40_000.0}},
     "reference": {
@@ -106,6 +109,7 @@ FIDELITY = {
         "moon_disc_quadrature": 48,
         "scattering_orders": "converged", "ms_tables": _MS_COARSE, "ms_wavelength_nodes": 8,
         "ms_final_gather": {"lut": (12, 13), "quadrature": (32, 16, 64)},
+        "eclipse_higher": {"lut": (4, 8), "quadrature": (12, 4, 12)},
         "skyglow": {"n_azimuth": 128, "n_elevation": 32, "n_distance": 64,
                     "n_components": 16, "max_distance_m": 40_000.0,
                     "scattering_orders": "converged"}},

@@ -851,7 +851,8 @@ def eclipse_sky_table(resources, geometry, knobs, wavelength):
     :func:`_zenith_nodes`, azimuth uniform over the full circle, the first column repeated
     after the last) [W m^-2 sr^-1 nm^-1]; with ``knobs.orders("sky") >= 2`` plus the
     second order of :func:`eclipse_second_order_table`, interpolated to those nodes in
-    log radiance.
+    log radiance, and with ``knobs.orders("sky") >= 3`` the orders 3..N of
+    :func:`eclipse_higher_orders_table` likewise.
     """
     from skytorch.scene.solar_eclipse_sky import eclipsed_single_scattering
     from skytorch.spectrum import solar_irradiance
@@ -868,7 +869,46 @@ def eclipse_sky_table(resources, geometry, knobs, wavelength):
         second = eclipse_second_order_table(resources, geometry, knobs, wl)
         tiny = torch.finfo(second.dtype).tiny
         radiance = radiance + torch.exp(_lookup_full(torch.log(second.clamp(min=tiny)), z, a))
+    if knobs.orders("sky") >= 3:
+        higher = eclipse_higher_orders_table(resources, geometry, knobs, wl)
+        tiny = torch.finfo(higher.dtype).tiny
+        radiance = radiance + torch.exp(_lookup_full(torch.log(higher.clamp(min=tiny)), z, a))
     return torch.cat([radiance, radiance[:, :1]], dim=1)
+
+
+def eclipse_higher_orders_table(resources, geometry, knobs, wavelength):
+    """Orders 3..N of the eclipse sky on the ``knobs["eclipse_higher"]["lut"]`` nodes.
+
+    :func:`skytorch.scene.eclipse_higher_orders.eclipsed_higher_orders` on the resources'
+    multiple-scattering tables (their wavelength nodes, then interpolated to ``wavelength``
+    in log radiance) with the quadrature ``knobs["eclipse_higher"]["quadrature"]``, times
+    the extraterrestrial spectrum, laid out as :func:`eclipse_sky_table` (z, a + 1, wl)
+    [W m^-2 sr^-1 nm^-1]; the zenith row is one line of sight.
+    """
+    from skytorch.scene.eclipse_higher_orders import eclipsed_higher_orders
+    from skytorch.spectrum import interpolate_wavelength, solar_irradiance
+
+    setting = knobs["eclipse_higher"]
+    if setting is None:
+        raise ValueError("the orders >= 3 of the eclipse sky need the fidelity knob "
+                         "'eclipse_higher' (the 'reference' preset has it)")
+    tables = resources.scattering_tables(knobs.scattering_orders["tables"], knobs["ms_tables"],
+                                         knobs["ms_wavelength_nodes"])
+    n_z, n_a = setting["lut"]
+    n_view, n_mu, n_phi = setting["quadrature"]
+    z, a = _full_circle_grid(n_z, n_a)
+    # the zenith row (z = 0) is one direction: computed once
+    zenith = torch.cat([z[:1, 0], z[1:].reshape(-1)])
+    azimuth = torch.cat([a[:1, 0], a[1:].reshape(-1)])
+    higher = eclipsed_higher_orders(resources.atmosphere, tables.wavelength_nm, zenith, azimuth,
+                                    geometry, knobs.elevation_m, tables=tables,
+                                    scattering_orders=knobs.orders("sky"), n_view=n_view,
+                                    n_mu=n_mu, n_phi=n_phi)
+    wl = wavelength.to(torch.float64)
+    higher = interpolate_wavelength(higher.to(torch.float64), tables.wavelength_nm, wl)
+    higher = higher * solar_irradiance(wl)
+    table = torch.cat([higher[:1].expand(n_a, -1), higher[1:]]).reshape(n_z, n_a, wl.numel())
+    return torch.cat([table, table[:, :1]], dim=1)
 
 
 #: lines of sight per call of the eclipse sky's second order (memory stays in cache)
