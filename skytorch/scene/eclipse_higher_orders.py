@@ -50,9 +50,11 @@ Approximations (stated and measured, ``docs/solar_eclipse_sky.md``):
   ``path_length_m``.
 
 Against the Monte-Carlo (Rayleigh + aerosol τ 0.1, 400 and 550 nm, 7 views, the
-totalities of 2017-08-21 at Lowman and 2026-08-12 at Burgos), orders >= 3 are 0.63–0.93
-of the reference at Lowman (Sun 44° from the zenith) and 0.98–1.24 at Burgos (82°) except
-85° towards the Sun there at 550 nm (1.73); at the zenith 0.75–1.07.
+totalities of 2017-08-21 at Lowman and 2026-08-12 at Burgos), orders >= 3 are 0.64–0.94
+of the reference at Lowman (Sun 44° from the zenith) and 0.99–1.28 at Burgos (82°) except
+85° towards the Sun there at 550 nm (1.76); at the zenith 0.77–1.10. With orders 1 and 2
+the sky is within 0.76–1.23 of the reference's total (1.54 at that view), where orders 1
+and 2 alone are 0.10–0.83 of it.
 
 Examples
 --------

@@ -39,7 +39,7 @@ The second order (:func:`eclipsed_second_order`) applies the same fraction at ev
 first scattering of :func:`skytorch.atmosphere.scattering.second_order_radiance`: at
 totality it is most of the sky (light scattered once in the sunlit air outside the umbra
 and again in the dark air the observer looks through; ``docs/solar_eclipse_sky.md``).
-Orders beyond the second are not included.
+Orders beyond the second: :mod:`skytorch.scene.eclipse_higher_orders`.
 
 References
 ----------
@@ -339,9 +339,10 @@ def eclipsed_second_order(atmosphere, wavelength_nm, view_zenith_rad, view_azimu
     :func:`~skytorch.atmosphere.scattering.second_order_radiance` with the Sun's visible
     fraction (:func:`visible_fraction_at`) at every first scattering: at totality the air
     around the observer is dark, and light scattered once in the sunlit air outside the
-    umbra is scattered again towards the observer. Orders beyond the second are not
-    included. Without the Moon nearby the result is the atmosphere's second order
-    (checked against a Monte-Carlo in ``tests/test_second_order.py``).
+    umbra is scattered again towards the observer. Orders beyond the second:
+    :func:`skytorch.scene.eclipse_higher_orders.eclipsed_higher_orders`. Without the Moon
+    nearby the result is the atmosphere's second order (checked against a Monte-Carlo in
+    ``tests/test_second_order.py``).
     """
     constituents, view_zenith, view_azimuth, sun_zenith, sun_azimuth, visible = \
         _eclipse_inputs(atmosphere, wavelength_nm, view_zenith_rad, view_azimuth_rad,
