@@ -155,3 +155,37 @@ def test_bad_inputs():
         solar_eclipse_local("2024-06-01", 0.0, 0.0)
     with pytest.raises(TypeError, match="refraction"):
         solar_eclipse_local("2024-04-08", 0.0, 0.0, refraction="yes")
+
+
+def test_contacts_of_five_cities_against_nasa_2024_table():
+    """Every printed minute holds our time: NASA's 2024 "Where & When" table, 5 cities.
+
+    The table prints CDT to the minute (``tests/data/solar_local_2024_04_08_cities.csv``);
+    our contact must fall within that minute, widened by 5 s each way for the unknown point
+    in each city (1 km moves a contact by up to ~2 s). 24 entries; and Dallas City Hall's
+    second contact 18:40:43 UT (X. Jubier) within 5 s (the issue's tolerance).
+    """
+    import csv
+    from pathlib import Path
+
+    path = Path(__file__).parent / "data" / "solar_local_2024_04_08_cities.csv"
+    rows = list(csv.DictReader(line for line in path.read_text().splitlines()
+                               if not line.startswith("#")))
+    lat = [float(r["lat"]) for r in rows]
+    lon = [float(r["lon"]) for r in rows]
+    ds = solar_eclipse_local("2024-04-08", lat, lon, 100.0)
+    checked = 0
+    for key, column in (("c1", "c1"), ("c2", "c2"), ("maximum", "maximum_time"),
+                        ("c3", "c3"), ("c4", "c4")):
+        for i, row in enumerate(rows):
+            if not row[key]:
+                continue
+            hour, minute = (int(v) for v in row[key].split(":"))
+            start = np.datetime64(f"2024-04-08T{hour + 5:02d}:{minute:02d}:00", "ns")
+            offset = (ds[column].values[i] - start) / np.timedelta64(1, "s")
+            assert -5.0 <= offset <= 65.0, (row["city"], key, offset)
+            checked += 1
+    assert checked == 24
+    dallas = (ds.c2.values[0] - np.datetime64("2024-04-08T18:40:43", "ns")) / np.timedelta64(
+        1, "s")
+    assert abs(dallas) < 5.0
