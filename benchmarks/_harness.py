@@ -61,6 +61,40 @@ def report(text: str, append: bool) -> None:
             stream.write(text)
 
 
+def report_section(title: str, script: str, load_before: Sequence[float], details: str,
+                   rows: list[dict[str, object]], append: bool) -> None:
+    """:func:`report` a dated section: title, script, machine, load before → now, table.
+
+    ``load_before`` is :func:`os.getloadavg` taken before the measurements; ``details`` one
+    or more sentences on the workload, after the machine line.
+    """
+    load_after = os.getloadavg()
+    header = (f"\n## {title} (`benchmarks/{script}`, "
+              f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC)\n\n"
+              f"{machine_description()}; load average {load_before[0]:.1f} → "
+              f"{load_after[0]:.1f}. {details}\n\n")
+    report(header + markdown_table(rows) + "\n", append)
+
+
+def alternating_medians(cases: dict[str, Callable[[], object]], repeat: int, *,
+                        warmup: bool = True) -> dict[str, float]:
+    """Median wall time [s] of each case over ``repeat`` rounds, the cases alternating.
+
+    Each round runs every case once in turn, so that a change of the machine's load falls
+    on all of them alike; with ``warmup`` every case runs once first, untimed.
+    """
+    if warmup:
+        for case in cases.values():
+            case()
+    samples: dict[str, list[float]] = {label: [] for label in cases}
+    for _ in range(repeat):
+        for label, case in cases.items():
+            start = time.perf_counter()
+            case()
+            samples[label].append(time.perf_counter() - start)
+    return {label: statistics.median(values) for label, values in samples.items()}
+
+
 def median_seconds(function: Callable[[], object], repeat: int = 5, warmup: int = 1) -> float:
     """Median wall time of ``function()`` over ``repeat`` runs after ``warmup`` runs [s]."""
     for _ in range(warmup):

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 import os
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -22,11 +21,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._harness import (  # noqa: E402
+    alternating_medians,
     argument_parser,
-    machine_description,
-    markdown_table,
     parse_arguments,
-    report,
+    report_section,
 )
 
 
@@ -68,29 +66,17 @@ def main(argv: list[str] | None = None) -> int:
         "shadow orders >= 2, one point (16 x 8 lines)": lambda: (
             shadow.multiple_scattered_illuminance(distance, 0.0 * distance, shadow_tables)),
     }
-    for case in cases.values():
-        case()
-    samples = {label: [] for label in cases}
-    for _ in range(args.repeat):
-        for label, case in cases.items():
-            clock = time.perf_counter()
-            case()
-            samples[label].append(time.perf_counter() - clock)
-    medians = {label: statistics.median(values) for label, values in samples.items()}
+    medians = alternating_medians(cases, args.repeat)
     looked_up = medians["orders >= 2 looked up, 64 lines"]
     rows = [{"case": label, "median [ms]": f"{value * 1e3:.2f}",
              "per line of sight [ms]": (f"{value * 1e3 / 64:.3f}" if "64 lines" in label
                                         else f"{value * 1e3 / 128:.2f}"),
              "vs look-up": f"{value / looked_up:.0f}x"}
             for label, value in medians.items()]
-    load_after = os.getloadavg()
-    header = (f"\n## Final gather (`benchmarks/bench_final_gather.py`, "
-              f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC)\n\n"
-              f"{machine_description()}; load average {load_before[0]:.1f} → "
-              f"{load_after[0]:.1f}. Coarse converged tables 16 × 32 × 16 × 6, 3 wavelengths "
-              f"(precompute {precompute_s:.1f} s); medians of {args.repeat} calls, the cases "
-              "alternating.\n\n")
-    report(header + markdown_table(rows) + "\n", args.append)
+    report_section("Final gather", "bench_final_gather.py", load_before,
+                   f"Coarse converged tables 16 × 32 × 16 × 6, 3 wavelengths (precompute "
+                   f"{precompute_s:.1f} s); medians of {args.repeat} calls, the cases "
+                   "alternating.", rows, args.append)
     return 0
 
 

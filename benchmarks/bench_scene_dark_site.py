@@ -22,10 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._harness import (  # noqa: E402
     argument_parser,
-    machine_description,
-    markdown_table,
     parse_arguments,
-    report,
+    report_section,
 )
 
 TARGET_S = 1.0
@@ -79,13 +77,9 @@ def main(argv: list[str] | None = None) -> int:
         {"case": f"warm render (median of {args.repeat})", "wall [s]": f"{median:.3f}",
          "target [s]": f"{TARGET_S:.0f}", "met": "yes" if median <= TARGET_S else "no"},
     ]
-    load_after = os.getloadavg()
-    header = (f"\n## Dark-site render (`benchmarks/bench_scene_dark_site.py`, "
-              f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC)\n\n"
-              f"{machine_description()}; load average {load_before[0]:.1f} → "
-              f"{load_after[0]:.1f}. 512² fisheye, Paranal 2026-09-11 04:45 UTC, "
-              f"natural_model=\"leinert1998\", 70 sfu, stars drawn, float64.\n\n")
-    report(header + markdown_table(rows) + "\n", args.append)
+    report_section("Dark-site render", "bench_scene_dark_site.py", load_before,
+                   "512² fisheye, Paranal 2026-09-11 04:45 UTC, natural_model=\"leinert1998\", "
+                   "70 sfu, stars drawn, float64.", rows, args.append)
     return 0
 
 

@@ -26,10 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._harness import (  # noqa: E402
     argument_parser,
-    machine_description,
-    markdown_table,
     parse_arguments,
-    report,
+    report_section,
 )
 
 TARGET_RENDER_S = 5e-3
@@ -72,15 +70,11 @@ def main(argv: list[str] | None = None) -> int:
                      "wall [ms]": f"{wall * 1e3:.2f}", "CPU [ms]": f"{cpu * 1e3:.2f}",
                      "target [ms]": f"{TARGET_RENDER_S * 1e3:.0f}",
                      "met": "yes" if wall <= TARGET_RENDER_S else "no"})
-    load_after = os.getloadavg()
-    header = (f"\n## Skyglow render with multiple scattering "
-              f"(`benchmarks/bench_skyglow_multiple_scattering.py`, "
-              f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC)\n\n"
-              f"{machine_description()}; load average {load_before[0]:.1f} → "
-              f"{load_after[0]:.1f}. 113 × 113 km map at 1 km, 2048 lit cells, 128 × 32 sky, "
-              f"64 distances to 80 km, M = 32, 3 wavelengths, float64; medians of "
-              f"{args.repeat} renders.\n\n")
-    report(header + markdown_table(rows) + "\n", args.append)
+    report_section("Skyglow render with multiple scattering",
+                   "bench_skyglow_multiple_scattering.py", load_before,
+                   "113 × 113 km map at 1 km, 2048 lit cells, 128 × 32 sky, 64 distances to "
+                   f"80 km, M = 32, 3 wavelengths, float64; medians of {args.repeat} renders.",
+                   rows, args.append)
     return 0
 
 

@@ -23,10 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._harness import (  # noqa: E402
     argument_parser,
-    machine_description,
-    markdown_table,
     parse_arguments,
-    report,
+    report_section,
 )
 from skytorch.atmosphere import Atmosphere  # noqa: E402
 from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
@@ -88,14 +86,10 @@ def main(argv: list[str] | None = None) -> int:
         rows.append({"case": label, "wall [s]": f"{seconds:.1f}", "target [s]": "60",
                      "met": "yes" if seconds <= TARGET_S else "no"})
         print(rows[-1], flush=True)
-    load_after = os.getloadavg()
-    header = (f"\n## Twilight sweep 10 × 10 × 5 (`benchmarks/bench_twilight_sweep.py`, "
-              f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC)\n\n"
-              f"{machine_description()}; load average {load_before[0]:.1f} → "
-              f"{load_after[0]:.1f}. Zenith radiance at 5 Sun depressions, turbidity × ozone "
-              f"10 × 10, converged orders on the scenes' small tables, 6 wavelengths; one run "
-              f"per row.\n\n")
-    report(header + markdown_table(rows) + "\n", args.append)
+    report_section("Twilight sweep 10 × 10 × 5", "bench_twilight_sweep.py", load_before,
+                   "Zenith radiance at 5 Sun depressions, turbidity × ozone 10 × 10, converged "
+                   "orders on the scenes' small tables, 6 wavelengths; one run per row.",
+                   rows, args.append)
     return 0
 
 
