@@ -87,13 +87,13 @@ import torch
 from skytorch._quadrature import unit_nodes
 from skytorch._validate import check_int, check_positive, check_range
 from skytorch.atmosphere.geometry import (
-    _distance_to_ground,
-    _distance_to_top,
-    _ray_hits_ground,
+    distance_to_ground,
+    distance_to_top,
+    ray_hits_ground,
     safe_sqrt,
 )
 from skytorch.atmosphere.multiple_scattering import MU_S_MIN, ScatteringTables
-from skytorch.atmosphere.scattering import _direction, gather_on_line_of_sight
+from skytorch.atmosphere.scattering import gather_on_line_of_sight
 from skytorch.scene.solar_eclipse_sky import _eclipse_inputs, visible_fraction_at
 
 __all__ = ["eclipsed_higher_orders"]
@@ -154,9 +154,9 @@ class _Dimming:
         top = self.constituents.top_radius_m
         from_centre = start - self.centre
         r = torch.linalg.vector_norm(from_centre, dim=-1)
-        mu = (from_centre * direction).sum(-1) / r
-        length = torch.where(_ray_hits_ground(r, mu, planet), _distance_to_ground(r, mu, planet),
-                             _distance_to_top(r, mu, top)).clamp(max=self.path_length_m)
+        mu = ((from_centre * direction).sum(-1) / r).clamp(-1.0, 1.0)
+        length = torch.where(ray_hits_ground(r, mu, planet), distance_to_ground(r, mu, planet),
+                             distance_to_top(r, mu, top)).clamp(max=self.path_length_m)
         t = torch.arange(self.n_path + 1, dtype=r.dtype) / self.n_path
         s = length[..., None] * t ** 2
         points = start[..., None, :] + s[..., None] * direction[..., None, :]
@@ -369,7 +369,7 @@ def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azim
                  - tables.radiance(height, zenith, azimuth, sun_inside, sun_azimuth_local,
                                    scattering_orders=1))
         clear = torch.where(inside[..., None], clear, torch.zeros_like(clear))
-        local = _direction(zenith, azimuth)  # (d, 3)
+        local = _unit_vectors(zenith, azimuth)  # (d, 3)
         lead = (*height.shape[:-1], local.shape[0], 1, 3)
         origin = to_observer(torch.zeros(lead, dtype=height.dtype))[..., 0, :]
         direction = to_observer(local[:, None, :].expand(lead))[..., 0, :] - origin
@@ -382,6 +382,13 @@ def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azim
                                    sun_azimuth, altitude, incoming, n_view=n_view,
                                    n_mu=n_mu, n_phi=n_phi)
     return line.radiance
+
+
+def _unit_vectors(zenith: torch.Tensor, azimuth: torch.Tensor) -> torch.Tensor:
+    """Return unit vectors (..., 3), north, east, up, of the directions (zenith, azimuth [rad])."""
+    sin_zenith = torch.sin(zenith)
+    return torch.stack([sin_zenith * torch.cos(azimuth), sin_zenith * torch.sin(azimuth),
+                        torch.cos(zenith)], dim=-1)
 
 
 def _incoming_orders(tables, scattering_orders) -> int:
@@ -447,7 +454,7 @@ def _dimming(constituents, table, geometry, altitude: float, n_mu: int, n_phi: i
     x, w = unit_nodes(n_mu, dtype)
     mu, w = torch.cat([-x.flip(0), x]), torch.cat([w.flip(0), w])
     phi = (torch.arange(n_phi, dtype=dtype) + 0.5) * (2.0 * math.pi / n_phi)
-    directions = _direction(torch.acos(mu)[:, None].expand(-1, n_phi).reshape(-1),
+    directions = _unit_vectors(torch.acos(mu)[:, None].expand(-1, n_phi).reshape(-1),
                             phi[None, :].expand(2 * n_mu, -1).reshape(-1))
     weights = w[:, None].expand(-1, n_phi).reshape(-1) * (2.0 * math.pi / n_phi)
     centre = torch.tensor([0.0, 0.0, -(constituents.planet_radius_m + altitude)], dtype=dtype)
