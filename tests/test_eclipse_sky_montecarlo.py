@@ -126,8 +126,8 @@ def higher(reference):
 def test_higher_orders_at_totality_against_montecarlo(reference, higher):
     # one step of diffusion into the umbra for every order >= 2 of the incoming field, an
     # isotropic dimming of the light scattered towards the line of sight (module docstring
-    # of eclipse_higher_orders): at the zenith 0.77-1.11 of the reference, elsewhere
-    # 0.65-1.78, the largest towards the low Sun at Burgos (docs/solar_eclipse_sky.md);
+    # of eclipse_higher_orders): at the zenith 0.77-1.10 of the reference, elsewhere
+    # 0.64-1.76, the largest towards the low Sun at Burgos (docs/solar_eclipse_sky.md);
     # allowed 0.7-1.3 at the zenith and 0.5-2.0 elsewhere, 3 standard errors added
     mc, error = reference.order_3plus.values, reference.order_3plus_stderr.values
     low = np.full(mc.shape[-1], 0.5)
