@@ -35,7 +35,6 @@ from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
     TableResolution,
     precompute_scattering,
 )
-from skytorch.atmosphere.tables import TransmittanceTable  # noqa: E402
 from skytorch.scene.eclipse_higher_orders import eclipsed_higher_orders  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "ms_reference"
@@ -71,21 +70,14 @@ def main(argv=None):
     settings = ["quick"] if arguments.quick else list(SETTINGS)
     views = [0] if arguments.quick else list(range(reference.sizes["view"]))
     sites = list(reference.site.values[1:]) if arguments.quick else list(reference.site.values)
-    atmosphere = generator.mc.skytorch_atmosphere(generator.mc.CASES[generator.CASE],
-                                                  generator.OZONE_DU)
-    wavelength = torch.tensor(WAVELENGTHS, dtype=torch.float64)
+    atmosphere, wavelength, table = generator.model_inputs(WAVELENGTHS)
     tables = precompute_scattering(atmosphere, wavelength, scattering_orders="converged",
                                    resolution=TableResolution(n_r=8, n_mu=32, n_mu_s=16,
                                                               n_phi=6))
-    table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
     ratio = np.full((len(settings), len(sites), len(WAVELENGTHS), len(views)), np.nan)
     seconds = np.full((len(settings), len(sites)), np.nan)
     for j, site in enumerate(sites):
-        _, date, lat, lon = next(s for s in generator.SITES if s[0] == site)
-        _, geometry = generator.site_geometry(date, lat, lon)
-        directions, _ = generator.view_directions(geometry)
-        zenith = torch.tensor(np.radians(reference.view_zenith.values[views]))
-        azimuth = torch.tensor(np.arctan2(directions[views, 1], directions[views, 0]))
+        geometry, zenith, azimuth = generator.site_lines(site, views)
         mc = reference.order_3plus.sel(site=site).values[:, views]
         for i, name in enumerate(settings):
             start = time.perf_counter()

@@ -89,6 +89,23 @@ def test_tabulated_dimming_against_its_direct_evaluation(setup):
     assert torch.allclose(tabulated, direct, rtol=0.05, atol=0.0), (tabulated / direct)
 
 
+def test_float32_tables_against_float64(setup):
+    """Tables stored in float32 give the float64 result to their own rounding (1e-4)."""
+    atmosphere, tables = setup
+    single = precompute_scattering(atmosphere, WL, scattering_orders=4,
+                                   resolution=TableResolution.tiny(), dtype=torch.float32)
+    geometry = _geometry(moon_offset_deg=0.0)
+    zenith = torch.tensor([0.0, 1.2], dtype=torch.float64)
+    azimuth = torch.tensor([0.0, 2.0], dtype=torch.float64)
+    quick = dict(QUICK, n_view=4)
+    double = eclipsed_higher_orders(atmosphere, WL, zenith, azimuth, geometry, tables=tables,
+                                    **quick)
+    low = eclipsed_higher_orders(atmosphere, WL, zenith, azimuth, geometry, tables=single,
+                                 **quick)
+    assert torch.isfinite(low).all()
+    assert torch.allclose(low.to(torch.float64), double, rtol=1e-4, atol=0.0)
+
+
 def test_gradient_with_respect_to_the_view(setup):
     atmosphere, tables = setup
     geometry = _geometry(moon_offset_deg=0.0)
@@ -131,5 +148,14 @@ def test_bad_input(setup):
     with pytest.raises(ValueError, match="half_width_m"):
         eclipsed_higher_orders(atmosphere, WL, zero, zero, geometry, tables=tables,
                                neighbourhood_grid=(31, 20, -1.0))
+    from skytorch.atmosphere.tables import TransmittanceTable
+
+    other = TransmittanceTable.build(atmosphere, WL[:1], cache=False, n_mu=16, n_r=8)
+    with pytest.raises(ValueError, match="table was built for wavelength_nm"):
+        eclipsed_higher_orders(atmosphere, WL, zero, zero, geometry, tables=tables,
+                               table=other)
+    with pytest.raises(TypeError, match="TransmittanceTable"):
+        eclipsed_higher_orders(atmosphere, WL, zero, zero, geometry, tables=tables,
+                               table="table")
     with pytest.raises(ValueError, match="altitude_m"):
         eclipsed_higher_orders(atmosphere, WL, zero, zero, geometry, 2e6, tables=tables)

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 import xarray as xr
 
 DATA = Path(__file__).parent / "data" / "ms_reference"
@@ -43,24 +42,16 @@ def reference():
 @pytest.fixture(scope="module")
 def model(reference):
     """Orders 1 and 2 of the eclipse-sky kernels (site, wavelength, view), defaults."""
-    from skytorch.atmosphere.tables import TransmittanceTable
     from skytorch.scene.solar_eclipse_sky import (
         eclipsed_second_order,
         eclipsed_single_scattering,
     )
 
-    atmosphere = generator.mc.skytorch_atmosphere(generator.mc.CASES[generator.CASE],
-                                                  generator.OZONE_DU)
-    wavelength = torch.tensor(WAVELENGTHS, dtype=torch.float64)
-    table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
+    atmosphere, wavelength, table = generator.model_inputs(WAVELENGTHS)
     height = generator.mc.OBSERVER_ALTITUDE_M
     first, second = [], []
     for site in reference.site.values:
-        _, date, lat, lon = next(s for s in generator.SITES if s[0] == site)
-        _, geometry = generator.site_geometry(date, lat, lon)
-        views, _ = generator.view_directions(geometry)
-        zenith = torch.tensor(np.radians(reference.view_zenith.values))
-        azimuth = torch.tensor(np.arctan2(views[:, 1], views[:, 0]))
+        geometry, zenith, azimuth = generator.site_lines(site)
         first.append(eclipsed_single_scattering(atmosphere, wavelength, zenith, azimuth,
                                                 geometry, height, n_samples=128,
                                                 table=table).T.numpy())
@@ -96,27 +87,19 @@ def test_second_order_at_totality_against_montecarlo(reference, model):
 def higher(reference):
     """Orders >= 3 (site, wavelength, view): the dimmed clear-sky gather.
 
-    Coarse clear-sky tables (8 x 32 x 16 x 6, every order), 8 samples along the line of
-    sight, the other quadratures at their defaults.
+    Coarse clear-sky tables (8 x 32 x 16 x 6, every order), the quadratures at their
+    defaults.
     """
     from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
-    from skytorch.atmosphere.tables import TransmittanceTable
     from skytorch.scene.eclipse_higher_orders import eclipsed_higher_orders
 
-    atmosphere = generator.mc.skytorch_atmosphere(generator.mc.CASES[generator.CASE],
-                                                  generator.OZONE_DU)
-    wavelength = torch.tensor(WAVELENGTHS, dtype=torch.float64)
+    atmosphere, wavelength, table = generator.model_inputs(WAVELENGTHS)
     tables = precompute_scattering(atmosphere, wavelength, scattering_orders="converged",
                                    resolution=TableResolution(n_r=8, n_mu=32, n_mu_s=16,
                                                               n_phi=6))
-    table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
     out = []
     for site in reference.site.values:
-        _, date, lat, lon = next(s for s in generator.SITES if s[0] == site)
-        _, geometry = generator.site_geometry(date, lat, lon)
-        views, _ = generator.view_directions(geometry)
-        zenith = torch.tensor(np.radians(reference.view_zenith.values))
-        azimuth = torch.tensor(np.arctan2(views[:, 1], views[:, 0]))
+        geometry, zenith, azimuth = generator.site_lines(site)
         out.append(eclipsed_higher_orders(atmosphere, wavelength, zenith, azimuth, geometry,
                                           generator.mc.OBSERVER_ALTITUDE_M, tables=tables,
                                           table=table).T.numpy())

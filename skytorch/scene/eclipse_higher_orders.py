@@ -356,6 +356,11 @@ def eclipsed_higher_orders(atmosphere, wavelength_nm, view_zenith_rad, view_azim
     if table is None:
         table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128,
                                          n_r=32)
+    elif not isinstance(table, TransmittanceTable):
+        raise TypeError("table must be a skytorch.atmosphere.tables.TransmittanceTable or "
+                        f"None; got {type(table).__name__}")
+    else:
+        table.check_compatible(atmosphere, wavelength)
     dimming = _dimming(constituents, table, geometry, float(altitude), n_neighbourhood_mu,
                        n_neighbourhood_phi, n_path, path_length_m, n_nodes)
     if neighbourhood_grid is not None:

@@ -90,6 +90,35 @@ def view_directions(geometry) -> tuple[np.ndarray, np.ndarray]:
     return np.array(views), sun
 
 
+def model_inputs(wavelengths_nm):
+    """Return the reference's atmosphere, ``wavelengths_nm`` as a tensor and its Sun table.
+
+    For the models compared with the reference (tests, experiments): the skytorch
+    atmosphere of case ``CASE`` with ``OZONE_DU`` and a transmittance table of 128 x 32.
+    """
+    from skytorch.atmosphere.tables import TransmittanceTable
+
+    atmosphere = mc.skytorch_atmosphere(mc.CASES[CASE], OZONE_DU)
+    wavelength = torch.tensor(list(wavelengths_nm), dtype=torch.float64)
+    table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
+    return atmosphere, wavelength, table
+
+
+def site_lines(name: str, views=None):
+    """Return the geometry of site ``name`` and the zenith and azimuth [rad] of its views.
+
+    ``views``: indices into ``VIEWS`` (default all); azimuths absolute (from north through
+    east), as the models take them.
+    """
+    _, date, lat, lon = next(s for s in SITES if s[0] == name)
+    _, geometry = site_geometry(date, lat, lon)
+    directions, _ = view_directions(geometry)
+    index = list(range(len(VIEWS))) if views is None else list(views)
+    zenith = torch.tensor(np.radians([VIEWS[i][0] for i in index]))
+    azimuth = torch.tensor(np.arctan2(directions[index, 1], directions[index, 0]))
+    return geometry, zenith, azimuth
+
+
 def compute(n_photons: int, sites=SITES, wavelengths_nm=WAVELENGTH_NM) -> xr.Dataset:
     """Return the radiance per order bin (1, 2, >= 3, total) at totality, with errors."""
     start = time.perf_counter()
