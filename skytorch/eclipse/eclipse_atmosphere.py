@@ -74,6 +74,7 @@ Examples
 from __future__ import annotations
 
 import csv
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -82,9 +83,12 @@ import torch
 from skytorch._data import data_path
 from skytorch._validate import check_choice, check_range
 from skytorch.atmosphere import Atmosphere
+from skytorch.atmosphere.climatology import afgl_columns, afgl_profile
 from skytorch.eclipse.circumstances import _parse_one
 from skytorch.eclipse.shadow import LimbCloudCover, Shadow
-from skytorch.ephemeris import parse_times
+from skytorch.eclipse.shadow_mixture import ShadowMixture
+from skytorch.eclipse.terminator import terminator_band_shares
+from skytorch.ephemeris import parse_times, sun_moon_vectors
 
 __all__ = [
     "CLOUD_CLASS_AMOUNTS",
@@ -95,12 +99,15 @@ __all__ = [
     "SAGE_CLEAR_7KM",
     "OZONE_DU",
     "STRATOSPHERIC_AOD_FILE",
+    "TERMINATOR_BAND_BOUNDARIES_DEG",
+    "TERMINATOR_MODELS",
     "TROPICAL_TERMINATOR_SHARE",
     "TROPOSPHERIC_AOD_550",
     "cloud_climatology",
     "eclipse_atmosphere",
     "eclipse_shadow",
     "stratospheric_aod",
+    "terminator_bands",
 ]
 
 #: the shipped record of annual global stratospheric optical depths
@@ -123,6 +130,12 @@ CLOUD_CLASS_TOPS_M = (0.0, 3240.0, 6510.0, 16000.0)
 #: SAGE solar occultations penetrating to a tangent altitude of 7 km [1]: ~0.30 in the
 #: tropics, up to 0.60 at higher latitudes (Woodbury & McCormick 1983, 1986)
 SAGE_CLEAR_7KM = {"tropics": 0.30, "extratropics": 0.60, "altitude_m": 7000.0}
+#: latitudes separating the limb atmospheres of ``terminator="latitude_bands"`` [deg]: the
+#: midpoints between the AFGL profiles' latitudes (tropical 15, mid-latitude 45, sub-arctic
+#: 60 deg; Anderson et al. 1986)
+TERMINATOR_BAND_BOUNDARIES_DEG = (-52.5, -30.0, 30.0, 52.5)
+#: ways to describe the limb atmosphere along the terminator (:func:`eclipse_shadow`)
+TERMINATOR_MODELS = ("global", "latitude_bands")
 #: share of the terminator's length within 25 deg of the equator (a great circle through
 #: the poles: 50/180; 0.31 at a solar declination of 23.4 deg)
 TROPICAL_TERMINATOR_SHARE = 0.28
@@ -265,15 +278,104 @@ def cloud_climatology(limb_clear_7km=None, *, amounts=CLOUD_CLASS_AMOUNTS) -> Li
     return LimbCloudCover(tops, cover, exponent, name="rossow1999")
 
 
+@dataclass(frozen=True)
+class TerminatorBand:
+    """One latitude band of the terminator: its share, limb atmosphere and limb clouds."""
+
+    #: band label: its latitudes, e.g. ``"30..52.5 deg"``
+    name: str
+    #: AFGL 1986 model atmosphere of the band (one of
+    #: :data:`~skytorch.atmosphere.climatology.AFGL_PROFILES`)
+    profile: str
+    #: share of the terminator's length [1]
+    weight: float
+    #: the band's atmosphere (AFGL temperature, pressure, ozone and water vapour; the
+    #: global-mean tropospheric aerosol and the year's stratospheric layer)
+    atmosphere: Atmosphere
+    #: the band's limb cloud profile (SAGE tropics or extratropics at 7 km)
+    cloud_cover: LimbCloudCover
+
+
+def _band_profiles(month: int) -> tuple[str, ...]:
+    """AFGL profile of each band, south pole to north pole, for a month (1-12)."""
+    north = "summer" if 4 <= month <= 9 else "winter"
+    south = "winter" if north == "summer" else "summer"
+    return (f"subarctic_{south}", f"midlatitude_{south}", "tropical",
+            f"midlatitude_{north}", f"subarctic_{north}")
+
+
+def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
+                     stratospheric_aod_550=None) -> tuple[TerminatorBand, ...]:
+    """Limb atmospheres along the terminator of ``date``: five latitude bands.
+
+    The terminator is cut at ``TERMINATOR_BAND_BOUNDARIES_DEG`` (30 and 52.5 deg north and
+    south) into a tropical band, two mid-latitude and two polar caps; each gets the AFGL
+    1986 model atmosphere of its latitude and season (April-September: summer in the
+    north, winter in the south; October-March the reverse), with that profile's ozone and
+    water-vapour columns (AFGL: 277-377 DU, more than the 300 DU global mean of
+    :func:`eclipse_atmosphere`), the global-mean tropospheric aerosol and the year's
+    stratospheric layer, and the limb cloud profile of :func:`cloud_climatology` with the
+    SAGE probability of its zone (tropical band 0.30 at 7 km, the others 0.60). The share
+    of each band is its share of the terminator's length at the Sun's declination
+    (:func:`~skytorch.eclipse.terminator.terminator_band_shares`).
+
+    Parameters
+    ----------
+    date : str, datetime or datetime64
+        Date (or time) of the eclipse (UTC).
+    tropospheric_aod, stratospheric_aod_550 : float or Tensor ()
+        As in :func:`eclipse_atmosphere`.
+
+    Returns
+    -------
+    tuple of TerminatorBand
+        South pole to north pole.
+
+    Examples
+    --------
+    >>> bands = terminator_bands("2015-09-28")
+    >>> [(b.profile, round(b.weight, 3)) for b in bands][:3]
+    [('subarctic_winter', 0.208), ('midlatitude_winter', 0.125), ('tropical', 0.334)]
+    """
+    moment = _parse_one("date", date, parse_times)
+    if stratospheric_aod_550 is None:
+        stratospheric_aod_550 = stratospheric_aod(moment)
+    sun = sun_moon_vectors(np.array([moment]), frames=("tod",))["sun_tod_m"][0]
+    declination = torch.asin(sun[2] / torch.linalg.norm(sun))
+    shares = terminator_band_shares(declination, TERMINATOR_BAND_BOUNDARIES_DEG)
+    month = int(str(np.datetime_as_string(moment, "M"))[5:7])
+    edges = (-90.0, *TERMINATOR_BAND_BOUNDARIES_DEG, 90.0)
+    covers = {zone: cloud_climatology(SAGE_CLEAR_7KM[zone])
+              for zone in ("tropics", "extratropics")}
+    bands = []
+    for k, profile in enumerate(_band_profiles(month)):
+        columns = afgl_columns(profile)
+        atmosphere = Atmosphere.earth(
+            aerosol_optical_depth=tropospheric_aod, profile=afgl_profile(profile),
+            precipitable_water_cm=columns["precipitable_water_cm"],
+            stratospheric_aerosol_optical_depth=stratospheric_aod_550,
+            name=f"eclipse {np.datetime_as_string(moment, 'D')} {profile}")
+        zone = "tropics" if profile == "tropical" else "extratropics"
+        bands.append(TerminatorBand(f"{edges[k]:g}..{edges[k + 1]:g} deg", profile,
+                                    float(shares[k]), atmosphere, covers[zone]))
+    return tuple(bands)
+
+
 def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,
                    cloud_fraction=CLOUD_FRACTION, cloud_cover=None, atmosphere=None,
-                   **shadow_options):
+                   terminator="global", **shadow_options):
     """Build the Earth's shadow of ``date``: :func:`eclipse_atmosphere` and the clouds.
 
     Parameters
     ----------
     date : str, datetime or datetime64
         Date of the eclipse (UTC).
+    terminator : {"global", "latitude_bands"}
+        ``"global"``: one global-mean limb atmosphere (:func:`eclipse_atmosphere`);
+        ``"latitude_bands"``: a :class:`~skytorch.eclipse.shadow_mixture.ShadowMixture` of
+        the five bands of :func:`terminator_bands` (AFGL profiles by latitude and season,
+        SAGE clouds by zone), weighted by their shares of the terminator (``atmosphere``
+        and ``cloud_cover`` must then be None).
     clouds : {"rossow1999", "deck", "none"}
         ``"rossow1999"``: the limb cloud profile ``cloud_cover`` (default
         :func:`cloud_climatology`); ``"deck"``: one deck of ``cloud_top_altitude_m`` and
@@ -293,9 +395,22 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
 
     Returns
     -------
-    skytorch.eclipse.shadow.Shadow
+    skytorch.eclipse.shadow.Shadow or skytorch.eclipse.shadow_mixture.ShadowMixture
     """
     check_choice("clouds", clouds, CLOUD_MODELS)
+    check_choice("terminator", terminator, TERMINATOR_MODELS)
+    if terminator == "latitude_bands":
+        if atmosphere is not None or cloud_cover is not None:
+            raise ValueError("terminator='latitude_bands' builds the atmosphere and clouds of "
+                             "each band: give atmosphere=None and cloud_cover=None (got "
+                             f"{type(atmosphere).__name__}, {type(cloud_cover).__name__})")
+        bands = terminator_bands(date)
+        shadows = [eclipse_shadow(date, clouds=clouds, cloud_top_altitude_m=cloud_top_altitude_m,
+                                  cloud_fraction=cloud_fraction, atmosphere=band.atmosphere,
+                                  cloud_cover=band.cloud_cover, **shadow_options)
+                   for band in bands]
+        return ShadowMixture(shadows, [band.weight for band in bands],
+                             names=[f"{band.name} {band.profile}" for band in bands])
     if atmosphere is None:
         atmosphere = eclipse_atmosphere(date)
     if clouds == "deck":

@@ -69,6 +69,7 @@ from skytorch.eclipse.shadow import (
     _check_wavelength,
     shadow_angles,
 )
+from skytorch.eclipse.shadow_mixture import ShadowMixture
 from skytorch.eclipse.shadow_table import ShadowTable
 from skytorch.ephemeris import parse_times, sun_moon_vectors
 
@@ -309,8 +310,8 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     for name, flag in (("progress", progress), ("ring_phase", ring_phase)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"{name} must be True or False; got {flag!r}")
-    if shadow is not None and not isinstance(shadow, Shadow):
-        raise TypeError(f"shadow must be a skytorch.eclipse.Shadow or None; got "
+    if shadow is not None and not isinstance(shadow, (Shadow, ShadowMixture)):
+        raise TypeError(f"shadow must be a skytorch.eclipse.Shadow, ShadowMixture or None; got "
                         f"{type(shadow).__name__}: {shadow!r:.60}")
     wavelength = (wavelength_grid("bands15") if wavelength_nm is None
                   else _check_wavelength(wavelength_nm, torch.float64))
@@ -431,8 +432,10 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         Number of disc images (evenly spaced in time) and their size.
     enlargement : {"danjon", "chauvenet", "none"}
         Convention for the circumstances (contacts, magnitudes).
-    shadow : Shadow, optional
-        A prepared shadow model (overrides ``atmosphere``; may be batched too).
+    shadow : Shadow or ShadowMixture, optional
+        A prepared shadow model (overrides ``atmosphere``; may be batched too), or a
+        mixture of limb atmospheres along the terminator (:func:`eclipse_shadow` with
+        ``terminator="latitude_bands"``).
     table_n_u, table_n_v : int
         Size of the (u, v) shadow table over the Moon's distances.
     progress : bool

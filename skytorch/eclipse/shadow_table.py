@@ -77,6 +77,7 @@ from skytorch.eclipse.shadow import (
     _check_wavelength,
     shadow_angles,
 )
+from skytorch.eclipse.shadow_mixture import ShadowMixture
 
 __all__ = [
     "INTERPOLATIONS",
@@ -342,8 +343,14 @@ class ShadowTable(nn.Module):
         """
         from tqdm.auto import tqdm
 
+        if isinstance(shadow, ShadowMixture):
+            return cls._compute_mixture(shadow, wavelength_nm, n_u=n_u, n_v=n_v,
+                                        min_distance_m=min_distance_m,
+                                        max_distance_m=max_distance_m,
+                                        interpolation=interpolation, progress=progress,
+                                        dtype=dtype)
         if not isinstance(shadow, Shadow):
-            raise TypeError(f"shadow must be a skytorch.eclipse.Shadow; got "
+            raise TypeError(f"shadow must be a skytorch.eclipse.Shadow or ShadowMixture; got "
                             f"{type(shadow).__name__}: {shadow!r:.60}")
         n_u = check_int("n_u", n_u, low=2)
         n_v = check_int("n_v", n_v, low=2)
@@ -395,6 +402,29 @@ class ShadowTable(nn.Module):
                     occluder_radius_m=r_o, interpolation=interpolation, attrs=attrs,
                     provenance=_provenance(shadow, n_u, n_v))
         table._positions = position
+        return table
+
+    @classmethod
+    def _compute_mixture(cls, mixture: ShadowMixture, wavelength_nm, **options) -> ShadowTable:
+        """Table of a :class:`ShadowMixture`: its members' tables, weighted (same grid)."""
+        tables = [cls.compute(shadow, wavelength_nm, **options) for shadow in mixture.shadows]
+        try:
+            values = sum(weight * table.values
+                         for weight, table in zip(mixture.weights, tables, strict=True))
+        except RuntimeError as error:
+            raise ValueError("the mixture's members have batch shapes that do not broadcast: "
+                             f"{[t.batch_shape for t in tables]}") from error
+        first = tables[0]
+        attrs = {key: value for key, value in first.attrs.items()
+                 if key in ("min_distance_m", "max_distance_m", "n_u", "n_v", "dtype",
+                            "limb_darkening", "limb_darkening_law")}
+        attrs.update(mixture.parameters_dict())
+        table = cls(first.u, first.v, first.wavelength_nm, values,
+                    sun_distance_m=first.sun_distance_m, sun_radius_m=first.sun_radius_m,
+                    occluder_radius_m=first.occluder_radius_m,
+                    interpolation=first.interpolation, attrs=attrs,
+                    provenance=_provenance(mixture, first.attrs["n_u"], first.attrs["n_v"]))
+        table._positions = first._positions
         return table
 
     # ------------------------------------------------------------------ look-up
@@ -498,9 +528,9 @@ class ShadowTable(nn.Module):
                     f"wavelength_nm: the table was built for {ours.tolist()} nm; got "
                     f"{wavelength.tolist()} nm (build a table for these wavelengths)")
         if shadow is not None:
-            if not isinstance(shadow, Shadow):
-                raise TypeError(f"shadow must be a skytorch.eclipse.Shadow; got "
-                                f"{type(shadow).__name__}")
+            if not isinstance(shadow, (Shadow, ShadowMixture)):
+                raise TypeError(f"shadow must be a skytorch.eclipse.Shadow or ShadowMixture; "
+                                f"got {type(shadow).__name__}")
             geometry = {"sun_distance_m": (shadow.sun_distance_m, self.sun_distance_m),
                         "sun_radius_m": (shadow.sun_radius_m, self.sun_radius_m),
                         "top_radius_m": (shadow.top_radius_m, self.occluder_radius_m)}
@@ -608,7 +638,7 @@ def _shadow_hash(shadow) -> str:
 def _provenance(shadow, n_u: int, n_v: int) -> dict:
     """Return what :meth:`ShadowTable.compute` built a table for."""
     record = {"shadow_sha256": _shadow_hash(shadow), "n_u": n_u, "n_v": n_v}
-    if shadow.atmosphere is not None:
+    if getattr(shadow, "atmosphere", None) is not None:
         from skytorch.atmosphere.tables import atmosphere_hash
 
         record["atmosphere_sha256"] = atmosphere_hash(shadow.atmosphere)
