@@ -33,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from skytorch.atmosphere import Atmosphere  # noqa: E402
+from skytorch.atmosphere.climatology import afgl_profile  # noqa: E402
 from skytorch.eclipse import (  # noqa: E402
     Shadow,
     danjon_class_l,
@@ -46,7 +47,9 @@ from skytorch.eclipse.eclipse_atmosphere import (  # noqa: E402
     SAGE_CLEAR_7KM,
     TROPOSPHERIC_AOD_550,
     cloud_climatology,
+    terminator_bands,
 )
+from skytorch.eclipse.shadow_mixture import ShadowMixture  # noqa: E402
 
 #: the 2019-01-21 photometry (Georgia J. Sci. 80(1) art. 32), samples as printed
 PHOTOMETRY_2019 = (Path(__file__).resolve().parents[1] / "tests" / "data"
@@ -476,6 +479,144 @@ def retrieval_series(quick: bool):
     return dataset, figure, summary
 
 
+def _observed_with_v():
+    """Observed eclipses with a V (or a magnitude below the full Moon)."""
+    observed = observed_lunar_eclipses()
+    has = np.isfinite(observed.v_magnitude.values) | np.isfinite(
+        observed.v_below_full_moon.values)
+    return observed.isel(eclipse=np.flatnonzero(has))
+
+
+def _residual(curve, observed, date) -> tuple[float, float, float]:
+    """Model V, B-V at the faintest sample and model minus observed (V or below full)."""
+    v, b_minus_v, below, _ = _faintest(curve)
+    obs_v = float(observed.v_magnitude.sel(eclipse=date))
+    obs_below = float(observed.v_below_full_moon.sel(eclipse=date))
+    return v, b_minus_v, (v - obs_v if np.isfinite(obs_v) else below - obs_below)
+
+
+def _terminator_variants(date: str) -> dict:
+    """Shadows of one date: what each part of the latitude bands changes."""
+    bands = terminator_bands(date)
+    weights = [band.weight for band in bands]
+    names = [band.profile for band in bands]
+    saod = stratospheric_aod(date)
+
+    def mixture(atmospheres, covers):
+        return ShadowMixture([Shadow.earth(a, cloud_cover=c)
+                              for a, c in zip(atmospheres, covers, strict=True)],
+                             weights, names=names)
+
+    global_atm = eclipse_shadow(date, clouds="none").atmosphere
+    same_cover = [cloud_climatology()] * len(bands)
+    zoned = [band.cloud_cover for band in bands]
+    fixed_columns = [Atmosphere.earth(aerosol_optical_depth=TROPOSPHERIC_AOD_550,
+                                      ozone_du=OZONE_DU, profile=afgl_profile(band.profile),
+                                      stratospheric_aerosol_optical_depth=saod)
+                     for band in bands]
+    return {
+        "global": eclipse_shadow(date),
+        "global atmosphere, clouds by zone": mixture([global_atm] * len(bands), zoned),
+        "AFGL T and p, 300 DU and 1.4 cm, global clouds": mixture(fixed_columns, same_cover),
+        "AFGL T and p, 300 DU and 1.4 cm, clouds by zone": mixture(fixed_columns, zoned),
+        "latitude bands (AFGL ozone and water, clouds by zone)":
+            eclipse_shadow(date, terminator="latitude_bands"),
+    }
+
+
+def _near_limb_band(day: str) -> tuple[float, int]:
+    """Latitude [deg] of the limb point nearest the Moon at greatest eclipse, its band.
+
+    The limb point in the direction of the Moon's offset from the shadow's axis (true
+    equator and equinox of date) lies at the latitude ``asin(u_z)`` of that unit vector.
+    """
+    from skytorch.eclipse.eclipse_atmosphere import TERMINATOR_BAND_BOUNDARIES_DEG
+    from skytorch.eclipse.lunar import nearest_eclipse
+    from skytorch.ephemeris import sun_moon_vectors
+
+    row = nearest_eclipse(day).isel(eclipse=0)
+    vectors = sun_moon_vectors(np.atleast_1d(row.time.values), frames=("tod",))
+    sun, moon = vectors["sun_tod_m"][0], vectors["moon_tod_m"][0]
+    axis = -sun / torch.linalg.norm(sun)
+    offset = moon - (moon @ axis) * axis
+    latitude = float(torch.rad2deg(torch.asin(offset[2] / torch.linalg.norm(offset))))
+    edges = (-90.0, *TERMINATOR_BAND_BOUNDARIES_DEG, 90.0)
+    return latitude, int(np.searchsorted(edges, latitude)) - 1
+
+
+def terminator_comparison(quick: bool, date: str = "2015-09-28"):
+    """Model the observed set with one global limb atmosphere and with latitude bands."""
+    observed = _observed_with_v()
+    n_times, n_v = (16, 96) if quick else (48, 192)
+    models = ("global", "latitude_bands")
+    values = {model: [] for model in models}
+    seconds = dict.fromkeys(models, 0.0)
+    near, near_profile = [], []
+    for day in observed.eclipse.values:
+        text = np.datetime_as_string(day, "D")
+        for model in models:
+            start = time.perf_counter()
+            curve = lunar_light_curve(text, shadow=eclipse_shadow(text, terminator=model),
+                                      n_times=n_times, table_n_v=n_v)
+            seconds[model] += time.perf_counter() - start
+            values[model].append(_residual(curve, observed, day))
+        latitude, k = _near_limb_band(text)
+        band = terminator_bands(text)[k]
+        curve = lunar_light_curve(text, shadow=Shadow.earth(band.atmosphere,
+                                                            cloud_cover=band.cloud_cover),
+                                  n_times=n_times, table_n_v=n_v)
+        near.append((latitude, *_residual(curve, observed, day)))
+        near_profile.append(band.profile)
+    variants = _terminator_variants(date)
+    parts = []
+    for shadow in variants.values():
+        curve = lunar_light_curve(date, shadow=shadow, n_times=n_times, table_n_v=n_v)
+        parts.append(_residual(curve, observed, np.datetime64(date, "ns")))
+    parts = np.array(parts)
+    data, attrs = {}, {"title": "Lunar eclipses: one limb atmosphere or latitude bands",
+                       "n_times": n_times, "table_n_v": n_v, "variant_date": date}
+    for model in models:
+        array = np.array(values[model])
+        data[f"{model}_v_magnitude"] = ("eclipse", array[:, 0], {"units": "mag"})
+        data[f"{model}_b_minus_v"] = ("eclipse", array[:, 1], {"units": "mag"})
+        data[f"{model}_residual_v"] = ("eclipse", array[:, 2], {"units": "mag", "long_name":
+                                       f"model ({model}) minus observed V"})
+        attrs[f"{model}_rms_v_mag"] = float(np.sqrt(np.mean(array[:, 2] ** 2)))
+        attrs[f"{model}_bias_v_mag"] = float(np.mean(array[:, 2]))
+        attrs[f"{model}_scatter_v_mag"] = float(np.std(array[:, 2]))
+        attrs[f"{model}_seconds"] = seconds[model]
+    near = np.array(near)
+    data["near_limb_latitude"] = ("eclipse", near[:, 0], {"units": "degree", "long_name":
+                                  "latitude of the limb point nearest the Moon at greatest "
+                                  "eclipse"})
+    data["near_limb_profile"] = ("eclipse", np.array(near_profile))
+    data["near_limb_v_magnitude"] = ("eclipse", near[:, 1], {"units": "mag", "long_name":
+                                     "V with the near limb's band alone"})
+    data["near_limb_residual_v"] = ("eclipse", near[:, 3], {"units": "mag"})
+    attrs["near_limb_rms_v_mag"] = float(np.sqrt(np.mean(near[:, 3] ** 2)))
+    attrs["near_limb_bias_v_mag"] = float(np.mean(near[:, 3]))
+    data["variant_v_magnitude"] = ("variant", parts[:, 0], {"units": "mag"})
+    data["variant_b_minus_v"] = ("variant", parts[:, 1], {"units": "mag"})
+    data["variant_residual_v"] = ("variant", parts[:, 2], {"units": "mag"})
+    dataset = xr.Dataset(data, coords={"eclipse": observed.eclipse.values,
+                                       "variant": list(variants)}, attrs=attrs)
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(8, 4))
+    years = observed.eclipse.dt.year.values + observed.eclipse.dt.dayofyear.values / 366
+    for offset, model in ((-0.2, "global"), (0.2, "latitude_bands")):
+        axis.bar(years + offset, dataset[f"{model}_residual_v"], width=0.4,
+                 label=f"{model}: rms {attrs[f'{model}_rms_v_mag']:.2f}, bias "
+                       f"{attrs[f'{model}_bias_v_mag']:+.2f} mag")
+    axis.axhline(0.0, color="k", lw=0.5)
+    axis.set(xlabel="year", ylabel="model - observed V [mag]",
+             title="Observed lunar eclipses: the limb atmosphere along the terminator")
+    axis.legend()
+    figure.tight_layout()
+    summary = {key: value for key, value in attrs.items() if key.endswith(("_mag", "seconds"))}
+    return dataset, figure, summary
+
+
 def main(argv=None) -> int:
     args = parse_arguments(__doc__.splitlines()[0], argv)
     for build, stem in ((comparison, "lunar_eclipse_comparison"),
@@ -483,7 +624,8 @@ def main(argv=None) -> int:
                         (altitude_contribution, "lunar_eclipse_altitudes"),
                         (light_curve_2019, "lunar_eclipse_light_curve_2019"),
                         (umbral_edge, "lunar_eclipse_umbral_edge"),
-                        (retrieval_series, "lunar_eclipse_retrieval")):
+                        (retrieval_series, "lunar_eclipse_retrieval"),
+                        (terminator_comparison, "lunar_eclipse_terminator")):
         dataset, figure, summary = build(args.quick)
         save_outputs(dataset, figure, args.output_dir, stem)
         for key, value in summary.items():
@@ -495,6 +637,9 @@ def main(argv=None) -> int:
                            "observed_danjon_l", "model_danjon_class",
                            "model_centre_v_magnitude", "model_rim_to_centre",
                            "model_rim_b_minus_v"]].to_dataframe().round(2).to_string())
+        if stem == "lunar_eclipse_terminator":
+            print(dataset.drop_dims("variant").to_dataframe().round(2).to_string())
+            print(dataset.drop_dims("eclipse").to_dataframe().round(2).to_string())
     return 0
 
 

@@ -45,3 +45,27 @@ def test_2019_light_curve_against_the_published_photometry():
     assert rms(clouds[v]) <= GOAL_RMS_MAG, clouds
     assert rms(clouds[~v]) <= GOAL_RMS_MAG, clouds
     assert rms(dataset.residual_no_clouds.values[v]) > GOAL_RMS_MAG
+
+
+@pytest.mark.slow
+def test_terminator_bands_experiment():
+    """The latitude-band experiment: the near limb's hemisphere and the ozone term.
+
+    The limb point nearest the Moon at greatest eclipse lies in the hemisphere of the
+    Moon's passage, i.e. on the side given by the sign of the canon's gamma (tested against
+    the canon elsewhere), for every observed eclipse; and the bands' AFGL ozone (a
+    terminator mean above 300 DU for 2015-09-28) makes the 2015 Moon fainter than the same
+    bands at 300 DU.
+    """
+    from experiments.lunar_eclipse_comparison import terminator_comparison
+    from skytorch.eclipse.lunar import nearest_eclipse
+
+    dataset, figure, summary = terminator_comparison(quick=True)
+    gamma = np.array([float(nearest_eclipse(np.datetime_as_string(day, "D")).gamma[0])
+                      for day in dataset.eclipse.values])
+    latitude = dataset.near_limb_latitude.values
+    assert np.all(np.sign(latitude) == np.sign(gamma)), (latitude, gamma)
+    v = dict(zip(dataset.variant.values, dataset.variant_v_magnitude.values, strict=True))
+    assert (v["latitude bands (AFGL ozone and water, clouds by zone)"]
+            > v["AFGL T and p, 300 DU and 1.4 cm, clouds by zone"])
+    assert np.isfinite(summary["latitude_bands_rms_v_mag"])
