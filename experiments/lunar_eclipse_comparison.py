@@ -520,7 +520,9 @@ def _terminator_variants(date: str) -> dict:
         "AFGL T and p, 300 DU and 1.4 cm, global clouds": mixture(fixed_columns, same_cover),
         "AFGL T and p, 300 DU and 1.4 cm, clouds by zone": mixture(fixed_columns, zoned),
         "latitude bands (AFGL ozone and water, clouds by zone)":
-            eclipse_shadow(date, terminator="latitude_bands"),
+            eclipse_shadow(date, terminator="latitude_bands_mean"),
+        "latitude bands resolved in direction": eclipse_shadow(date,
+                                                               terminator="latitude_bands"),
     }
 
 
@@ -548,7 +550,7 @@ def terminator_comparison(quick: bool, date: str = "2015-09-28"):
     """Model the observed set with one global limb atmosphere and with latitude bands."""
     observed = _observed_with_v()
     n_times, n_v = (16, 96) if quick else (48, 192)
-    models = ("global", "latitude_bands")
+    models = ("global", "latitude_bands_mean", "latitude_bands")
     values = {model: [] for model in models}
     seconds = dict.fromkeys(models, 0.0)
     near, near_profile = [], []
@@ -604,8 +606,9 @@ def terminator_comparison(quick: bool, date: str = "2015-09-28"):
 
     figure, axis = plt.subplots(figsize=(8, 4))
     years = observed.eclipse.dt.year.values + observed.eclipse.dt.dayofyear.values / 366
-    for offset, model in ((-0.2, "global"), (0.2, "latitude_bands")):
-        axis.bar(years + offset, dataset[f"{model}_residual_v"], width=0.4,
+    for offset, model in ((-0.25, "global"), (0.0, "latitude_bands_mean"),
+                          (0.25, "latitude_bands")):
+        axis.bar(years + offset, dataset[f"{model}_residual_v"], width=0.25,
                  label=f"{model}: rms {attrs[f'{model}_rms_v_mag']:.2f}, bias "
                        f"{attrs[f'{model}_bias_v_mag']:+.2f} mag")
     axis.axhline(0.0, color="k", lw=0.5)
@@ -617,6 +620,55 @@ def terminator_comparison(quick: bool, date: str = "2015-09-28"):
     return dataset, figure, summary
 
 
+def position_angle_accuracy(quick: bool, date: str = "2015-09-28"):
+    """V and B-V of the resolved latitude bands against position angles and arc nodes."""
+    n_times, n_v = (16, 96) if quick else (48, 192)
+    settings = ([(4, 8), (7, 8), (13, 8), (13, 16), (25, 16)] if quick else
+                [(4, 8), (7, 8), (13, 8), (25, 8), (13, 16), (13, 32), (25, 32), (49, 32)])
+    rows = []
+    for n_angle, n_arc in settings:
+        base = eclipse_shadow(date, terminator="latitude_bands", n_arc=n_arc)
+        shadow = ShadowMixture(base.shadows, base.weights, base.names, base.limb_windows,
+                               n_position_angle=n_angle)
+        start = time.perf_counter()
+        curve = lunar_light_curve(date, shadow=shadow, n_times=n_times, table_n_v=n_v)
+        seconds = time.perf_counter() - start
+        v, b_minus_v, _, _ = _faintest(curve)
+        rows.append((n_angle, n_arc, v, b_minus_v, seconds))
+    rows = np.array(rows)
+    reference = rows[-1]
+    dims = ("setting",)
+    dataset = xr.Dataset(
+        {"n_position_angle": (dims, rows[:, 0].astype(int)),
+         "n_arc": (dims, rows[:, 1].astype(int)),
+         "v_magnitude": (dims, rows[:, 2], {"units": "mag"}),
+         "b_minus_v": (dims, rows[:, 3], {"units": "mag"}),
+         "v_error": (dims, rows[:, 2] - reference[2], {"units": "mag", "long_name":
+                     "V minus the finest setting's"}),
+         "b_minus_v_error": (dims, rows[:, 3] - reference[3], {"units": "mag"}),
+         "seconds": (dims, rows[:, 4], {"units": "s"})},
+        coords={"setting": np.arange(len(rows))},
+        attrs={"title": "Lunar eclipse resolved in direction: accuracy against cost",
+               "date": date, "n_times": n_times, "table_n_v": n_v,
+               "reference": f"{int(reference[0])} position angles, {int(reference[1])} arc "
+                            "nodes"})
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6, 4))
+    for n_arc in np.unique(rows[:-1, 1]):
+        pick = rows[:-1, 1] == n_arc
+        axis.loglog(rows[:-1][pick, 4], np.abs(rows[:-1][pick, 2] - reference[2]) + 1e-4,
+                    "o-", label=f"{int(n_arc)} arc nodes")
+        for row in rows[:-1][pick]:
+            axis.annotate(f"{int(row[0])}", (row[4], abs(row[2] - reference[2]) + 1e-4))
+    axis.set(xlabel="light curve [s]", ylabel="|V - reference| + 1e-4 [mag]",
+             title=f"{date}: position angles (labels) and arc nodes")
+    axis.legend()
+    figure.tight_layout()
+    summary = {f"v_error_{int(r[0])}x{int(r[1])}": float(r[2] - reference[2]) for r in rows}
+    return dataset, figure, summary
+
+
 def main(argv=None) -> int:
     args = parse_arguments(__doc__.splitlines()[0], argv)
     for build, stem in ((comparison, "lunar_eclipse_comparison"),
@@ -625,7 +677,8 @@ def main(argv=None) -> int:
                         (light_curve_2019, "lunar_eclipse_light_curve_2019"),
                         (umbral_edge, "lunar_eclipse_umbral_edge"),
                         (retrieval_series, "lunar_eclipse_retrieval"),
-                        (terminator_comparison, "lunar_eclipse_terminator")):
+                        (terminator_comparison, "lunar_eclipse_terminator"),
+                        (position_angle_accuracy, "lunar_eclipse_position_angles")):
         dataset, figure, summary = build(args.quick)
         save_outputs(dataset, figure, args.output_dir, stem)
         for key, value in summary.items():

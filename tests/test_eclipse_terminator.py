@@ -15,7 +15,11 @@ from skytorch.eclipse import Shadow, eclipse_shadow, lunar_light_curve
 from skytorch.eclipse.eclipse_atmosphere import terminator_bands
 from skytorch.eclipse.shadow_mixture import ShadowMixture
 from skytorch.eclipse.shadow_table import ShadowTable
-from skytorch.eclipse.terminator import terminator_band_shares, terminator_latitude
+from skytorch.eclipse.terminator import (
+    LimbLatitudeWindow,
+    terminator_band_shares,
+    terminator_latitude,
+)
 
 F64 = torch.float64
 
@@ -228,3 +232,108 @@ def test_latitude_bands_shadow_and_its_refusals():
                        atmosphere=Atmosphere.earth())
     with pytest.raises(ValueError, match="terminator"):
         eclipse_shadow("2015-09-28", terminator="zonal")
+
+
+# ------------------------------------------------------------------ resolved in direction
+BOUNDS = (-90.0, -52.5, -30.0, 30.0, 52.5, 90.0)
+
+
+def _windows(declination_rad: float):
+    return [LimbLatitudeWindow(a, b, declination_rad)
+            for a, b in zip(BOUNDS[:-1], BOUNDS[1:], strict=True)]
+
+
+def _resolved(atmospheres, declination_rad: float = math.radians(10.0)):
+    shares = terminator_band_shares(torch.tensor(declination_rad, dtype=F64), BOUNDS[1:-1])
+    return ShadowMixture([Shadow.earth(a) for a in atmospheres], shares,
+                         limb_windows=_windows(declination_rad))
+
+
+GEOMETRY = (torch.full((5, 1), 3.8e8, dtype=F64),
+            torch.tensor([0.0, 1e6, 3e6, 4.5e6, 6e6], dtype=F64)[:, None])
+WAVELENGTH = torch.tensor([450.0, 650.0], dtype=F64)
+
+
+def test_windows_partition_the_limb():
+    """One atmosphere in every window is the axisymmetric shadow, at any position angle."""
+    atm = Atmosphere.earth()
+    psi = torch.tensor([0.0, 0.7, 1.6, 2.9, 4.4], dtype=F64)
+    resolved = _resolved([atm] * 5).relative_illuminance(*GEOMETRY, WAVELENGTH,
+                                                         position_angle_rad=psi)
+    single = Shadow.earth(atm).relative_illuminance(*GEOMETRY, WAVELENGTH)
+    assert torch.allclose(resolved, single.expand_as(resolved), rtol=1e-12, atol=0)
+    weights = torch.stack([w.weight(psi) for w in _windows(0.3)])
+    assert torch.equal(weights.sum(0), torch.ones_like(psi))
+
+
+def test_azimuthal_mean_of_the_resolved_shadow_is_the_mixture():
+    """Averaged over position angle, the resolved shadow is the weighted mixture.
+
+    Exact for the integrals; the arc quadrature across the windows' sharp edges leaves
+    0.16 % at most (measured at 650 nm, 4.5e6 m from the axis); checked to 0.5 %.
+    """
+    atmospheres = [Atmosphere.earth(ozone_du=o) for o in (400.0, 380.0, 280.0, 330.0, 350.0)]
+    mixture = _resolved(atmospheres)
+    psi = (torch.arange(72, dtype=F64) + 0.5) * (2 * math.pi / 72)
+    resolved = mixture.relative_illuminance(*GEOMETRY, WAVELENGTH, position_angle_rad=psi)
+    mean = mixture.relative_illuminance(GEOMETRY[0][:, 0], GEOMETRY[1][:, 0], WAVELENGTH)
+    assert float((resolved.mean(1) / mean - 1).abs().max()) < 5e-3
+
+
+def test_the_hazy_cap_darkens_its_own_side():
+    """Volcanic haze over the north cap darkens points north of the axis, not south of it."""
+    clear, hazy = Atmosphere.earth(), Atmosphere.earth(stratospheric_aerosol_optical_depth=0.2)
+    mixture = _resolved([clear, clear, clear, clear, hazy])  # the last window: north cap
+    psi = torch.tensor([0.0, math.pi], dtype=F64)  # north and south of the axis
+    values = mixture.relative_illuminance(*GEOMETRY, WAVELENGTH, position_angle_rad=psi)
+    clear_values = Shadow.earth(clear).relative_illuminance(*GEOMETRY, WAVELENGTH)
+    edge = 3  # 4500 km from the axis: lit by the near limb
+    assert float(values[edge, 0, 1] / clear_values[edge, 0, 1]) < 0.7
+    assert float(values[edge, 1, 1] / clear_values[edge, 0, 1]) > 0.97
+
+
+def test_resolved_table_columns_are_the_shadow():
+    mixture = _resolved([Atmosphere.earth(ozone_du=o) for o in (400, 380, 280, 330, 350)])
+    mixture.n_position_angle = 5
+    table = ShadowTable.compute(mixture, WAVELENGTH, n_u=2, n_v=16, min_distance_m=3.6e8,
+                                max_distance_m=4.0e8, progress=False)
+    assert table.batch_shape == (5,) and table.position_angle_rad.tolist() == pytest.approx(
+        [0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4, math.pi])
+    position = table._positions
+    direct = mixture.relative_illuminance(
+        position["distance_m"][..., None], position["offset_m"][..., None], WAVELENGTH,
+        position_angle_rad=table.position_angle_rad)
+    assert torch.allclose(table.values, direct, rtol=1e-12, atol=0)
+
+
+def test_light_curve_sees_the_limb_on_the_moons_side():
+    """2015-09-28: the Moon passed south of the axis (gamma -0.33), lit through the south.
+
+    Haze over the southern cap darkens mid-totality more than the same haze over the
+    northern cap (end to end: the points' position angles from the 3-D geometry).
+    """
+    day = "2015-09-28"
+    declination = terminator_bands(day)[0].window.solar_declination_rad
+    clear, hazy = Atmosphere.earth(), Atmosphere.earth(stratospheric_aerosol_optical_depth=0.2)
+    v = {}
+    for side, members in (("south", [hazy, clear, clear, clear, clear]),
+                          ("north", [clear, clear, clear, clear, hazy])):
+        mixture = _resolved(members, declination)
+        mixture.n_position_angle = 7
+        curve = lunar_light_curve(day, shadow=mixture, n_times=3, table_n_v=48,
+                                  wavelength_nm=torch.tensor([550.0, 650.0], dtype=F64))
+        v[side] = float(curve["greatest_v_magnitude"])
+    assert v["south"] > v["north"] + 0.2, v
+
+
+def test_resolved_mixture_refusals(two_shadows):
+    with pytest.raises(ValueError, match="limb_windows"):
+        ShadowMixture(two_shadows, [0.5, 0.5]).relative_illuminance(
+            *GEOMETRY, WAVELENGTH, position_angle_rad=torch.zeros(1, dtype=F64))
+    with pytest.raises(TypeError, match="limb_windows"):
+        ShadowMixture(two_shadows, [0.5, 0.5], limb_windows=[None, None])
+    scattering = Shadow.earth(Atmosphere.earth(), scattering=True)
+    with pytest.raises(ValueError, match="scattering"):
+        ShadowMixture([scattering], [1.0], limb_windows=[LimbLatitudeWindow(-90, 90, 0.0)])
+    with pytest.raises(ValueError, match="low_deg"):
+        LimbLatitudeWindow(30.0, -30.0, 0.0)

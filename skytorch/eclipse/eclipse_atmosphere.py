@@ -87,7 +87,7 @@ from skytorch.atmosphere.climatology import afgl_columns, afgl_profile
 from skytorch.eclipse.circumstances import _parse_one
 from skytorch.eclipse.shadow import LimbCloudCover, Shadow
 from skytorch.eclipse.shadow_mixture import ShadowMixture
-from skytorch.eclipse.terminator import terminator_band_shares
+from skytorch.eclipse.terminator import LimbLatitudeWindow, terminator_band_shares
 from skytorch.ephemeris import parse_times, sun_moon_vectors
 
 __all__ = [
@@ -135,7 +135,7 @@ SAGE_CLEAR_7KM = {"tropics": 0.30, "extratropics": 0.60, "altitude_m": 7000.0}
 #: 60 deg; Anderson et al. 1986)
 TERMINATOR_BAND_BOUNDARIES_DEG = (-52.5, -30.0, 30.0, 52.5)
 #: ways to describe the limb atmosphere along the terminator (:func:`eclipse_shadow`)
-TERMINATOR_MODELS = ("global", "latitude_bands")
+TERMINATOR_MODELS = ("global", "latitude_bands", "latitude_bands_mean")
 #: share of the terminator's length within 25 deg of the equator (a great circle through
 #: the poles: 50/180; 0.31 at a solar declination of 23.4 deg)
 TROPICAL_TERMINATOR_SHARE = 0.28
@@ -294,6 +294,8 @@ class TerminatorBand:
     atmosphere: Atmosphere
     #: the band's limb cloud profile (SAGE tropics or extratropics at 7 km)
     cloud_cover: LimbCloudCover
+    #: the band's part of the limb by position angle around the shadow's axis
+    window: LimbLatitudeWindow
 
 
 def _band_profiles(month: int) -> tuple[str, ...]:
@@ -356,8 +358,9 @@ def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
             stratospheric_aerosol_optical_depth=stratospheric_aod_550,
             name=f"eclipse {np.datetime_as_string(moment, 'D')} {profile}")
         zone = "tropics" if profile == "tropical" else "extratropics"
+        window = LimbLatitudeWindow(edges[k], edges[k + 1], float(declination))
         bands.append(TerminatorBand(f"{edges[k]:g}..{edges[k + 1]:g} deg", profile,
-                                    float(shares[k]), atmosphere, covers[zone]))
+                                    float(shares[k]), atmosphere, covers[zone], window))
     return tuple(bands)
 
 
@@ -370,12 +373,15 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
     ----------
     date : str, datetime or datetime64
         Date of the eclipse (UTC).
-    terminator : {"global", "latitude_bands"}
+    terminator : {"global", "latitude_bands", "latitude_bands_mean"}
         ``"global"``: one global-mean limb atmosphere (:func:`eclipse_atmosphere`);
         ``"latitude_bands"``: a :class:`~skytorch.eclipse.shadow_mixture.ShadowMixture` of
         the five bands of :func:`terminator_bands` (AFGL profiles by latitude and season,
-        SAGE clouds by zone), weighted by their shares of the terminator (``atmosphere``
-        and ``cloud_cover`` must then be None).
+        SAGE clouds by zone), each on its part of the limb, so that the shadow is resolved
+        in direction around the axis where the position angles are given (the lunar light
+        curves give them); ``"latitude_bands_mean"``: the same bands weighted by their
+        shares of the terminator, the azimuthal mean. ``atmosphere`` and ``cloud_cover``
+        must be None with either.
     clouds : {"rossow1999", "deck", "none"}
         ``"rossow1999"``: the limb cloud profile ``cloud_cover`` (default
         :func:`cloud_climatology`); ``"deck"``: one deck of ``cloud_top_altitude_m`` and
@@ -399,9 +405,9 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
     """
     check_choice("clouds", clouds, CLOUD_MODELS)
     check_choice("terminator", terminator, TERMINATOR_MODELS)
-    if terminator == "latitude_bands":
+    if terminator != "global":
         if atmosphere is not None or cloud_cover is not None:
-            raise ValueError("terminator='latitude_bands' builds the atmosphere and clouds of "
+            raise ValueError(f"terminator={terminator!r} builds the atmosphere and clouds of "
                              "each band: give atmosphere=None and cloud_cover=None (got "
                              f"{type(atmosphere).__name__}, {type(cloud_cover).__name__})")
         bands = terminator_bands(date)
@@ -409,8 +415,11 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
                                   cloud_fraction=cloud_fraction, atmosphere=band.atmosphere,
                                   cloud_cover=band.cloud_cover, **shadow_options)
                    for band in bands]
+        windows = ([band.window for band in bands] if terminator == "latitude_bands"
+                   else None)
         return ShadowMixture(shadows, [band.weight for band in bands],
-                             names=[f"{band.name} {band.profile}" for band in bands])
+                             names=[f"{band.name} {band.profile}" for band in bands],
+                             limb_windows=windows)
     if atmosphere is None:
         atmosphere = eclipse_atmosphere(date)
     if clouds == "deck":

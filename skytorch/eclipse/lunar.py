@@ -198,8 +198,14 @@ def _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance, di
     points = moon[:, None, :] + MOON_RADIUS_M * torch.einsum("pk,nkj->npj", normal, axes)
     anti_sun = -sun / torch.linalg.norm(sun, dim=-1, keepdim=True)
     along = torch.einsum("npj,nj->np", points, anti_sun)
-    offset = torch.linalg.norm(points - along[..., None] * anti_sun[:, None, :], dim=-1)
-    illuminance, direct = shadow_fn(along, offset)  # (n, p, *B, n_wl), (n, p)
+    across = points - along[..., None] * anti_sun[:, None, :]
+    offset = torch.linalg.norm(across, dim=-1)
+    # position angle around the axis from the projected celestial pole (GCRS z), in [0, pi]
+    pole = torch.tensor([0.0, 0.0, 1.0], dtype=anti_sun.dtype) - anti_sun[:, 2:3] * anti_sun
+    pole = pole / torch.linalg.norm(pole, dim=-1, keepdim=True)
+    cosine = torch.einsum("npj,nj->np", across, pole) / offset.clamp_min(1.0)
+    angle = torch.acos(torch.clamp(cosine, -1.0, 1.0)).detach()
+    illuminance, direct = shadow_fn(along, offset, angle)  # (n, p, *B, n_wl), (n, p)
     ring_radiance = radiance if not ring_phase else disc_radiance(
         normal, torch.asin(EARTH_MEAN_RADIUS_M / moon_distance), wavelength, limb,
         sun_distance_m=torch.linalg.norm(moon_to_sun, dim=-1), distance_m=moon_distance,
@@ -329,7 +335,7 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     grid = disc_grid(n_disc)
     solid = (MOON_RADIUS_M / distances) ** 2  # sr per unit disc area
     weight = grid["weight"] * solid[:, None]  # (n_time, n_point) [sr]
-    batch = table.batch_shape
+    batch = _members(table)
     # times in chunks: the look-up temporaries are (times, points, members, wavelengths)
     size = grid["weight"].numel() * math.prod(batch) * wavelength.numel()
     step = max(1, _LOOKUP_ELEMENTS // size)
@@ -482,7 +488,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     curve, run = _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc,
                               enlargement, shadow, table_n_u, table_n_v, progress, ring_phase)
     times, row, shadow, wavelength = run.times, run.row, run.shadow, run.wavelength
-    batch = tuple(run.table.batch_shape)
+    batch = _members(run.table)
     dims = _batch_dims(batch, batch_dims)
     flux, v_mag = curve["spectral_irradiance"], curve["v_magnitude"]  # (*B, time, ...)
     greatest_v = curve["greatest_v_magnitude"]
@@ -594,15 +600,17 @@ def _batch_coordinates(shadow, batch: tuple[int, ...], dims: tuple[str, ...]) ->
 
 
 def _shadow_lookup(table, sun):
-    """Shadow look-up ``(along, offset) -> (I / I_sun (n, p, *B, n_wl), direct (n, p))``.
+    """Shadow look-up ``(along, offset, angle) -> (I / I_sun (n, p, *B, n_wl), direct (n, p))``.
 
     ``direct`` is the fraction of the limb-darkened solar disc seen above the atmosphere
     (:func:`sun_visible_fraction` with the top of the atmosphere as occluder), for Sun
-    vectors (n, 3).
+    vectors (n, 3). ``angle`` (n, p), the points' position angles around the axis [rad],
+    is used by a table resolved in direction (linear in angle between its columns) and
+    ignored otherwise.
     """
     distance = torch.linalg.norm(sun, dim=-1)
 
-    def function(along, offset):
+    def function(along, offset, angle):
         sun_distance = distance[:, None].expand_as(along)
         angles = shadow_angles(along, offset, sun_distance, table.sun_radius_m,
                                table.occluder_radius_m)
@@ -610,9 +618,24 @@ def _shadow_lookup(table, sun):
                                       angles["separation_rad"],
                                       table.attrs.get("limb_darkening", 0.6),
                                       table.attrs.get("limb_darkening_law", "linear"))
-        return table.lookup(along, offset, sun_distance_m=sun_distance), direct
+        values = table.lookup(along, offset, sun_distance_m=sun_distance)
+        if table.position_angle_rad is None:
+            return values, direct
+        grid = table.position_angle_rad
+        x = torch.clamp(angle, 0.0, math.pi) / math.pi * (grid.shape[0] - 1)
+        i = torch.clamp(torch.floor(x), 0, grid.shape[0] - 2).long()
+        fraction = (x - i.to(x.dtype)).unsqueeze(-1)
+        pick = i[..., None, None].expand(*i.shape, 1, values.shape[-1])
+        low = values.gather(-2, pick).squeeze(-2)
+        high = values.gather(-2, pick + 1).squeeze(-2)
+        return low + fraction * (high - low), direct
 
     return function
+
+
+def _members(table) -> tuple[int, ...]:
+    """Batch shape of the table's atmospheres (none for a table resolved in direction)."""
+    return () if table.position_angle_rad is not None else tuple(table.batch_shape)
 
 
 def plot_lunar_eclipse(dataset: xr.Dataset, path=None):

@@ -218,7 +218,7 @@ def solar_normalisation(sun_radius_rad, limb_darkening=0.6, law: str = "linear",
 
 
 def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
-                       n_nodes: int = DEFAULT_ARC_NODES) -> torch.Tensor:
+                       n_nodes: int = DEFAULT_ARC_NODES, azimuth_weight=None) -> torch.Tensor:
     r"""Limb-darkened solar radiance integrated along a circle on the sky.
 
     Parameters
@@ -233,6 +233,11 @@ def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
         a2``).
     n_nodes : int
         Gauss–Legendre nodes on the arc.
+    azimuth_weight : callable, optional
+        ``azimuth_weight(psi)`` -> weights of the arc's azimuths ``psi >= 0`` [rad]
+        (shape ``(..., n_nodes)``), the mean of the weights at ``+psi`` and ``-psi``: the
+        integral becomes :math:`\int I\,W(\psi)\,d\psi` (a part of the ring, e.g. one
+        latitude band of the limb). Default 1.
 
     Returns
     -------
@@ -265,10 +270,16 @@ def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
     # 1 - 4 hav(gamma) (1 - hav(gamma)) / sin^2(rho_s) = 1 - (sin(gamma) / sin(rho_s))^2
     one = torch.ones((), dtype=alpha.dtype)
     mu = _safe_sqrt(torch.addcmul(one, hav_gamma * (hav_gamma - 1.0), scale))
-    # the weights of v sum to 1 (int_0^1 2v dv): the constant term needs no quadrature
-    mean = a0 + a1 * (mu @ weight)
+    if azimuth_weight is None:
+        # the weights of v sum to 1 (int_0^1 2v dv): the constant term needs no quadrature
+        mean = a0 + a1 * (mu @ weight)
+        if bool((a2 != 0).any()):
+            mean = mean + a2 * (mu.square() @ weight)
+        return 2.0 * psi_max * mean
+    share = azimuth_weight(2.0 * psi_max.unsqueeze(-1) * half_arc)
+    mean = a0 * (share @ weight) + a1 * ((mu * share) @ weight)
     if bool((a2 != 0).any()):
-        mean = mean + a2 * (mu.square() @ weight)
+        mean = mean + a2 * ((mu.square() * share) @ weight)
     return 2.0 * psi_max * mean
 
 
@@ -825,12 +836,14 @@ def _breakpoints(profile: RingProfile, tables, centre, separation, sun_radius, s
 
 
 def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coefficients,
-                n_ring: int, n_arc: int, radius: float, n_split: int = 1) -> torch.Tensor:
+                n_ring: int, n_arc: int, radius: float, n_split: int = 1,
+                limb=None) -> torch.Tensor:
     """Ring integral for 1-D tensors of points -> (n_point, n_batch, n_wl), unnormalised.
 
     Only the non-empty pieces of the ``beta`` integral (between breakpoints of ``F``, the
     terrain and cloud kinks) are integrated: (point, piece) pairs are gathered, integrated
-    and summed back per point.
+    and summed back per point. ``limb``: ``(position_angle (n_point,), window)`` to keep
+    only the part of the limb where ``window.weight(limb position angle)`` is non-zero.
     """
     dtype = centre.dtype
     tables = profile.tables(dtype)
@@ -875,7 +888,8 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     beta, dbeta_ds = profile.grid.beta_and_slope(s)
     b = radius + beta
     a = torch.asin(b / centre) - scale * deviation
-    arc = solar_arc_integral(a.abs(), sun_radius, separation, coefficients, n_nodes=n_arc)
+    arc = solar_arc_integral(a.abs(), sun_radius, separation, coefficients, n_nodes=n_arc,
+                             azimuth_weight=_limb_weight(limb, point, a))
     solid = b / (centre * torch.sqrt((centre - b) * (centre + b)))
     weight = arc * solid * dbeta_ds * ds
     weight = weight * _ray_weight(periapsis, profile)
@@ -890,11 +904,31 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     return pairs.new_zeros((n_point, *pairs.shape[1:])).index_add(0, point, pairs)
 
 
+def _limb_weight(limb, point: torch.Tensor, apparent: torch.Tensor):
+    """Weights of the arc's azimuths for a window on the limb (None without one).
+
+    A ray at apparent angle ``a > 0`` left the limb at position angle ``angle ± psi`` (the
+    side of the Sun's offset, which is the point's own position angle around the axis), one
+    with ``a < 0`` on the opposite side, ``angle + pi ± psi``.
+    """
+    if limb is None:
+        return None
+    angle, window = limb
+    base = (angle.index_select(0, point)[:, None]
+            + math.pi * (apparent < 0).to(apparent.dtype)).detach().unsqueeze(-1)
+
+    def weight(psi):
+        return 0.5 * (window.weight(base + psi) + window.weight(base - psi))
+
+    return weight
+
+
 def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, separation_rad,
                      deviation_scale, coefficients, occluder_radius_m: float,
                      n_ring: int = DEFAULT_RING_NODES,
                      n_arc: int = DEFAULT_ARC_NODES,
-                     n_split: int = 1) -> torch.Tensor:
+                     n_split: int = 1, position_angle_rad=None,
+                     limb_window=None) -> torch.Tensor:
     """Irradiance through the atmosphere ring, in units of the central solar radiance.
 
     Parameters
@@ -911,6 +945,12 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
         Gauss–Legendre nodes per ring piece and on the solar arc.
     n_split : int
         Equal sub-pieces per piece (composite rule).
+    position_angle_rad : Tensor (...), optional
+        With ``limb_window``: position angle of each point around the shadow's axis
+        [rad], from the direction in which the window's position angles are counted.
+    limb_window : object with ``weight(position_angle_rad) -> Tensor``, optional
+        Keep only the light through the part of the limb where the weight is non-zero
+        (e.g. :class:`skytorch.eclipse.terminator.LimbLatitudeWindow`, one latitude band).
 
     Returns
     -------
@@ -918,10 +958,16 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
         Ring irradiance [sr] (divide by :func:`solar_normalisation` for I / I_sun), per
         member of the profile's batch of atmospheres (``n_batch = 1`` for one).
     """
+    if (limb_window is None) != (position_angle_rad is None):
+        raise ValueError("limb_window and position_angle_rad go together; got "
+                         f"limb_window={limb_window!r}, position_angle_rad "
+                         f"{'given' if position_angle_rad is not None else 'None'}")
+    extra = () if position_angle_rad is None else (position_angle_rad,)
     tensors = torch.broadcast_tensors(centre_distance_m, sun_radius_rad, separation_rad,
-                                      deviation_scale, *coefficients)
+                                      deviation_scale, *coefficients, *extra)
     shape = tensors[0].shape
     flat = [x.reshape(-1) for x in tensors]
+    angle = flat.pop() if extra else None
     n_wl = profile.optical_depth.shape[-1]
     centre, sun_radius, separation, scale = flat[:4]
     with torch.no_grad():
@@ -943,11 +989,13 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
     if active.numel() == 0:
         return result.reshape(*shape, n_batch, n_wl) + 0.0 * flat[0].reshape(*shape, 1, 1)
     chosen = [x.index_select(0, active) for x in flat]
+    angle = None if angle is None else angle.index_select(0, active)
     pieces = []
     for start in range(0, chosen[0].shape[0], _CHUNK):
         part = [x[start:start + _CHUNK] for x in chosen]
+        limb = None if angle is None else (angle[start:start + _CHUNK], limb_window)
         pieces.append(_ring_chunk(profile, *part[:4], tuple(part[4:]), n_ring, n_arc,
-                                  occluder_radius_m, n_split))
+                                  occluder_radius_m, n_split, limb))
     result = result.index_put((active,), torch.cat(pieces))
     return result.reshape(*shape, n_batch, n_wl)
 
@@ -1540,8 +1588,14 @@ class Shadow(nn.Module):
         return self._relative_illuminance(distance_m, offset_m, wavelength_nm, sun_distance_m)
 
     def _relative_illuminance(self, distance_m, offset_m, wavelength_nm, sun_distance_m=None,
-                              profile=None) -> torch.Tensor:
-        """:meth:`relative_illuminance` with a prepared ring profile (``None``: build it)."""
+                              profile=None, position_angle_rad=None, limb_window=None,
+                              direct_light: bool = True) -> torch.Tensor:
+        """:meth:`relative_illuminance` with a prepared ring profile (``None``: build it).
+
+        With ``limb_window`` (and the points' ``position_angle_rad`` around the axis) only
+        the light refracted through that part of the limb is kept (the direct sunlight
+        too unless ``direct_light=False``); scattering cannot be windowed and raises.
+        """
         dtype = common_dtype(distance_m, offset_m)
         wavelength = _check_wavelength(wavelength_nm, dtype)
         angles = self._geometry(distance_m, offset_m, sun_distance_m, dtype)
@@ -1552,6 +1606,15 @@ class Shadow(nn.Module):
         limb = self.limb_darkening.to(dtype)
         direct = sun_visible_fraction(rho_s, angles["occluder_radius_rad"], sigma, limb,
                                       self.law)
+        if not direct_light:
+            direct = torch.zeros_like(direct)
+        if limb_window is not None:
+            if self.scattering:
+                raise ValueError("a limb window keeps part of the refracted light only; the "
+                                 "single-scattered light (scattering=True) is not windowed: "
+                                 "build the shadow with scattering=False")
+            position_angle_rad = as_tensor("position_angle_rad", position_angle_rad,
+                                           dtype=dtype).detach()
         if profile is None:
             profile = self.ring_profile(wavelength)
         if profile is None:
@@ -1561,8 +1624,13 @@ class Shadow(nn.Module):
                  else angles["sun_distance_m"]) / angles["sun_range_m"]
         n_ring, n_split = self.ring_quadrature(profile)
         ring = ring_illuminance(profile, centre, rho_s, sigma, scale, coefficients,
-                                self.occluder_radius_m, n_ring, self.n_arc, n_split)
+                                self.occluder_radius_m, n_ring, self.n_arc, n_split,
+                                position_angle_rad=position_angle_rad,
+                                limb_window=limb_window)
         normalisation = solar_normalisation(rho_s, limb, self.law)
+        if position_angle_rad is not None:  # the ring may broadcast to more points
+            normalisation = normalisation.expand(ring.shape[:-2])
+            direct = direct.expand(ring.shape[:-2])
         total = direct[..., None, None] + ring / normalisation[..., None, None]
         scattering = self.scattering_profile(wavelength)
         if scattering is not None:

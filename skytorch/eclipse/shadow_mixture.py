@@ -37,10 +37,14 @@ from collections.abc import Sequence
 import torch
 from torch import nn
 
-from skytorch._validate import as_tensor, check_range
+from skytorch._validate import as_tensor, check_int, check_range
 from skytorch.eclipse.shadow import Shadow
 
-__all__ = ["ShadowMixture"]
+__all__ = ["DEFAULT_POSITION_ANGLES", "ShadowMixture"]
+
+#: position angles over [0, pi] of the shadow table of a mixture resolved in direction
+#: (15 deg apart)
+DEFAULT_POSITION_ANGLES = 13
 
 #: geometry every member must share [m]
 _GEOMETRY = ("occluder_radius_m", "top_radius_m", "sun_distance_m", "sun_radius_m")
@@ -58,6 +62,16 @@ class ShadowMixture(nn.Module):
         Share of each member [1], >= 0, summing to 1 (within 1e-9).
     names : sequence of str, optional
         Label of each member (Dataset attributes); default ``member_0``, ...
+    limb_windows : sequence, optional
+        The part of the limb each member's atmosphere occupies, one window per member
+        with ``weight(position_angle_rad)`` (e.g.
+        :class:`~skytorch.eclipse.terminator.LimbLatitudeWindow`); the windows must
+        partition the limb. With them :meth:`relative_illuminance` also takes the points'
+        position angles and resolves the shadow in direction (members unbatched, without
+        ``scattering``).
+    n_position_angle : int
+        Position angles over [0, π] of its shadow table when resolved in direction
+        (:meth:`ShadowTable.compute <skytorch.eclipse.shadow_table.ShadowTable.compute>`).
 
     Raises
     ------
@@ -68,7 +82,9 @@ class ShadowMixture(nn.Module):
         another geometry.
     """
 
-    def __init__(self, shadows: Sequence[Shadow], weights, names: Sequence[str] | None = None):
+    def __init__(self, shadows: Sequence[Shadow], weights, names: Sequence[str] | None = None,
+                 limb_windows: Sequence | None = None,
+                 n_position_angle: int = DEFAULT_POSITION_ANGLES):
         super().__init__()
         shadows = list(shadows)
         if not shadows:
@@ -91,6 +107,10 @@ class ShadowMixture(nn.Module):
         names = [f"member_{k}" for k in range(len(shadows))] if names is None else list(names)
         if len(names) != len(shadows) or not all(isinstance(n, str) for n in names):
             raise TypeError(f"names must be {len(shadows)} strings; got {names!r}")
+        #: the part of the limb of each member (None: azimuthal mean only)
+        self.limb_windows = (None if limb_windows is None
+                             else _check_windows(shadows, tuple(limb_windows)))
+        self.n_position_angle = check_int("n_position_angle", n_position_angle, low=2)
         self.shadows = nn.ModuleList(shadows)
         self.register_buffer("weights", weights)
         self.names = tuple(names)
@@ -101,8 +121,28 @@ class ShadowMixture(nn.Module):
         self.atmosphere = None
 
     def relative_illuminance(self, distance_m, offset_m, wavelength_nm,
-                             sun_distance_m=None) -> torch.Tensor:
-        """Weighted mean of the members' :meth:`Shadow.relative_illuminance` (same shapes)."""
+                             sun_distance_m=None, position_angle_rad=None) -> torch.Tensor:
+        """Illuminance relative to the unobstructed Sun (shapes of :class:`Shadow`'s).
+
+        Without ``position_angle_rad``: the weighted mean of the members' illuminance
+        (the azimuthal mean). With it (needs ``limb_windows``): the direct sunlight plus,
+        from each member, the light refracted through its window of the limb, for points
+        at these position angles around the axis [rad] (from the direction the windows
+        count from; broadcast with the geometry).
+        """
+        if position_angle_rad is not None:
+            if self.limb_windows is None:
+                raise ValueError("position_angle_rad needs a mixture with limb_windows (the "
+                                 "part of the limb of each member); this one has none")
+            total = None
+            for k, (shadow, window) in enumerate(zip(self.shadows, self.limb_windows,
+                                                     strict=True)):
+                part = shadow._relative_illuminance(
+                    distance_m, offset_m, wavelength_nm, sun_distance_m,
+                    position_angle_rad=position_angle_rad, limb_window=window,
+                    direct_light=k == 0)
+                total = part if total is None else total + part
+            return total
         total = None
         for weight, shadow in zip(self.weights, self.shadows, strict=True):
             part = weight * shadow.relative_illuminance(distance_m, offset_m, wavelength_nm,
@@ -114,7 +154,10 @@ class ShadowMixture(nn.Module):
 
     def parameters_dict(self) -> dict:
         """Return the members' settings and weights (for Dataset attributes)."""
-        return {"shadow": self.name,
+        resolved = ("none" if self.limb_windows is None
+                    else [repr(window) for window in self.limb_windows])
+        return {"shadow": self.name, "limb_windows": resolved,
+                "n_position_angle": self.n_position_angle,
                 "members": [{"name": name, "weight": float(weight),
                              **shadow.parameters_dict()}
                             for name, weight, shadow in zip(self.names, self.weights.tolist(),
@@ -140,3 +183,17 @@ def _check_members(shadows: list[Shadow]) -> None:
             raise ValueError(f"shadows[{k}] has the limb darkening {shadow.law} "
                              f"{shadow.limb_darkening.tolist()}; shadows[0] has "
                              f"{first.law} {first.limb_darkening.tolist()}")
+
+
+def _check_windows(shadows: list[Shadow], windows: tuple) -> tuple:
+    """Refuse windows of another count or kind, and members a window cannot resolve."""
+    if len(windows) != len(shadows) or not all(
+            callable(getattr(w, "weight", None)) for w in windows):
+        raise TypeError(f"limb_windows must be {len(shadows)} objects with a "
+                        f"weight(position_angle_rad) method; got {windows!r}")
+    for k, shadow in enumerate(shadows):
+        if shadow.batch_shape or shadow.scattering:
+            raise ValueError(f"shadows[{k}]: a mixture resolved in direction takes unbatched "
+                             "members without scattering; got batch shape "
+                             f"{shadow.batch_shape}, scattering={shadow.scattering}")
+    return windows

@@ -77,7 +77,7 @@ from skytorch.eclipse.shadow import (
     _check_wavelength,
     shadow_angles,
 )
-from skytorch.eclipse.shadow_mixture import ShadowMixture
+from skytorch.eclipse.shadow_mixture import DEFAULT_POSITION_ANGLES, ShadowMixture
 
 __all__ = [
     "INTERPOLATIONS",
@@ -90,6 +90,7 @@ logger = logging.getLogger(__name__)
 
 #: look-up interpolation: bilinear in log(I / I_sun) or in I / I_sun
 INTERPOLATIONS = ("log", "linear")
+
 #: relative change of the Sun's distance at which the inverse mapping stops
 INVERSE_TOLERANCE = 1e-15
 #: iteration limit of the inverse mapping
@@ -299,6 +300,16 @@ class ShadowTable(nn.Module):
         self.attrs = dict(attrs or {})
         if provenance is not None and not isinstance(provenance, dict):
             raise TypeError(f"provenance must be a dict or None; got {type(provenance).__name__}")
+        #: position angles around the axis [rad] of a table resolved in direction (its
+        #: one batch dimension; ``attrs["position_angle_rad"]``), None otherwise
+        self.position_angle_rad = (
+            None if "position_angle_rad" not in self.attrs
+            else torch.tensor(self.attrs["position_angle_rad"], dtype=torch.float64))
+        if (self.position_angle_rad is not None
+                and self.batch_shape != tuple(self.position_angle_rad.shape)):
+            raise ValueError("a table resolved in direction has its position angles as its "
+                             f"one batch dimension: {self.position_angle_rad.shape[0]} "
+                             f"angles, batch shape {self.batch_shape}")
         #: what the table was built for: ``shadow_sha256`` (every setting of the shadow
         #: model, its atmosphere included), ``atmosphere_sha256``, ``n_u``, ``n_v`` (set by
         #: :meth:`compute`; see :meth:`check_compatible`)
@@ -306,16 +317,21 @@ class ShadowTable(nn.Module):
 
     # ------------------------------------------------------------------ build
     @classmethod
-    def compute(cls, shadow, wavelength_nm, *, n_u: int = 256, n_v: int = 256,
+    def compute(cls, shadow, wavelength_nm, *, n_u: int = 256, n_v: int = 256,  # noqa: C901 (checks, two kinds of shadow)
                 min_distance_m: float | None = None, max_distance_m: float | None = None,
                 interpolation: str = "log", progress: bool = True,
-                dtype: torch.dtype = torch.float64) -> ShadowTable:
+                dtype: torch.dtype = torch.float64,
+                n_position_angle: int | None = None) -> ShadowTable:
         """Evaluate ``shadow.relative_illuminance`` on the (u, v) grid.
 
         Parameters
         ----------
-        shadow : Shadow
-            The shadow model (its default Sun distance is used).
+        shadow : Shadow or ShadowMixture
+            The shadow model (its default Sun distance is used). A mixture with
+            ``limb_windows`` is resolved in direction: its table has the position angle
+            around the axis (``n_position_angle`` values over [0, π]) as its one batch
+            dimension (:attr:`position_angle_rad`); a mixture without them is the
+            weighted mean of its members' tables.
         wavelength_nm : Tensor (wavelength,)
             Wavelengths [nm].
         n_u, n_v : int
@@ -330,6 +346,9 @@ class ShadowTable(nn.Module):
             Show a progress bar (only on a terminal).
         dtype : torch.dtype
             Precision of the evaluation.
+        n_position_angle : int, optional
+            Position angles of a mixture resolved in direction (>= 2); default the
+            mixture's ``n_position_angle``.
 
         Notes
         -----
@@ -343,17 +362,21 @@ class ShadowTable(nn.Module):
         """
         from tqdm.auto import tqdm
 
-        if isinstance(shadow, ShadowMixture):
+        resolved = isinstance(shadow, ShadowMixture) and shadow.limb_windows is not None
+        if isinstance(shadow, ShadowMixture) and not resolved:
             return cls._compute_mixture(shadow, wavelength_nm, n_u=n_u, n_v=n_v,
                                         min_distance_m=min_distance_m,
                                         max_distance_m=max_distance_m,
                                         interpolation=interpolation, progress=progress,
                                         dtype=dtype)
-        if not isinstance(shadow, Shadow):
+        if not isinstance(shadow, (Shadow, ShadowMixture)):
             raise TypeError(f"shadow must be a skytorch.eclipse.Shadow or ShadowMixture; got "
                             f"{type(shadow).__name__}: {shadow!r:.60}")
         n_u = check_int("n_u", n_u, low=2)
         n_v = check_int("n_v", n_v, low=2)
+        if n_position_angle is None:
+            n_position_angle = getattr(shadow, "n_position_angle", DEFAULT_POSITION_ANGLES)
+        n_position_angle = check_int("n_position_angle", n_position_angle, low=2)
         check_choice("interpolation", interpolation, INTERPOLATIONS)
         if not isinstance(dtype, torch.dtype) or not dtype.is_floating_point:
             raise TypeError(f"dtype must be a floating torch.dtype; got {dtype!r}")
@@ -377,25 +400,39 @@ class ShadowTable(nn.Module):
         wavelength = _check_wavelength(wavelength_nm, dtype)
         position = shadow_uv_inverse(u[:, None].expand(n_u, n_v), v[None, :].expand(n_u, n_v),
                                      big_d, r_s, r_o)
-        # one ring table for every row (with parameters that require a gradient it is
-        # rebuilt on every call of relative_illuminance, so build it here once)
-        profile = shadow.ring_profile(wavelength)
+        attrs = {"min_distance_m": low, "max_distance_m": high, "n_u": n_u, "n_v": n_v,
+                 "dtype": str(dtype).replace("torch.", "")}
+        if resolved:
+            # a shadow resolved in direction: the position angles around the axis are the
+            # table's one batch dimension (the latitude on the limb depends on cos only)
+            angles = torch.linspace(0.0, math.pi, n_position_angle, dtype=dtype)
+            attrs["position_angle_rad"] = angles.tolist()
+            batch = (n_position_angle,)
+
+            def evaluate(distance, offset):
+                return shadow.relative_illuminance(distance, offset, wavelength,
+                                                   position_angle_rad=angles)
+        else:
+            # one ring table for every row (with parameters that require a gradient it is
+            # rebuilt on every call of relative_illuminance, so build it here once)
+            profile = shadow.ring_profile(wavelength)
+            batch = tuple(getattr(shadow, "batch_shape", ()))
+
+            def evaluate(distance, offset):
+                return shadow._relative_illuminance(distance, offset, wavelength,
+                                                    profile=profile)
         rows = []
         show = progress and _is_terminal()
-        step = max(1, 4096 // n_v)
-        batch = tuple(getattr(shadow, "batch_shape", ()))
+        step = max(1, 4096 // (n_v * math.prod(batch) if resolved else n_v))
         ones = (1,) * len(batch)
         # no torch.no_grad: the values keep the graph of atmosphere parameters (and a
         # cloud-top tensor) that require a gradient, for lookups that carry it
         for start in tqdm(range(0, n_u, step), desc="shadow table", disable=not show):
             distance = position["distance_m"][start:start + step].to(dtype)
             offset = position["offset_m"][start:start + step].to(dtype)
-            rows.append(shadow._relative_illuminance(
-                distance.reshape(*distance.shape, *ones), offset.reshape(*offset.shape, *ones),
-                wavelength, profile=profile))
+            rows.append(evaluate(distance.reshape(*distance.shape, *ones),
+                                 offset.reshape(*offset.shape, *ones)))
         values = torch.cat(rows).to(torch.float64)
-        attrs = {"min_distance_m": low, "max_distance_m": high, "n_u": n_u, "n_v": n_v,
-                 "dtype": str(dtype).replace("torch.", "")}
         if hasattr(shadow, "parameters_dict"):
             attrs.update(shadow.parameters_dict())
         table = cls(u, v, wavelength, values, sun_distance_m=big_d, sun_radius_m=r_s,

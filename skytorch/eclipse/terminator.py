@@ -39,7 +39,7 @@ import torch
 
 from skytorch._validate import as_tensor, check_range
 
-__all__ = ["terminator_band_shares", "terminator_latitude"]
+__all__ = ["LimbLatitudeWindow", "terminator_band_shares", "terminator_latitude"]
 
 
 def terminator_latitude(position_angle_rad, solar_declination_rad) -> torch.Tensor:
@@ -98,3 +98,45 @@ def terminator_band_shares(solar_declination_rad,
     pad = torch.zeros_like(angle[..., :1])
     edges = torch.cat([pad + math.pi, angle, pad], dim=-1)  # south pole .. north pole
     return (edges[..., :-1] - edges[..., 1:]) / math.pi
+
+
+class LimbLatitudeWindow:
+    r"""The part of the limb between two latitudes, by position angle around the axis.
+
+    ``weight(theta)`` is 1 where the limb point at position angle ``theta`` from the
+    projected celestial north pole lies at a latitude in ``[low, high)`` and 0 elsewhere
+    (:func:`terminator_latitude`; the latitude depends on :math:`\cos\theta` only, so the
+    sense in which ``theta`` is counted does not matter). Windows with shared boundaries
+    partition the limb: their weights sum to 1 at every position angle.
+
+    Parameters
+    ----------
+    low_deg, high_deg : float
+        Latitude bounds [deg], ``low < high``; ``-inf``/``inf`` (or -90/90) for the caps.
+    solar_declination_rad : float
+        Declination of the Sun [rad], in (-π/2, π/2).
+    """
+
+    def __init__(self, low_deg: float, high_deg: float, solar_declination_rad: float):
+        low, high = float(low_deg), float(high_deg)
+        if not low < high:
+            raise ValueError(f"low_deg must be below high_deg; got {low} and {high}")
+        delta = float(check_range("solar_declination_rad", solar_declination_rad,
+                                  -0.5 * math.pi, 0.5 * math.pi, low_inclusive=False,
+                                  high_inclusive=False))
+        self.low_deg, self.high_deg = low, high
+        self.solar_declination_rad = delta
+        # bounds on sin(latitude) / cos(delta) = cos(theta): the caps reach +-1
+        scale = math.cos(delta)
+        self._low = -math.inf if low <= -90.0 else math.sin(math.radians(low)) / scale
+        self._high = math.inf if high >= 90.0 else math.sin(math.radians(high)) / scale
+
+    def weight(self, position_angle_rad: torch.Tensor) -> torch.Tensor:
+        """Return 1 inside the window and 0 outside, at limb position angles [rad]."""
+        cosine = torch.cos(position_angle_rad)
+        return ((cosine >= self._low) & (cosine < self._high)).to(position_angle_rad.dtype)
+
+    def __repr__(self) -> str:
+        """Bounds and declination."""
+        return (f"LimbLatitudeWindow({self.low_deg:g}..{self.high_deg:g} deg, declination "
+                f"{math.degrees(self.solar_declination_rad):.2f} deg)")
