@@ -337,3 +337,19 @@ def test_resolved_mixture_refusals(two_shadows):
         ShadowMixture([scattering], [1.0], limb_windows=[LimbLatitudeWindow(-90, 90, 0.0)])
     with pytest.raises(ValueError, match="low_deg"):
         LimbLatitudeWindow(30.0, -30.0, 0.0)
+
+
+def test_resolved_table_round_trip(tmp_path):
+    from skytorch.dataset import to_netcdf
+
+    mixture = _resolved([Atmosphere.earth(ozone_du=o) for o in (400, 380, 280, 330, 350)])
+    mixture.n_position_angle = 3
+    table = ShadowTable.compute(mixture, WAVELENGTH, n_u=2, n_v=4, min_distance_m=3.6e8,
+                                max_distance_m=4.0e8, progress=False)
+    path = to_netcdf(table.to_dataset(), tmp_path / "resolved.nc")
+    import xarray as xr
+
+    with xr.open_dataset(path) as dataset:
+        again = ShadowTable.from_dataset(dataset.load())
+    assert torch.equal(again.values, table.values)
+    assert torch.allclose(again.position_angle_rad, table.position_angle_rad, atol=1e-15)

@@ -584,8 +584,13 @@ class ShadowTable(nn.Module):
 
     # ------------------------------------------------------------------ Dataset
     def to_dataset(self) -> xr.Dataset:
-        """Return the table as a CF Dataset (dims u, v, [atmosphere_k ...,] wavelength)."""
-        batch_dims = tuple(f"atmosphere_{k}" for k in range(len(self.batch_shape)))
+        """Return the table as a CF Dataset (dims u, v, [atmosphere_k ...,] wavelength).
+
+        A table resolved in direction has the dimension ``position_angle`` [rad] instead.
+        """
+        resolved = self.position_angle_rad is not None
+        batch_dims = (("position_angle",) if resolved
+                      else tuple(f"atmosphere_{k}" for k in range(len(self.batch_shape))))
         data_vars = {"relative_illuminance": variable(("u", "v", *batch_dims, "wavelength"),
                                                       to_numpy(self.values),
                                                       _SPECS["relative_illuminance"])}
@@ -599,9 +604,16 @@ class ShadowTable(nn.Module):
                   "v": coordinate("v", to_numpy(self.v), _SPECS["v"]),
                   "wavelength": coordinate("wavelength", to_numpy(self.wavelength_nm),
                                            _SPECS["wavelength"])}
-        for dim, size in zip(batch_dims, self.batch_shape, strict=True):
-            coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
-                "1", "atmosphere batch index", f"Index of the atmosphere along {dim}"))
+        if resolved:
+            coords["position_angle"] = coordinate(
+                "position_angle", to_numpy(self.position_angle_rad), VariableSpec(
+                    "rad", "position angle around the shadow's axis",
+                    "From the projection of the celestial pole; the limb's latitude depends "
+                    "on its cosine only"))
+        else:
+            for dim, size in zip(batch_dims, self.batch_shape, strict=True):
+                coords[dim] = coordinate(dim, np.arange(size), VariableSpec(
+                    "1", "atmosphere batch index", f"Index of the atmosphere along {dim}"))
         parameters = dict(self.attrs)
         parameters.update({f"provenance_{key}": value for key, value in self.provenance.items()})
         parameters.update({"table_sun_distance_m": self.sun_distance_m,
@@ -643,7 +655,9 @@ class ShadowTable(nn.Module):
                    sun_distance_m=number("table_sun_distance_m"),
                    sun_radius_m=number("table_sun_radius_m"),
                    occluder_radius_m=number("table_occluder_radius_m"),
-                   interpolation=interpolation, provenance=provenance)
+                   interpolation=interpolation, provenance=provenance,
+                   attrs=({"position_angle_rad": dataset["position_angle"].values.tolist()}
+                          if "position_angle" in dataset.dims else None))
 
 
 def _is_terminal() -> bool:
