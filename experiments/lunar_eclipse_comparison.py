@@ -21,6 +21,7 @@ Writes ``lunar_eclipse_comparison.nc`` / ``.png`` (per-eclipse table),
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from pathlib import Path
@@ -395,7 +396,13 @@ def umbral_edge(quick: bool, date: str = "2015-09-28", distance_m: float = 3.844
     shadows = {"eclipse_shadow": eclipse_shadow(date),
                "molecules": Shadow.earth(Atmosphere.earth(aerosol_optical_depth=0.0,
                                                           ozone_du=0.0)),
-               "airless": Shadow.earth(False)}
+               "airless": Shadow.earth(False),
+               "latitude bands, azimuthal mean": eclipse_shadow(
+                   date, terminator="latitude_bands_mean")}
+    bands = eclipse_shadow(date, terminator="latitude_bands")
+    directions = {"latitude bands, north (position angle 0)": 0.0,
+                  "latitude bands, east/west (90 deg)": 0.5 * math.pi,
+                  "latitude bands, south (180 deg)": math.pi}
     reference = shadows["airless"]
     radii = {kind: float(shadow_radii(distance_m, reference.sun_distance_m,
                                       reference.sun_radius_m, EARTH_MEAN_RADIUS_M,
@@ -405,9 +412,14 @@ def umbral_edge(quick: bool, date: str = "2015-09-28", distance_m: float = 3.844
     offset = torch.linspace(0.85 * umbra, 1.15 * umbra, 151 if quick else 601, dtype=f64)
     wavelength = torch.tensor([550.0], dtype=f64)
     edges, curves = [], []
-    for shadow in shadows.values():
-        light = shadow.relative_illuminance(torch.full_like(offset, distance_m), offset,
-                                            wavelength)[..., 0]
+    along = torch.full_like(offset, distance_m)
+    lights = [shadow.relative_illuminance(along, offset, wavelength)[..., 0]
+              for shadow in shadows.values()]
+    lights += [bands.relative_illuminance(along, offset, wavelength,
+                                          position_angle_rad=torch.tensor(angle, dtype=f64))[
+                                              ..., 0] for angle in directions.values()]
+    shadows.update(directions)
+    for light in lights:
         slope = torch.gradient(torch.log10(light.clamp_min(1e-30)), spacing=(offset,))[0]
         edges.append(100.0 * (float(offset[int(torch.argmax(slope))]) / umbra - 1.0))
         curves.append(light.numpy())
