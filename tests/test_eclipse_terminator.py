@@ -249,8 +249,8 @@ def _resolved(atmospheres, declination_rad: float = math.radians(10.0)):
                          limb_windows=_windows(declination_rad))
 
 
-GEOMETRY = (torch.full((5, 1), 3.8e8, dtype=F64),
-            torch.tensor([0.0, 1e6, 3e6, 4.5e6, 6e6], dtype=F64)[:, None])
+GEOMETRY = (torch.full((5,), 3.8e8, dtype=F64),
+            torch.tensor([0.0, 1e6, 3e6, 4.5e6, 6e6], dtype=F64))
 WAVELENGTH = torch.tensor([450.0, 650.0], dtype=F64)
 
 
@@ -261,7 +261,8 @@ def test_windows_partition_the_limb():
     resolved = _resolved([atm] * 5).relative_illuminance(*GEOMETRY, WAVELENGTH,
                                                          position_angle_rad=psi)
     single = Shadow.earth(atm).relative_illuminance(*GEOMETRY, WAVELENGTH)
-    assert torch.allclose(resolved, single.expand_as(resolved), rtol=1e-12, atol=0)
+    assert resolved.shape == (5, 5, 2)
+    assert torch.allclose(resolved, single[:, None].expand_as(resolved), rtol=1e-12, atol=0)
     weights = torch.stack([w.weight(psi) for w in _windows(0.3)])
     assert torch.equal(weights.sum(0), torch.ones_like(psi))
 
@@ -276,7 +277,7 @@ def test_azimuthal_mean_of_the_resolved_shadow_is_the_mixture():
     mixture = _resolved(atmospheres)
     psi = (torch.arange(72, dtype=F64) + 0.5) * (2 * math.pi / 72)
     resolved = mixture.relative_illuminance(*GEOMETRY, WAVELENGTH, position_angle_rad=psi)
-    mean = mixture.relative_illuminance(GEOMETRY[0][:, 0], GEOMETRY[1][:, 0], WAVELENGTH)
+    mean = mixture.relative_illuminance(*GEOMETRY, WAVELENGTH)
     assert float((resolved.mean(1) / mean - 1).abs().max()) < 5e-3
 
 
@@ -288,8 +289,8 @@ def test_the_hazy_cap_darkens_its_own_side():
     values = mixture.relative_illuminance(*GEOMETRY, WAVELENGTH, position_angle_rad=psi)
     clear_values = Shadow.earth(clear).relative_illuminance(*GEOMETRY, WAVELENGTH)
     edge = 3  # 4500 km from the axis: lit by the near limb
-    assert float(values[edge, 0, 1] / clear_values[edge, 0, 1]) < 0.7
-    assert float(values[edge, 1, 1] / clear_values[edge, 0, 1]) > 0.97
+    assert float(values[edge, 0, 1] / clear_values[edge, 1]) < 0.7
+    assert float(values[edge, 1, 1] / clear_values[edge, 1]) > 0.97
 
 
 def test_resolved_table_columns_are_the_shadow():
@@ -301,7 +302,7 @@ def test_resolved_table_columns_are_the_shadow():
         [0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4, math.pi])
     position = table._positions
     direct = mixture.relative_illuminance(
-        position["distance_m"][..., None], position["offset_m"][..., None], WAVELENGTH,
+        position["distance_m"], position["offset_m"], WAVELENGTH,
         position_angle_rad=table.position_angle_rad)
     assert torch.allclose(table.values, direct, rtol=1e-12, atol=0)
 
@@ -330,6 +331,10 @@ def test_resolved_mixture_refusals(two_shadows):
     with pytest.raises(ValueError, match="limb_windows"):
         ShadowMixture(two_shadows, [0.5, 0.5]).relative_illuminance(
             *GEOMETRY, WAVELENGTH, position_angle_rad=torch.zeros(1, dtype=F64))
+    resolved = _resolved([Atmosphere.earth()] * 5)
+    with pytest.raises(ValueError, match="1-D"):
+        resolved.relative_illuminance(*GEOMETRY, WAVELENGTH,
+                                      position_angle_rad=torch.zeros(2, 2, dtype=F64))
     with pytest.raises(TypeError, match="limb_windows"):
         ShadowMixture(two_shadows, [0.5, 0.5], limb_windows=[None, None])
     scattering = Shadow.earth(Atmosphere.earth(), scattering=True)

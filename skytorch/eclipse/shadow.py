@@ -234,14 +234,15 @@ def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
     n_nodes : int
         Gauss–Legendre nodes on the arc.
     azimuth_weight : callable, optional
-        ``azimuth_weight(psi)`` -> weights of the arc's azimuths ``psi >= 0`` [rad]
-        (shape ``(..., n_nodes)``), the mean of the weights at ``+psi`` and ``-psi``: the
-        integral becomes :math:`\int I\,W(\psi)\,d\psi` (a part of the ring, e.g. one
-        latitude band of the limb). Default 1.
+        ``azimuth_weight(psi)`` -> weights of the arc's azimuths ``psi >= 0`` [rad], for
+        ``psi`` of shape ``(..., n_nodes)``: the mean of the weights at ``+psi`` and
+        ``-psi``, of shape ``(..., n_nodes)`` or ``(..., K, n_nodes)`` for ``K`` weightings
+        at once; the integral becomes :math:`\int I\,W(\psi)\,d\psi` (a part of the
+        ring, e.g. one latitude band of the limb). Default 1.
 
     Returns
     -------
-    Tensor (...)
+    Tensor (...) or (..., K)
         :math:`F(\alpha) = \int_0^{2\pi} I(\gamma(\alpha, \psi))\,d\psi` [rad].
 
     Notes
@@ -277,6 +278,10 @@ def solar_arc_integral(alpha_rad, sun_radius_rad, separation_rad, coefficients,
             mean = mean + a2 * (mu.square() @ weight)
         return 2.0 * psi_max * mean
     share = azimuth_weight(2.0 * psi_max.unsqueeze(-1) * half_arc)
+    extra = share.dim() - mu.dim()  # K weightings at once: (..., K, n_nodes)
+    if extra:
+        mu = mu.unsqueeze(-2)
+        a0, a1, a2, psi_max = (x.unsqueeze(-1) for x in (a0, a1, a2, psi_max))
     mean = a0 * (share @ weight) + a1 * ((mu * share) @ weight)
     if bool((a2 != 0).any()):
         mean = mean + a2 * ((mu.square() * share) @ weight)
@@ -842,8 +847,9 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
 
     Only the non-empty pieces of the ``beta`` integral (between breakpoints of ``F``, the
     terrain and cloud kinks) are integrated: (point, piece) pairs are gathered, integrated
-    and summed back per point. ``limb``: ``(position_angle (n_point,), window)`` to keep
-    only the part of the limb where ``window.weight(limb position angle)`` is non-zero.
+    and summed back per point. ``limb``: ``(position_angles (n_angle,), window)``: for
+    every point at each of these position angles, only the part of the limb where
+    ``window.weight(limb position angle)`` is non-zero -> (n_point, n_angle, n_batch, n_wl).
     """
     dtype = centre.dtype
     tables = profile.tables(dtype)
@@ -889,9 +895,9 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
     b = radius + beta
     a = torch.asin(b / centre) - scale * deviation
     arc = solar_arc_integral(a.abs(), sun_radius, separation, coefficients, n_nodes=n_arc,
-                             azimuth_weight=_limb_weight(limb, point, a))
+                             azimuth_weight=_limb_weight(limb, a))
     solid = b / (centre * torch.sqrt((centre - b) * (centre + b)))
-    weight = arc * solid * dbeta_ds * ds
+    weight = solid * dbeta_ds * ds
     weight = weight * _ray_weight(periapsis, profile)
     # exp(-max(tau, 0)) in place on the (n_pair, m, n_batch, n_wl) temporary
     factors = values[..., 2:].reshape(*values.shape[:-1], profile.n_batch, profile.rank)
@@ -900,24 +906,29 @@ def _ring_chunk(profile: RingProfile, centre, sun_radius, separation, scale, coe
         transmittance = torch.exp(torch.clamp(transmittance, max=0.0))
     else:
         transmittance = transmittance.clamp_(max=0.0).exp_()
-    pairs = torch.einsum("pm,pmbl->pbl", weight, transmittance)
+    if limb is None:
+        pairs = torch.einsum("pm,pmbl->pbl", weight * arc, transmittance)
+    else:  # arc (n_pair, m, n_angle): one beta integral, every position angle
+        pairs = torch.einsum("pma,pmbl->pabl", weight.unsqueeze(-1) * arc, transmittance)
     return pairs.new_zeros((n_point, *pairs.shape[1:])).index_add(0, point, pairs)
 
 
-def _limb_weight(limb, point: torch.Tensor, apparent: torch.Tensor):
+def _limb_weight(limb, apparent: torch.Tensor):
     """Weights of the arc's azimuths for a window on the limb (None without one).
 
     A ray at apparent angle ``a > 0`` left the limb at position angle ``angle ± psi`` (the
     side of the Sun's offset, which is the point's own position angle around the axis), one
-    with ``a < 0`` on the opposite side, ``angle + pi ± psi``.
+    with ``a < 0`` on the opposite side, ``angle + pi ± psi``. Returns weights
+    ``(n_pair, m, n_angle, n_arc)`` for arc azimuths ``(n_pair, m, n_arc)``.
     """
     if limb is None:
         return None
-    angle, window = limb
-    base = (angle.index_select(0, point)[:, None]
-            + math.pi * (apparent < 0).to(apparent.dtype)).detach().unsqueeze(-1)
+    angles, window = limb
+    far = math.pi * (apparent < 0).to(apparent.dtype).detach()
+    base = (angles.to(apparent.dtype) + far.unsqueeze(-1)).unsqueeze(-1)  # (p, m, angle, 1)
 
     def weight(psi):
+        psi = psi.unsqueeze(-2)
         return 0.5 * (window.weight(base + psi) + window.weight(base - psi))
 
     return weight
@@ -945,16 +956,17 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
         Gauss–Legendre nodes per ring piece and on the solar arc.
     n_split : int
         Equal sub-pieces per piece (composite rule).
-    position_angle_rad : Tensor (...), optional
-        With ``limb_window``: position angle of each point around the shadow's axis
-        [rad], from the direction in which the window's position angles are counted.
+    position_angle_rad : Tensor (n_angle,), optional
+        With ``limb_window``: position angles around the shadow's axis [rad] (from the
+        direction in which the window's position angles are counted) at which every point
+        is evaluated; the result gets an ``n_angle`` dimension before ``n_batch``.
     limb_window : object with ``weight(position_angle_rad) -> Tensor``, optional
         Keep only the light through the part of the limb where the weight is non-zero
         (e.g. :class:`skytorch.eclipse.terminator.LimbLatitudeWindow`, one latitude band).
 
     Returns
     -------
-    Tensor (..., n_batch, n_wavelength)
+    Tensor (..., n_batch, n_wavelength) or (..., n_angle, n_batch, n_wavelength)
         Ring irradiance [sr] (divide by :func:`solar_normalisation` for I / I_sun), per
         member of the profile's batch of atmospheres (``n_batch = 1`` for one).
     """
@@ -962,12 +974,14 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
         raise ValueError("limb_window and position_angle_rad go together; got "
                          f"limb_window={limb_window!r}, position_angle_rad "
                          f"{'given' if position_angle_rad is not None else 'None'}")
-    extra = () if position_angle_rad is None else (position_angle_rad,)
+    angles = None
+    if position_angle_rad is not None:
+        angles = torch.as_tensor(position_angle_rad).detach().reshape(-1)
     tensors = torch.broadcast_tensors(centre_distance_m, sun_radius_rad, separation_rad,
-                                      deviation_scale, *coefficients, *extra)
+                                      deviation_scale, *coefficients)
     shape = tensors[0].shape
     flat = [x.reshape(-1) for x in tensors]
-    angle = flat.pop() if extra else None
+    per_angle = () if angles is None else (angles.shape[0],)
     n_wl = profile.optical_depth.shape[-1]
     centre, sun_radius, separation, scale = flat[:4]
     with torch.no_grad():
@@ -985,19 +999,19 @@ def ring_illuminance(profile: RingProfile, centre_distance_m, sun_radius_rad, se
             (separation >= sun_radius) & (a_low > -gap) & (a_high < gap))
         active = torch.nonzero(~dark).squeeze(-1)
     n_batch = profile.n_batch
-    result = flat[0].new_zeros((flat[0].shape[0], n_batch, n_wl))
+    result = flat[0].new_zeros((flat[0].shape[0], *per_angle, n_batch, n_wl))
     if active.numel() == 0:
-        return result.reshape(*shape, n_batch, n_wl) + 0.0 * flat[0].reshape(*shape, 1, 1)
+        return (result.reshape(*shape, *per_angle, n_batch, n_wl)
+                + 0.0 * flat[0].reshape(*shape, *(1,) * (len(per_angle) + 2)))
     chosen = [x.index_select(0, active) for x in flat]
-    angle = None if angle is None else angle.index_select(0, active)
+    limb = None if angles is None else (angles, limb_window)
     pieces = []
     for start in range(0, chosen[0].shape[0], _CHUNK):
         part = [x[start:start + _CHUNK] for x in chosen]
-        limb = None if angle is None else (angle[start:start + _CHUNK], limb_window)
         pieces.append(_ring_chunk(profile, *part[:4], tuple(part[4:]), n_ring, n_arc,
                                   occluder_radius_m, n_split, limb))
     result = result.index_put((active,), torch.cat(pieces))
-    return result.reshape(*shape, n_batch, n_wl)
+    return result.reshape(*shape, *per_angle, n_batch, n_wl)
 
 
 def _broadcast_batch(values: torch.Tensor, batch_shape: tuple[int, ...]) -> torch.Tensor:
@@ -1609,12 +1623,7 @@ class Shadow(nn.Module):
         if not direct_light:
             direct = torch.zeros_like(direct)
         if limb_window is not None:
-            if self.scattering:
-                raise ValueError("a limb window keeps part of the refracted light only; the "
-                                 "single-scattered light (scattering=True) is not windowed: "
-                                 "build the shadow with scattering=False")
-            position_angle_rad = as_tensor("position_angle_rad", position_angle_rad,
-                                           dtype=dtype).detach()
+            position_angle_rad = self._window_angles(position_angle_rad, dtype)
         if profile is None:
             profile = self.ring_profile(wavelength)
         if profile is None:
@@ -1628,9 +1637,9 @@ class Shadow(nn.Module):
                                 position_angle_rad=position_angle_rad,
                                 limb_window=limb_window)
         normalisation = solar_normalisation(rho_s, limb, self.law)
-        if position_angle_rad is not None:  # the ring may broadcast to more points
-            normalisation = normalisation.expand(ring.shape[:-2])
-            direct = direct.expand(ring.shape[:-2])
+        if position_angle_rad is not None:  # (..., n_angle, 1, n_wl): one member
+            total = direct[..., None, None] + ring[..., 0, :] / normalisation[..., None, None]
+            return total
         total = direct[..., None, None] + ring / normalisation[..., None, None]
         scattering = self.scattering_profile(wavelength)
         if scattering is not None:
@@ -1640,6 +1649,21 @@ class Shadow(nn.Module):
         return _broadcast_batch(total, self.batch_shape)
 
     forward = relative_illuminance
+
+    def _window_angles(self, position_angle_rad, dtype) -> torch.Tensor:
+        """Return checked 1-D position angles; refuse a shadow a limb window cannot cut."""
+        if (self.scattering or self.batch_shape or self.atmosphere is None
+                or not (self.refraction or self.extinction)):
+            raise ValueError("a limb window keeps part of the light refracted through one "
+                             "atmosphere: build the shadow unbatched, with refraction or "
+                             "extinction and with scattering=False (the single-scattered "
+                             "light is not windowed)")
+        angles = as_tensor("position_angle_rad", position_angle_rad, dtype=dtype).detach()
+        if angles.ndim != 1:
+            raise ValueError("position_angle_rad must be a 1-D tensor of the position angles "
+                             "at which every point is evaluated; got shape "
+                             f"{tuple(angles.shape)}")
+        return angles
 
     # ------------------------------------------------------------------ limb view
     def limb_view(self, distance_m, offset_m, wavelength_nm, *, n_azimuth: int = 256,

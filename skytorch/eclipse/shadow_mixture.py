@@ -125,10 +125,12 @@ class ShadowMixture(nn.Module):
         """Illuminance relative to the unobstructed Sun (shapes of :class:`Shadow`'s).
 
         Without ``position_angle_rad``: the weighted mean of the members' illuminance
-        (the azimuthal mean). With it (needs ``limb_windows``): the direct sunlight plus,
-        from each member, the light refracted through its window of the limb, for points
-        at these position angles around the axis [rad] (from the direction the windows
-        count from; broadcast with the geometry).
+        (the azimuthal mean), ``(..., n_wavelength)``. With it (needs ``limb_windows``), a
+        1-D tensor of position angles around the axis [rad] (from the direction the
+        windows count from): every point at each of them, ``(..., n_angle,
+        n_wavelength)``, the direct sunlight plus, from each member, the light refracted
+        through its window of the limb (one ring integral per point and member; only the
+        weights along the solar arc differ between the angles).
         """
         if position_angle_rad is not None:
             if self.limb_windows is None:

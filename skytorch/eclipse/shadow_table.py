@@ -423,8 +423,8 @@ class ShadowTable(nn.Module):
                                                     profile=profile)
         rows = []
         show = progress and _is_terminal()
-        step = max(1, 4096 // (n_v * math.prod(batch) if resolved else n_v))
-        ones = (1,) * len(batch)
+        step = max(1, 4096 // n_v)
+        ones = () if resolved else (1,) * len(batch)
         # no torch.no_grad: the values keep the graph of atmosphere parameters (and a
         # cloud-top tensor) that require a gradient, for lookups that carry it
         for start in tqdm(range(0, n_u, step), desc="shadow table", disable=not show):
