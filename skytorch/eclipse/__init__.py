@@ -33,6 +33,7 @@ from skytorch.eclipse.eclipse_atmosphere import (  # noqa: F401
     eclipse_atmosphere,
     eclipse_shadow,
     stratospheric_aod,
+    terminator_bands,
 )
 from skytorch.eclipse.observed import observed_lunar_eclipses  # noqa: F401
 from skytorch.eclipse.occlusion import (  # noqa: F401
@@ -42,6 +43,7 @@ from skytorch.eclipse.occlusion import (  # noqa: F401
 )
 from skytorch.eclipse.retrieval import retrieve_atmosphere  # noqa: F401
 from skytorch.eclipse.shadow import LimbCloudCover  # noqa: F401
+from skytorch.eclipse.shadow_mixture import ShadowMixture  # noqa: F401
 from skytorch.eclipse.solar import solar_eclipses  # noqa: F401
 from skytorch.eclipse.solar_local import solar_eclipse_local  # noqa: F401
 from skytorch.eclipse.solar_path import obscuration_map, solar_eclipse_path  # noqa: F401
@@ -51,6 +53,7 @@ __all__ = [
     "LIMB_DARKENING_LAWS",
     "LimbCloudCover",
     "Shadow",
+    "ShadowMixture",
     "ShadowTable",
     "cloud_climatology",
     "danjon_class_l",
@@ -72,6 +75,7 @@ __all__ = [
     "solar_eclipses",
     "stratospheric_aod",
     "sun_visible_fraction",
+    "terminator_bands",
 ]
 from skytorch.eclipse.lunar import (  # noqa: E402,F401,I001
     Shadow, ShadowTable, danjon_l, lunar_eclipse, lunar_light_curve)

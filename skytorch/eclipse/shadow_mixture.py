@@ -14,6 +14,13 @@ integral of each member is linear in the limb's radiance); at a given point it n
 that the near limb contributes more than the far one, so it is the azimuthal mean of the
 true non-axisymmetric shadow, not its value in a given direction.
 
+With ``limb_windows`` (one window on the limb per member, e.g. the latitude bands of
+:class:`~skytorch.eclipse.terminator.LimbLatitudeWindow`) the mixture is also resolved in
+direction: for a point at position angle :math:`\theta_P` around the axis, each member's
+ring integral keeps only the rays that left the limb inside its window (near side
+:math:`\theta_P \pm \psi`, far side :math:`\theta_P + \pi \pm \psi`, with
+:math:`\psi` the azimuth along the solar arc), and the direct sunlight is counted once.
+
 Examples
 --------
 >>> import torch
