@@ -358,3 +358,16 @@ def test_resolved_table_round_trip(tmp_path):
         again = ShadowTable.from_dataset(dataset.load())
     assert torch.equal(again.values, table.values)
     assert torch.allclose(again.position_angle_rad, table.position_angle_rad, atol=1e-15)
+
+
+def test_lunar_eclipse_dataset_with_resolved_bands(tmp_path):
+    """The Dataset path (images, attributes, netCDF) takes a shadow resolved in direction."""
+    from skytorch.dataset import to_netcdf
+    from skytorch.eclipse import lunar_eclipse
+
+    shadow = eclipse_shadow("2015-09-28", terminator="latitude_bands")
+    dataset = lunar_eclipse("2015-09-28", shadow=shadow, n_times=3, table_n_v=16,
+                            n_images=1, image_pixels=8)
+    assert dataset.v_magnitude.dims == ("time",)
+    assert dataset.image.dims == ("image_time", "y", "x", "channel")
+    assert to_netcdf(dataset, tmp_path / "banded.nc").stat().st_size > 0
