@@ -364,9 +364,10 @@ def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
     return tuple(bands)
 
 
-def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,
+def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,  # noqa: C901 (three models, their refusals)
                    cloud_fraction=CLOUD_FRACTION, cloud_cover=None, atmosphere=None,
-                   terminator="global", **shadow_options):
+                   terminator="global", tropospheric_aod=None, stratospheric_aod_550=None,
+                   **shadow_options):
     """Build the Earth's shadow of ``date``: :func:`eclipse_atmosphere` and the clouds.
 
     Parameters
@@ -382,6 +383,10 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
         curves give them); ``"latitude_bands_mean"``: the same bands weighted by their
         shares of the terminator, the azimuthal mean. ``atmosphere`` and ``cloud_cover``
         must be None with either.
+    tropospheric_aod, stratospheric_aod_550 : float or Tensor (), optional
+        Aerosol optical depths at 550 nm of :func:`eclipse_atmosphere` (global) or of
+        every band (:func:`terminator_bands`); default the climatology and the year's
+        record. Not with ``atmosphere`` (which has its own).
     clouds : {"rossow1999", "deck", "none"}
         ``"rossow1999"``: the limb cloud profile ``cloud_cover`` (default
         :func:`cloud_climatology`); ``"deck"``: one deck of ``cloud_top_altitude_m`` and
@@ -405,12 +410,18 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
     """
     check_choice("clouds", clouds, CLOUD_MODELS)
     check_choice("terminator", terminator, TERMINATOR_MODELS)
+    aerosols = {key: value for key, value in (("tropospheric_aod", tropospheric_aod),
+                                              ("stratospheric_aod_550", stratospheric_aod_550))
+                if value is not None}
+    if aerosols and atmosphere is not None:
+        raise ValueError(f"give the aerosol optical depths {sorted(aerosols)} or an "
+                         "atmosphere, not both (the atmosphere has its own)")
     if terminator != "global":
         if atmosphere is not None or cloud_cover is not None:
             raise ValueError(f"terminator={terminator!r} builds the atmosphere and clouds of "
                              "each band: give atmosphere=None and cloud_cover=None (got "
                              f"{type(atmosphere).__name__}, {type(cloud_cover).__name__})")
-        bands = terminator_bands(date)
+        bands = terminator_bands(date, **aerosols)
         shadows = [eclipse_shadow(date, clouds=clouds, cloud_top_altitude_m=cloud_top_altitude_m,
                                   cloud_fraction=cloud_fraction, atmosphere=band.atmosphere,
                                   cloud_cover=band.cloud_cover, **shadow_options)
@@ -421,7 +432,7 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
                              names=[f"{band.name} {band.profile}" for band in bands],
                              limb_windows=windows)
     if atmosphere is None:
-        atmosphere = eclipse_atmosphere(date)
+        atmosphere = eclipse_atmosphere(date, **aerosols)
     if clouds == "deck":
         return Shadow.earth(atmosphere, cloud_top_altitude_m=cloud_top_altitude_m,
                             cloud_fraction=cloud_fraction, **shadow_options)

@@ -29,8 +29,12 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_int
-from skytorch.eclipse.eclipse_atmosphere import eclipse_atmosphere, eclipse_shadow
+from skytorch._validate import check_choice, check_int
+from skytorch.eclipse.eclipse_atmosphere import (
+    TERMINATOR_MODELS,
+    eclipse_atmosphere,
+    eclipse_shadow,
+)
 from skytorch.eclipse.lunar import lunar_light_curve
 
 __all__ = ["OBSERVABLES", "PARAMETERS", "retrieve_atmosphere"]
@@ -58,20 +62,22 @@ def _check_observations(observations) -> dict[str, tuple[float, float]]:
     return checked
 
 
-def _model(date, names, x, n_times, table_n_v):
+def _model(date, names, x, n_times, table_n_v, terminator="global"):
     """Modelled observables (in OBSERVABLES order) for log-parameters ``x``."""
     values = {name: torch.exp(x[i]) for i, name in enumerate(names)}
-    atmosphere = eclipse_atmosphere(date, **values)
-    # the date's shadow: the clouds block the lowest limb rays as in the comparison
-    shadow = eclipse_shadow(date, atmosphere=atmosphere)
+    if terminator == "global":
+        # the date's shadow: the clouds block the lowest limb rays as in the comparison
+        shadow = eclipse_shadow(date, atmosphere=eclipse_atmosphere(date, **values))
+    else:  # the bands' own ozone; the aerosol optical depths are those of every band
+        shadow = eclipse_shadow(date, terminator=terminator, **values)
     curve = lunar_light_curve(date, shadow=shadow, n_times=n_times, table_n_v=table_n_v)
     k = int(torch.argmax(curve["v_magnitude"].detach()))
     return torch.stack([curve["v_magnitude"][k], curve["b_minus_v"][k]])
 
 
-def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",), *,
+def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",), *,  # noqa: C901 (argument checks)
                         initial=None, n_times: int = 9, table_n_v: int = 64,
-                        max_iter: int = 20) -> xr.Dataset:
+                        max_iter: int = 20, terminator: str = "global") -> xr.Dataset:
     """Fit atmosphere parameters to the observed mid-totality V (and B − V) of an eclipse.
 
     Parameters
@@ -90,6 +96,10 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
         Light-curve samples and shadow-table rows of the model.
     max_iter : int
         L-BFGS iterations.
+    terminator : {"global", "latitude_bands", "latitude_bands_mean"}
+        The limb atmosphere of :func:`~skytorch.eclipse.eclipse_shadow`; with the latitude
+        bands the aerosol optical depths are fitted for every band at once and the ozone
+        is each band's AFGL column (``"ozone_du"`` cannot be fitted: ``ValueError``).
 
     Returns
     -------
@@ -104,6 +114,10 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
             names):
         raise ValueError(f"parameters must be distinct names from {PARAMETERS}; got "
                          f"{parameters!r}")
+    check_choice("terminator", terminator, TERMINATOR_MODELS)
+    if terminator != "global" and "ozone_du" in names:
+        raise ValueError(f"terminator={terminator!r} takes each band's AFGL ozone column: "
+                         "ozone_du cannot be fitted there; fit it with terminator='global'")
     n_times = check_int("n_times", n_times, low=3)
     table_n_v = check_int("table_n_v", table_n_v, low=16)
     max_iter = check_int("max_iter", max_iter, low=1)
@@ -123,17 +137,17 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
 
     def closure():
         optimiser.zero_grad()
-        chi2 = (((_model(date, names, x, n_times, table_n_v)[rows] - target) / sigma) ** 2
-                ).sum()
+        model = _model(date, names, x, n_times, table_n_v, terminator)[rows]
+        chi2 = (((model - target) / sigma) ** 2).sum()
         chi2.backward()
         return chi2
 
     optimiser.step(closure)
     best = x.detach().clone()
     jacobian = torch.autograd.functional.jacobian(
-        lambda y: _model(date, names, y, n_times, table_n_v)[rows], best)
+        lambda y: _model(date, names, y, n_times, table_n_v, terminator)[rows], best)
     with torch.no_grad():  # the fit is done: values only from here
-        model = _model(date, names, best, n_times, table_n_v)[rows]
+        model = _model(date, names, best, n_times, table_n_v, terminator)[rows]
         weighted = jacobian / sigma[:, None]
         hessian = 2.0 * weighted.T @ weighted
         note = ""
@@ -153,5 +167,6 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
          "residual": (("observable",), (model - target).numpy(), {"units": "mag"})},
         coords={"parameter": list(names), "observable": list(observed)},
         attrs={"title": "Atmosphere retrieved from a lunar eclipse", "chi2": chi2,
+               "terminator": terminator,
                "date": str(np.datetime64(date, "D")) if isinstance(date, str) else str(date),
                "note": note, "n_times": n_times, "table_n_v": table_n_v})
