@@ -396,3 +396,26 @@ def test_resolved_light_curve_gradient_against_finite_differences():
     assert float(aod.grad) == pytest.approx(float(central), rel=1e-5)
     with pytest.raises(ValueError, match="not both"):
         eclipse_shadow("2015-09-28", atmosphere=Atmosphere.earth(), tropospheric_aod=0.1)
+
+
+def test_resolved_shadow_in_float32():
+    """Float32 geometry through the windowed ring integral: within 1e-4 of float64.
+
+    Measured 7.9e-6 relative at the five points and three position angles.
+    """
+    mixture = _resolved([Atmosphere.earth(ozone_du=o) for o in (400, 380, 280, 330, 350)])
+    psi = torch.tensor([0.0, 1.0, 3.0], dtype=F64)
+    double = mixture.relative_illuminance(*GEOMETRY, WAVELENGTH, position_angle_rad=psi)
+    single = mixture.relative_illuminance(*(g.float() for g in GEOMETRY), WAVELENGTH,
+                                          position_angle_rad=psi.float())
+    assert single.dtype == torch.float32
+    assert float((single.double() / double - 1).abs().max()) < 1e-4
+
+
+def test_window_and_share_arguments_are_checked():
+    with pytest.raises(TypeError, match="low_deg"):
+        LimbLatitudeWindow("south", 0.0, 0.0)
+    with pytest.raises(ValueError, match="high_deg"):
+        LimbLatitudeWindow(0.0, 95.0, 0.0)
+    with pytest.raises(TypeError, match="boundaries_deg"):
+        terminator_band_shares(0.0, "equator")

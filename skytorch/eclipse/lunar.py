@@ -203,6 +203,7 @@ def _surface_radiance(shadow_fn, sun, moon, normal, wavelength, sun_distance, di
     # position angle around the axis from the projected celestial pole (GCRS z), in [0, pi]
     pole = torch.tensor([0.0, 0.0, 1.0], dtype=anti_sun.dtype) - anti_sun[:, 2:3] * anti_sun
     pole = pole / torch.linalg.norm(pole, dim=-1, keepdim=True)
+    # (a point within 1 m of the axis gets cosine ~0: there every position angle is alike)
     cosine = torch.einsum("npj,nj->np", across, pole) / offset.clamp_min(1.0)
     angle = torch.acos(torch.clamp(cosine, -1.0, 1.0)).detach()
     illuminance, direct = shadow_fn(along, offset, angle)  # (n, p, *B, n_wl), (n, p)

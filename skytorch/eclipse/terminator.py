@@ -88,8 +88,8 @@ def terminator_band_shares(solar_declination_rad,
     delta = check_range("solar_declination_rad", solar_declination_rad, -0.5 * math.pi,
                         0.5 * math.pi, low_inclusive=False, high_inclusive=False,
                         dtype=torch.float64)
-    bounds = check_range("boundaries_deg", torch.as_tensor(boundaries_deg, dtype=torch.float64),
-                         -90.0, 90.0, low_inclusive=False, high_inclusive=False)
+    bounds = check_range("boundaries_deg", boundaries_deg, -90.0, 90.0, low_inclusive=False,
+                         high_inclusive=False, dtype=torch.float64)
     if bounds.ndim != 1 or bounds.numel() == 0 or not bool((bounds.diff() > 0).all()):
         raise ValueError("boundaries_deg must be a non-empty, strictly increasing sequence of "
                          f"latitudes in (-90, 90) deg; got {bounds.tolist()}")
@@ -112,13 +112,14 @@ class LimbLatitudeWindow:
     Parameters
     ----------
     low_deg, high_deg : float
-        Latitude bounds [deg], ``low < high``; ``-inf``/``inf`` (or -90/90) for the caps.
+        Latitude bounds [deg], ``-90 <= low < high <= 90`` (-90 / 90 for the polar caps).
     solar_declination_rad : float
         Declination of the Sun [rad], in (-π/2, π/2).
     """
 
     def __init__(self, low_deg: float, high_deg: float, solar_declination_rad: float):
-        low, high = float(low_deg), float(high_deg)
+        low = float(check_range("low_deg", low_deg, -90.0, 90.0, high_inclusive=False))
+        high = float(check_range("high_deg", high_deg, -90.0, 90.0, low_inclusive=False))
         if not low < high:
             raise ValueError(f"low_deg must be below high_deg; got {low} and {high}")
         delta = float(check_range("solar_declination_rad", solar_declination_rad,
