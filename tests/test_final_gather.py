@@ -92,7 +92,8 @@ def test_sky_radiance_final_gather(hazy_tables):
     """``Atmosphere.sky_radiance(..., final_gather=True)``.
 
     The tables' order 1 plus the gathered orders, which differ from the looked-up ones
-    for a hazy sky.
+    for a hazy sky (measured 1.3 % and 2.0 % at 450 / 650 nm with the forward peak
+    factored out of the tables; 2.1 % and more before).
     """
     atm, tables = hazy_tables
     zenith, azimuth, sun = _f64(math.radians(30.0), math.pi, math.radians(30.0))
@@ -103,7 +104,7 @@ def test_sky_radiance_final_gather(hazy_tables):
     torch.testing.assert_close(sky, expected, rtol=1e-12, atol=0.0)
     looked_up = atm.sky_radiance(WAVELENGTH, zenith, azimuth, sun,
                                  scattering_orders="converged", tables=tables)
-    assert float((sky / looked_up - 1.0).abs().min()) > 0.02
+    assert float((sky / looked_up - 1.0).abs().min()) > 0.005
 
 
 def test_gradient_with_respect_to_the_aerosol_optical_depth():

@@ -183,7 +183,7 @@ def test_gradcheck_turbidity_ozone_albedo():
     def f(turbidity, ozone, albedo):
         atm = Atmosphere.earth(turbidity=turbidity, ozone_du=ozone)
         tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64),
-                                       ground_albedo=albedo, scattering_orders=2,
+                                       ground_albedo=albedo, scattering_orders=3,
                                        resolution=res)
         return tables.radiance(0.0, torch.tensor([0.2, 1.0], dtype=F64), 0.5, 0.7)
 
@@ -206,6 +206,8 @@ def test_bad_input_names_parameter_and_range(day_tables):
         precompute_scattering(atm, WAVELENGTH, scattering_orders="all")
     with pytest.raises(ValueError, match="n_mu"):
         TableResolution(n_mu=7)
+    with pytest.raises(ValueError, match="forward_peak"):
+        precompute_scattering(atm, WAVELENGTH, forward_peak="gaussian")
     assert isinstance(tables, ScatteringTables)
 
 
@@ -222,3 +224,58 @@ def test_sky_radiance_orders_knob(day_tables):
     with pytest.raises(ValueError, match="wavelengths"):
         atm.sky_radiance(torch.tensor([500.0], dtype=F64), view, scattering_orders=2,
                          tables=tables)
+
+
+@pytest.mark.parametrize("g", [0.0, 0.7, 0.9])
+def test_forward_peak_shapes_of_henyey_greenstein(g):
+    """Scattering n times by a Henyey-Greenstein function of asymmetry g is one of g^n.
+
+    The convolution over the sphere of two Henyey-Greenstein functions is the
+    Henyey-Greenstein function of the product of their asymmetries (their Legendre
+    moments are g^l), an independent closed form for the Legendre sums; truncated at 256
+    terms, the sum misses 0.9^256 * 513 ≈ 1e-9 of the peak for g = 0.9, 2e-8 relative at
+    the backward dip (tolerance 1e-6).
+    """
+    from skytorch.atmosphere.multiple_scattering import forward_peak_shapes
+
+    terms = 256
+    moments = torch.tensor(g, dtype=F64) ** torch.arange(terms + 1, dtype=F64)
+    shapes = forward_peak_shapes(moments, [1, 2, 3])                     # (3, nodes)
+    cosine = torch.cos(torch.linspace(0.0, math.pi, shapes.shape[-1], dtype=F64))
+    for k, n in enumerate((1, 2, 3)):
+        gn = g ** n
+        closed = (1 - gn * gn) / (4 * math.pi * (1 + gn * gn - 2 * gn * cosine) ** 1.5)
+        torch.testing.assert_close(shapes[k], closed, rtol=1e-6, atol=0.0)
+
+
+def test_forward_peak_shape_of_rayleigh():
+    """Moments (1, 0, 1/10): one scattering is 3/(16π)(1 + cos²Θ) [sr^-1]."""
+    from skytorch.atmosphere.multiple_scattering import forward_peak_shapes
+
+    moments = torch.zeros(257, dtype=F64)
+    moments[0], moments[2] = 1.0, 0.1
+    shape = forward_peak_shapes(moments, [1])[0]
+    cosine = torch.cos(torch.linspace(0.0, math.pi, shape.shape[-1], dtype=F64))
+    torch.testing.assert_close(shape, 3 / (16 * math.pi) * (1 + cosine ** 2), rtol=1e-12,
+                               atol=0.0)
+
+
+def test_forward_peak_factoring_leaves_a_molecular_sky():
+    """Molecules alone: the factored and the plain look-up agree within 1.5 %.
+
+    Rayleigh's shapes vary by a few % with the scattering angle, so factoring them out
+    barely changes the interpolation; the sky (ground, view zenith 0-80 deg, three
+    azimuths, Sun 20-100 deg) must not move by more than the coarse tables' own error
+    against DISORT (1.3-2.3 %). Measured 0.7 % (Sun 100 deg, view 40 deg, anti-solar).
+    """
+    atm = Atmosphere.earth(aerosol_optical_depth=0.0, ozone_du=0.0,
+                           precipitable_water_cm=0.0)
+    plain, factored = (precompute_scattering(atm, WAVELENGTH, scattering_orders=4,
+                                             resolution=COARSE, forward_peak=mode)
+                       for mode in ("none", "factored"))
+    view = torch.deg2rad(torch.tensor([0.0, 40.0, 80.0], dtype=F64))[:, None, None]
+    azimuth = torch.tensor([0.0, 1.5, 3.1], dtype=F64)[None, :, None]
+    sun = torch.deg2rad(torch.tensor([20.0, 50.0, 85.0, 95.0, 100.0], dtype=F64))
+    ratio = factored.radiance(0.0, view, azimuth, sun) / plain.radiance(0.0, view, azimuth,
+                                                                         sun)
+    assert float((ratio - 1).abs().max()) < 0.015
