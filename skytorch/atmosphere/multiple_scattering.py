@@ -971,8 +971,10 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     # per level (orders <= n): the ground's reflections, and the light scattered in the
     # atmosphere by the orders 2..n (divided by the peak shape of order 2 at the nodes)
     cumulative = [ground1]
-    # the light reflected by the ground is followed apart (not peaked towards the Sun)
-    with_ground = bool((albedo != 0).any()) or albedo.requires_grad
+    # the light reflected by the ground is followed apart (not peaked towards the Sun);
+    # without the factor both parts are interpolated alike and travel together
+    with_ground = forward_peak == "factored" and (bool((albedo != 0).any())
+                                                  or albedo.requires_grad)
     scattered_sum = [torch.zeros_like(ground1)]
     # per level, the stored shape: the orders' shapes weighted by their sizes (b, nodes, λ)
     level_weights = [torch.zeros((b, n_lambda), dtype=dtype)]
@@ -995,8 +997,10 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
             e_prev = (lq[:, :, 0][:, :, up] * (w_q[up] * mu_q[up])[None, None, :, None, None,
                                                                  None]
                       ).sum((0, 2, 4)) * (2 * math.pi / n_full)
-        n_c = 2 if with_ground else 1
-        lin = lq[:n_c].permute(0, 1, 6, 2, 4, 3, 5).reshape(
+        if not with_ground:
+            lq = lq.sum(0, keepdim=True)
+        n_c = lq.shape[0]
+        lin = lq.permute(0, 1, 6, 2, 4, 3, 5).reshape(
             n_c, b, n_lambda, res.n_r * res.n_mu_s, n_in)
         # per species the phase-weighted mean radiance (smooth in r); its scattering
         # coefficient is applied at each sample's own altitude (exact vertical profile)
