@@ -206,9 +206,10 @@ def final_gather_correction(resources, knobs, tables, source_zenith_rad: float, 
     (n_view, n_mu, n_phi)}``), the ratio of
     :func:`skytorch.atmosphere.final_gather.higher_orders_gathered` to the tables' look-up
     at ``n_z`` zenith x ``n_a`` relative-azimuth nodes (those of the sky table), shape
-    (n_z, n_a, table wavelengths): it removes the smearing of a forward-peaked aerosol's
-    orders >= 2 by the tables' grid (docs/multiple_scattering_validation.md) at the cost of
-    ``n_z n_a`` gathered lines of sight per source.
+    (n_z, n_a, table wavelengths): it removes most of what is left of the tables'
+    interpolation error in a forward-peaked aerosol's orders >= 2
+    (docs/multiple_scattering_validation.md) at the cost of ``n_z n_a`` gathered lines of
+    sight per source.
     """
     setting = knobs["ms_final_gather"]
     if setting is None or orders < 2:
