@@ -383,6 +383,21 @@ def test_final_gather_removes_the_aerosol_smearing(reference):
     assert float(sky.sel(aod=1.0).max()) < 20 * PERCENT, sky.sel(aod=1.0).values
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
+def test_final_gather_on_default_tables_against_disort(reference):
+    """Default tables (forward peak factored out) and the final gather, the sky from the ground.
+
+    Aerosol optical depth 0.05 and 0.3, Sun 30 and 60 deg, 400 and 550 nm, nine views:
+    within 1.5 % of DISORT (measured 1.0 / 0.9 % and 0.8 / 0.9 %, Sun 30 / 60 deg: the
+    issue's 1 % is reached, at its edge at τ 0.05; this bound keeps a margin for the
+    machine's floating point). τ 1 (1.9 / 3.2 %) is not asserted.
+    """
+    errors = gathered_errors(reference.sel(aod=[0.05, 0.3]), None)
+    sky = abs(errors["sky"])
+    assert float(sky.max()) < 1.5 * PERCENT, sky.max(("view", "relative_azimuth")).values
+
+
 @pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
 def test_final_gather_over_a_lambertian_ground(reference):
     """Ground albedo 0.3 (DISORT's Lambertian run), coarse tables, final gather.
