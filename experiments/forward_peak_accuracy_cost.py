@@ -1,4 +1,4 @@
-"""The forward peak factored out of the orders >= 2: accuracy against DISORT and its cost.
+"""The forward peak factored out of the orders >= 2, and the tables' dtype: accuracy and cost.
 
 Reference: ``tests/data/ms_reference/disort_sky.nc`` (DisORT++, plane-parallel, U.S. 1976
 molecules + Henyey-Greenstein aerosol g 0.7, albedo 0.95; the sky seen from the ground at
@@ -6,11 +6,14 @@ view zenith 0, 30, 60 deg and relative azimuth 0, 90, 180 deg, 400 and 550 nm, S
 and 60 deg; black ground against the 64-stream run, Lambertian ground of albedo 0.3
 against its own run).
 
-For each table resolution and ``precompute_scattering(..., forward_peak="none" |
-"factored")``: the largest relative error of the sky over those views, per aerosol
-optical depth and Sun, of (a) the tables alone (``ScatteringTables.radiance``) and (b)
-the ray-marched single scattering plus the tables' orders >= 2 (what scenes render), and
-the precompute time (the optical depths batched in one call).
+For each table resolution and each variant of ``precompute_scattering`` — the orders
+interpolated as they are (``forward_peak="none"``), the forward peak factored out
+(``"factored"``, the default), and the same with ``dtype=torch.float32`` (the ray
+integrals of the orders >= 2, the storage and the look-ups in float32) — the largest
+relative error of the sky over those views, per aerosol optical depth and Sun, of (a) the
+tables alone (``ScatteringTables.radiance``) and (b) the ray-marched single scattering
+plus the tables' orders >= 2 (what scenes render), and the precompute time (the optical
+depths batched in one call).
 
 Writes ``forward_peak_accuracy_cost.nc`` / ``.png``. Run:
 ``python experiments/forward_peak_accuracy_cost.py [--quick] [--output-dir DIR]``.
@@ -47,7 +50,9 @@ COARSE = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
 CASES = (("coarse", TableResolution(**COARSE), 0.0),
          ("coarse, ground 0.3", TableResolution(**COARSE), 0.3),
          ("default", TableResolution(), 0.0))
-MODES = ("none", "factored")
+#: (label, forward_peak, dtype)
+VARIANTS = (("none", "none", torch.float64), ("factored", "factored", torch.float64),
+            ("factored, float32", "factored", torch.float32))
 
 
 def _atmosphere(aod) -> Atmosphere:
@@ -58,7 +63,7 @@ def _atmosphere(aod) -> Atmosphere:
                             aerosol_asymmetry=0.7, aerosol_single_scattering_albedo=0.95)
 
 
-def _errors(reference, aods, resolution, albedo, mode):
+def _errors(reference, aods, resolution, albedo, mode, dtype):
     """Largest |model / DISORT - 1| (method, aod, sun) and the precompute time [s]."""
     wavelength = torch.tensor(reference.wavelength.values, dtype=torch.float64)
     aod = torch.tensor(aods, dtype=torch.float64)
@@ -66,7 +71,7 @@ def _errors(reference, aods, resolution, albedo, mode):
     clock = time.perf_counter()
     tables = precompute_scattering(atm, wavelength, ground_albedo=albedo,
                                    scattering_orders="converged", resolution=resolution,
-                                   forward_peak=mode)
+                                   forward_peak=mode, dtype=dtype)
     seconds = time.perf_counter() - clock
     zenith = torch.deg2rad(torch.tensor(VIEW_ZENITH_DEG, dtype=torch.float64))[:, None, None]
     azimuth = torch.deg2rad(torch.tensor(reference.relative_azimuth.values,
@@ -76,8 +81,10 @@ def _errors(reference, aods, resolution, albedo, mode):
     error = np.zeros((2, len(aods), reference.sun_zenith.size))
     for k, sun_zenith in enumerate(reference.sun_zenith.values):
         sun = torch.tensor(math.radians(sun_zenith), dtype=torch.float64)
-        total = tables.radiance(ground, zenith, azimuth, sun)           # (view, az, aod, λ)
-        higher = total - tables.radiance(ground, zenith, azimuth, sun, scattering_orders=1)
+        total = tables.radiance(ground, zenith.to(dtype), azimuth.to(dtype),
+                                sun.to(dtype)).double()                 # (view, az, aod, λ)
+        higher = total - tables.radiance(ground, zenith.to(dtype), azimuth.to(dtype),
+                                         sun.to(dtype), scattering_orders=1).double()
         single = constituent_radiance(atm.constituents(wavelength), zenith, azimuth, sun,
                                       0.0 * sun, ground, n_samples=512)
         disort = reference[run].sel(aod=list(aods), sun_zenith=sun_zenith,
@@ -100,23 +107,23 @@ def main(argv=None):
     aods = [0.0, 0.3] if quick else [0.0, 0.05, 0.3, 1.0]
     if quick:
         reference = reference.sel(wavelength=[550.0])
-    error = np.zeros((len(cases), len(MODES), 2, len(aods), reference.sun_zenith.size))
-    seconds = np.zeros((len(cases), len(MODES)))
+    error = np.zeros((len(cases), len(VARIANTS), 2, len(aods), reference.sun_zenith.size))
+    seconds = np.zeros((len(cases), len(VARIANTS)))
     for i, (_, resolution, albedo) in enumerate(cases):
         # the ground run has no optical depth 1
         rows = [j for j, a in enumerate(aods) if not (albedo and a > 0.5)]
-        for m, mode in enumerate(MODES):
+        for m, (_, mode, dtype) in enumerate(VARIANTS):
             part, seconds[i, m] = _errors(reference, [aods[j] for j in rows], resolution,
-                                          albedo, mode)
+                                          albedo, mode, dtype)
             error[i, m] = np.nan
             error[i, m][:, rows] = part
     dataset = xr.Dataset(
-        {"sky_error": (("case", "forward_peak", "method", "aod", "sun_zenith"), error,
+        {"sky_error": (("case", "variant", "method", "aod", "sun_zenith"), error,
                        {"units": "1", "long_name": "largest |model / DISORT - 1| over the "
                         "sky views and wavelengths"}),
-         "precompute_seconds": (("case", "forward_peak"), seconds, {"units": "s"})},
+         "precompute_seconds": (("case", "variant"), seconds, {"units": "s"})},
         coords={"case": ("case", np.array([c[0] for c in cases])),
-                "forward_peak": ("forward_peak", np.array(MODES)),
+                "variant": ("variant", np.array([v[0] for v in VARIANTS])),
                 "method": ("method", np.array(["tables", "ray-marched order 1 + tables"])),
                 "aod": ("aod", np.array(aods), {"long_name": "aerosol optical depth at "
                                                 "550 nm"}),
@@ -129,18 +136,18 @@ def main(argv=None):
     figure, axes = plt.subplots(1, len(cases), figsize=(4 * len(cases), 3.6), squeeze=False)
     for i, (name, _, _) in enumerate(cases):
         axis = axes[0, i]
-        for m, mode in enumerate(MODES):
+        for m, (label, _, _) in enumerate(VARIANTS):
             for k, sun in enumerate(reference.sun_zenith.values):
-                axis.semilogy(aods, 100 * error[i, m, 1, :, k], "o-" if m else "s--",
-                              label=f"{mode}, Sun {sun:g}° ({seconds[i, m]:.0f} s)")
+                axis.semilogy(aods, 100 * error[i, m, 1, :, k], ("s--", "o-", "x:")[m],
+                              label=f"{label}, Sun {sun:g}° ({seconds[i, m]:.0f} s)")
         axis.set_title(name)
         axis.set_xlabel("aerosol optical depth at 550 nm")
         axis.set_ylabel("largest sky error vs DISORT [%]")
         axis.legend(fontsize=7)
     save_outputs(dataset, figure, arguments.output_dir, "forward_peak_accuracy_cost")
     for i, (name, _, _) in enumerate(cases):
-        for m, mode in enumerate(MODES):
-            print(f"{name}, {mode} ({seconds[i, m]:.1f} s): " + "; ".join(
+        for m, (label, _, _) in enumerate(VARIANTS):
+            print(f"{name}, {label} ({seconds[i, m]:.1f} s): " + "; ".join(
                 f"τ {aod:g}: " + " / ".join(f"{100 * error[i, m, 1, j, k]:.1f}"
                                              for k in range(reference.sun_zenith.size))
                 + " %" for j, aod in enumerate(aods)))
