@@ -89,7 +89,8 @@ from skytorch._validate import check_int, check_range
 from skytorch.atmosphere.geometry import safe_sqrt
 from skytorch.atmosphere.inputs import check_atmosphere, wavelength_tensor
 
-__all__ = ["MU_S_MIN", "ScatteringTables", "TableResolution", "precompute_scattering"]
+__all__ = ["MU_S_MIN", "ScatteringTables", "TableResolution", "forward_peak_shapes",
+           "precompute_scattering"]
 
 #: lowest cosine of the Sun's zenith angle in the tables: the Sun 18 deg below the horizon
 MU_S_MIN = math.cos(math.radians(108.0))
