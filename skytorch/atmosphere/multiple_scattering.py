@@ -685,10 +685,12 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         Table sizes (default :class:`TableResolution()`).
     dtype : torch.dtype
         float64 or float32: the dtype of the stored tables and of the look-ups. The
-        geometry, the transmittances and order 1 are always computed in float64; the ray
-        integrals of the orders >= 2 (most of the cost) in ``dtype``: float32 builds the
-        tables 1.5-2.6 times faster; its ray integrals alone change the radiance by
-        5e-8 relative, its look-ups by up to 2e-5 (docs/multiple_scattering.md).
+        geometry, the optical depths and the transmittances along the view rays are
+        always computed in float64; the ray integrals (order 1 and, most of the cost, the
+        orders >= 2) in ``dtype``: float32 builds the tables 1.5-2.6 times faster; its
+        ray integrals of the orders >= 2 alone change the radiance by 5e-8 relative, the
+        float32 look-ups by 2e-5 (up to 1.4e-4 for order 1 alone in deep twilight;
+        docs/multiple_scattering.md).
     forward_peak : {"factored", "none"}
         How the orders >= 2 are interpolated between the table's nodes. ``"factored"``:
         divided at the nodes by the angular shape of light scattered n times by the
@@ -730,8 +732,8 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     # the tables are built in float64 (the r^2 - R^2 geometry and long columns cancel in
     # float32) and stored in ``dtype``
     table_dtype, dtype = dtype, torch.float64
-    # the ray integrals of the orders >= 2 (their sources looked up along every ray of the
-    # table, most of the cost) in the stored dtype
+    # the ray integrals (order 1 along every ray of the table, and the orders >= 2 with
+    # their sources looked up along them: most of the cost) in the stored dtype
     ray_dtype = table_dtype
     wavelength = wavelength_tensor(wavelength_nm, dtype)
     constituents = atmosphere.constituents(wavelength, dtype)
@@ -754,17 +756,20 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
                                          _geometry(mu_t, nb), extra=2)
     tau_table = _flat(constituents.optical_depth(cols, extra=2), shape_b, 3)  # (b, r, mu, λ)
 
-    def sun_transmittance(bi, r, mu):
-        """exp(-tau) to the Sun (b, ...,) -> (..., λ); zero in the planet's shadow."""
+    def sun_transmittance(bi, r, mu, out_dtype=dtype):
+        """exp(-tau) to the Sun (b, ...,) -> (..., λ) in ``out_dtype``; zero in the shadow.
+
+        The geometry in float64 (``r`` near the ground cancels in float32).
+        """
         ir = _linear(shell.x_of_r(r) * (res.transmittance_r - 1), res.transmittance_r)
         _, u = shell.mu_coordinate(r, torch.clamp(mu, min=-1.0))
         im = _linear(u * (res.transmittance_mu - 1), res.transmittance_mu)
-        flat = tau_table.reshape(-1, n_lambda)
+        flat = tau_table.reshape(-1, n_lambda).to(out_dtype)
         base = (bi * res.transmittance_r + ir[0]) * res.transmittance_mu + im[0]
         tau = 0.0
         for dr in (0, 1):
             for dm in (0, 1):
-                w = (ir[1] if dr else 1 - ir[1]) * (im[1] if dm else 1 - im[1])
+                w = ((ir[1] if dr else 1 - ir[1]) * (im[1] if dm else 1 - im[1])).to(out_dtype)
                 idx = base + dr * res.transmittance_mu + dm
                 tau = tau + w[..., None] * flat[idx.reshape(-1)].reshape(idx.shape + (n_lambda,))
         lit = (mu >= shell.mu_horizon(r))[..., None]
@@ -827,13 +832,16 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     for i in range(res.n_r):
         mus_s = sample_sun(i)                                        # (mu, K, mu_s, phi)
         t_sun = sun_transmittance(barange, r_s[i][None, :, :, None, None]
-                                  .expand((b,) + mus_s.shape), mus_s.expand((b,) + mus_s.shape))
-        path = t_view[:, i][:, :, :, None, None, :] * t_sun          # (b, mu, K, ms, phi, λ)
-        weights = ds[i][None, :, :, None, None, None]
+                                  .expand((b,) + mus_s.shape), mus_s.expand((b,) + mus_s.shape),
+                                  ray_dtype)
+        # (b, mu, K, ms, phi, λ) in the stored dtype, each species' sum over K in float64
+        path = t_view[:, i].to(ray_dtype)[:, :, :, None, None, :] * t_sun
+        weights = ds[i].to(ray_dtype)[None, :, :, None, None, None]
         single_parts.append(torch.stack(
-            [(beta[:, i][:, :, :, None, None, :] * path * weights).sum(2) for beta in beta_s],
-            dim=-2) if beta_s else torch.zeros((b, res.n_mu, res.n_mu_s, res.n_phi, 0,
-                                                n_lambda), dtype=dtype))
+            [(beta[:, i].to(ray_dtype)[:, :, :, None, None, :] * path * weights).sum(2)
+             .to(dtype) for beta in beta_s], dim=-2)
+            if beta_s else torch.zeros((b, res.n_mu, res.n_mu_s, res.n_phi, 0, n_lambda),
+                                       dtype=dtype))
         mus_g = mus_s[:, -1]                                         # (mu, ms, phi)
         e0 = torch.clamp(mus_g, min=0.0)[..., None] * sun_transmittance(
             torch.arange(b)[:, None, None, None],
