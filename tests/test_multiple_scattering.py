@@ -176,6 +176,20 @@ def test_batched_atmosphere_matches_single_members():
         assert torch.allclose(value[k], alone.radiance(0.0, 0.3, 0.2, 0.8), rtol=1e-10)
 
 
+@pytest.mark.parametrize("budget", [1, 500])
+def test_ray_integrals_in_blocks_equal_whole_rays(monkeypatch, budget):
+    """Blocks of a few samples (the path of large tables) give the whole rays' tables."""
+    from skytorch.atmosphere import multiple_scattering
+
+    atm = Atmosphere.earth(turbidity=2.0)
+    geometry = (0.0, torch.tensor([0.0, 1.0, 1.5, 1.7]), 0.4, torch.tensor([0.5, 1.0, 1.5, 1.8]))
+    options = {"ground_albedo": 0.3, "scattering_orders": 3, "resolution": TableResolution.tiny()}
+    whole = precompute_scattering(atm, WAVELENGTH, **options).radiance(*geometry)
+    monkeypatch.setattr(multiple_scattering, "_BUDGET", budget)
+    blocks = precompute_scattering(atm, WAVELENGTH, **options).radiance(*geometry)
+    assert torch.allclose(blocks, whole, rtol=1e-12, atol=0.0), (blocks, whole)
+
+
 def test_gradcheck_turbidity_ozone_albedo():
     res = TableResolution(n_r=3, n_mu=4, n_mu_s=3, n_phi=3, n_ray=4, n_sphere_mu=2,
                           transmittance_r=4, transmittance_mu=6)

@@ -79,6 +79,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -96,8 +97,9 @@ __all__ = ["MU_S_MIN", "ScatteringTables", "TableResolution", "forward_peak_shap
 MU_S_MIN = math.cos(math.radians(108.0))
 #: relative size of the last order at which ``"converged"`` stops
 CONVERGENCE_RTOL = 1e-4
-#: elements per chunk of the ray integrals (bounds the memory of the gathers)
-_BUDGET = 2_000_000
+#: values per block of the ray integrals (samples x Sun directions x channels): the
+#: element-wise work on blocks of this size stays in the caches
+_BUDGET = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -755,6 +757,8 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     cols = constituents.column_integrals(_geometry(r_t.expand_as(mu_t), nb),
                                          _geometry(mu_t, nb), extra=2)
     tau_table = _flat(constituents.optical_depth(cols, extra=2), shape_b, 3)  # (b, r, mu, λ)
+    # its rows (b * r * mu, λ) in float64 and in the ray dtype
+    tau_rows = {dt: tau_table.reshape(-1, n_lambda).to(dt) for dt in (dtype, ray_dtype)}
 
     def sun_transmittance(bi, r, mu, out_dtype=dtype):
         """exp(-tau) to the Sun (b, ...,) -> (..., λ) in ``out_dtype``; zero in the shadow.
@@ -764,12 +768,13 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         ir = _linear(shell.x_of_r(r) * (res.transmittance_r - 1), res.transmittance_r)
         _, u = shell.mu_coordinate(r, torch.clamp(mu, min=-1.0))
         im = _linear(u * (res.transmittance_mu - 1), res.transmittance_mu)
-        flat = tau_table.reshape(-1, n_lambda).to(out_dtype)
+        flat = tau_rows[out_dtype]
         base = (bi * res.transmittance_r + ir[0]) * res.transmittance_mu + im[0]
+        w_r, w_m = ir[1].to(out_dtype), im[1].to(out_dtype)
         tau = 0.0
         for dr in (0, 1):
             for dm in (0, 1):
-                w = ((ir[1] if dr else 1 - ir[1]) * (im[1] if dm else 1 - im[1])).to(out_dtype)
+                w = (w_r if dr else 1 - w_r) * (w_m if dm else 1 - w_m)
                 idx = base + dr * res.transmittance_mu + dm
                 tau = tau + w[..., None] * flat[idx.reshape(-1)].reshape(idx.shape + (n_lambda,))
         lit = (mu >= shell.mu_horizon(r))[..., None]
@@ -821,28 +826,97 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
                            * torch.sqrt(1 - mu_s_nodes ** 2)[:, None]
                            * torch.cos(phi_nodes), -1.0, 1.0)        # (r, mu, mu_s, phi)
 
-    def sample_sun(i):
-        """mu_s at the samples of the rays from r node ``i``: (mu, K, mu_s, phi)."""
-        return torch.clamp((r_nodes[i] * mu_s_nodes[:, None] + s[i][..., None, None]
-                            * nu_nodes[i][:, None]) / r_s[i][..., None, None], -1.0, 1.0)
+    def sample_sun(i, k=slice(None), rows=slice(None)):
+        """mu_s at the samples ``k`` of the rays ``rows`` from r node ``i``.
+
+        Shape (mu, K, mu_s, phi), or (mu, mu_s, phi) for an integer ``k``.
+        """
+        nu = nu_nodes[i][rows]
+        if not isinstance(k, int):
+            nu = nu[:, None]
+        return torch.clamp((r_nodes[i] * mu_s_nodes[:, None] + s[i][rows, k][..., None, None]
+                            * nu) / r_s[i][rows, k][..., None, None], -1.0, 1.0)
+
+    def ray_chunks(channels):
+        """Blocks of the table's ray samples whose temporaries stay within a budget.
+
+        Per slice of the mu axis, the slices of the samples along the rays (all of them
+        when a whole ray fits): ``[(rows, [k, ...]), ...]``. The ray integrals'
+        element-wise work on ``channels`` values per (sample, mu_s, phi) then stays in
+        the caches (on whole radii it ran 4-10 times slower per element).
+        """
+        per_sample = b * res.n_mu_s * res.n_phi * channels
+        samples = max(1, _BUDGET // per_sample)
+        if samples >= res.n_ray:
+            step = samples // res.n_ray
+            return [(slice(m, min(m + step, res.n_mu)), [slice(None)])
+                    for m in range(0, res.n_mu, step)]
+        ks = [slice(k, min(k + samples, res.n_ray)) for k in range(0, res.n_ray, samples)]
+        return [(slice(m, m + 1), ks) for m in range(res.n_mu)]
+
+    def along_rays(integrand, i, channels):
+        """Sum of ``integrand(i, rows, k)`` over the blocks of :func:`ray_chunks`.
+
+        The integrand returns its sum over the samples ``k`` of the rays ``rows``
+        (b, rows, ...); the blocks are joined along the mu axis.
+        """
+        return torch.cat([sum(integrand(i, rows, k) for k in ks)
+                          for rows, ks in ray_chunks(channels)], dim=1)
+
+    def scattered_along_rays(j_table, n_c, n_s, i, rows, k):
+        """Integral of T J over the samples ``k`` of the rays ``rows`` from r node ``i``.
+
+        ``j_table`` (b, r, q, ms, phi, c * S * λ) in the ray dtype; returns
+        (b, mu, ms, phi, c, λ) in float64.
+        """
+        mus_s = sample_sun(i, k, rows)                              # (mu, K, ms, phi)
+        mv = mu_view_s[i][rows, k]                                  # (mu, K)
+        mv4 = mv[:, :, None, None]
+        nu = nu_nodes[i][rows][:, None]
+        denom = torch.sqrt(torch.clamp((1 - mv4 * mv4) * (1 - mus_s * mus_s), min=1e-30))
+        phi_s = torch.acos(torch.clamp((nu - mv4 * mus_s) / denom, -1.0, 1.0))
+        cr = _linear(shell.x_of_r(r_s[i][rows, k]) * (res.n_r - 1), res.n_r)
+        pos = torch.clamp(torch.searchsorted(mu_q, mv.contiguous()) - 1, 0,
+                          mu_q.shape[0] - 2)
+        wmu = torch.clamp((mv - mu_q[pos]) / (mu_q[pos + 1] - mu_q[pos]), 0.0, 1.0)
+        cms = _linear(shell.mu_s_coordinate(mus_s) * (res.n_mu_s - 1), res.n_mu_s)
+        cph = _linear(phi_s / math.pi * (res.n_phi - 1), res.n_phi)
+        jv = _gather_rays(j_table, (_weights_as(cr, ray_dtype),
+                                    _weights_as((pos, wmu), ray_dtype)),
+                          (_weights_as(cms, ray_dtype), _weights_as(cph, ray_dtype)))
+        jv = jv.reshape(jv.shape[:-1] + (n_c, n_s, n_lambda))
+        # per sample and species: scattering coefficient x transmittance x trapezoid weight
+        weight = (t_view[:, i, rows, k] * ds[i][rows, k][None, ..., None])[:, :, :, None, :]
+        if beta_s:
+            weight = torch.stack([bs[:, i, rows, k] for bs in beta_s], -2) * weight
+        else:
+            weight = torch.zeros_like(weight)
+        weight = weight[:, :, :, None, None, None].to(ray_dtype)     # (b, mu, K, 1, 1, 1, S, λ)
+        return (jv * weight).sum((2, -2)).to(dtype)                 # (b, mu, ms, phi, c, λ)
+
+    def single_along_rays(i, rows, k):
+        """Single scattering per species (no phase) over some samples of some rays.
+
+        The samples ``k`` of the rays ``rows`` from r node ``i``: (b, mu, ms, phi, S, λ)
+        in float64.
+        """
+        mus_s = sample_sun(i, k, rows)                              # (mu, K, ms, phi)
+        t_sun = sun_transmittance(torch.arange(b)[:, None, None, None, None],
+                                  r_s[i][rows, k][None, :, :, None, None], mus_s[None],
+                                  ray_dtype)
+        # (b, mu, K, ms, phi, λ) in the ray dtype
+        path = t_sun * (t_view[:, i, rows, k] * ds[i][rows, k][None, ..., None]).to(
+            ray_dtype)[:, :, :, None, None, :]
+        return torch.stack([(beta[:, i, rows, k].to(ray_dtype)[:, :, :, None, None, :] * path)
+                            .sum(2).to(dtype) for beta in beta_s], dim=-2)
 
     # --- order 1: single scattering per species (no phase) and the Sun off the ground
-    barange = torch.arange(b)[:, None, None, None, None]
     single_parts, ground1 = [], []
     for i in range(res.n_r):
-        mus_s = sample_sun(i)                                        # (mu, K, mu_s, phi)
-        t_sun = sun_transmittance(barange, r_s[i][None, :, :, None, None]
-                                  .expand((b,) + mus_s.shape), mus_s.expand((b,) + mus_s.shape),
-                                  ray_dtype)
-        # (b, mu, K, ms, phi, λ) in the stored dtype, each species' sum over K in float64
-        path = t_view[:, i].to(ray_dtype)[:, :, :, None, None, :] * t_sun
-        weights = ds[i].to(ray_dtype)[None, :, :, None, None, None]
-        single_parts.append(torch.stack(
-            [(beta[:, i].to(ray_dtype)[:, :, :, None, None, :] * path * weights).sum(2)
-             .to(dtype) for beta in beta_s], dim=-2)
-            if beta_s else torch.zeros((b, res.n_mu, res.n_mu_s, res.n_phi, 0, n_lambda),
-                                       dtype=dtype))
-        mus_g = mus_s[:, -1]                                         # (mu, ms, phi)
+        single_parts.append(
+            along_rays(single_along_rays, i, len(beta_s) * n_lambda) if beta_s
+            else torch.zeros((b, res.n_mu, res.n_mu_s, res.n_phi, 0, n_lambda), dtype=dtype))
+        mus_g = sample_sun(i, -1)                                    # (mu, ms, phi)
         e0 = torch.clamp(mus_g, min=0.0)[..., None] * sun_transmittance(
             torch.arange(b)[:, None, None, None],
             torch.full((b,) + mus_g.shape, shell.R, dtype=dtype), mus_g.expand((b,) + mus_g.shape))
@@ -1037,36 +1111,14 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         divisor = torch.ones((1,) * 5 + (n_c, 1, 1), dtype=dtype)
         divisor = divisor * torch.stack([peak(order, nu_j)] + [torch.ones_like(
             peak(order, nu_j))] * (n_c - 1), -2)[:, None, :, :, :, :, None]
-        j_table = (j_table / divisor).flatten(-3).to(ray_dtype)
+        # contiguous: each block of the ray integrals views its (r, mu) rows
+        j_table = (j_table / divisor).flatten(-3).to(ray_dtype).contiguous()
         nxt_sky, nxt_ground = [], []
         for i in range(res.n_r):
-            mus_s = sample_sun(i)                                   # (mu, K, ms, phi)
-            mv = mu_view_s[i]                                       # (mu, K)
-            mv4 = mv[:, :, None, None]
-            nu = nu_nodes[i][:, None]
-            denom = torch.sqrt(torch.clamp((1 - mv4 * mv4) * (1 - mus_s * mus_s), min=1e-30))
-            phi_s = torch.acos(torch.clamp((nu - mv4 * mus_s) / denom, -1.0, 1.0))
-            cr = _linear(shell.x_of_r(r_s[i]) * (res.n_r - 1), res.n_r)
-            pos = torch.clamp(torch.searchsorted(mu_q, mv.contiguous()) - 1, 0,
-                              mu_q.shape[0] - 2)
-            wmu = torch.clamp((mv - mu_q[pos]) / (mu_q[pos + 1] - mu_q[pos]), 0.0, 1.0)
-            cms = _linear(shell.mu_s_coordinate(mus_s) * (res.n_mu_s - 1), res.n_mu_s)
-            cph = _linear(phi_s / math.pi * (res.n_phi - 1), res.n_phi)
-            jv = _gather_rays(j_table, (_weights_as(cr, ray_dtype),
-                                        _weights_as((pos, wmu), ray_dtype)),
-                              (_weights_as(cms, ray_dtype), _weights_as(cph, ray_dtype)))
-            jv = jv.reshape(jv.shape[:-1] + (n_c, n_s, n_lambda))
-            if beta_s:
-                beta = torch.stack([bs[:, i] for bs in beta_s], -2)[:, :, :, None, None,
-                                                                   None].to(ray_dtype)
-                jv = (jv * beta).sum(-2)
-            else:
-                jv = jv.sum(-2) * 0.0
-            weight = (t_view[:, i] * ds[i][None, ..., None])[:, :, :, None, None, None,
-                                                            :].to(ray_dtype)
-            ray = (jv * weight).sum(2).to(dtype)                    # (b, mu, ms, phi, c, λ)
+            ray = along_rays(functools.partial(scattered_along_rays, j_table, n_c, n_s), i,
+                             n_c * n_s * n_lambda)
             nxt_sky.append(ray[..., 0, :] * peak(order, nu_nodes[i]))
-            mus_g = mus_s[:, -1]
+            mus_g = sample_sun(i, -1)                               # (mu, ms, phi)
             eg = _linear(shell.mu_s_coordinate(mus_g) * (res.n_mu_s - 1), res.n_mu_s)
             e_at = _geometric(e_prev[:, eg[0]], e_prev[:, eg[0] + 1], eg[1][None, ..., None])
             reflected = (ground_ray[None, :, None, None, None]
