@@ -361,14 +361,16 @@ def _gather_rays(table, ray_corners, sun_corners):
     (i3, w3), (i4, w4) = sun_corners
     row = (torch.arange(b * n_g).reshape((b,) + tuple(i1.shape) + (1, 1)) * (n3 * n4)
            + (i3 * n4 + i4)[None])
+    row = row.reshape(-1)
+    phi_weights = [(1.0 - w4).reshape(-1, 1), w4.reshape(-1, 1)]
     sides = []
     for d3 in (0, 1):
-        side = 0.0
+        side = None
         for d4 in (0, 1):
-            idx = (row + (d3 * n4 + d4)).reshape(-1)
-            w = (w4 if d4 else 1.0 - w4)[None, ..., None]
-            side = side + w * torch.index_select(flat, 0, idx).reshape(row.shape + (channels,))
-        sides.append(side)
+            rows = torch.index_select(flat, 0, row + (d3 * n4 + d4))
+            side = (rows.mul_(phi_weights[d4]) if side is None
+                    else side.addcmul_(rows, phi_weights[d4]))
+        sides.append(side.reshape((b,) + tuple(w3.shape) + (channels,)))
     return _geometric(sides[0], sides[1], w3[None, ..., None])
 
 
