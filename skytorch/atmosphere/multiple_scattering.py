@@ -845,9 +845,10 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         Per slice of the mu axis, the slices of the samples along the rays (all of them
         when a whole ray fits): ``[(rows, [k, ...]), ...]``. The ray integrals'
         element-wise work on ``channels`` values per (sample, mu_s, phi) then stays in
-        the caches (on whole radii it ran 4-10 times slower per element).
+        the caches (on whole radii it ran 4-10 times slower per element). The budget is
+        per parameter set, which the look-ups take one at a time (:func:`_gather_rays`).
         """
-        per_sample = b * res.n_mu_s * res.n_phi * channels
+        per_sample = res.n_mu_s * res.n_phi * channels
         samples = max(1, _BUDGET // per_sample)
         if samples >= res.n_ray:
             step = samples // res.n_ray
