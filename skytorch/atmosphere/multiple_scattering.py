@@ -691,7 +691,7 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         float64 or float32: the dtype of the stored tables and of the look-ups. The
         geometry, the optical depths and the transmittances along the view rays are
         always computed in float64; the ray integrals (order 1 and, most of the cost, the
-        orders >= 2) in ``dtype``: float32 builds the tables 1.5-2.6 times faster; its
+        orders >= 2) in ``dtype``: float32 builds the tables 1.4-1.9 times faster; its
         ray integrals of the orders >= 2 alone change the radiance by 5e-8 relative, the
         float32 look-ups by 2e-5 (up to 1.4e-4 for order 1 alone in deep twilight;
         docs/multiple_scattering.md).
@@ -713,8 +713,10 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     Notes
     -----
     Cost grows as ``n_r * n_mu * n_mu_s * n_phi * n_ray * wavelength`` per order (the
-    ray integrals) plus the sphere quadrature; the default resolution takes seconds
-    per order for a few wavelengths (benchmarks/bench_multiple_scattering.py).
+    ray integrals) plus the sphere quadrature; the default resolution takes about a
+    second per order for 3 wavelengths, Bruneton 2017's sizes (``TableResolution.
+    bruneton2017()``) 56 s for 4 orders of 15 wavelengths in float32 on 2 cores
+    (benchmarks/bench_multiple_scattering.py, docs/benchmarks.md).
     """
     check_atmosphere("atmosphere", atmosphere)
     if forward_peak not in ("factored", "none"):
