@@ -94,31 +94,72 @@ def _global_energy_balance(tables) -> float:
     return total / 0.5
 
 
+def _unscattered_limb_fraction(atm, wavelength) -> float:
+    """Part of the light intercepted by the top sphere that crosses the limb unscattered.
+
+    Rays with impact parameter p between the ground's radius R and the top's R_top miss
+    the planet; their direct beam, exp(-tau) along the straight chord, leaves the top on
+    the night side and is not sky radiance: sum of 2 p exp(-tau(p)) dp / R_top^2 (midpoint
+    rule, 4000 chords; tau from the atmosphere's column integrals, no table involved; with
+    tau = 0 it is the closed form 1 - (R / R_top)^2). 0.0251 for both atmospheres below at
+    550 nm: the air above 35 km is transparent along the chords.
+    """
+    constituents = atm.constituents(wavelength, F64)
+    ground, top = constituents.planet_radius_m, constituents.top_radius_m
+    n = 4000
+    p = ground + (top - ground) * (torch.arange(n, dtype=F64) + 0.5) / n
+    columns = constituents.column_integrals(p, torch.zeros_like(p), extra=1)
+    tau = 2.0 * constituents.optical_depth(columns, extra=1)[..., 0]
+    return float((2.0 * p * torch.exp(-tau)).sum() * (top - ground) / n / top ** 2)
+
+
+#: conservative atmospheres over a ground of albedo 1
+RAYLEIGH_ONLY = {"aerosol_optical_depth": 0.0, "ozone_du": 0.0, "precipitable_water_cm": 0.0}
+WITH_AEROSOL = {"turbidity": 2.0, "ozone_du": 0.0, "precipitable_water_cm": 0.0,
+                "aerosol_single_scattering_albedo": 1.0}
+
+
+def _balance_excess(parameters, resolution) -> float:
+    """Sky light leaving the top / (intercepted - unscattered limb light) - 1, 550 nm."""
+    atm = Atmosphere.earth(**parameters)
+    wavelength = torch.tensor([550.0], dtype=F64)
+    tables = precompute_scattering(atm, wavelength, ground_albedo=1.0,
+                                   scattering_orders="converged", resolution=resolution)
+    assert tables.converged
+    return _global_energy_balance(tables) / (1.0 - _unscattered_limb_fraction(atm, wavelength)) - 1
+
+
+@pytest.mark.xfail(strict=True, reason="sky light leaving the top exceeds what the "
+                   "conservative Rayleigh atmosphere does not pass unscattered through the "
+                   "limb (2.51 % at 550 nm) by 2.3 % on coarse 8x32x16x6 tables, 1.1 % "
+                   "on the default ones and 0.6 % at Bruneton 2017's sizes "
+                   "(docs/multiple_scattering.md)")
 def test_conservation_rayleigh_white_ground():
     """Conservative Rayleigh atmosphere over a ground of albedo 1 returns what it receives.
 
-    Measured 0.9976 (coarse tables, 10 orders): within the issue's 0.5 %.
+    What it receives: the intercepted light less the direct beam that crosses the limb
+    unscattered (2.51 % at 550 nm), which is not sky radiance. The issue's 0.5 %.
     """
-    atm = Atmosphere.earth(aerosol_optical_depth=0.0, ozone_du=0.0, precipitable_water_cm=0.0)
     coarse = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
                              transmittance_r=32, transmittance_mu=128)
-    tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64), ground_albedo=1.0,
-                                   scattering_orders="converged", resolution=coarse)
-    assert tables.converged
-    assert abs(_global_energy_balance(tables) - 1.0) <= 0.005
+    assert abs(_balance_excess(RAYLEIGH_ONLY, coarse)) <= 0.005
+
+
+@pytest.mark.slow
+def test_energy_excess_falls_as_the_tables_refine():
+    """The balance's excess (coarse +2.3 %, default +1.1 %: Rayleigh) falls with resolution."""
+    coarse = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
+                             transmittance_r=32, transmittance_mu=128)
+    excess = [_balance_excess(RAYLEIGH_ONLY, res) for res in (coarse, TableResolution())]
+    assert 0.0 < excess[1] < 0.6 * excess[0], excess
 
 
 @pytest.mark.xfail(strict=True, reason="with a forward-peaked aerosol (turbidity 2, albedo "
-                   "1) the balance is 1.057 on the tiny table and 1.007 on coarse 8x32x16x6 "
-                   "(docs/multiple_scattering.md)")
+                   "1) the sky light leaving the top exceeds the energy-conserving value by "
+                   "8.5 % on the tiny table, 3.3 % on coarse 8x32x16x6, 1.3 % on the default "
+                   "and 0.9 % at Bruneton 2017's sizes (docs/multiple_scattering.md)")
 def test_conservation_albedo_one():
-    atm = Atmosphere.earth(turbidity=2.0, ozone_du=0.0, precipitable_water_cm=0.0,
-                           aerosol_single_scattering_albedo=1.0)
-    tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64), ground_albedo=1.0,
-                                   scattering_orders="converged",
-                                   resolution=TableResolution.tiny())
-    assert tables.converged
-    assert abs(_global_energy_balance(tables) - 1.0) <= 0.005
+    assert abs(_balance_excess(WITH_AEROSOL, TableResolution.tiny())) <= 0.005
 
 
 @pytest.mark.parametrize("altitude, view, sun", [
