@@ -92,3 +92,18 @@ def test_batched_light_curve_equals_loop():
 def test_limb_view_rejects_batched_atmosphere():
     with pytest.raises(ValueError, match="unbatched"):
         Shadow.earth(_grid_atmosphere(), n_altitude=101).limb_view(3.8e8, 0.0, RGB)
+
+
+def test_batched_atmosphere_that_bends_differently_raises():
+    """Members with different refractivity (surface pressure) need one Shadow each.
+
+    The members of a turbidity x ozone grid bend alike up to the batched trace's rounding
+    (1 ulp, which differs between CPUs' vector lanes: compared with a tolerance); a
+    pressure change of 11 % is far outside it.
+    """
+    atm = Atmosphere.earth(surface_pressure_pa=torch.tensor([101325.0, 90000.0],
+                                                            dtype=torch.float64))
+    with pytest.raises(ValueError, match="bend light differently"):
+        Shadow.earth(atm, n_altitude=101).relative_illuminance(
+            torch.tensor(MEAN_EARTH_MOON_DISTANCE_M, dtype=torch.float64),
+            torch.tensor(1.0e6, dtype=torch.float64), RGB)

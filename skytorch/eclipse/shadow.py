@@ -171,6 +171,11 @@ DEFAULT_SPLIT_KINKED = 1
 _ROOT_STEPS = 6
 #: bisection steps for the fold of ``a(beta)`` below a kink (~1e-8 of a row in ``s``)
 _FOLD_STEPS = 24
+#: members of a batched atmosphere bend light alike when their deviations agree to this
+#: relative tolerance and their periapsis altitudes to _SAME_PERIAPSIS_M [m]: the
+#: batched trace's rounding (1 ulp), far below any difference of refractivity
+_SAME_BENDING_RTOL = 1e-12
+_SAME_PERIAPSIS_M = 1e-6
 #: relative singular-value cut-off of the optical-depth table (reconstruction ~1e-12)
 _RANK_TOLERANCE = 1e-13
 #: stride of the coarse grid that brackets the breakpoints before the Newton steps
@@ -1397,8 +1402,14 @@ class Shadow(nn.Module):
                 beta.shape[0], -1)
             periapsis = rays["contact_altitude_m"].detach().to(torch.float64).reshape(
                 beta.shape[0], -1)
-            if deviation.shape[1] > 1 and not bool(
-                    (deviation == deviation[:, :1]).all() & (periapsis == periapsis[:, :1]).all()):
+            # members that differ in extinction only bend alike up to the rounding of
+            # the batched trace (1 ulp, differing between CPUs' vector lanes): compared
+            # with a tolerance far below any difference of refractivity
+            if deviation.shape[1] > 1 and not (
+                    torch.allclose(deviation, deviation[:, :1].expand_as(deviation),
+                                   rtol=_SAME_BENDING_RTOL, atol=0.0)
+                    and torch.allclose(periapsis, periapsis[:, :1].expand_as(periapsis),
+                                       rtol=0.0, atol=_SAME_PERIAPSIS_M)):
                 raise ValueError("the members of the batched atmosphere bend light differently; "
                                  "Shadow batches atmospheres that differ in extinction only "
                                  "(turbidity, ozone): build one Shadow per refractivity")
