@@ -231,6 +231,19 @@ def test_ray_integrals_in_blocks_equal_whole_rays(monkeypatch, budget):
     assert torch.allclose(blocks, whole, rtol=1e-12, atol=0.0), (blocks, whole)
 
 
+def test_lookups_in_blocks_equal_one_block(monkeypatch, day_tables):
+    """Look-ups in blocks of a few points (the path of large images) equal one block."""
+    from skytorch.atmosphere import multiple_scattering
+
+    _, tables = day_tables
+    geometry = (torch.tensor([0.0, 5.0e3])[:, None, None], torch.linspace(0.0, 3.1, 40)[:, None],
+                torch.linspace(-3.0, 3.0, 7), torch.tensor(1.2))
+    monkeypatch.setattr(multiple_scattering, "_LOOKUP_BUDGET", 1 << 40)
+    whole = tables.radiance(*geometry)
+    monkeypatch.setattr(multiple_scattering, "_LOOKUP_BUDGET", 7)
+    assert torch.equal(tables.radiance(*geometry), whole)
+
+
 def test_gradcheck_turbidity_ozone_albedo():
     res = TableResolution(n_r=3, n_mu=4, n_mu_s=3, n_phi=3, n_ray=4, n_sphere_mu=2,
                           transmittance_r=4, transmittance_mu=6)

@@ -97,6 +97,8 @@ __all__ = ["MU_S_MIN", "ScatteringTables", "TableResolution", "forward_peak_shap
 MU_S_MIN = math.cos(math.radians(108.0))
 #: relative size of the last order at which ``"converged"`` stops
 CONVERGENCE_RTOL = 1e-4
+#: values per block of the tables' look-ups (points x channels)
+_LOOKUP_BUDGET = 1 << 17
 #: values per block of the ray integrals (samples x Sun directions x channels): the
 #: element-wise work on blocks of this size stays in the caches
 _BUDGET = 1_000_000
@@ -308,26 +310,40 @@ def _gather4(table, b, corners):
     :func:`_geometric`). Returns (*shape, λ').
 
     Each of the 16 corners is one row gather of the λ' channels (:func:`torch.index_select`)
-    accumulated with its weight; the weights of the (r, mu) corners are formed once.
+    accumulated with its weight; the weights of the (r, mu) corners are formed once. The
+    points are looked up in blocks of :data:`_LOOKUP_BUDGET` values, whose temporaries
+    stay in the caches.
     """
     n1, n2, n3, n4 = table.shape[1:5]
     channels = table.shape[-1]
     flat = table.reshape(-1, channels)
     (i1, w1), (i2, w2), (i3, w3), (i4, w4) = corners
-    base = ((((b * n1 + i1) * n2 + i2) * n3 + i3) * n4 + i4).reshape(-1)
-    pair_weights = [((w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2), d1 * n2 * n3 * n4
-                     + d2 * n3 * n4) for d1 in (0, 1) for d2 in (0, 1)]
-    phi_weights = (1.0 - w4, w4)
-    sides = []
-    for d3 in (0, 1):
-        side = None
-        for pair, pair_offset in pair_weights:
-            for d4 in (0, 1):
-                weight = (pair * phi_weights[d4]).reshape(-1, 1)
-                rows = torch.index_select(flat, 0, base + (pair_offset + d3 * n4 + d4))
-                side = rows * weight if side is None else side.addcmul_(rows, weight)
-        sides.append(side.reshape(i1.shape + (channels,)))
-    return _geometric(sides[0], sides[1], w3[..., None])
+    shape = torch.broadcast_shapes(*(x.shape for pair in corners for x in pair))
+    base = ((((b * n1 + i1) * n2 + i2) * n3 + i3) * n4 + i4).expand(shape).reshape(-1)
+    w1, w2, w3, w4 = (w.expand(shape).reshape(-1, 1) for w in (w1, w2, w3, w4))
+    step = max(1, _LOOKUP_BUDGET // max(1, channels))
+    blocks = []
+    for start in range(0, base.shape[0], step):
+        block = slice(start, start + step)
+        pair_weights = [((w1[block] if d1 else 1.0 - w1[block])
+                         * (w2[block] if d2 else 1.0 - w2[block]),
+                         d1 * n2 * n3 * n4 + d2 * n3 * n4) for d1 in (0, 1) for d2 in (0, 1)]
+        phi_weights = (1.0 - w4[block], w4[block])
+        sides = []
+        for d3 in (0, 1):
+            side = None
+            for pair, pair_offset in pair_weights:
+                for d4 in (0, 1):
+                    weight = pair * phi_weights[d4]
+                    rows = torch.index_select(flat, 0,
+                                              base[block] + (pair_offset + d3 * n4 + d4))
+                    side = rows * weight if side is None else side.addcmul_(rows, weight)
+            sides.append(side)
+        blocks.append(_geometric(sides[0], sides[1], w3[block]))
+    if not blocks:
+        return flat.new_zeros(shape + (channels,))
+    out = blocks[0] if len(blocks) == 1 else torch.cat(blocks)
+    return out.reshape(shape + (channels,))
 
 
 def _gather_rays(table, ray_corners, sun_corners):
