@@ -33,7 +33,12 @@ import xarray as xr
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
-from skytorch.atmosphere import Atmosphere  # noqa: E402
+from experiments._disort_reference import (  # noqa: E402
+    COARSE,
+    VIEW_ZENITH_DEG,
+    disort_atmosphere,
+    load_reference,
+)
 from skytorch.atmosphere.final_gather import higher_orders_gathered  # noqa: E402
 from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
     TableResolution,
@@ -41,26 +46,12 @@ from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
 )
 from skytorch.atmosphere.scattering import constituent_radiance  # noqa: E402
 
-REFERENCE = Path(__file__).resolve().parents[1] / "tests" / "data" / "ms_reference" / \
-    "disort_sky.nc"
-VIEW_ZENITH_DEG = (0.0, 30.0, 60.0)
-#: the coarse tables of the sasktran2 / DISORT / Monte-Carlo tests, and with 16 radii
-COARSE = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-              transmittance_r=32, transmittance_mu=128)
 RESOLUTIONS = {"coarse": TableResolution(**COARSE),
                "coarse, 16 radii": TableResolution(**{**COARSE, "n_r": 16}),
                "default": TableResolution()}
 #: (n_view, n_mu, n_phi); the last is the finest, the reference of part 2
 QUADRATURES = ((8, 4, 16), (16, 8, 32), (32, 16, 64), (48, 24, 96), (64, 32, 128))
 DEFAULT_QUADRATURE = (32, 16, 64)
-
-
-def _atmosphere(aod: float) -> Atmosphere:
-    """Return the atmosphere of the reference (``tests/data/ms_reference/generate_disort.py``)."""
-    return Atmosphere.earth(ozone_du=0.0, precipitable_water_cm=0.0,
-                            aerosol_phase_model="henyeygreenstein1941",
-                            aerosol_optical_depth=aod, angstrom_alpha=1.3,
-                            aerosol_asymmetry=0.7, aerosol_single_scattering_albedo=0.95)
 
 
 def _geometry(reference):
@@ -86,7 +77,7 @@ def _cases(reference, aods, resolutions):
     gather_s = np.zeros((len(resolutions), len(aods)))
     for i, name in enumerate(resolutions):
         for j, aod in enumerate(aods):
-            atm = _atmosphere(aod)
+            atm = disort_atmosphere(aod)
             clock = time.perf_counter()
             tables = precompute_scattering(atm, wavelength, scattering_orders="converged",
                                            resolution=RESOLUTIONS[name])
@@ -117,7 +108,7 @@ def _quadrature(reference, aods, quadratures):
     against_finest = np.zeros((len(aods), len(quadratures)))
     seconds = np.zeros(len(quadratures))
     for j, aod in enumerate(aods):
-        atm = _atmosphere(aod)
+        atm = disort_atmosphere(aod)
         tables = precompute_scattering(atm, wavelength, scattering_orders="converged",
                                        resolution=RESOLUTIONS["coarse"])
         results = []
@@ -145,8 +136,7 @@ def main(argv=None):
     arguments = parse_arguments(__doc__.splitlines()[0], argv)
     import matplotlib.pyplot as plt
 
-    with xr.open_dataset(REFERENCE) as ds:
-        reference = ds.load()
+    reference = load_reference()
     quick = arguments.quick
     aods = [0.3] if quick else [0.05, 0.3, 1.0]
     resolutions = ["coarse"] if quick else list(RESOLUTIONS)

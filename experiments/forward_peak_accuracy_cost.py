@@ -33,19 +33,18 @@ import xarray as xr
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
-from skytorch.atmosphere import Atmosphere  # noqa: E402
+from experiments._disort_reference import (  # noqa: E402
+    COARSE,
+    VIEW_ZENITH_DEG,
+    disort_atmosphere,
+    load_reference,
+)
 from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
     TableResolution,
     precompute_scattering,
 )
 from skytorch.atmosphere.scattering import constituent_radiance  # noqa: E402
 
-REFERENCE = Path(__file__).resolve().parents[1] / "tests" / "data" / "ms_reference" / \
-    "disort_sky.nc"
-VIEW_ZENITH_DEG = (0.0, 30.0, 60.0)
-#: the coarse tables of the sasktran2 / DISORT / Monte-Carlo tests
-COARSE = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-              transmittance_r=32, transmittance_mu=128)
 #: (name, resolution, ground albedo of the DISORT run or 0)
 CASES = (("coarse", TableResolution(**COARSE), 0.0),
          ("coarse, ground 0.3", TableResolution(**COARSE), 0.3),
@@ -55,19 +54,11 @@ VARIANTS = (("none", "none", torch.float64), ("factored", "factored", torch.floa
             ("factored, float32", "factored", torch.float32))
 
 
-def _atmosphere(aod) -> Atmosphere:
-    """Return the atmosphere of the reference (``tests/data/ms_reference/generate_disort.py``)."""
-    return Atmosphere.earth(ozone_du=0.0, precipitable_water_cm=0.0,
-                            aerosol_phase_model="henyeygreenstein1941",
-                            aerosol_optical_depth=aod, angstrom_alpha=1.3,
-                            aerosol_asymmetry=0.7, aerosol_single_scattering_albedo=0.95)
-
-
 def _errors(reference, aods, resolution, albedo, mode, dtype):
     """Largest |model / DISORT - 1| (method, aod, sun) and the precompute time [s]."""
     wavelength = torch.tensor(reference.wavelength.values, dtype=torch.float64)
     aod = torch.tensor(aods, dtype=torch.float64)
-    atm = _atmosphere(aod)
+    atm = disort_atmosphere(aod)
     clock = time.perf_counter()
     tables = precompute_scattering(atm, wavelength, ground_albedo=albedo,
                                    scattering_orders="converged", resolution=resolution,
@@ -100,8 +91,7 @@ def main(argv=None):
     arguments = parse_arguments(__doc__.splitlines()[0], argv)
     import matplotlib.pyplot as plt
 
-    with xr.open_dataset(REFERENCE) as ds:
-        reference = ds.load()
+    reference = load_reference()
     quick = arguments.quick
     cases = CASES[:1] if quick else CASES
     aods = [0.0, 0.3] if quick else [0.0, 0.05, 0.3, 1.0]
