@@ -265,7 +265,9 @@ def test_gradcheck_turbidity_ozone_albedo():
         tables = precompute_scattering(atm, torch.tensor([550.0], dtype=F64),
                                        ground_albedo=albedo, scattering_orders=3,
                                        resolution=res)
-        return tables.radiance(0.0, torch.tensor([0.2, 1.0], dtype=F64), 0.5, 0.7)
+        # two views of the sky from the ground, one of the lit ground from 20 km
+        return tables.radiance(torch.tensor([0.0, 0.0, 2.0e4], dtype=F64),
+                               torch.tensor([0.2, 1.0, 2.5], dtype=F64), 0.5, 0.7)
 
     inputs = tuple(torch.tensor(v, dtype=F64, requires_grad=True) for v in (2.5, 300.0, 0.3))
     assert torch.autograd.gradcheck(f, inputs, eps=1e-6, atol=1e-10, rtol=1e-4)
