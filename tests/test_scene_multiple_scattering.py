@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import types
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -178,11 +179,103 @@ def test_multiple_scattering_raises_the_diffuse_irradiance_past_single(dhi_ratio
                    "irradiance 1.07-1.15 (Sun 30 deg) and 1.15-1.20 (Sun 60 deg) over "
                    "400-685 nm with the default tables, forward peak factored out (1.06-1.15 "
                    "and 1.14-1.19 before; 1.03-1.15 and 1.07-1.17 with the reference preset "
-                   "and its final gather); the issue asks 10 %")
+                   "and its final gather); the issue asks 10 %. With SPECTRL2's own aerosol "
+                   "(albedo 0.945 exp(-0.095 ln^2), HG g 0.65): 1.02-1.09 at 440-668 nm "
+                   "(tested), 1.08-1.13 at 400-430 nm, where SPECTRL2's molecular diffuse "
+                   "light is 8-10 % below DISORT's at 400 nm (tested)")
 def test_diffuse_irradiance_against_spectrl2_within_10_percent(dhi_ratios):
     """Issue 14: the day sky's diffuse horizontal irradiance within 10 % of SPECTRL2."""
     multiple = dhi_ratios[max(k for k in dhi_ratios if k)]
     assert (np.abs(multiple - 1.0) < 10 * PERCENT).all()
+
+
+#: SPECTRL2's aerosol (Bird & Riordan 1986, eqs. 3-11 to 3-16; pvlib's defaults): single-
+#: scattering albedo 0.945 at 400 nm falling as exp(-0.095 ln^2(lambda / 400 nm)), and
+#: the asymmetry factor 0.65 of its forward-scattered fraction
+SPECTRL2_OMEGA_400, SPECTRL2_OMEGA_PRIME, SPECTRL2_ASYMMETRY = 0.945, 0.095, 0.65
+#: wavelength groups [nm] of the comparison with SPECTRL2's aerosol, each with one albedo
+SPECTRL2_GROUPS = ((435.0, 475.0), (475.0, 545.0), (545.0, 615.0), (615.0, 686.0))
+
+
+def _spectrl2_albedo(wavelength_nm):
+    return SPECTRL2_OMEGA_400 * np.exp(-SPECTRL2_OMEGA_PRIME
+                                       * np.log(np.asarray(wavelength_nm) / 400.0) ** 2)
+
+
+@pytest.fixture(scope="module")
+def dhi_ratios_spectrl2_aerosol():
+    """Ratio of the diffuse horizontal irradiance to SPECTRL2's, with its own aerosol.
+
+    Henyey-Greenstein g = 0.65 and SPECTRL2's albedo at each group's middle (within 0.004
+    of its value at every wavelength of the group), 440-685 nm, Sun 30 and 60 deg.
+    """
+    from skytorch.atmosphere import Atmosphere
+
+    zenith = np.array([30.0, 60.0])
+    wavelength, reference = _spectrl2_dhi(zenith)
+    ratios = []
+    for low, high in SPECTRL2_GROUPS:
+        keep = (wavelength >= low) & (wavelength < high)
+        omega = float(_spectrl2_albedo(0.5 * (low + high)))
+        assert np.abs(_spectrl2_albedo(wavelength[keep]) - omega).max() < 0.004
+        atm = Atmosphere.earth(aerosol_optical_depth=AOD_500 * (550.0 / 500.0) ** -ALPHA,
+                               angstrom_alpha=ALPHA, ozone_du=OZONE_DU,
+                               aerosol_single_scattering_albedo=omega,
+                               aerosol_asymmetry=SPECTRL2_ASYMMETRY,
+                               aerosol_phase_model="henyeygreenstein1941")
+        group = tuple(float(v) for v in wavelength[keep])
+        resources = _GivenAtmosphere(SceneSpec(2.0, OZONE_DU, group), atm)
+        wl = torch.tensor(group, dtype=torch.float64)
+        n = _converged_orders(resources)
+        ratios.append(np.stack([_scene_dhi(resources, wl, z, n) for z in zenith])
+                      / reference[:, keep])
+    return np.concatenate(ratios, axis=1)
+
+
+@pytest.mark.slow
+def test_diffuse_irradiance_with_spectrl2_aerosol_within_10_percent(dhi_ratios_spectrl2_aerosol):
+    """With SPECTRL2's own aerosol optics, 440-685 nm: within the issue's 10 %.
+
+    Measured 1.02-1.06 (Sun 30 deg) and 1.04-1.09 (Sun 60 deg) at SPECTRL2's wavelengths
+    440-668 nm; at 400-430 nm 1.08-1.13 (1.100 at 430 nm, Sun 60 deg), where SPECTRL2's
+    molecular diffuse light falls below DISORT's (next test). With the default aerosol
+    (albedo 0.9, Cornette-Shanks g = 0.8) 1.07-1.15 and 1.15-1.20 (strict xfail above).
+    """
+    ratio = dhi_ratios_spectrl2_aerosol
+    assert (np.abs(ratio - 1.0) < 10 * PERCENT).all(), ratio
+
+
+def test_spectrl2_rayleigh_diffuse_below_disort_at_400_nm():
+    """SPECTRL2's own diffuse irradiance of a molecular atmosphere against DISORT.
+
+    Why 400-420 nm stay above 10 %: without aerosol and ozone SPECTRL2's diffuse
+    horizontal irradiance is 0.90 / 0.92 of DISORT's (64 streams, the reference table of
+    tests/test_ms_disort.py) at 400 nm and 0.97 at 550 nm (Sun 30 / 60 deg), while the two
+    direct beams agree within 0.7 %: its Rayleigh term, half of the light removed from
+    the beam, has no higher orders. skytorch's diffuse flux is within 1.5 % of DISORT
+    there (tests/test_ms_disort.py).
+    """
+    import pvlib
+    import xarray as xr
+    from pvlib.spectrum import spectrl2
+
+    table = Path(__file__).parent / "data" / "ms_reference" / "disort_sky.nc"
+    with xr.open_dataset(table) as ds:
+        disort = ds.sel(aod=0.0).load()
+    zenith = disort.sun_zenith.values
+    air_mass = pvlib.atmosphere.get_relative_airmass(zenith, model="kasten1966")
+    out = spectrl2(apparent_zenith=zenith, aoi=zenith, surface_tilt=0.0, ground_albedo=0.0,
+                   surface_pressure=101325.0, relative_airmass=air_mass,
+                   precipitable_water=0.0, ozone=0.0, aerosol_turbidity_500nm=1e-9,
+                   dayofyear=np.full(zenith.shape, 172), alpha=ALPHA)
+    for wavelength, low, high in ((400.0, 0.88, 0.94), (550.0, 0.95, 0.99)):
+        i = int(np.argmin(np.abs(out["wavelength"] - wavelength)))
+        direct = out["dni"][i] / out["dni_extra"][i] * np.cos(np.radians(zenith))
+        assert np.allclose(direct, disort.direct_down.sel(wavelength=wavelength).values,
+                           rtol=0.01)
+        ratio = (out["dhi"][i] / out["dni_extra"][i]
+                 / disort.diffuse_down_streams_64.sel(wavelength=wavelength).values)
+        assert ((ratio > low) & (ratio < high)).all(), (wavelength, ratio)
 
 
 # ------------------------------------------------------------------ moonlit sky
