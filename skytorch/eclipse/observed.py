@@ -4,10 +4,12 @@
 eclipse; every value as printed in the row's source, an empty field where the source gives
 none) into a Dataset over ``eclipse``, for comparisons of modelled eclipses with observed
 ones (issue 15). The sources: the photometry of Hernitschek, Schmidt & Vollmer 2008
-(1990-02-09, 2007-03-03) and of E. Schmidt (2011-06-15; 2022-11-08 with his photometer),
+(1990-02-09, 2007-03-03) and of E. Schmidt (2011-06-15, 2014-04-15; 2022-11-08 with his
+photometer),
 Vital's REA reports (2004-10-28, 2008-02-21, 2010-12-21, 2015-09-28), the MBK Team's
 visual estimates (2001-01-09, 2003-11-09) and a V/B photometer light curve of 2019-01-21
-(Georgia Journal of Science 80(1), art. 32); data/README.md and the file header list them.
+(Georgia Journal of Science 80(1), art. 32), and the post-Pinatubo 1992-12-09 from
+Harrington's compilation (method not stated); data/README.md and the file header list them.
 
 Not included, because their numbers could not be read in the material at hand: Keen 1983
 (Science 222, 1011; 21 eclipses 1960-1982 turned into optical depths), Keen 2016 (the
@@ -37,7 +39,7 @@ __all__ = ["OBSERVED_FILE", "METHODS", "observed_lunar_eclipses"]
 #: the shipped table
 OBSERVED_FILE = "observed_lunar_eclipses.csv"
 #: how a magnitude was measured
-METHODS = ("visual", "photometer", "camera")
+METHODS = ("visual", "photometer", "camera", "not stated")
 
 _FLOATS = ("danjon_l", "danjon_l_uncertainty", "v_magnitude", "v_uncertainty",
            "v_below_full_moon", "b_minus_v")
