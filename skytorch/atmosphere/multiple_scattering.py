@@ -650,22 +650,29 @@ class ScatteringTables:
         with cosine :math:`\mu_g = (r\mu + d)/R`; the radiance is
         :math:`\frac{\alpha}{\pi}\max(\mu_{s,g}, 0)\,T_\odot(R, \mu_{s,g})\,
         e^{-[\tau(R,-\mu_g) - \tau(r,-\mu)]}`, both optical depths those of upward
-        rays to the top (the view path reversed). Geometry in float64; (..., λ).
+        rays to the top (the view path reversed). Computed on the rays that meet the
+        ground only, geometry in float64; (..., λ), zero on the other rays.
         """
         shell, res, rows = self._shell, self.resolution, self._depth_rows
-        r, mu, mu_s, nu = (x.to(torch.float64) for x in (r, mu, mu_s, nu))
-        hits = mu < shell.mu_horizon(r)
+        n_lambda = rows.shape[-1]
+        shape = r.shape
+        r, mu, mu_s, nu = (x.to(torch.float64).reshape(-1) for x in (r, mu, mu_s, nu))
+        hits = torch.nonzero(mu < shell.mu_horizon(r)).squeeze(1)
+        out = torch.zeros((r.shape[0], n_lambda), dtype=torch.float64)
+        if hits.numel() == 0:
+            return out.reshape(shape + (n_lambda,))
+        b, r, mu, mu_s, nu = (x[hits] for x in (b.reshape(-1), r, mu, mu_s, nu))
         d = shell.distance_ground(r, mu)
         mu_g = torch.clamp((r * mu + d) / shell.R, -1.0, 0.0)
         mu_s_g = torch.clamp((r * mu_s + d * nu) / shell.R, -1.0, 1.0)
         ground = torch.full_like(r, shell.R)
-        view_depth = (_depth_to_top(rows, shell, res, b, ground, -mu_g)
-                      - _depth_to_top(rows, shell, res, b, r, -mu))
-        sun_depth = _depth_to_top(rows, shell, res, b, ground, mu_s_g)
-        albedo = self.ground_albedo.to(torch.float64)
-        irradiance = torch.clamp(mu_s_g, min=0.0)[..., None] * torch.exp(-sun_depth)
-        reflected = albedo / math.pi * irradiance * torch.exp(-view_depth)
-        return torch.where(hits[..., None], reflected, torch.zeros_like(reflected))
+        depth = (_depth_to_top(rows, shell, res, b, ground, -mu_g)
+                 - _depth_to_top(rows, shell, res, b, r, -mu)
+                 + _depth_to_top(rows, shell, res, b, ground, mu_s_g))
+        albedo = self.ground_albedo.to(torch.float64).reshape(-1, n_lambda)[b]
+        reflected = albedo * (torch.clamp(mu_s_g, min=0.0) / math.pi)[:, None] * torch.exp(
+            -depth)
+        return out.index_copy(0, hits, reflected).reshape(shape + (n_lambda,))
 
     def _batch_index(self, shape):
         """Flat batch index of every point of ``shape`` (batch dims broadcast as usual)."""
