@@ -129,8 +129,8 @@ def _balance_excess(parameters, resolution) -> float:
     return _global_energy_balance(tables) / (1.0 - _unscattered_limb_fraction(atm, wavelength)) - 1
 
 
-COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-                         transmittance_r=32, transmittance_mu=128)
+BALANCE_COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
+                                 transmittance_r=32, transmittance_mu=128)
 
 
 def test_lambertian_ground_under_a_transparent_atmosphere_returns_the_sunlight():
@@ -143,7 +143,7 @@ def test_lambertian_ground_under_a_transparent_atmosphere_returns_the_sunlight()
     Sun reflected once by the ground was interpolated from the table's nodes instead of
     computed at each look-up).
     """
-    excess = _balance_excess(dict(RAYLEIGH_ONLY, surface_pressure_pa=10.0), COARSE)
+    excess = _balance_excess(dict(RAYLEIGH_ONLY, surface_pressure_pa=10.0), BALANCE_COARSE)
     assert abs(excess) <= 0.002, excess
 
 
@@ -162,7 +162,7 @@ def test_conservation_rayleigh_white_ground():
 @pytest.mark.slow
 def test_energy_excess_falls_as_the_tables_refine():
     """The aerosol balance's excess (coarse +2.7 %, default +0.86 %) falls with resolution."""
-    excess = [_balance_excess(WITH_AEROSOL, res) for res in (COARSE, TableResolution())]
+    excess = [_balance_excess(WITH_AEROSOL, res) for res in (BALANCE_COARSE, TableResolution())]
     assert 0.0 < excess[1] < 0.6 * excess[0], excess
 
 
