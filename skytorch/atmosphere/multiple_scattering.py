@@ -560,7 +560,6 @@ class ScatteringTables:
         # optical depth to the top (b * transmittance_r * transmittance_mu, λ), float64:
         # the Sun reflected once by the ground is computed at each look-up
         self._depth_rows = depth_rows
-        self._reflects = bool((ground_albedo != 0).any()) or ground_albedo.requires_grad
 
     @property
     def planet_radius_m(self) -> float:
@@ -638,7 +637,8 @@ class ScatteringTables:
             total = total + both[..., n_single + n_lambda:] * torch.lerp(low, high, w[..., None])
         for k, phase in enumerate(self._phases):
             total = total + phase(nu) * single[..., k, :]
-        if self._reflects:
+        albedo = self.ground_albedo
+        if albedo.requires_grad or bool((albedo != 0).any()):
             total = total + self._reflected_sunlight(b, r, mu, mu_s, nu).to(total.dtype)
         return total
 
