@@ -207,6 +207,18 @@ def test_optically_thick_haze_and_albedo_extremes():
     assert bool((bright.radiance(0.0, 0.0, 0.0, 0.5) > dark.radiance(0.0, 0.0, 0.0, 0.5)).all())
 
 
+def test_float32_tables_close_to_float64_over_a_lit_ground():
+    """Views of the lit ground (the reflected sunlight computed at the look-up) in float32."""
+    atm = Atmosphere.earth(turbidity=2.0)
+    results = [precompute_scattering(atm, WAVELENGTH, ground_albedo=0.3, scattering_orders=3,
+                                     dtype=dtype, resolution=TableResolution.tiny())
+               .radiance(torch.tensor([0.0, 5000.0, 1.0e5]), torch.tensor([2.0, 1.75, 3.0]),
+                         0.3, 1.0)
+               for dtype in (torch.float32, torch.float64)]
+    assert results[0].dtype == torch.float32 and bool(torch.isfinite(results[0]).all())
+    assert torch.allclose(results[0].to(F64), results[1], rtol=1e-4, atol=0.0)
+
+
 def test_float32_tables_close_to_float64():
     atm = Atmosphere.earth(turbidity=2.0)
     results = [precompute_scattering(atm, WAVELENGTH, scattering_orders=3, dtype=dtype,
