@@ -28,6 +28,13 @@ looking down at the listed nadir angles, black ground).
 Run: ``OMP_NUM_THREADS=1 .venv/bin/python tests/data/ms_reference/generate_sasktran2.py``
 (about two minutes on one core).
 
+``... generate_sasktran2.py top`` writes ``sasktran2_top.nc``: the radiance leaving the top of
+the atmosphere (observer at 100 km looking down at nadir 0, 30, 60 deg) in spherical
+geometry, on the optics and Suns of DISORT's table ``disort_sky.nc`` (aerosol optical depth
+0, 0.05, 0.3, 1; Sun zenith 30, 60 deg; 400 and 550 nm; black ground and a Lambertian
+ground of albedo 0.3): what a spherical model should be held to where DISORT's flat
+geometry is not the limit (about 5 minutes on one core).
+
 ``... generate_sasktran2.py twilight`` writes ``sasktran2_twilight.nc`` instead: spherical
 successive orders with the Sun at 90-102 deg for several ``num_sza`` (the number of
 solar-zenith columns of the multiple-scattering source, spread over the range of solar
@@ -64,6 +71,13 @@ AEROSOL = {"aerosol_optical_depth": 0.1, "angstrom_alpha": 1.3, "aerosol_asymmet
 N_MOMENTS = 64
 PLANE_PARALLEL_AOD = np.array([0.05, 0.3, 1.0])
 PLANE_PARALLEL_SUN_ZENITH_DEG = np.array([30.0, 60.0])
+#: the optics, Suns, views and grounds of disort_sky.nc, for sasktran2_top.nc
+TOP_AOD = np.array([0.0, 0.05, 0.3, 1.0])
+TOP_SUN_ZENITH_DEG = np.array([30.0, 60.0])
+TOP_WAVELENGTH_NM = np.array([400.0, 550.0])
+TOP_NADIR_DEG = np.array([0.0, 30.0, 60.0])
+TOP_GROUND_ALBEDO = 0.3
+TOP_NUM_SZA = 5
 TWILIGHT_SUN_ZENITH_DEG = np.array([90.0, 94.0, 98.0, 102.0])
 TWILIGHT_WAVELENGTH_NM = np.array([400.0, 550.0])
 TWILIGHT_NUM_SZA = np.array([1, 8, 16])
@@ -122,7 +136,7 @@ def manual_constituents(atm: st.Atmosphere, wavelength_nm=WAVELENGTH_NM) -> dict
 
 def run(constituents: dict, sun_zenith_deg: float, source, *, plane_parallel=False,
         state=None, num_sza=1, wavelength_nm=WAVELENGTH_NM, views=None,
-        config_options=None) -> np.ndarray:
+        config_options=None, from_top=False, ground_albedo=0.0) -> np.ndarray:
     """Radiance (wavelength, view_zenith, relative_azimuth) per unit solar irradiance.
 
     ``views``: optional list of (view_zenith, relative_azimuth) pairs [deg]; the result
@@ -130,6 +144,9 @@ def run(constituents: dict, sun_zenith_deg: float, source, *, plane_parallel=Fal
     discretisations of the multiple-scattering source (1: the reference point only).
     ``wavelength_nm`` must be the wavelengths the constituents were built for.
     ``config_options``: further ``sasktran2.Config`` attributes to set (name: value).
+    ``from_top``: the observer at 100 km looking down, ``view_zenith`` read as the nadir
+    angle (always so in plane-parallel geometry, which computes only upwelling radiance).
+    ``ground_albedo``: Lambertian albedo of the ground.
     """
     wavelength_nm = np.asarray(wavelength_nm, dtype=float)
     config = sk.Config()
@@ -154,13 +171,14 @@ def run(constituents: dict, sun_zenith_deg: float, source, *, plane_parallel=Fal
              else [(vz, az) for vz in VIEW_ZENITH_DEG for az in RELATIVE_AZIMUTH_DEG])
     for vz, az in pairs:
         cos_view = float(np.cos(np.deg2rad(vz)))
+        down = plane_parallel or from_top
         viewing.add_ray(sk.SolarAnglesObserverLocation(
-            cos_sza, float(np.deg2rad(az)), -cos_view if plane_parallel else cos_view,
-            TOA_OBSERVER_ALTITUDE_M if plane_parallel else OBSERVER_ALTITUDE_M))
+            cos_sza, float(np.deg2rad(az)), -cos_view if down else cos_view,
+            TOA_OBSERVER_ALTITUDE_M if down else OBSERVER_ALTITUDE_M))
     atmo = sk.Atmosphere(geometry, config, wavelengths_nm=wavelength_nm)
     if state is not None:
         atmo.pressure_pa, atmo.temperature_k = state
-    atmo.surface.albedo[:] = 0.0
+    atmo.surface.albedo[:] = ground_albedo
     for name, constituent in constituents.items():
         atmo[name] = constituent
     radiance = sk.Engine(config, geometry, viewing).calculate_radiance(atmo)
@@ -251,6 +269,57 @@ def main() -> None:
     print(f"wrote sasktran2_sky.nc in {time.perf_counter() - start:.0f} s")
 
 
+def top() -> None:
+    """Write sasktran2_top.nc: spherical radiance leaving the top, on DISORT's cases."""
+    start = time.perf_counter()
+    views = [(nadir, az) for nadir in TOP_NADIR_DEG for az in RELATIVE_AZIMUTH_DEG]
+    shape = (len(TOP_AOD), len(TOP_SUN_ZENITH_DEG), len(TOP_WAVELENGTH_NM),
+             len(TOP_NADIR_DEG), len(RELATIVE_AZIMUTH_DEG))
+    values = {name: np.full(shape, np.nan) for name in (
+        "single_scattering", "successive_orders", "discrete_ordinates",
+        "successive_orders_ground_albedo")}
+    sources = {"single_scattering": sk.MultipleScatterSource.NoSource,
+               "successive_orders": sk.MultipleScatterSource.SuccessiveOrders,
+               "discrete_ordinates": sk.MultipleScatterSource.DiscreteOrdinates,
+               "successive_orders_ground_albedo": sk.MultipleScatterSource.SuccessiveOrders}
+    for i, aod in enumerate(TOP_AOD):
+        constituents = manual_constituents(skytorch_atmosphere(float(aod)), TOP_WAVELENGTH_NM)
+        for j, sza in enumerate(TOP_SUN_ZENITH_DEG):
+            for name, source in sources.items():
+                albedo = TOP_GROUND_ALBEDO if name.endswith("ground_albedo") else 0.0
+                if albedo and aod > 0.3:
+                    continue                    # DISORT's bright-ground run stops at 0.3
+                values[name][i, j] = run(
+                    constituents, sza, source, num_sza=TOP_NUM_SZA, from_top=True,
+                    wavelength_nm=TOP_WAVELENGTH_NM, views=views, ground_albedo=albedo,
+                ).reshape(shape[2:])
+    dims = ("aod", "sun_zenith", "wavelength", "nadir", "relative_azimuth")
+    ds = xr.Dataset(
+        {name: (dims, value, {"units": "sr-1", "long_name": f"{name} radiance leaving the "
+                              "top per unit TOA solar irradiance normal to the beam "
+                              "(sasktran2, scalar, spherical)"})
+         for name, value in values.items()},
+        coords={"aod": ("aod", TOP_AOD, {"long_name": "aerosol optical depth at 550 nm"}),
+                "sun_zenith": ("sun_zenith", TOP_SUN_ZENITH_DEG, {"units": "degree"}),
+                "wavelength": ("wavelength", TOP_WAVELENGTH_NM, {"units": "nm"}),
+                "nadir": ("nadir", TOP_NADIR_DEG, {"units": "degree"}),
+                "relative_azimuth": ("relative_azimuth", RELATIVE_AZIMUTH_DEG, {
+                    "units": "degree", "description": "0: looking toward the Sun's azimuth"})})
+    ds.attrs.update(
+        title="sasktran2 spherical radiance leaving the top on the cases of disort_sky.nc",
+        source=f"sasktran2 {metadata.version('sasktran2')}, skytorch {st.__version__} optics",
+        observer_altitude_m=TOA_OBSERVER_ALTITUDE_M, ground_albedo_run=TOP_GROUND_ALBEDO,
+        sun_angles="at the observer (100 km), as skytorch's tables take them",
+        altitude_grid_m=ALTITUDE_M, n_legendre_moments=N_MOMENTS, num_streams=16,
+        num_sza=TOP_NUM_SZA, successive_orders_iterations=50, aerosol=repr(AEROSOL),
+        ozone_du=0.0, precipitable_water_cm=0.0, refraction="none",
+        polarisation="none (num_stokes=1)", num_threads=1,
+        generator="tests/data/ms_reference/generate_sasktran2.py top",
+        wall_time_s=round(time.perf_counter() - start, 1))
+    ds.to_netcdf(HERE / "sasktran2_top.nc")
+    print(f"wrote sasktran2_top.nc in {time.perf_counter() - start:.0f} s")
+
+
 def twilight() -> None:
     """Write sasktran2_twilight.nc: successive orders vs num_sza below the horizon."""
     start = time.perf_counter()
@@ -335,7 +404,9 @@ def twilight() -> None:
 if __name__ == "__main__":
     if sys.argv[1:] == ["twilight"]:
         twilight()
+    elif sys.argv[1:] == ["top"]:
+        top()
     elif sys.argv[1:]:
-        sys.exit(f"usage: {sys.argv[0]} [twilight]")
+        sys.exit(f"usage: {sys.argv[0]} [twilight | top]")
     else:
         main()
