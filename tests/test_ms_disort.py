@@ -321,13 +321,15 @@ def test_aerosol_sky_against_disort_within_one_percent():
     assert _max_error(errors) < 1 * PERCENT
 
 
-def gathered_errors(reference: xr.Dataset, resolution, ground_albedo=False):
+def gathered_errors(reference: xr.Dataset, resolution, ground_albedo=False, top_reference=None):
     """Relative errors of the final gather against DISORT: {"sky", "top"} DataArrays.
 
     Per aerosol optical depth (the gather takes scalar parameters): converged tables, the
     tables' order 1 (with the Sun reflected once by the ground) or, over a black ground,
     the ray-marched single scattering, plus
     :func:`skytorch.atmosphere.final_gather.higher_orders_gathered` at its defaults.
+    ``top_reference`` (aod, sun_zenith, wavelength, nadir, relative_azimuth): another
+    reference for the radiance leaving the top (sasktran2's spherical one).
     """
     from skytorch.atmosphere.final_gather import higher_orders_gathered
     from skytorch.atmosphere.multiple_scattering import precompute_scattering
@@ -357,7 +359,9 @@ def gathered_errors(reference: xr.Dataset, resolution, ground_albedo=False):
                     first = constituent_radiance(atm.constituents(wavelength), zenith, azimuth,
                                                  sun, 0.0 * sun, height, n_samples=512)
                 ours = first + higher_orders_gathered(tables, atm, height, zenith, azimuth, sun)
-                theirs = reference[f"{where}_{run}"].sel(aod=aod, sun_zenith=sun_zenith_deg)
+                theirs = (top_reference if where == "top" and top_reference is not None
+                          else reference[f"{where}_{run}"])
+                theirs = theirs.sel(aod=aod, sun_zenith=sun_zenith_deg)
                 theirs = theirs.sel({name: VIEW_ZENITH_DEG if where == "sky" else NADIR_DEG})
                 theirs = theirs.transpose(name, "relative_azimuth", "wavelength").values
                 per_sun.append(ours.numpy() / theirs - 1.0)
@@ -400,10 +404,18 @@ def test_final_gather_on_default_tables_against_disort(reference):
     within 1.5 % of DISORT (measured 1.0 / 0.9 % and 0.8 / 0.9 %, Sun 30 / 60 deg: the
     issue's 1 % is reached, at its edge at τ 0.05; this bound keeps a margin for the
     machine's floating point). τ 1 (1.9 / 3.2 %) is not asserted.
+
+    The radiance leaving the top (nadir 0-60 deg) against sasktran2's spherical radiance
+    (``sasktran2_top.nc``; DISORT's flat geometry is not the limit there): τ 0.05 within
+    the issue's 1 % (measured 0.64 / 0.36 %); τ 0.3 (3.0 / 2.4 %) is not asserted.
     """
-    errors = gathered_errors(reference.sel(aod=[0.05, 0.3]), None)
+    with xr.open_dataset(DATA / "sasktran2_top.nc") as ds:
+        spherical_top = ds.successive_orders.load()
+    errors = gathered_errors(reference.sel(aod=[0.05, 0.3]), None, top_reference=spherical_top)
     sky = abs(errors["sky"])
     assert float(sky.max()) < 1.5 * PERCENT, sky.max(("view", "relative_azimuth")).values
+    top = abs(errors["top"].sel(aod=0.05))
+    assert float(top.max()) < 1 * PERCENT, top.max(("view", "relative_azimuth")).values
 
 
 @pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
