@@ -1,0 +1,156 @@
+"""The view-zenith nodes moved towards the vertical (``mu_vertical_weight``): accuracy and cost.
+
+References: sasktran2's spherical radiance leaving the top
+(``tests/data/ms_reference/sasktran2_top.nc``: observer at 100 km, nadir 0, 30, 60 deg) and
+DISORT's sky seen from the ground (``disort_sky.nc``: view zenith 0, 30, 60 deg), both at
+relative azimuth 0, 90, 180 deg, 400 and 550 nm, Sun at 30 and 60 deg, U.S. 1976 molecules +
+Henyey-Greenstein aerosol (g 0.7, albedo 0.95) of optical depth 0-1 at 550 nm, black ground.
+
+For each table size and each ``TableResolution.mu_vertical_weight`` (0: ref. 2's mapping,
+the default), the ray-marched single scattering plus the tables' orders >= 2 (what scenes
+render): the largest relative error over the views and wavelengths, and at the vertical
+(nadir from the top, zenith from the ground), per aerosol optical depth and Sun; and the
+precompute time (the optical depths batched in one call).
+
+Writes ``view_nodes_accuracy_cost.nc`` / ``.png``. Run:
+``python experiments/view_nodes_accuracy_cost.py [--quick] [--output-dir DIR]``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import xarray as xr
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments._common import parse_arguments, save_outputs  # noqa: E402
+from experiments._disort_reference import (  # noqa: E402
+    COARSE,
+    REFERENCE,
+    VIEW_ZENITH_DEG,
+    disort_atmosphere,
+    load_reference,
+)
+from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
+    TableResolution,
+    precompute_scattering,
+)
+from skytorch.atmosphere.scattering import constituent_radiance  # noqa: E402
+
+SPHERICAL_TOP = REFERENCE.parent / "sasktran2_top.nc"
+#: (name, table sizes)
+CASES = (("coarse", COARSE), ("default", {}), ("default, n_ray 96", {"n_ray": 96}))
+WEIGHTS = (0.0, 0.5, 1.0)
+WHERE = ("top (sasktran2, spherical)", "sky from the ground (DISORT)")
+
+
+def _errors(references, aods, sizes, weight):
+    """Largest |model / reference - 1| (where, max | vertical, aod, sun) and the time [s]."""
+    disort, top = references
+    wavelength = torch.tensor(disort.wavelength.values, dtype=torch.float64)
+    atm = disort_atmosphere(torch.tensor(aods, dtype=torch.float64))
+    clock = time.perf_counter()
+    tables = precompute_scattering(
+        atm, wavelength, scattering_orders="converged",
+        resolution=TableResolution(**sizes, mu_vertical_weight=weight))
+    seconds = time.perf_counter() - clock
+    vertical = torch.tensor(VIEW_ZENITH_DEG, dtype=torch.float64)
+    azimuth = torch.deg2rad(torch.tensor(disort.relative_azimuth.values,
+                                         dtype=torch.float64))[None, :, None]
+    views = ((torch.deg2rad(180.0 - vertical), tables.top_altitude_m),
+             (torch.deg2rad(vertical), 0.0))
+    error = np.zeros((2, 2, len(aods), disort.sun_zenith.size))
+    for k, sun_zenith in enumerate(disort.sun_zenith.values):
+        sun = torch.tensor(math.radians(sun_zenith), dtype=torch.float64)
+        theirs = (top.successive_orders.sel(aod=list(aods), sun_zenith=sun_zenith,
+                                            wavelength=disort.wavelength.values),
+                  disort.sky_streams_64.sel(aod=list(aods), sun_zenith=sun_zenith,
+                                            view_zenith=list(VIEW_ZENITH_DEG)))
+        for w, ((zenith, altitude), reference) in enumerate(zip(views, theirs, strict=True)):
+            zenith = zenith[:, None, None]
+            height = torch.tensor(altitude, dtype=torch.float64)
+            higher = (tables.radiance(height, zenith, azimuth, sun)
+                      - tables.radiance(height, zenith, azimuth, sun, scattering_orders=1))
+            single = constituent_radiance(atm.constituents(wavelength), zenith, azimuth, sun,
+                                          0.0 * sun, height, n_samples=1024)
+            values = reference.transpose(reference.dims[-2], "relative_azimuth", "aod",
+                                         "wavelength").values
+            relative = np.abs((single + higher).detach().numpy() / values - 1.0)
+            error[w, 0, :, k] = relative.max(axis=(0, 1, 3))
+            error[w, 1, :, k] = relative[0].max(axis=(0, 2))
+    return error, seconds
+
+
+def main(argv=None):
+    arguments = parse_arguments(__doc__.splitlines()[0], argv)
+    import matplotlib.pyplot as plt
+
+    disort = load_reference()
+    with xr.open_dataset(SPHERICAL_TOP) as ds:
+        top = ds.load()
+    quick = arguments.quick
+    cases = CASES[:1] if quick else CASES
+    weights = WEIGHTS[:2] if quick else WEIGHTS
+    aods = [0.0, 1.0] if quick else [0.0, 0.05, 0.3, 1.0]
+    if quick:
+        disort = disort.sel(wavelength=[550.0])
+    error = np.zeros((len(cases), len(weights), 2, 2, len(aods), disort.sun_zenith.size))
+    seconds = np.zeros((len(cases), len(weights)))
+    for i, (_, sizes) in enumerate(cases):
+        for m, weight in enumerate(weights):
+            error[i, m], seconds[i, m] = _errors((disort, top), aods, sizes, weight)
+    dataset = xr.Dataset(
+        {"error": (("case", "mu_vertical_weight", "where", "statistic", "aod", "sun_zenith"),
+                   error, {"units": "1", "long_name": "largest |model / reference - 1| over "
+                           "the views (or at the vertical) and wavelengths"}),
+         "precompute_seconds": (("case", "mu_vertical_weight"), seconds, {"units": "s"})},
+        coords={"case": ("case", np.array([c[0] for c in cases])),
+                "mu_vertical_weight": ("mu_vertical_weight", np.array(weights)),
+                "where": ("where", np.array(WHERE)),
+                "statistic": ("statistic", np.array(["max over views", "vertical view"])),
+                "aod": ("aod", np.array(aods), {"long_name": "aerosol optical depth at "
+                                                "550 nm"}),
+                "sun_zenith": ("sun_zenith", disort.sun_zenith.values, {"units": "degree"})},
+        attrs={"title": "View-zenith nodes moved towards the vertical: ray-marched order 1 + "
+                        "the tables' orders >= 2 against spherical and flat references",
+               "references": "tests/data/ms_reference/sasktran2_top.nc (sasktran2, "
+                             "successive orders), tests/data/ms_reference/disort_sky.nc "
+                             "(DisORT++, 64 streams)",
+               "wavelengths_nm": str(disort.wavelength.values.tolist()),
+               "torch_threads": torch.get_num_threads()})
+    figure, axes = plt.subplots(2, len(cases), figsize=(4.2 * len(cases), 7.4), squeeze=False)
+    for i, (name, _) in enumerate(cases):
+        for w, label in enumerate(WHERE):
+            axis = axes[w, i]
+            for m, weight in enumerate(weights):
+                axis.semilogy(aods, 100 * error[i, m, w, 0].max(axis=-1), ("s--", "o-", "x:")[m],
+                              label=f"w {weight:g}, max ({seconds[i, m]:.0f} s)")
+                axis.semilogy(aods, 100 * error[i, m, w, 1].max(axis=-1), ("s--", "o-", "x:")[m],
+                              alpha=0.4, label=f"w {weight:g}, vertical")
+            axis.set_title(f"{name}: {label}", fontsize=8)
+            axis.set_xlabel("aerosol optical depth at 550 nm")
+            axis.set_ylabel("error, worse Sun [%]")
+            axis.legend(fontsize=6)
+    figure.tight_layout()
+    save_outputs(dataset, figure, arguments.output_dir, "view_nodes_accuracy_cost")
+    for i, (name, _) in enumerate(cases):
+        for m, weight in enumerate(weights):
+            print(f"{name}, w {weight:g} ({seconds[i, m]:.1f} s): " + " | ".join(
+                f"{label.split()[0]}: " + "; ".join(
+                    f"τ {aod:g} " + " / ".join(f"{100 * error[i, m, w, 0, j, k]:.1f}"
+                                               for k in range(disort.sun_zenith.size))
+                    + " (vertical " + " / ".join(f"{100 * error[i, m, w, 1, j, k]:.1f}"
+                                                 for k in range(disort.sun_zenith.size))
+                    + ")" for j, aod in enumerate(aods))
+                for w, label in enumerate(WHERE)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
