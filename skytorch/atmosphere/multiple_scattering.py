@@ -49,8 +49,9 @@ Accuracy against DISORT in the plane-parallel limit (docs/multiple_scattering_va
 default :class:`TableResolution`, Sun 30-60 deg, 400 and 550 nm): the sky seen from the
 ground is within 1.6 % for molecules and aerosol optical depths up to 0.05, 2.5 % at 0.3
 and 5.7 % at 1 with the forward peak factored out (18 % and 44 % when the orders are
-interpolated as they are, ``forward_peak="none"``). The radiance leaving the top against
-sasktran2 in spherical geometry: within 1.5 % to τ 0.05, 4.2 % at 0.3 and 12.9 % at 1;
+interpolated as they are, ``forward_peak="none"``). The radiance leaving the top (exact single
+scattering + the tables' orders >= 2) against sasktran2 in spherical geometry: within 1.5 %
+to τ 0.05, 4.2 % at 0.3 and 12.9 % at 1;
 ``TableResolution(n_ray=96, mu_vertical_weight=0.5)`` (view nodes moved towards the
 vertical, twice the build time) takes the sky to 1.5 / 1.3 / 2.9 % and the top to
 1.2 / 3.4 / 6.0 % at τ 0.05 / 0.3 / 1.
