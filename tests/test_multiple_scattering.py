@@ -5,6 +5,7 @@ The single-scattering order is compared with the ray-marched single-scattering k
 with conservation of energy; hard cases for finiteness; gradients by gradcheck.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -219,10 +220,13 @@ def test_float32_tables_close_to_float64_over_a_lit_ground():
     assert torch.allclose(results[0].to(F64), results[1], rtol=1e-4, atol=0.0)
 
 
-def test_float32_tables_close_to_float64():
+@pytest.mark.parametrize("weight", [0.0, 0.5])
+def test_float32_tables_close_to_float64(weight):
+    """Float32 tables, ref. 2's view nodes and nodes towards the vertical (views at 0 rad)."""
     atm = Atmosphere.earth(turbidity=2.0)
+    resolution = dataclasses.replace(TableResolution.tiny(), mu_vertical_weight=weight)
     results = [precompute_scattering(atm, WAVELENGTH, scattering_orders=3, dtype=dtype,
-                                     resolution=TableResolution.tiny())
+                                     resolution=resolution)
                .radiance(0.0, torch.tensor([0.0, 1.0, 1.5]), 0.4, 1.0)
                for dtype in (torch.float32, torch.float64)]
     assert results[0].dtype == torch.float32 and bool(torch.isfinite(results[0]).all())
@@ -269,9 +273,10 @@ def test_lookups_in_blocks_equal_one_block(monkeypatch, day_tables):
     assert torch.equal(tables.radiance(*geometry), whole)
 
 
-def test_gradcheck_turbidity_ozone_albedo():
+@pytest.mark.parametrize("weight", [0.0, 0.5])
+def test_gradcheck_turbidity_ozone_albedo(weight):
     res = TableResolution(n_r=3, n_mu=4, n_mu_s=3, n_phi=3, n_ray=4, n_sphere_mu=2,
-                          transmittance_r=4, transmittance_mu=6)
+                          transmittance_r=4, transmittance_mu=6, mu_vertical_weight=weight)
 
     def f(turbidity, ozone, albedo):
         atm = Atmosphere.earth(turbidity=turbidity, ozone_du=ozone)
