@@ -58,7 +58,7 @@ def sky_errors(presets, n_directions: int, samples: int):
     reference = base.atmosphere().sky_radiance(
         wl, zenith, az, torch.full_like(zenith, math.radians(90.0 - g.sun_altitude_deg)),
         torch.full_like(zenith, math.radians(g.sun_azimuth_deg)), base.elevation_m,
-        solar_irradiance=True, n_samples=samples)
+        solar_irradiance=True, n_samples=samples, scattering_orders=1)
     y_ref = spectrum_to_xyz(reference, wl, luminous=True)[..., 1]
     rows = []
     for preset in presets:

@@ -95,7 +95,7 @@ def run(quick: bool):
         # fresh resources per Sun: every build is timed cold
         atm = SceneResources(SceneSpec(2.0, 300.0, grid)).atmosphere
         single = atm.sky_radiance(wavelength, z, a, torch.full_like(z, math.radians(sun)),
-                                  torch.zeros_like(z), 0.0, n_samples=48)
+                                  torch.zeros_like(z), 0.0, n_samples=48, scattering_orders=1)
         resources = SceneResources(SceneSpec(2.0, 300.0, grid))
         truth, _ = sky(resources, wavelength, sun, tables[reference[0]], reference[1], single)
         ms_share[i] = float(1.0 - single.sum() / truth.sum())

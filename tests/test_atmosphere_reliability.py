@@ -89,12 +89,12 @@ def test_batched_sky_radiance_matches_each_member():
     turbidity = _f64(2.0, 5.0)
     batched = Atmosphere.earth(turbidity=turbidity)
     view = _f64(10.0, 80.0)[:, None] * DEGREE
-    radiance = batched.sky_radiance(WAVELENGTH, view, 0.0, 40.0 * DEGREE, 1.0, n_samples=32)
+    radiance = batched.sky_radiance(WAVELENGTH, view, 0.0, 40.0 * DEGREE, 1.0, n_samples=32, scattering_orders=1)
     assert radiance.shape == (2, 2, 3)
     for k in range(2):
         member = Atmosphere.earth(turbidity=float(turbidity[k]))
         expected = member.sky_radiance(WAVELENGTH, view[:, 0], 0.0, 40.0 * DEGREE, 1.0,
-                                       n_samples=32)
+                                       n_samples=32, scattering_orders=1)
         assert torch.allclose(radiance[:, k], expected, rtol=1e-12, atol=0.0)
 
 
@@ -121,7 +121,7 @@ def test_batched_atmosphere_shared_by_threads():
         if kind == "tau":
             return atm.optical_depth(WAVELENGTH, zenith, 100.0)
         return atm.sky_radiance(WAVELENGTH, zenith[..., None] if zenith.ndim else zenith,
-                                0.0, 0.5, 0.0, n_samples=8)
+                                0.0, 0.5, 0.0, n_samples=8, scattering_orders=1)
 
     expected = [evaluate(case) for case in cases]
     jobs = [k % len(cases) for k in range(800)]
@@ -196,7 +196,7 @@ def test_gradients_with_respect_to_turbidity_and_ozone():
 
     def sky(t, o):
         return Atmosphere.earth(turbidity=t, ozone_du=o).sky_radiance(
-            WAVELENGTH, zenith, 0.0, 60.0 * DEGREE, 0.0, n_samples=16, sun_steps=4)
+            WAVELENGTH, zenith, 0.0, 60.0 * DEGREE, 0.0, n_samples=16, sun_steps=4, scattering_orders=1)
 
     # eps 1e-4: tau is linear in ozone_du, and at 89 deg (tau = 18) a 1e-6 step leaves a
     # float64 rounding error of 2e-9 in the central difference
@@ -250,22 +250,22 @@ def test_table_records_what_it_was_built_for(earth, small_table):
 
 def test_sky_radiance_refuses_a_table_built_for_other_wavelengths(earth, small_table):
     view = _f64(20.0, 70.0) * DEGREE
-    direct = earth.sky_radiance(WAVELENGTH, view, 0.0, 50.0 * DEGREE, 0.0, n_samples=32)
+    direct = earth.sky_radiance(WAVELENGTH, view, 0.0, 50.0 * DEGREE, 0.0, n_samples=32, scattering_orders=1)
     looked_up = earth.sky_radiance(WAVELENGTH, view, 0.0, 50.0 * DEGREE, 0.0, n_samples=32,
-                                   table=small_table)
+                                   table=small_table, scattering_orders=1)
     # the right table agrees with the direct integration (table interpolation, 32 x 16)
     assert float(((looked_up - direct).abs() / direct).max()) <= 2 * PERCENT
     for other in (_f64(400.0, 500.0, 600.0), _f64(440.0, 550.0), _f64(440.0, 550.0, 680.0, 700.0)):
         with pytest.raises(ValueError, match="table was built for wavelength_nm"):
-            earth.sky_radiance(other, view, 0.0, 50.0 * DEGREE, 0.0, table=small_table)
+            earth.sky_radiance(other, view, 0.0, 50.0 * DEGREE, 0.0, table=small_table, scattering_orders=1)
 
 
 def test_sky_radiance_refuses_a_table_of_another_atmosphere(small_table):
     hazier = Atmosphere.earth(turbidity=3.0, ozone_du=300.0)
     with pytest.raises(ValueError, match="another atmosphere"):
-        hazier.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.5, 0.0, table=small_table)
+        hazier.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.5, 0.0, table=small_table, scattering_orders=1)
     with pytest.raises(TypeError, match="table"):
-        hazier.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.5, 0.0, table="table")
+        hazier.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.5, 0.0, table="table", scattering_orders=1)
 
 
 @pytest.mark.parametrize("altitude", [-1.0, -1e-9, 100_001.0, math.nan, math.inf])
@@ -388,7 +388,7 @@ def test_unknown_keywords_are_rejected():
     with pytest.raises(TypeError, match="step_m"):
         atm.optical_depth(WAVELENGTH, step_m=1e3)  # straight rays have no RK4 step
     with pytest.raises(TypeError, match="n_sample"):
-        atm.sky_radiance(WAVELENGTH, 0.5, n_sample=8)
+        atm.sky_radiance(WAVELENGTH, 0.5, n_sample=8, scattering_orders=1)
     with pytest.raises(TypeError, match="nodes"):
         atm.apparent_altitude(0.1, nodes=8)
     with pytest.raises(ValueError, match="turbidity or aerosol_optical_depth"):
@@ -411,7 +411,7 @@ def test_integer_tensors_are_promoted():
     angle = atm.refraction(torch.tensor(0), torch.tensor(0))
     assert torch.isfinite(angle)
     assert torch.isfinite(atm.sky_radiance(torch.tensor([550]), torch.tensor(1),
-                                           n_samples=8)).all()
+                                           n_samples=8, scattering_orders=1)).all()
 
 
 def test_shape_mismatches_name_the_parameters():
@@ -423,7 +423,7 @@ def test_shape_mismatches_name_the_parameters():
     with pytest.raises(ValueError, match=r"apparent_altitude_rad \(3,\)"):
         atm.refraction(torch.zeros(3))
     with pytest.raises(ValueError, match=r"view_zenith_rad \(3,\)"):
-        atm.sky_radiance(WAVELENGTH, torch.zeros(3), torch.zeros(4))
+        atm.sky_radiance(WAVELENGTH, torch.zeros(3), torch.zeros(4), scattering_orders=1)
     with pytest.raises(ValueError, match=r"true_altitude_rad \(4,\)"):
         atm.apparent_altitude(torch.zeros(4))
 

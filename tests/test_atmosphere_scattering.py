@@ -62,7 +62,7 @@ def test_optically_thin_limit(sun_zenith_deg):
     # thin atmosphere, zenith view: L/E = tau_R P_R(theta) (single scattering, no extinction)
     thin = Atmosphere.earth(aerosol_optical_depth=0.0, ozone_du=0.0, surface_pressure_pa=10.0)
     sun_zenith = sun_zenith_deg * DEGREE
-    radiance = thin.sky_radiance(WAVELENGTH, 0.0, 0.0, sun_zenith, 0.0, n_samples=512)
+    radiance = thin.sky_radiance(WAVELENGTH, 0.0, 0.0, sun_zenith, 0.0, n_samples=512, scattering_orders=1)
     tau = thin.optical_depth(WAVELENGTH, per_species=True)["rayleigh"]
     expected = tau * float(rayleigh_phase(torch.tensor(math.cos(sun_zenith))))
     assert torch.allclose(radiance, expected, rtol=1e-4)
@@ -71,45 +71,45 @@ def test_optically_thin_limit(sun_zenith_deg):
 def test_default_resolution_against_converged_run():
     atm = Atmosphere.earth(turbidity=3.0, ozone_du=300.0)
     view = torch.tensor([0.0, 0.8, 1.3, 1.5, 1.56], dtype=torch.float64)
-    default = atm.sky_radiance(WAVELENGTH, view, 0.0, 1.1, 0.5)
-    converged = atm.sky_radiance(WAVELENGTH, view, 0.0, 1.1, 0.5, n_samples=2048)
+    default = atm.sky_radiance(WAVELENGTH, view, 0.0, 1.1, 0.5, scattering_orders=1)
+    converged = atm.sky_radiance(WAVELENGTH, view, 0.0, 1.1, 0.5, n_samples=2048, scattering_orders=1)
     assert float(((default - converged).abs() / converged).max()) <= 2 * PERCENT
 
 
 def test_planet_shadow_in_twilight():
     atm = Atmosphere.earth(turbidity=2.0, ozone_du=300.0)
     view = torch.tensor([0.0, 0.5, 1.0], dtype=torch.float64)
-    noon = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 0.0, 0.0)
+    noon = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 0.0, 0.0, scattering_orders=1)
     # Sun 20 deg below the horizon: the shadow reaches 409 km, above the 100 km top
-    deep = atm.sky_radiance(WAVELENGTH, view, 0.0, 110.0 * DEGREE, 0.0)
+    deep = atm.sky_radiance(WAVELENGTH, view, 0.0, 110.0 * DEGREE, 0.0, scattering_orders=1)
     assert float(deep.abs().max()) == 0.0
-    civil = atm.sky_radiance(WAVELENGTH, view, 0.0, 95.0 * DEGREE, 0.0)
+    civil = atm.sky_radiance(WAVELENGTH, view, 0.0, 95.0 * DEGREE, 0.0, scattering_orders=1)
     assert bool(torch.isfinite(civil).all()) and bool((civil > 0).all())
     assert bool((civil < 1e-2 * noon).all())
-    deeper = atm.sky_radiance(WAVELENGTH, view, 0.0, 98.0 * DEGREE, 0.0)
+    deeper = atm.sky_radiance(WAVELENGTH, view, 0.0, 98.0 * DEGREE, 0.0, scattering_orders=1)
     assert bool((deeper < civil).all())
 
 
 def test_azimuthal_symmetry_and_blue_sky():
     atm = Atmosphere.earth(turbidity=2.0, ozone_du=300.0)
-    left = atm.sky_radiance(WAVELENGTH, 1.0, 0.3, 0.8, 0.0)
-    right = atm.sky_radiance(WAVELENGTH, 1.0, -0.3, 0.8, 0.0)
+    left = atm.sky_radiance(WAVELENGTH, 1.0, 0.3, 0.8, 0.0, scattering_orders=1)
+    right = atm.sky_radiance(WAVELENGTH, 1.0, -0.3, 0.8, 0.0, scattering_orders=1)
     assert torch.allclose(left, right, rtol=1e-12)
-    zenith = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 30.0 * DEGREE, 0.0)
+    zenith = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 30.0 * DEGREE, 0.0, scattering_orders=1)
     assert float(zenith[0]) > float(zenith[1]) > float(zenith[2])
 
 
 def test_batched_parameters_and_views():
     atm = Atmosphere.earth(turbidity=torch.tensor([[2.0], [6.0]], dtype=torch.float64))
     view = torch.linspace(0.0, 1.4, 5, dtype=torch.float64)
-    radiance = atm.sky_radiance(WAVELENGTH, view, 0.0, 0.7, 0.0)
+    radiance = atm.sky_radiance(WAVELENGTH, view, 0.0, 0.7, 0.0, scattering_orders=1)
     assert radiance.shape == (2, 5, 3)
-    single = Atmosphere.earth(turbidity=6.0).sky_radiance(WAVELENGTH, view, 0.0, 0.7, 0.0)
+    single = Atmosphere.earth(turbidity=6.0).sky_radiance(WAVELENGTH, view, 0.0, 0.7, 0.0, scattering_orders=1)
     assert torch.allclose(radiance[1], single, rtol=1e-12)
     # an all-sky grid: zenith (4, 1) x azimuth (6,)
     grid = Atmosphere.earth().sky_radiance(WAVELENGTH, view[:4, None],
                                            torch.linspace(0.0, 6.0, 6, dtype=torch.float64),
-                                           0.7, 0.0, n_samples=16)
+                                           0.7, 0.0, n_samples=16, scattering_orders=1)
     assert grid.shape == (4, 6, 3)
 
 
@@ -126,13 +126,13 @@ def test_sky_radiance_gradients(dtype):
     atm = Atmosphere.earth(turbidity=2.0, ozone_du=300.0)
     sun = torch.tensor(1.3, dtype=dtype, requires_grad=True)
     radiance = atm.sky_radiance(WAVELENGTH.to(dtype), torch.tensor(0.6, dtype=dtype), 0.0,
-                                sun, 0.0)
+                                sun, 0.0, scattering_orders=1)
     radiance.sum().backward()
     assert bool(torch.isfinite(sun.grad))
     if dtype == torch.float64:
         assert torch.autograd.gradcheck(
             lambda z: atm.sky_radiance(WAVELENGTH, torch.tensor(0.6, dtype=torch.float64),
-                                       0.0, z, 0.0, n_samples=16),
+                                       0.0, z, 0.0, n_samples=16, scattering_orders=1),
             (torch.tensor(1.3, dtype=torch.float64, requires_grad=True),), eps=1e-5,
             atol=1e-8, rtol=1e-4)
 
@@ -141,6 +141,6 @@ def test_sky_radiance_in_physical_units():
     from skytorch.spectrum import solar_irradiance
 
     atm = Atmosphere.earth(turbidity=2.0, ozone_du=300.0)
-    relative = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 0.5, 0.0)
-    physical = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 0.5, 0.0, solar_irradiance=True)
+    relative = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 0.5, 0.0, scattering_orders=1)
+    physical = atm.sky_radiance(WAVELENGTH, 0.0, 0.0, 0.5, 0.0, solar_irradiance=True, scattering_orders=1)
     assert torch.allclose(physical, relative * solar_irradiance(WAVELENGTH), rtol=1e-12)

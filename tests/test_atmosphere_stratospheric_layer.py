@@ -242,7 +242,7 @@ def test_single_scattering_of_a_thin_layer():
     tau, sun_zenith = 1e-4, 0.8
     atm = Atmosphere.earth(aerosol_optical_depth=0.0, ozone_du=0.0, surface_pressure_pa=0.0,
                            stratospheric_aerosol_optical_depth=tau)
-    radiance = float(atm.sky_radiance(WL, 0.0, 0.0, sun_zenith, 0.0)[0])
+    radiance = float(atm.sky_radiance(WL, 0.0, 0.0, sun_zenith, 0.0, scattering_orders=1)[0])
     _, albedo, g = (float(v[0]) for v in sulfate_mie_properties(WL))
     mu = math.cos(sun_zenith)
     phase = (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
@@ -255,5 +255,5 @@ def test_sky_radiance_default_bit_identical():
     explicit = Atmosphere.earth(stratospheric_aerosol_optical_depth=0.0)
     wl = _f64(400.0, 700.0)
     view = _f64(0.1, 0.9, 1.5)
-    assert torch.equal(plain.sky_radiance(wl, view, 0.3, 1.0, 0.0),
-                       explicit.sky_radiance(wl, view, 0.3, 1.0, 0.0))
+    assert torch.equal(plain.sky_radiance(wl, view, 0.3, 1.0, 0.0, scattering_orders=1),
+                       explicit.sky_radiance(wl, view, 0.3, 1.0, 0.0, scattering_orders=1))

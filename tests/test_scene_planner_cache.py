@@ -110,7 +110,7 @@ def _direct_sky_flux(scene, sun_altitude_deg):
                            dtype=torch.float64) + 1.0  # any Sun azimuth
     sun_zenith = torch.full_like(zenith, math.radians(90.0 - sun_altitude_deg))
     radiance = atm.sky_radiance(wl, zenith, azimuth, sun_zenith, torch.full_like(zenith, 1.0),
-                                0.0, solar_irradiance=True, n_samples=24)
+                                0.0, solar_irradiance=True, n_samples=24, scattering_orders=1)
     mags = radiance_to_mag_arcsec2(radiance.clamp(min=1e-300), wl)
     return float(torch.mean(10.0 ** (-0.4 * mags))) * planner.HEMISPHERE_ARCSEC2
 

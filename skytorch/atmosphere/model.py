@@ -1277,27 +1277,33 @@ class Atmosphere(nn.Module):
 
     def sky_radiance(self, wavelength_nm, view_zenith_rad, view_azimuth_rad=0.0,
                      sun_zenith_rad=0.0, sun_azimuth_rad=0.0, altitude_m=0.0, *,
-                     solar_irradiance: bool = False, n_samples: int = 128, table=None,
-                     sun_steps: int | None = None, scattering_orders=1, ground_albedo=0.0,
-                     tables=None, final_gather: bool = False) -> torch.Tensor:
-        """Sky radiance (..., wavelength), single or multiple scattering.
+                     solar_irradiance: bool = False, n_samples: int | None = None, table=None,
+                     sun_steps: int | None = None, scattering_orders="converged",
+                     ground_albedo=0.0, tables=None, final_gather: bool = False
+                     ) -> torch.Tensor:
+        """Sky radiance (..., wavelength), every order of scattering by default.
 
         Per unit solar irradiance [sr^-1], or with ``solar_irradiance=True`` times the
         extraterrestrial solar spectrum (:func:`skytorch.spectrum.solar_irradiance`)
         [W m^-2 sr^-1 nm^-1].
 
-        ``scattering_orders=1`` over a black ground (the default) is the ray-marched
-        single-scattering kernel, :func:`skytorch.atmosphere.scattering.
-        single_scattering_radiance` (``n_samples``, ``table``, ``sun_steps`` are its
-        parameters; ``table`` must have been built for this atmosphere and these
-        wavelengths). ``scattering_orders=N`` or ``"converged"``, or a non-zero
-        ``ground_albedo`` (Lambertian, scalar or per wavelength), use the
+        ``scattering_orders`` is ``"converged"`` (the default: orders are added until the
+        last is below 1e-4 of the sum), an integer N (orders 1..N) or 1 (single
+        scattering). Over a black ground (``ground_albedo=0``, the default) order 1 is the
+        ray-marched single-scattering kernel, :func:`skytorch.atmosphere.scattering.
+        single_scattering_radiance` (``n_samples``, default 128, ``table`` and
+        ``sun_steps`` are its parameters; ``table`` must have been built for this
+        atmosphere and these wavelengths), and the orders 2..N come from the
         multiple-scattering tables of :mod:`skytorch.atmosphere.multiple_scattering`:
         ``tables`` (a :class:`~skytorch.atmosphere.multiple_scattering.ScatteringTables`
         built for this atmosphere, these wavelengths and this albedo) or, without it,
         tables built on each call by ``precompute_scattering`` at the default resolution
         (seconds per order for a few wavelengths: pass ``tables`` when calling more than
-        once).
+        once, or ``scattering_orders=1`` for the single-scattered sky alone, which takes
+        no ``tables``). Over a
+        Lambertian ground (``ground_albedo`` non-zero, scalar or per wavelength) every
+        order, the Sun reflected once by the ground included, comes from the tables, and
+        passing ``n_samples``, ``table`` or ``sun_steps`` raises ValueError.
 
         ``final_gather=True`` (orders >= 2, an atmosphere with scalar parameters) does the
         last scattering along the line of sight instead of looking the orders >= 2 up
@@ -1306,55 +1312,25 @@ class Atmosphere(nn.Module):
         (against DISORT at aerosol optical depth 0.3 on the default tables: 0.9 % instead
         of 2.3 %), at ~65 000 table look-ups per line of sight.
         """
-        from skytorch.atmosphere import multiple_scattering as _ms
         from skytorch.atmosphere.scattering import single_scattering_radiance
 
         _check_flag("solar_irradiance", solar_irradiance)
-        _check_flag("final_gather", final_gather)
-        if not (scattering_orders == "converged" or (
-                not isinstance(scattering_orders, (bool, str))
-                and isinstance(scattering_orders, int) and scattering_orders >= 1)):
-            raise ValueError("scattering_orders must be an integer >= 1 or 'converged'; "
-                             f"got {scattering_orders!r}")
-        if final_gather and scattering_orders == 1:
-            raise ValueError("final_gather=True gathers the orders >= 2; scattering_orders=1 "
-                             "has none (pass 2 or more, or 'converged')")
         black = (not torch.is_tensor(ground_albedo) and ground_albedo == 0.0)
-        if tables is None and scattering_orders == 1 and black:
+        _check_sky_options(scattering_orders, final_gather, ground_albedo, tables,
+                           {"n_samples": n_samples, "table": table, "sun_steps": sun_steps})
+        radiance = None
+        if black:
             radiance = single_scattering_radiance(self, wavelength_nm, view_zenith_rad,
                                                   view_azimuth_rad, sun_zenith_rad,
                                                   sun_azimuth_rad, altitude_m,
-                                                  n_samples=n_samples, table=table,
+                                                  n_samples=128 if n_samples is None
+                                                  else n_samples, table=table,
                                                   sun_steps=sun_steps)
-        else:
-            dtype = _floating_dtype(None, wavelength_nm, view_zenith_rad, sun_zenith_rad)
-            wavelength = wavelength_tensor(wavelength_nm, dtype)
-            if tables is None:
-                tables = _ms.precompute_scattering(self, wavelength,
-                                                   ground_albedo=ground_albedo,
-                                                   scattering_orders=scattering_orders,
-                                                   dtype=dtype)
-            elif not isinstance(tables, _ms.ScatteringTables):
-                raise TypeError("tables must be a ScatteringTables; got "
-                                f"{type(tables).__name__}")
-            elif (tables.wavelength_nm.shape != wavelength.shape or not torch.allclose(
-                    tables.wavelength_nm.to(torch.float64), wavelength.to(torch.float64))):
-                raise ValueError("tables were built for other wavelengths: "
-                                 f"{tables.wavelength_nm.tolist()} nm, not "
-                                 f"{wavelength.tolist()} nm")
-            if final_gather:
-                from skytorch.atmosphere.final_gather import higher_orders_gathered
-
-                radiance = tables.radiance(altitude_m, view_zenith_rad, view_azimuth_rad,
-                                           sun_zenith_rad, sun_azimuth_rad,
-                                           scattering_orders=1)
-                radiance = radiance + higher_orders_gathered(
-                    tables, self, altitude_m, view_zenith_rad, view_azimuth_rad,
-                    sun_zenith_rad, sun_azimuth_rad, scattering_orders=scattering_orders)
-            else:
-                radiance = tables.radiance(altitude_m, view_zenith_rad, view_azimuth_rad,
-                                           sun_zenith_rad, sun_azimuth_rad,
-                                           scattering_orders=scattering_orders)
+        if scattering_orders != 1 or not black:
+            radiance = _multiple_scattering_sky(
+                self, wavelength_nm, (altitude_m, view_zenith_rad, view_azimuth_rad,
+                                      sun_zenith_rad, sun_azimuth_rad),
+                scattering_orders, ground_albedo, tables, final_gather, radiance)
         if solar_irradiance:
             from skytorch.spectrum import solar_irradiance as irradiance
 
@@ -1386,6 +1362,67 @@ class Atmosphere(nn.Module):
                 ) -> torch.Tensor:
         """Return same as :meth:`transmittance`."""
         return self.transmittance(wavelength_nm, zenith_rad, altitude_m, **options)
+
+
+def _check_sky_options(scattering_orders, final_gather, ground_albedo, tables, marching):
+    """ValueError for options of :meth:`Atmosphere.sky_radiance` that would go unused.
+
+    ``marching``: the ray-marched single scattering's keywords {name: value or None}.
+    """
+    _check_flag("final_gather", final_gather)
+    if not (scattering_orders == "converged" or (
+            not isinstance(scattering_orders, (bool, str))
+            and isinstance(scattering_orders, int) and scattering_orders >= 1)):
+        raise ValueError("scattering_orders must be an integer >= 1 or 'converged'; "
+                         f"got {scattering_orders!r}")
+    if final_gather and scattering_orders == 1:
+        raise ValueError("final_gather=True gathers the orders >= 2; scattering_orders=1 "
+                         "has none (pass 2 or more, or 'converged')")
+    black = (not torch.is_tensor(ground_albedo) and ground_albedo == 0.0)
+    given = [name for name, value in marching.items() if value is not None]
+    if not black and given:
+        raise ValueError(f"{', '.join(given)}: parameters of the ray-marched single "
+                         "scattering, which serves a black ground only; over "
+                         f"ground_albedo={ground_albedo!r} every order comes from the "
+                         "multiple-scattering tables")
+    if black and scattering_orders == 1 and tables is not None:
+        raise ValueError("tables: scattering_orders=1 over a black ground is the "
+                         "ray-marched single scattering, which uses no "
+                         "multiple-scattering tables (pass scattering_orders >= 2 or "
+                         "'converged', or leave tables out)")
+
+
+def _multiple_scattering_sky(atmosphere, wavelength_nm, geometry, scattering_orders,
+                             ground_albedo, tables, final_gather, single):
+    """Orders 1..N of :meth:`Atmosphere.sky_radiance` from the scattering tables.
+
+    ``geometry`` is (altitude, view zenith, view azimuth, Sun zenith, Sun azimuth);
+    ``single`` the ray-marched order 1 over a black ground (None over a Lambertian one,
+    where the tables' order 1 holds the Sun reflected once by the ground).
+    """
+    from skytorch.atmosphere import multiple_scattering as _ms
+
+    dtype = _floating_dtype(None, wavelength_nm, geometry[1], geometry[3])
+    wavelength = wavelength_tensor(wavelength_nm, dtype)
+    if tables is None:
+        tables = _ms.precompute_scattering(atmosphere, wavelength, ground_albedo=ground_albedo,
+                                           scattering_orders=scattering_orders, dtype=dtype)
+    elif not isinstance(tables, _ms.ScatteringTables):
+        raise TypeError(f"tables must be a ScatteringTables; got {type(tables).__name__}")
+    elif (tables.wavelength_nm.shape != wavelength.shape or not torch.allclose(
+            tables.wavelength_nm.to(torch.float64), wavelength.to(torch.float64))):
+        raise ValueError(f"tables were built for other wavelengths: "
+                         f"{tables.wavelength_nm.tolist()} nm, not {wavelength.tolist()} nm")
+    if single is None and not final_gather:
+        return tables.radiance(*geometry, scattering_orders=scattering_orders)
+    first = single if single is not None else tables.radiance(*geometry, scattering_orders=1)
+    if final_gather:
+        from skytorch.atmosphere.final_gather import higher_orders_gathered
+
+        return first + higher_orders_gathered(tables, atmosphere, *geometry,
+                                              scattering_orders=scattering_orders)
+    return first + (tables.radiance(*geometry, scattering_orders=scattering_orders)
+                    - tables.radiance(*geometry, scattering_orders=1))
 
 
 def _floating_dtype(dtype, *tensors) -> torch.dtype:

@@ -247,7 +247,7 @@ def sky_table(resources, geometry, knobs, wavelength):
     wl = wavelength.to(torch.float64)
     single = atm.sky_radiance(wl, z, a, torch.full_like(z, sun_zenith),
                               torch.zeros_like(z), knobs.elevation_m, solar_irradiance=True,
-                              n_samples=knobs["sky_samples"], table=table)
+                              n_samples=knobs["sky_samples"], table=table, scattering_orders=1)
     if knobs.orders("sky") == 1:
         return single
     from skytorch.spectrum import solar_irradiance

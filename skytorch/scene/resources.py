@@ -431,7 +431,7 @@ class SceneResources:
             radiance = atm.sky_radiance(wl, zenith.expand_as(sun_zenith),
                                         azimuth.expand_as(sun_zenith), sun_zenith,
                                         torch.zeros_like(sun_zenith), elevation_m,
-                                        solar_irradiance=True, n_samples=24)
+                                        solar_irradiance=True, n_samples=24, scattering_orders=1)
             mags = radiance_to_mag_arcsec2(radiance.clamp(min=1e-300), wl)
             surface = 10.0 ** (-0.4 * mags)  # (altitude, direction) per arcsec²
             flux = torch.mean(surface, dim=-1) * HEMISPHERE_ARCSEC2
