@@ -31,7 +31,7 @@ def main(quick: bool) -> None:
     atm = Atmosphere.earth(turbidity=2.0)
     sizes = [("tiny", TableResolution.tiny()),
              ("8x32x16x6", TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32,
-                                           n_sphere_mu=6)),
+                                           n_sphere_mu=6, mu_vertical_weight=0.0)),
              ("default 16x64x24x8", TableResolution())]
     if not quick:
         sizes.append(("bruneton2017 32x128x32x8", TableResolution.bruneton2017()))

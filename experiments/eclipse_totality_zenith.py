@@ -60,7 +60,8 @@ def main(argv=None):
     table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
     tables = precompute_scattering(atmosphere, wavelength, scattering_orders="converged",
                                    resolution=TableResolution(n_r=8, n_mu=32, n_mu_s=16,
-                                                              n_phi=6))
+                                                              n_phi=6, n_ray=48,
+                                                              mu_vertical_weight=0.0))
     zero = torch.zeros(1, dtype=torch.float64)
 
     def luminance(radiance):

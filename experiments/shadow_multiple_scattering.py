@@ -46,7 +46,7 @@ OFFSET_FRACTIONS = (0.0, 0.25, 0.5, 0.75)
 RING_NODES = ((6, 4), (12, 6), (16, 8), (24, 12), (32, 16))
 #: coarse tables (seconds) for --quick
 COARSE = TableResolution(n_r=16, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-                         transmittance_r=32, transmittance_mu=128)
+                         transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0)
 
 
 def _umbra_radius(shadow, distance_m: float) -> float:

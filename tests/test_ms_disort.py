@@ -204,7 +204,7 @@ def solver_errors(reference: xr.Dataset, resolution=None, direct_single=False,
 
 #: the coarse tables of the sasktran2 and Monte-Carlo comparisons (seconds to build)
 COARSE = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-              transmittance_r=32, transmittance_mu=128)
+              transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0)
 
 
 def _max_error(errors, **selection) -> float:

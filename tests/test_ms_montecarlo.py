@@ -297,7 +297,7 @@ def solver_tables():
 
 #: the coarse tables of the solver test (8 x 32 x 16 x 6)
 COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 16, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
-          "transmittance_r": 32, "transmittance_mu": 128}
+          "transmittance_r": 32, "transmittance_mu": 128, "mu_vertical_weight": 0.0}
 
 
 def _solver_radiance(cache, case, orders=None, resolution=None):

@@ -23,7 +23,7 @@ from skytorch.atmosphere.multiple_scattering import (
 F64 = torch.float64
 WAVELENGTH = torch.tensor([450.0, 650.0], dtype=F64)
 #: a coarse table that still resolves the day sky (about 1.5 s to build 3 orders)
-COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32, n_sphere_mu=6)
+COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32, n_sphere_mu=6, mu_vertical_weight=0.0)
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +131,7 @@ def _balance_excess(parameters, resolution) -> float:
 
 
 BALANCE_COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-                                 transmittance_r=32, transmittance_mu=128)
+                                 transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0)
 
 
 def test_lambertian_ground_under_a_transparent_atmosphere_returns_the_sunlight():

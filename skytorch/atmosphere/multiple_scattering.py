@@ -172,13 +172,13 @@ class TableResolution:
     def bruneton2017(cls) -> TableResolution:
         """Ref. 2's default sizes: R 32, mu 128, mu_s 32, nu 8; transmittance 256 x 64."""
         return cls(n_r=32, n_mu=128, n_mu_s=32, n_phi=8, n_ray=50, n_sphere_mu=16,
-                   transmittance_r=64, transmittance_mu=256)
+                   transmittance_r=64, transmittance_mu=256, mu_vertical_weight=0.0)
 
     @classmethod
     def tiny(cls) -> TableResolution:
         """Return a coarse table for tests and gradient checks (seconds to build)."""
         return cls(n_r=5, n_mu=16, n_mu_s=8, n_phi=5, n_ray=16, n_sphere_mu=4,
-                   transmittance_r=16, transmittance_mu=32)
+                   transmittance_r=16, transmittance_mu=32, mu_vertical_weight=0.0)
 
 
 # ---------------------------------------------------------------- geometry and mappings

@@ -66,10 +66,12 @@ SCATTERING_ORDER_CHOICES = ("auto", "converged")
 #: TableResolution` fields; error and cost in docs/scene.md, experiment scene_ms_accuracy_cost)
 #: TableResolution.tiny() but 24 Sun zenith nodes (8 make the twilight 3-4 mag too bright
 #: at -12 deg: the linear interpolation across a steep fall in mu_s)
+#: (view nodes on ref. 2's mapping, ``mu_vertical_weight`` 0: moving them towards the vertical
+#: makes tables of 16 nodes per half worse, docs/multiple_scattering_validation.md)
 _MS_SMALL = {"n_r": 5, "n_mu": 16, "n_mu_s": 24, "n_phi": 5, "n_ray": 16, "n_sphere_mu": 4,
-             "transmittance_r": 16, "transmittance_mu": 32}
+             "transmittance_r": 16, "transmittance_mu": 32, "mu_vertical_weight": 0.0}
 _MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 24, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
-              "transmittance_r": 32, "transmittance_mu": 128}
+              "transmittance_r": 32, "transmittance_mu": 128, "mu_vertical_weight": 0.0}
 
 #: module knobs per fidelity preset (measured error and cost in docs/scene.md);
 #: ``scattering_orders`` is what ``Scene.scattering_orders="auto"`` means, ``ms_tables`` the
