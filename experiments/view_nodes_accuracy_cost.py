@@ -44,8 +44,10 @@ from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
 from skytorch.atmosphere.scattering import constituent_radiance  # noqa: E402
 
 SPHERICAL_TOP = REFERENCE.parent / "sasktran2_top.nc"
-#: (name, table sizes)
-CASES = (("coarse", COARSE), ("default", {}), ("default, n_ray 96", {"n_ray": 96}))
+#: (name, table sizes): "default" is 16 x 64 x 24 x 8 with 48 samples per ray, the default
+#: TableResolution before 2026-12-05 (now 48 Sun-zenith nodes, 96 samples, weight 1/2)
+CASES = (("coarse", COARSE), ("default", {"n_mu_s": 24, "n_ray": 48}),
+         ("default, n_ray 96", {"n_mu_s": 24, "n_ray": 96}))
 WEIGHTS = (0.0, 0.5, 1.0)
 WHERE = ("top (sasktran2, spherical)", "sky from the ground (DISORT)")
 
@@ -58,7 +60,7 @@ def _errors(references, aods, sizes, weight):
     clock = time.perf_counter()
     tables = precompute_scattering(
         atm, wavelength, scattering_orders="converged",
-        resolution=TableResolution(**sizes, mu_vertical_weight=weight))
+        resolution=TableResolution(**{**sizes, "mu_vertical_weight": weight}))
     seconds = time.perf_counter() - clock
     vertical = torch.tensor(VIEW_ZENITH_DEG, dtype=torch.float64)
     azimuth = torch.deg2rad(torch.tensor(disort.relative_azimuth.values,
