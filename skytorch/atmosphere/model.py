@@ -1298,9 +1298,9 @@ class Atmosphere(nn.Module):
         ``tables`` (a :class:`~skytorch.atmosphere.multiple_scattering.ScatteringTables`
         built for this atmosphere, these wavelengths and this albedo) or, without it,
         tables built on each call by ``precompute_scattering`` at the default resolution
-        (seconds per order for a few wavelengths: pass ``tables`` when calling more than
-        once, or ``scattering_orders=1`` for the single-scattered sky alone, which takes
-        no ``tables``). Over a
+        (about a minute for three wavelengths on 2 cores: pass ``tables`` when calling
+        more than once, or ``scattering_orders=1`` for the single-scattered sky alone,
+        which takes no ``tables``). Over a
         Lambertian ground (``ground_albedo`` non-zero, scalar or per wavelength) every
         order, the Sun reflected once by the ground included, comes from the tables, and
         passing ``n_samples``, ``table`` or ``sun_steps`` raises ValueError.
