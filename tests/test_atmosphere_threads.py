@@ -30,11 +30,11 @@ def _tasks():
                                                                           dtype=torch.float64)), {}),
         ("optical_depth", (WAVELENGTH[:1], zenith[:3, None, None]), {"per_species": True}),
         ("optical_depth", (WAVELENGTH, torch.tensor(1.7, dtype=torch.float64), 2000.0), {}),
-        ("sky_radiance", (WAVELENGTH, zenith[:2], 0.0, 0.4, 1.0), {"n_samples": 8}),
+        ("sky_radiance", (WAVELENGTH, zenith[:2], 0.0, 0.4, 1.0), {"n_samples": 8, "scattering_orders": 1}),
         ("sky_radiance", (WAVELENGTH[1:], torch.tensor(0.2, dtype=torch.float64), 0.5, 1.2,
-                          0.0), {"n_samples": 8}),
+                          0.0), {"n_samples": 8, "scattering_orders": 1}),
         ("sky_radiance", (WAVELENGTH, zenith[:3, None, None], zenith[None, :2, None], 0.3,
-                          0.0), {"n_samples": 6}),
+                          0.0), {"n_samples": 6, "scattering_orders": 1}),
     ]
 
 
