@@ -391,6 +391,32 @@ def test_scene_twilight_sky_against_montecarlo_rayleigh(table, solver_tables):
     assert all(error < tolerance for error, tolerance in worst.values()), worst
 
 
+#: the default tables with twice their Sun-zenith nodes (16 x 64 x 96 x 8): the twilight's
+#: resolution (docs/multiple_scattering_validation.md, "Twilight on the default tables")
+TWILIGHT = {"n_r": 16, "n_mu": 64, "n_mu_s": 96, "n_phi": 8, "n_ray": 96, "n_sphere_mu": 12,
+            "transmittance_r": 64, "transmittance_mu": 256, "mu_vertical_weight": 0.5}
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
+@pytest.mark.parametrize("case", ["rayleigh", "rayleigh_aerosol"])
+def test_sky_through_twilight_against_montecarlo(table, solver_tables, case):
+    """Sun 30-98 deg: ray-marched order 1 + the orders >= 2 of tables with 96 Sun nodes.
+
+    The issue's tolerances (3 % to Sun 80 deg, 10 % to 98 deg) at the views the MC decides.
+    Measured, max over those views, 400 and 550 nm, Sun 30 / 60 / 80 / 90 / 94 / 98 deg:
+    Rayleigh 0.3 / 0.3 / 0.3 / 1.2 / 6.6 / 2.1 %, Rayleigh + aerosol 1.0 / 1.4 / 2.2 /
+    3.4 / 7.9 / 3.1 %. On the default tables (48 Sun nodes) Sun 94 deg is 10.5 / 10.9 %
+    (the low view away from the Sun); the error there falls with the Sun-zenith nodes.
+    """
+    single = _single_scattering(case)
+    first = _solver_radiance(solver_tables, case, orders=1, resolution=TWILIGHT)
+    every = _solver_radiance(solver_tables, case, resolution=TWILIGHT)
+    worst = _worst(table, case, {sun: single[sun] + every[sun] - first[sun]
+                                 for sun in SOLVER_SUN_ZENITHS})
+    assert all(error < tolerance for error, tolerance in worst.values()), worst
+
+
 SOLVER_XFAIL = ("measured with coarse tables and the geometric Sun-zenith look-up "
                 "(docs/multiple_scattering_validation.md), max over the decided views, 400 "
                 "and 550 nm: Rayleigh day <= 2.0 %, Sun 90/94/98 deg 19.9/15.5/5.2 % "

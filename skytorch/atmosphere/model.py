@@ -1300,10 +1300,10 @@ class Atmosphere(nn.Module):
         tables built on each call by ``precompute_scattering`` at the default resolution
         (about a minute for three wavelengths on 2 cores: pass ``tables`` when calling
         more than once, or ``scattering_orders=1`` for the single-scattered sky alone,
-        which takes no ``tables``). Over a
-        Lambertian ground (``ground_albedo`` non-zero, scalar or per wavelength) every
-        order, the Sun reflected once by the ground included, comes from the tables, and
-        passing ``n_samples``, ``table`` or ``sun_steps`` raises ValueError.
+        which takes no ``tables``). Over a Lambertian ground (``ground_albedo`` non-zero,
+        scalar or per wavelength) every order, the Sun reflected once by the ground
+        included, comes from the tables, and passing ``n_samples``, ``table`` or
+        ``sun_steps`` raises ValueError.
 
         ``final_gather=True`` (orders >= 2, an atmosphere with scalar parameters) does the
         last scattering along the line of sight instead of looking the orders >= 2 up
@@ -1315,9 +1315,9 @@ class Atmosphere(nn.Module):
         from skytorch.atmosphere.scattering import single_scattering_radiance
 
         _check_flag("solar_irradiance", solar_irradiance)
-        black = (not torch.is_tensor(ground_albedo) and ground_albedo == 0.0)
-        _check_sky_options(scattering_orders, final_gather, ground_albedo, tables,
-                           {"n_samples": n_samples, "table": table, "sun_steps": sun_steps})
+        black = _check_sky_options(scattering_orders, final_gather, ground_albedo, tables,
+                                   {"n_samples": n_samples, "table": table,
+                                    "sun_steps": sun_steps})
         radiance = None
         if black:
             radiance = single_scattering_radiance(self, wavelength_nm, view_zenith_rad,
@@ -1368,6 +1368,8 @@ def _check_sky_options(scattering_orders, final_gather, ground_albedo, tables, m
     """ValueError for options of :meth:`Atmosphere.sky_radiance` that would go unused.
 
     ``marching``: the ray-marched single scattering's keywords {name: value or None}.
+    Returns whether the ground is black (a Python number 0; a tensor albedo, even of
+    zeros, goes to the tables).
     """
     _check_flag("final_gather", final_gather)
     if not (scattering_orders == "converged" or (
@@ -1390,6 +1392,7 @@ def _check_sky_options(scattering_orders, final_gather, ground_albedo, tables, m
                          "ray-marched single scattering, which uses no "
                          "multiple-scattering tables (pass scattering_orders >= 2 or "
                          "'converged', or leave tables out)")
+    return black
 
 
 def _multiple_scattering_sky(atmosphere, wavelength_nm, geometry, scattering_orders,
