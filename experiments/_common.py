@@ -8,6 +8,8 @@ run (used by the test suite to check that the script works).
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -37,3 +39,16 @@ def save_outputs(dataset, figure, output_dir: Path, stem: str) -> tuple[Path, Pa
     figure.savefig(png_path, dpi=120, bbox_inches="tight")
     plt.close(figure)
     return netcdf_path, png_path
+
+
+def load_script(path: Path, name: str):
+    """Import a generator script that is not a package module (``tests/data/...``).
+
+    Registered in ``sys.modules`` under ``name`` before it runs (its dataclasses look
+    their module up there); a module already registered under that name is returned.
+    """
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault(name, module)
+    spec.loader.exec_module(module)
+    return sys.modules[name]

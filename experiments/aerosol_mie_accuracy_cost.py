@@ -14,7 +14,6 @@ Usage: ``python experiments/aerosol_mie_accuracy_cost.py [--quick] [--output-dir
 
 from __future__ import annotations
 
-import importlib.util
 import time
 from pathlib import Path
 
@@ -22,7 +21,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from experiments._common import parse_arguments, save_outputs
+from experiments._common import load_script, parse_arguments, save_outputs
 
 GENERATOR = Path(__file__).resolve().parents[1] / "data" / "make_aerosol_tables.py"
 TYPES = ("continental_average", "desert", "maritime_clean")
@@ -30,13 +29,6 @@ NODE_SCALES = (0.125, 0.25, 0.5, 1.0, 2.0)
 SPAN_SCALES = (0.75, 1.0)
 REFERENCE_NODE_SCALE = 4.0
 WAVELENGTH_NM = (350.0, 1000.0)
-
-
-def _generator():
-    spec = importlib.util.spec_from_file_location("make_aerosol_tables", GENERATOR)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def evaluate(gen, name, wavelength, node_scale, span_scale):
@@ -50,7 +42,7 @@ def evaluate(gen, name, wavelength, node_scale, span_scale):
 
 def main(argv=None):
     args = parse_arguments(__doc__.splitlines()[0], argv)
-    gen = _generator()
+    gen = load_script(GENERATOR, "make_aerosol_tables")
     types = ("continental_clean",) if args.quick else TYPES
     node_scales = (0.125, 0.25, 0.5) if args.quick else NODE_SCALES
     span_scales = (0.75, 1.0) if args.quick else SPAN_SCALES

@@ -19,7 +19,6 @@ Writes ``eclipse_higher_orders_accuracy_cost.nc`` / ``.png``. Run:
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 import time
 from pathlib import Path
@@ -30,7 +29,7 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from experiments._common import parse_arguments, save_outputs  # noqa: E402
+from experiments._common import load_script, parse_arguments, save_outputs  # noqa: E402
 from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
     TableResolution,
     precompute_scattering,
@@ -52,19 +51,11 @@ SETTINGS = {
 }
 
 
-def _generator():
-    spec = importlib.util.spec_from_file_location("generate_eclipse_montecarlo",
-                                                  DATA / "generate_eclipse_montecarlo.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("generate_eclipse_montecarlo", module)
-    spec.loader.exec_module(module)
-    return sys.modules["generate_eclipse_montecarlo"]
-
-
 def main(argv=None):
     arguments = parse_arguments(__doc__.splitlines()[0], argv)
     torch.set_num_threads(2)
-    generator = _generator()
+    generator = load_script(DATA / "generate_eclipse_montecarlo.py",
+                            "generate_eclipse_montecarlo")
     with xr.open_dataset(DATA / "montecarlo_eclipse_sky.nc") as reference:
         reference = reference.sel(wavelength=list(WAVELENGTHS)).load()
     settings = ["quick"] if arguments.quick else list(SETTINGS)

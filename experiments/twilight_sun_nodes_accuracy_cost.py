@@ -20,7 +20,6 @@ Writes ``twilight_sun_nodes_accuracy_cost.nc`` / ``.png``. Run:
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import sys
 import time
@@ -32,7 +31,7 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from experiments._common import parse_arguments, save_outputs  # noqa: E402
+from experiments._common import load_script, parse_arguments, save_outputs  # noqa: E402
 from experiments._disort_reference import COARSE  # noqa: E402
 from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
     TableResolution,
@@ -48,16 +47,6 @@ SUN_NODES = (24, 48, 96, 192)
 SUN_ZENITH_DEG = (30.0, 60.0, 80.0, 90.0, 94.0, 98.0)
 CASES = ("rayleigh", "rayleigh_aerosol")
 STATISTICS = ("max over decided views", "zenith")
-
-
-def _generator():
-    """Return the Monte-Carlo generator module (its cases, views and atmospheres)."""
-    spec = importlib.util.spec_from_file_location("generate_montecarlo",
-                                                  DATA / "generate_montecarlo.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("generate_montecarlo", module)   # dataclasses look it up
-    spec.loader.exec_module(module)
-    return module
 
 
 def _errors(mc, reference, case, sizes, n_mu_s):
@@ -94,7 +83,7 @@ def main(argv=None):
     arguments = parse_arguments(__doc__.splitlines()[0], argv)
     import matplotlib.pyplot as plt
 
-    mc = _generator()
+    mc = load_script(DATA / "generate_montecarlo.py", "generate_montecarlo")
     with xr.open_dataset(DATA / "montecarlo_sky.nc") as ds:
         reference = ds.load()
     quick = arguments.quick
