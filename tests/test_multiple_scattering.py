@@ -315,6 +315,10 @@ def test_bad_input_names_parameter_and_range(day_tables):
         TableResolution(mu_vertical_weight=1.5)
     with pytest.raises(TypeError, match="mu_vertical_weight"):
         TableResolution(mu_vertical_weight="half")
+    with pytest.raises(ValueError, match=r"r_ground_weight must be in \[0, 1\); got 1.0"):
+        TableResolution(r_ground_weight=1.0)
+    with pytest.raises(TypeError, match="r_ground_weight"):
+        TableResolution(r_ground_weight=None)
     with pytest.raises(ValueError, match="forward_peak"):
         precompute_scattering(atm, WAVELENGTH, forward_peak="gaussian")
     assert isinstance(tables, ScatteringTables)
@@ -398,6 +402,31 @@ def test_forward_peak_factoring_leaves_a_molecular_sky():
     ratio = factored.radiance(0.0, view, azimuth, sun) / plain.radiance(0.0, view, azimuth,
                                                                          sun)
     assert float((ratio - 1).abs().max()) < 0.015
+
+
+@pytest.mark.parametrize("weight", [0.25, 0.5, 0.9])
+def test_radius_nodes_towards_the_ground_invert_exactly(weight):
+    """``r_ground_weight``: the look-up's coordinate of each radius node is its index.
+
+    Closed forms both ways; they agree to 1e-12 at every node, the lowest node above the
+    ground comes about (1 - w)^2 times as high (height ~ rho^2 / 2R; ref. 2's mapping
+    of 16 radii under a 100 km top: 448 m), and the coordinate has a finite derivative on the
+    ground.
+    """
+    from skytorch.atmosphere.multiple_scattering import _Shell
+
+    shell, plain = _Shell(6.371e6, 6.471e6, 0.0, weight), _Shell(6.371e6, 6.471e6)
+    nodes = torch.linspace(0.0, 1.0, 16, dtype=F64)
+    radii = shell.r_of(nodes)
+    assert float((shell.x_of_r(radii) - nodes).abs().max()) < 1e-12
+    assert bool((radii[1:] > radii[:-1]).all())
+    low, low_plain = float(radii[1]) - 6.371e6, float(plain.r_of(nodes)[1]) - 6.371e6
+    assert 446.0 < low_plain < 450.0
+    # heights near the ground go as the square of rho: the first spacing (1 - w + w/15)
+    assert low / low_plain == pytest.approx((1 - weight + weight / 15) ** 2, rel=1e-3)
+    r = torch.tensor(6.371e6 + 1.0, dtype=F64, requires_grad=True)
+    (slope,) = torch.autograd.grad(shell.x_of_r(r), r)
+    assert math.isfinite(float(slope))
 
 
 @pytest.mark.parametrize("weight", [0.5, 1.0])

@@ -119,7 +119,8 @@ class TableResolution:
     Parameters
     ----------
     n_r : int
-        Radii (uniform in the horizontal distance to the horizon, ref. 2), >= 2.
+        Radii (uniform in the horizontal distance to the horizon, ref. 2, or crowded
+        towards the ground by ``r_ground_weight``), >= 2.
     n_mu : int
         View zenith cosines, even, >= 4: half on rays meeting the ground, half on rays
         to the sky (the horizon is a seam of the table).
@@ -143,6 +144,12 @@ class TableResolution:
         of sasktran2 at the nadir, and makes tables of 16 view nodes per half worse (the
         sky through τ 1: 20 % → 36 % of DISORT), so coarse tables should pass 0
         (docs/multiple_scattering_validation.md, "The view-zenith axis").
+    r_ground_weight : float
+        Share w in [0, 1) of the radius nodes moved towards the ground: the horizontal
+        distance to the horizon is :math:`\rho / H = (1 - w)\,y + w\,y^2` of a uniform node
+        coordinate y (0 is ref. 2's mapping). Near the ground the nodes are 1 - w times as
+        far apart, at the top 1 + w times (docs/multiple_scattering_validation.md, "Radius
+        nodes towards the ground").
 
     Notes
     -----
@@ -163,6 +170,7 @@ class TableResolution:
     transmittance_r: int = 64
     transmittance_mu: int = 256
     mu_vertical_weight: float = 0.5
+    r_ground_weight: float = 0.0
 
     def __post_init__(self):
         """Check every size (ValueError naming the field)."""
@@ -172,12 +180,15 @@ class TableResolution:
             check_int(name, getattr(self, name), low)
         if self.n_mu % 2:
             raise ValueError(f"n_mu must be an even integer >= 4; got {self.n_mu}")
-        weight = self.mu_vertical_weight
-        if isinstance(weight, bool) or not isinstance(weight, (int, float)):
-            raise TypeError("mu_vertical_weight must be a float in [0, 1]; got "
-                            f"{type(weight).__name__} {weight!r}")
-        if not 0.0 <= weight <= 1.0:
-            raise ValueError(f"mu_vertical_weight must be in [0, 1]; got {weight!r}")
+        for name, high, closed in (("mu_vertical_weight", 1.0, True),
+                                   ("r_ground_weight", 1.0, False)):
+            weight = getattr(self, name)
+            interval = f"[0, {high:g}{']' if closed else ')'}"
+            if isinstance(weight, bool) or not isinstance(weight, (int, float)):
+                raise TypeError(f"{name} must be a float in {interval}; got "
+                                f"{type(weight).__name__} {weight!r}")
+            if not (0.0 <= weight <= high if closed else 0.0 <= weight < high):
+                raise ValueError(f"{name} must be in {interval}; got {weight!r}")
 
     @classmethod
     def bruneton2017(cls) -> TableResolution:
@@ -196,11 +207,13 @@ class TableResolution:
 class _Shell:
     """Radii of the shell and the table mappings (ref. 2), as pure tensor functions."""
 
-    def __init__(self, planet: float, top: float, vertical_weight: float = 0.0):
+    def __init__(self, planet: float, top: float, vertical_weight: float = 0.0,
+                 ground_weight: float = 0.0):
         self.R = planet
         self.Rt = top
         self.H = math.sqrt(top * top - planet * planet)
         self.vertical_weight = float(vertical_weight)
+        self.ground_weight = float(ground_weight)
 
     def _node_coordinate(self, u):
         r"""View-zenith node coordinate :math:`v = u + w(\sqrt{u} - u)(1 - u)` of ref. 2's u."""
@@ -241,12 +254,18 @@ class _Shell:
         return torch.clamp(-r * mu - torch.sqrt(torch.clamp(
             r * r * mu * mu - (r - self.R) * (r + self.R), min=0.0)), min=0.0)
 
-    # r <-> coordinate in [0, 1]
+    # r <-> coordinate in [0, 1]: rho / H = (1 - w) x + w x^2
     def r_of(self, x):
-        return torch.sqrt((x * self.H) ** 2 + self.R ** 2)
+        w = self.ground_weight
+        return torch.sqrt((((1.0 - w) + w * x) * x * self.H) ** 2 + self.R ** 2)
 
     def x_of_r(self, r):
-        return self.rho(r) / self.H
+        w = self.ground_weight
+        distance = self.rho(r) / self.H
+        if not w:
+            return distance
+        # the root of w x^2 + (1 - w) x - distance in [0, 1], without cancellation
+        return 2.0 * distance / ((1.0 - w) + torch.sqrt((1.0 - w) ** 2 + 4.0 * w * distance))
 
     # mu <-> (ground flag, node coordinate in [0, 1]); 1 at the horizon
     def mu_coordinate(self, r, mu):
@@ -878,7 +897,7 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     n_lambda = wavelength.shape[0]
     albedo = _flat(_check_albedo(ground_albedo, shape_b, n_lambda, dtype), shape_b, 1)
     shell = _Shell(constituents.planet_radius_m, constituents.top_radius_m,
-                   res.mu_vertical_weight)
+                   res.mu_vertical_weight, res.r_ground_weight)
 
     def tens(values):
         return torch.as_tensor(values, dtype=dtype)
