@@ -7,14 +7,24 @@ atmosphere it was computed for, and the coarse tables of the validation tests.
 
 from __future__ import annotations
 
+import math
+import time
 from pathlib import Path
 
+import numpy as np
+import torch
 import xarray as xr
 
 from skytorch.atmosphere import Atmosphere
+from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
+from skytorch.atmosphere.scattering import constituent_radiance
 
 REFERENCE = Path(__file__).resolve().parents[1] / "tests" / "data" / "ms_reference" / \
     "disort_sky.nc"
+#: sasktran2's spherical radiance leaving the top (observer at 100 km, nadir 0, 30, 60 deg)
+SPHERICAL_TOP = REFERENCE.parent / "sasktran2_top.nc"
+#: the two comparisons of :func:`sky_and_top_errors`
+WHERE = ("top (sasktran2, spherical)", "sky from the ground (DISORT)")
 #: view zenith angles of the reference used by the experiments [deg]
 VIEW_ZENITH_DEG = (0.0, 30.0, 60.0)
 #: the coarse tables of the sasktran2 / DISORT / Monte-Carlo tests
@@ -34,3 +44,46 @@ def load_reference() -> xr.Dataset:
     """Return the reference table, loaded into memory."""
     with xr.open_dataset(REFERENCE) as ds:
         return ds.load()
+
+
+def sky_and_top_errors(references, aods, resolution: dict):
+    """Largest relative errors of the scenes' sum against both references, and the build time.
+
+    The ray-marched single scattering (1024 samples) plus the tables' orders >= 2 built with
+    ``TableResolution(**resolution)`` for the optical depths ``aods`` in one call.
+    ``references`` is (DISORT's table, sasktran2's top table). Returns the errors
+    |model / reference - 1| with shape (where: :data:`WHERE`, statistic: max over views |
+    vertical view, aod, sun zenith) and the precompute time [s].
+    """
+    disort, top = references
+    wavelength = torch.tensor(disort.wavelength.values, dtype=torch.float64)
+    atm = disort_atmosphere(torch.tensor(aods, dtype=torch.float64))
+    clock = time.perf_counter()
+    tables = precompute_scattering(atm, wavelength, scattering_orders="converged",
+                                   resolution=TableResolution(**resolution))
+    seconds = time.perf_counter() - clock
+    vertical = torch.tensor(VIEW_ZENITH_DEG, dtype=torch.float64)
+    azimuth = torch.deg2rad(torch.tensor(disort.relative_azimuth.values,
+                                         dtype=torch.float64))[None, :, None]
+    views = ((torch.deg2rad(180.0 - vertical), tables.top_altitude_m),
+             (torch.deg2rad(vertical), 0.0))
+    error = np.zeros((2, 2, len(aods), disort.sun_zenith.size))
+    for k, sun_zenith in enumerate(disort.sun_zenith.values):
+        sun = torch.tensor(math.radians(sun_zenith), dtype=torch.float64)
+        theirs = (top.successive_orders.sel(aod=list(aods), sun_zenith=sun_zenith,
+                                            wavelength=disort.wavelength.values),
+                  disort.sky_streams_64.sel(aod=list(aods), sun_zenith=sun_zenith,
+                                            view_zenith=list(VIEW_ZENITH_DEG)))
+        for w, ((zenith, altitude), reference) in enumerate(zip(views, theirs, strict=True)):
+            zenith = zenith[:, None, None]
+            height = torch.tensor(altitude, dtype=torch.float64)
+            higher = (tables.radiance(height, zenith, azimuth, sun)
+                      - tables.radiance(height, zenith, azimuth, sun, scattering_orders=1))
+            single = constituent_radiance(atm.constituents(wavelength), zenith, azimuth, sun,
+                                          0.0 * sun, height, n_samples=1024)
+            values = reference.transpose(reference.dims[-2], "relative_azimuth", "aod",
+                                         "wavelength").values
+            relative = np.abs((single + higher).detach().numpy() / values - 1.0)
+            error[w, 0, :, k] = relative.max(axis=(0, 1, 3))
+            error[w, 1, :, k] = relative[0].max(axis=(0, 2))
+    return error, seconds

@@ -18,9 +18,7 @@ Writes ``view_nodes_accuracy_cost.nc`` / ``.png``. Run:
 
 from __future__ import annotations
 
-import math
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -32,61 +30,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from experiments._disort_reference import (  # noqa: E402
     COARSE,
-    REFERENCE,
-    VIEW_ZENITH_DEG,
-    disort_atmosphere,
+    SPHERICAL_TOP,
+    WHERE,
     load_reference,
+    sky_and_top_errors,
 )
-from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
-    TableResolution,
-    precompute_scattering,
-)
-from skytorch.atmosphere.scattering import constituent_radiance  # noqa: E402
 
-SPHERICAL_TOP = REFERENCE.parent / "sasktran2_top.nc"
 #: (name, table sizes): "default" is 16 x 64 x 24 x 8 with 48 samples per ray, the default
 #: TableResolution before 2026-12-05 (now 48 Sun-zenith nodes, 96 samples, weight 1/2)
 CASES = (("coarse", COARSE), ("default", {"n_mu_s": 24, "n_ray": 48}),
          ("default, n_ray 96", {"n_mu_s": 24, "n_ray": 96}))
 WEIGHTS = (0.0, 0.5, 1.0)
-WHERE = ("top (sasktran2, spherical)", "sky from the ground (DISORT)")
-
-
-def _errors(references, aods, sizes, weight):
-    """Largest |model / reference - 1| (where, max | vertical, aod, sun) and the time [s]."""
-    disort, top = references
-    wavelength = torch.tensor(disort.wavelength.values, dtype=torch.float64)
-    atm = disort_atmosphere(torch.tensor(aods, dtype=torch.float64))
-    clock = time.perf_counter()
-    tables = precompute_scattering(
-        atm, wavelength, scattering_orders="converged",
-        resolution=TableResolution(**{**sizes, "mu_vertical_weight": weight}))
-    seconds = time.perf_counter() - clock
-    vertical = torch.tensor(VIEW_ZENITH_DEG, dtype=torch.float64)
-    azimuth = torch.deg2rad(torch.tensor(disort.relative_azimuth.values,
-                                         dtype=torch.float64))[None, :, None]
-    views = ((torch.deg2rad(180.0 - vertical), tables.top_altitude_m),
-             (torch.deg2rad(vertical), 0.0))
-    error = np.zeros((2, 2, len(aods), disort.sun_zenith.size))
-    for k, sun_zenith in enumerate(disort.sun_zenith.values):
-        sun = torch.tensor(math.radians(sun_zenith), dtype=torch.float64)
-        theirs = (top.successive_orders.sel(aod=list(aods), sun_zenith=sun_zenith,
-                                            wavelength=disort.wavelength.values),
-                  disort.sky_streams_64.sel(aod=list(aods), sun_zenith=sun_zenith,
-                                            view_zenith=list(VIEW_ZENITH_DEG)))
-        for w, ((zenith, altitude), reference) in enumerate(zip(views, theirs, strict=True)):
-            zenith = zenith[:, None, None]
-            height = torch.tensor(altitude, dtype=torch.float64)
-            higher = (tables.radiance(height, zenith, azimuth, sun)
-                      - tables.radiance(height, zenith, azimuth, sun, scattering_orders=1))
-            single = constituent_radiance(atm.constituents(wavelength), zenith, azimuth, sun,
-                                          0.0 * sun, height, n_samples=1024)
-            values = reference.transpose(reference.dims[-2], "relative_azimuth", "aod",
-                                         "wavelength").values
-            relative = np.abs((single + higher).detach().numpy() / values - 1.0)
-            error[w, 0, :, k] = relative.max(axis=(0, 1, 3))
-            error[w, 1, :, k] = relative[0].max(axis=(0, 2))
-    return error, seconds
 
 
 def main(argv=None):
@@ -106,7 +60,8 @@ def main(argv=None):
     seconds = np.zeros((len(cases), len(weights)))
     for i, (_, sizes) in enumerate(cases):
         for m, weight in enumerate(weights):
-            error[i, m], seconds[i, m] = _errors((disort, top), aods, sizes, weight)
+            error[i, m], seconds[i, m] = sky_and_top_errors(
+                (disort, top), aods, {**sizes, "mu_vertical_weight": weight})
     dataset = xr.Dataset(
         {"error": (("case", "mu_vertical_weight", "where", "statistic", "aod", "sun_zenith"),
                    error, {"units": "1", "long_name": "largest |model / reference - 1| over "

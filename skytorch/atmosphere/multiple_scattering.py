@@ -148,8 +148,11 @@ class TableResolution:
         Share w in [0, 1) of the radius nodes moved towards the ground: the horizontal
         distance to the horizon is :math:`\rho / H = (1 - w)\,y + w\,y^2` of a uniform node
         coordinate y (0 is ref. 2's mapping). Near the ground the nodes are 1 - w times as
-        far apart, at the top 1 + w times (docs/multiple_scattering_validation.md, "Radius
-        nodes towards the ground").
+        far apart, at the top 1 + w times. At 1/2 on the default sizes it takes the sky
+        through an aerosol of τ 1 (Sun 30 deg) from 1.7 % to 0.7 % of DISORT and the top
+        from 4.4 % to 3.4 % of sasktran2 at no cost; tables of 8 radii get worse (the sky
+        through τ 1: 0.7 % → 14.7 %), so coarse tables should pass 0
+        (docs/multiple_scattering_validation.md, "Radius nodes towards the ground").
 
     Notes
     -----
