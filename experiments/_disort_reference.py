@@ -46,6 +46,19 @@ def load_reference() -> xr.Dataset:
         return ds.load()
 
 
+def error_coords(aods, sun_zenith_deg) -> dict:
+    """Coordinates of :func:`sky_and_top_errors`' (where, statistic, aod, sun_zenith) axes."""
+    return {"where": ("where", np.array(WHERE)),
+            "statistic": ("statistic", np.array(["max over views", "vertical view"])),
+            "aod": ("aod", np.array(aods), {"long_name": "aerosol optical depth at 550 nm"}),
+            "sun_zenith": ("sun_zenith", np.asarray(sun_zenith_deg), {"units": "degree"})}
+
+
+#: provenance of both references, for the experiments' netCDF attributes
+REFERENCES = ("tests/data/ms_reference/disort_sky.nc (DisORT++, 64 streams), "
+              "tests/data/ms_reference/sasktran2_top.nc (sasktran2, successive orders)")
+
+
 def sky_and_top_errors(references, aods, resolution: dict):
     """Largest relative errors of the scenes' sum against both references, and the build time.
 

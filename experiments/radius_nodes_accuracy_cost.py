@@ -35,8 +35,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from experiments._disort_reference import (  # noqa: E402
     COARSE,
+    REFERENCES,
     SPHERICAL_TOP,
     WHERE,
+    error_coords,
     load_reference,
     sky_and_top_errors,
 )
@@ -73,16 +75,10 @@ def main(argv=None):
                                                for _, s in cases]), {"units": "1"}),
          "n_r": ("case", np.array([s.get("n_r", 16) for _, s in cases]))},
         coords={"case": ("case", np.array([c[0] for c in cases])),
-                "where": ("where", np.array(WHERE)),
-                "statistic": ("statistic", np.array(["max over views", "vertical view"])),
-                "aod": ("aod", np.array(aods), {"long_name": "aerosol optical depth at "
-                                                "550 nm"}),
-                "sun_zenith": ("sun_zenith", disort.sun_zenith.values, {"units": "degree"})},
+                **error_coords(aods, disort.sun_zenith.values)},
         attrs={"title": "Radius nodes crowded towards the ground: ray-marched order 1 + the "
                         "tables' orders >= 2 against flat and spherical references",
-               "references": "tests/data/ms_reference/disort_sky.nc (DisORT++, 64 streams), "
-                             "tests/data/ms_reference/sasktran2_top.nc (sasktran2, "
-                             "successive orders)",
+               "references": REFERENCES,
                "wavelengths_nm": str(disort.wavelength.values.tolist()),
                "torch_threads": torch.get_num_threads()})
     figure, axes = plt.subplots(1, 2, figsize=(9.5, 3.8), squeeze=False)

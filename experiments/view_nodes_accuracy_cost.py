@@ -30,8 +30,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from experiments._disort_reference import (  # noqa: E402
     COARSE,
+    REFERENCES,
     SPHERICAL_TOP,
     WHERE,
+    error_coords,
     load_reference,
     sky_and_top_errors,
 )
@@ -69,16 +71,10 @@ def main(argv=None):
          "precompute_seconds": (("case", "mu_vertical_weight"), seconds, {"units": "s"})},
         coords={"case": ("case", np.array([c[0] for c in cases])),
                 "mu_vertical_weight": ("mu_vertical_weight", np.array(weights)),
-                "where": ("where", np.array(WHERE)),
-                "statistic": ("statistic", np.array(["max over views", "vertical view"])),
-                "aod": ("aod", np.array(aods), {"long_name": "aerosol optical depth at "
-                                                "550 nm"}),
-                "sun_zenith": ("sun_zenith", disort.sun_zenith.values, {"units": "degree"})},
+                **error_coords(aods, disort.sun_zenith.values)},
         attrs={"title": "View-zenith nodes moved towards the vertical: ray-marched order 1 + "
                         "the tables' orders >= 2 against spherical and flat references",
-               "references": "tests/data/ms_reference/sasktran2_top.nc (sasktran2, "
-                             "successive orders), tests/data/ms_reference/disort_sky.nc "
-                             "(DisORT++, 64 streams)",
+               "references": REFERENCES,
                "wavelengths_nm": str(disort.wavelength.values.tolist()),
                "torch_threads": torch.get_num_threads()})
     figure, axes = plt.subplots(2, len(cases), figsize=(4.2 * len(cases), 7.4), squeeze=False)
