@@ -62,6 +62,7 @@ from skytorch.stars.positions import (
 from skytorch.stars.scintillation import scintillation_law, twinkle
 from skytorch.stars.visibility import (
     VISIBILITY_MODELS,
+    count_true,
     count_visible,
     limiting_magnitude,
     muller_day_night_factor,
@@ -174,7 +175,8 @@ def site_tables(refraction: dict[str, torch.Tensor] | None,
     -------
     dict
         ``values`` (4, n) and ``slopes`` (4, n): refraction [rad], extinction offset A
-        and colour term B [mag], air mass, on true altitudes −2° … 90° every 0.01°;
+        and colour term B [mag], air mass, on true altitudes −2° … 90° every 0.01° (the
+        last node's slope 0);
         ``pairs`` (4, n), complex: ``values + i slopes``, both gathered by one look-up
         (``low_rad``, ``step_rad``; from further down for an elevated observer, whose
         horizon lies below −2°); ``horizon_rad``: the apparent altitude of the horizon
@@ -296,40 +298,51 @@ def _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere, 
 
 
 def _lerp_take(values: torch.Tensor, slopes: torch.Tensor, index: torch.Tensor,
-               weight: torch.Tensor, scratch: Scratch, out: torch.Tensor | None
-               ) -> torch.Tensor:
-    """``values[i] + w slopes[i]`` with :func:`torch.take` (faster than advanced indexing)."""
-    taken = torch.take(slopes, index, out=scratch("taken", index.shape, slopes.dtype))
-    taken = torch.mul(taken, weight, out=taken if scratch.enabled else None)
-    return torch.add(torch.take(values, index, out=out), taken,
-                     out=out if scratch.enabled else None)
+               weight: torch.Tensor) -> torch.Tensor:
+    """``values[i] + slopes[i] w`` with :func:`torch.take` (faster than advanced indexing)."""
+    return torch.addcmul(torch.take(values, index), torch.take(slopes, index), weight)
 
 
 def _lerp_pairs(pairs: torch.Tensor, index: torch.Tensor, weight: torch.Tensor,
                 scratch: Scratch, out: torch.Tensor) -> torch.Tensor:
     """:func:`_lerp_take` with one gather of the (value, slope) pairs (enabled scratch).
 
-    The same products and sums as :func:`_lerp_take`, hence the same values.
+    The same product and sum as :func:`_lerp_take` (one ``addcmul``), hence the same
+    values.
     """
     taken = torch.view_as_real(torch.take(pairs, index,
                                           out=scratch("pairs", index.shape, pairs.dtype)))
-    product = torch.mul(taken[..., 1], weight, out=scratch("taken", index.shape, out.dtype))
-    return torch.add(taken[..., 0], product, out=out)
+    return torch.addcmul(taken[..., 0], taken[..., 1], weight, out=out)
+
+
+def _node_and_weight(x: torch.Tensor, scratch: Scratch, name: str
+                     ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Split fractional node coordinates x into the node below (int64) and the weight.
+
+    At the last node (x = n − 1) the index is the last node and the weight 0, whose slope
+    the tables set to 0. With ``scratch`` enabled the weight overwrites ``x``.
+    """
+    floor = torch.floor(x.detach(), out=scratch(name + "_floor", x.shape, x.dtype))
+    index = scratch(name, x.shape, torch.int64)
+    index = floor.long() if index is None else index.copy_(floor)
+    return index, torch.sub(x, floor, out=x if scratch.enabled else None)
 
 
 def _observe_chunk(stars_t: torch.Tensor, operators: torch.Tensor, vmag: torch.Tensor,
                    bv: torch.Tensor, tables: dict, scratch: Scratch,
-                   rows: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+                   rows: dict[str, torch.Tensor], color_table: dict | None = None
+                   ) -> dict[str, torch.Tensor]:
     """Apparent altitude, azimuth, magnitude and air mass of the stars at a chunk of times.
 
     With ``scratch`` enabled every result is written into ``rows`` (the output's rows of
     the chunk) and every temporary into the scratch buffers; otherwise (gradients) the
-    results are new tensors, returned for the caller to copy.
+    results are new tensors, returned for the caller to copy. With a ``color_table``
+    (:func:`skytorch.stars.photometry.star_color_table`) also the apparent ``color``.
     """
     dtype = stars_t.dtype
     shape = (operators.shape[0], stars_t.shape[1])
-    rows = {name: rows[name] if scratch.enabled else None
-            for name in ("altitude", "azimuth", "magnitude", "airmass")}
+    names = ("altitude", "azimuth", "magnitude", "airmass", "color")
+    rows = {name: rows.get(name) if scratch.enabled else None for name in names}
     south, west, up = horizontal_planes(stars_t, operators,
                                         out=scratch("planes", (3 * shape[0], shape[1]), dtype))
     if scratch.enabled:
@@ -339,30 +352,27 @@ def _observe_chunk(stars_t: torch.Tensor, operators: torch.Tensor, vmag: torch.T
     true = torch.atan2(up, horizontal, out=scratch("true", shape, dtype))
     azimuth = torch.atan2(west, south, out=rows["azimuth"])
     azimuth = torch.add(azimuth, math.pi, out=rows["azimuth"])
-    x = scratch("x", shape, dtype)
-    x = torch.sub(true, tables["low_rad"], out=x)
-    x = torch.mul(x, 1.0 / tables["step_rad"], out=x if scratch.enabled else None)
-    top = float(tables["count"] - 1)
-    x = torch.clamp(x, 0.0, top, out=x if scratch.enabled else None)
-    floor = torch.floor(x.detach(), out=scratch("floor", shape, dtype)).clamp_(max=top - 1.0)
-    weight = torch.sub(x, floor, out=scratch("weight", shape, dtype))
-    index = scratch("index", shape, torch.int64)
-    index = floor.long() if index is None else index.copy_(floor)
-    values, slopes = tables["values"], tables["slopes"]
+    # x = (true − low)/step on the uniform grid, clamped to its nodes
+    shift = torch.tensor(-tables["low_rad"] / tables["step_rad"], dtype=dtype)
+    x = torch.add(shift, true, alpha=1.0 / tables["step_rad"], out=scratch("x", shape, dtype))
+    x = torch.clamp(x, 0.0, float(tables["count"] - 1), out=x if scratch.enabled else None)
+    index, weight = _node_and_weight(x, scratch, "index")
 
     def lookup(row: int, out: torch.Tensor | None) -> torch.Tensor:
         if scratch.enabled:
             return _lerp_pairs(tables["pairs"][row], index, weight, scratch, out)
-        return _lerp_take(values[row], slopes[row], index, weight, scratch, out)
+        return _lerp_take(tables["values"][row], tables["slopes"][row], index, weight)
 
     altitude = torch.add(lookup(0, rows["altitude"]), true, out=rows["altitude"])
     colour_term = lookup(2, scratch("colour_term", shape, dtype))
     magnitude = torch.addcmul(lookup(1, rows["magnitude"]), colour_term, bv,
                               out=rows["magnitude"])
     magnitude = torch.add(magnitude, vmag, out=rows["magnitude"])
-    airmass = lookup(3, rows["airmass"])
-    return {"altitude": altitude, "azimuth": azimuth, "magnitude": magnitude,
-            "airmass": airmass}
+    result = {"altitude": altitude, "azimuth": azimuth, "magnitude": magnitude,
+              "airmass": lookup(3, rows["airmass"])}
+    if color_table is not None:
+        result["color"] = star_color(altitude, color_table, out=rows["color"], scratch=scratch)
+    return result
 
 
 def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
@@ -436,10 +446,8 @@ def observe_tensors(stars: torch.Tensor, vmag: torch.Tensor, bv: torch.Tensor,
     for start in range(0, n_time, time_chunk):
         sl = slice(start, min(start + time_chunk, n_time))
         chunk = _observe_chunk(stars_t, operators[sl], vmag, bv, tables, scratch,
-                               {name: value[sl] for name, value in out.items()})
-        if color_table is not None:
-            star_color(chunk["altitude"], color_table,
-                       out=out["color"][sl], scratch=scratch)
+                               {name: value[sl] for name, value in out.items()},
+                               color_table)
         if needs_grad:  # the chunk's values are new tensors: copy them in
             for name, value in chunk.items():
                 out[name][sl] = value
@@ -555,14 +563,17 @@ def _brightness_and_scintillation(result: dict[str, torch.Tensor], control_magni
                                  ("magnitude", "above_horizon", "airmass"))
     brightness, scint = torch.empty_like(magnitude), torch.empty_like(magnitude)
     coefficient, exponent = scintillation_law(aperture_m, exposure_s, elevation)
+    # coefficient X^p as exp(p ln X + ln coefficient): pow with a scalar exponent is
+    # several times slower than log and exp
+    log_coefficient = torch.tensor(math.log(coefficient), dtype=magnitude.dtype)
     for start in range(0, magnitude.shape[0], time_chunk):
         sl = slice(start, start + time_chunk)
         chunk = brightness_ratio(magnitude[sl], control_magnitude, out=brightness[sl])
         chunk.mul_(above[sl])
         if factor is not None:
             chunk.mul_(factor[sl, None])
-        chunk = torch.clamp(airmass[sl], min=1.0, out=scint[sl])
-        torch.pow(chunk, exponent, out=chunk).mul_(coefficient)
+        chunk = torch.clamp(airmass[sl], min=1.0, out=scint[sl]).log_()
+        torch.add(log_coefficient, chunk, alpha=exponent, out=chunk).exp_()
     return brightness, scint
 
 
@@ -702,8 +713,8 @@ def _visibility(result: dict[str, torch.Tensor], sky_values: torch.Tensor, backg
     sky = _background_sky(background, n_time, result["altitude"], result["azimuth"], above)
     limit = limiting_magnitude(sky)
     shifted = limit if factor is None else limit + 2.5 * torch.log10(factor)[:, None]
-    visible = above & (magnitude <= shifted)
-    return sky, limit, visible, visible.sum(-1)
+    visible = torch.le(magnitude, shifted).logical_and_(above)
+    return sky, limit, visible, count_true(visible)
 
 
 def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,

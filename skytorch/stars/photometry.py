@@ -106,6 +106,8 @@ STAR_BLOCK = 256
 #: shape parameter of the altitude grid h = H (x² + c x)/(1 + c), x ∈ [0, 1]
 GRID_SHAPE = 0.05
 _HALF_PI = 0.5 * math.pi
+#: 0.4 ln 10: 10^(−0.4 m) = exp(−_POGSON_E m)
+_POGSON_E = 0.4 * math.log(10.0)
 
 
 #: extinction and colour tables of recent (atmosphere parameters, arguments), keyed by value:
@@ -154,9 +156,14 @@ def brightness_ratio(magnitude: torch.Tensor, control_magnitude: float,
     torch.Tensor
         ``(...)`` ratio [1].
     """
-    ratio = torch.sub(magnitude, control_magnitude, out=out)
-    ratio = torch.mul(ratio, -0.4, out=out)
-    return torch.pow(10.0, ratio, out=out)
+    # exp(−0.4 ln 10 (m − m_a)) in float64: one scaled sum and one exp (pow with a scalar
+    # base costs ~10× an exp); within 1 ulp of 10^(0.4 (m_a − m)) in float64, and
+    # correctly rounded (exact powers of ten, 1 at m = m_a) in lower precisions
+    shift = torch.tensor(_POGSON_E * control_magnitude, dtype=torch.float64)
+    if magnitude.dtype == torch.float64:
+        return torch.exp(torch.add(shift, magnitude, alpha=-_POGSON_E, out=out), out=out)
+    ratio = torch.add(shift, magnitude.to(torch.float64), alpha=-_POGSON_E).exp_()
+    return ratio.to(magnitude.dtype) if out is None else out.copy_(ratio)
 
 
 def bv_to_srgb(bv) -> torch.Tensor:
@@ -252,14 +259,18 @@ def table_lookup(altitude_rad: torch.Tensor, n_nodes: int, low_rad: float = 0.0,
     scratch = Scratch(enabled=False) if scratch is None else scratch
     shape, dtype = altitude_rad.shape, altitude_rad.dtype
     c = GRID_SHAPE
-    # x = (√(c² + 4 h) − c)/2 · (n − 1), h = (clamp(altitude) − low)(1 + c)/span
+    # x = (√(c² + 4 h) − c)/2 · (n − 1), h = (clamp(altitude) − low)(1 + c)/span: each
+    # affine step one scaled sum with a 0-d tensor (a pass over the data each)
     x = scratch("lookup_x", shape, dtype)
     x = torch.clamp(altitude_rad, low_rad, _HALF_PI, out=x)
     in_place = x if scratch.enabled else None
-    x = torch.sub(x, low_rad, out=in_place)
-    x = torch.mul(x, 4.0 * (1.0 + c) / (_HALF_PI - low_rad), out=in_place)
-    x = torch.sqrt(torch.add(x, c * c, out=in_place), out=in_place)
-    x = torch.mul(torch.sub(x, c, out=in_place), 0.5 * (n_nodes - 1), out=in_place)
+    scale = 4.0 * (1.0 + c) / (_HALF_PI - low_rad)
+    x = torch.add(torch.tensor(c * c - low_rad * scale, dtype=dtype), x, alpha=scale,
+                  out=in_place)
+    x = torch.sqrt(x, out=in_place)
+    half_span = 0.5 * (n_nodes - 1)
+    x = torch.add(torch.tensor(-c * half_span, dtype=dtype), x, alpha=half_span,
+                  out=in_place)
     floor = torch.floor(x.detach(), out=scratch("lookup_floor", shape, dtype))
     floor = floor.clamp_(0, n_nodes - 2)
     weight = torch.sub(x, floor, out=in_place)
