@@ -2,7 +2,8 @@
 
 Workload of the multiple-scattering issue: the zenith sky radiance at the Sun 6, 9, 12, 15
 and 18° below the horizon for turbidity 1.5–6 × ozone 200–450 DU (10 × 10), converged orders
-of scattering on the scenes' small tables (5 × 16 × 24 × 5, 6 wavelengths 400–700 nm). Rows:
+of scattering on the default scene preset's small tables (8 × 16 × 24 × 5 since 2026-12-06,
+5 radii before; 6 wavelengths 400–700 nm). Rows:
 one batched ``precompute_scattering`` of the 100 atmospheres, and ``st.sweep`` of one
 parameter set per call — serial, and on its dask backend with two single-threaded workers
 (threads; worker processes, their start included). Each row runs once (a run is a minute).
@@ -88,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
         print(rows[-1], flush=True)
     report_section("Twilight sweep 10 × 10 × 5", "bench_twilight_sweep.py", load_before,
                    "Zenith radiance at 5 Sun depressions, turbidity × ozone 10 × 10, converged "
-                   "orders on the scenes' small tables, 6 wavelengths; one run per row.",
+                   "orders on the default preset's tables "
+                   f"({_resolution().n_r} radii), 6 wavelengths; one run per row.",
                    rows, args.append)
     return 0
 

@@ -4,7 +4,8 @@ The scene's sky is its exact single-scattering table plus the orders 2..N of coa
 multiple-scattering tables at a few wavelength nodes, interpolated in log radiance to
 the scene's wavelengths (:func:`skytorch.scene.render.higher_orders`). This experiment
 varies the table resolution (``tiny``: ``TableResolution.tiny()``; ``small``: the
-"default" preset's, tiny with 24 Sun zenith nodes; ``coarse``: the "reference"
+"fast" preset's (the "default" preset's until 2026-12-06, now with 8 radii instead of 5),
+tiny with 24 Sun zenith nodes; ``coarse``: the "reference"
 preset's) and the number of wavelength nodes (3, 6, 8 and every scene wavelength), and
 measures on the default sky look-up grid (24 zenith x 25 azimuth nodes) the relative
 error of the whole sky (single + higher orders) against the finest affordable case,
@@ -38,7 +39,7 @@ def resolutions():
     """Return the table resolutions compared (TableResolution fields)."""
     from skytorch.scene.presets import FIDELITY
 
-    small = dict(FIDELITY["default"]["ms_tables"])
+    small = dict(FIDELITY["fast"]["ms_tables"])  # the default preset's until 2026-12-06
     return {"tiny": dict(small, n_mu_s=8), "small": small,
             "coarse": dict(FIDELITY["reference"]["ms_tables"])}
 

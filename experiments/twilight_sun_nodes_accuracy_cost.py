@@ -20,9 +20,7 @@ Writes ``twilight_sun_nodes_accuracy_cost.nc`` / ``.png``. Run:
 
 from __future__ import annotations
 
-import math
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -31,61 +29,28 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from experiments._common import load_script, parse_arguments, save_outputs  # noqa: E402
+from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from experiments._disort_reference import COARSE  # noqa: E402
-from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
-    TableResolution,
-    precompute_scattering,
+from experiments._montecarlo_reference import (  # noqa: E402
+    CASES,
+    REFERENCE,
+    STATISTICS,
+    SUN_ZENITH_DEG,
+    load_montecarlo,
+    montecarlo_errors,
 )
-from skytorch.atmosphere.scattering import constituent_radiance  # noqa: E402
 
-DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "ms_reference"
 #: the default tables of 2026-12-05 without their Sun-zenith nodes
 DEFAULT = dict(n_r=16, n_mu=64, n_phi=8, n_ray=96, n_sphere_mu=12, transmittance_r=64,
                transmittance_mu=256, mu_vertical_weight=0.5)
 SUN_NODES = (24, 48, 96, 192)
-SUN_ZENITH_DEG = (30.0, 60.0, 80.0, 90.0, 94.0, 98.0)
-CASES = ("rayleigh", "rayleigh_aerosol")
-STATISTICS = ("max over decided views", "zenith")
-
-
-def _errors(mc, reference, case, sizes, n_mu_s):
-    """(sun, statistic) relative errors, decided views per Sun and the build time [s]."""
-    atmosphere = mc.skytorch_atmosphere(mc.CASES[case])
-    wavelength = torch.tensor(reference.wavelength.values, dtype=torch.float64)
-    zenith = torch.deg2rad(torch.tensor([v[0] for v in mc.VIEWS], dtype=torch.float64))
-    azimuth = torch.deg2rad(torch.tensor([v[1] for v in mc.VIEWS], dtype=torch.float64))
-    height = torch.tensor(mc.OBSERVER_ALTITUDE_M, dtype=torch.float64)
-    clock = time.perf_counter()
-    tables = precompute_scattering(atmosphere, wavelength, ground_albedo=0.0,
-                                   scattering_orders="converged",
-                                   resolution=TableResolution(**sizes, n_mu_s=n_mu_s))
-    seconds = time.perf_counter() - clock
-    error = np.zeros((len(SUN_ZENITH_DEG), len(STATISTICS)))
-    decided_count = np.zeros(len(SUN_ZENITH_DEG), dtype=int)
-    for k, sun_zenith in enumerate(SUN_ZENITH_DEG):
-        sun = torch.tensor(math.radians(sun_zenith), dtype=torch.float64)
-        single = constituent_radiance(atmosphere.constituents(wavelength), zenith, azimuth, sun,
-                                      0.0 * sun, height, n_samples=256)
-        higher = (tables.radiance(height, zenith, azimuth, sun)
-                  - tables.radiance(height, zenith, azimuth, sun, scattering_orders=1))
-        ref = reference.sel(case=case, sun_zenith=sun_zenith)
-        relative = (single + higher).numpy().T / ref.total.values - 1.0   # (wavelength, view)
-        tolerance = 0.03 if sun_zenith <= 80.0 else 0.10
-        decided = ref.total_stderr.values < tolerance / 3.0 * ref.total.values
-        decided_count[k] = decided.sum()
-        error[k, 0] = np.abs(relative[decided]).max() if decided.any() else np.nan
-        error[k, 1] = np.abs(relative[:, 0]).max()
-    return error, decided_count, seconds
 
 
 def main(argv=None):
     arguments = parse_arguments(__doc__.splitlines()[0], argv)
     import matplotlib.pyplot as plt
 
-    mc = load_script(DATA / "generate_montecarlo.py", "generate_montecarlo")
-    with xr.open_dataset(DATA / "montecarlo_sky.nc") as ds:
-        reference = ds.load()
+    mc, reference = load_montecarlo()
     quick = arguments.quick
     cases = CASES[:1] if quick else CASES
     nodes = (16, 32) if quick else SUN_NODES
@@ -95,7 +60,8 @@ def main(argv=None):
     seconds = np.zeros((len(cases), len(nodes)))
     for i, case in enumerate(cases):
         for j, n_mu_s in enumerate(nodes):
-            error[i, j], decided[i], seconds[i, j] = _errors(mc, reference, case, sizes, n_mu_s)
+            error[i, j], decided[i], seconds[i, j] = montecarlo_errors(
+                mc, reference, case, {**sizes, "n_mu_s": n_mu_s})
     dataset = xr.Dataset(
         {"error": (("case", "n_mu_s", "sun_zenith", "statistic"), error,
                    {"units": "1", "long_name": "largest |model / Monte-Carlo - 1| over the "
@@ -111,8 +77,7 @@ def main(argv=None):
         attrs={"title": "Sun-zenith nodes of the multiple-scattering tables: ray-marched "
                         "order 1 + the tables' orders >= 2 against the Monte-Carlo, day "
                         "to twilight",
-               "reference": "tests/data/ms_reference/montecarlo_sky.nc (backward "
-                            "Monte-Carlo, spherical)",
+               "reference": REFERENCE,
                "other_table_sizes": str(sizes),
                "torch_threads": torch.get_num_threads()})
     figure, axes = plt.subplots(1, 2, figsize=(10.5, 4.2))

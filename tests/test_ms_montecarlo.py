@@ -387,7 +387,8 @@ def test_scene_twilight_sky_against_montecarlo_rayleigh(table, solver_tables):
 
     Measured 1.6 / 8.4 / 4.0 % at Sun 90 / 94 / 98 deg with the geometric Sun-zenith
     look-up (6.4 / 10.3 / 4.3 % with the former blended one). The default preset's smaller
-    tables stay outside it: 5.0 / 27.5 / 35.5 % (docs/multiple_scattering_validation.md).
+    tables: 4.7 / 3.8 / 6.0 % with 8 radii, 5.0 / 27.5 / 35.5 % with the 5 of before
+    (tests/test_preset_radius_nodes_experiment.py, docs/scene.md).
     """
     worst = _scene_sky_errors(table, solver_tables)
     assert all(error < tolerance for error, tolerance in worst.values()), worst
