@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
+from experiments import preset_radius_nodes_accuracy_cost as experiment
 from skytorch.constants import PERCENT
 from skytorch.dataset import open_dataset
-
-SCRIPT = (Path(__file__).resolve().parents[1] / "experiments"
-          / "preset_radius_nodes_accuracy_cost.py")
 
 
 def test_experiment_quick(tmp_path):
@@ -21,10 +16,7 @@ def test_experiment_quick(tmp_path):
     Monte-Carlo, and nearer to it than with 5 at Sun 94 and 98 deg (measured 4.7 / 3.8 /
     6.0 % against 5.0 / 27.5 / 35.5 %).
     """
-    spec = importlib.util.spec_from_file_location("preset_radius_nodes_accuracy_cost", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    assert module.main(["--quick", "--output-dir", str(tmp_path)]) == 0
+    assert experiment.main(["--quick", "--output-dir", str(tmp_path)]) == 0
     ds = open_dataset(tmp_path / "preset_radius_nodes_accuracy_cost.nc")
     assert (tmp_path / "preset_radius_nodes_accuracy_cost.png").stat().st_size > 0
     assert ds["error"].shape == (1, 2, 6, 2)
