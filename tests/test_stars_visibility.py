@@ -152,3 +152,17 @@ def test_observe_twinkle_on_request_is_seeded():
     assert np.array_equal(first.twinkle.values, again.twinkle.values)
     assert (first.twinkle.values > 0).all()
     assert "twinkle" not in observe(bright_stars(1.0), "2025-09-07T22:00", 52.5, 13.4)
+
+
+def test_count_true_matches_a_plain_count_and_refuses_other_dtypes():
+    """The byte-wise count equals Python's count of True per row; non-bool input raises."""
+    from skytorch.stars.visibility import count_true
+
+    flags = torch.rand(7, 1001, generator=torch.Generator().manual_seed(5)) < 0.3
+    expected = [sum(bool(v) for v in row) for row in flags.tolist()]
+    counted = count_true(flags)
+    assert counted.dtype == torch.int64 and counted.tolist() == expected
+    assert count_true(flags[:, ::2]).tolist() == [sum(row[::2]) for row in flags.tolist()]
+    for bad in (flags.double(), torch.tensor(True), [True, False]):
+        with pytest.raises(TypeError, match="flags must be a bool tensor"):
+            count_true(bad)

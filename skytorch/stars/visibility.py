@@ -157,7 +157,16 @@ def count_true(flags: torch.Tensor) -> torch.Tensor:
 
     Summed as bytes into int32, twice as fast as ``flags.sum(-1)`` (which widens every
     value to int64).
+
+    Examples
+    --------
+    >>> count_true(torch.tensor([[True, False, True], [False, False, False]]))
+    tensor([2, 0])
     """
+    if not isinstance(flags, torch.Tensor) or flags.dtype != torch.bool or flags.ndim == 0:
+        raise TypeError(f"flags must be a bool tensor of at least one dimension; got "
+                        f"{getattr(flags, 'dtype', type(flags).__name__)} with shape "
+                        f"{tuple(getattr(flags, 'shape', ()))}")
     if flags.shape[-1] >= 2**31:
         return flags.sum(-1)
     return flags.view(torch.uint8).sum(-1, dtype=torch.int32).long()
