@@ -110,6 +110,9 @@ _LOOKUP_BUDGET = 1 << 17
 #: values per block of the ray integrals (samples x Sun directions x channels): the
 #: element-wise work on blocks of this size stays in the caches
 _BUDGET = 1_000_000
+#: samples x Sun directions whose look-up corners (32 bytes each) the ray integrals keep
+#: from one order to the next (2^22: 134 MB)
+_GEOMETRY_BUDGET = 1 << 22
 
 
 @dataclass(frozen=True)
@@ -349,11 +352,11 @@ def _geometric(low, high, weight):
     left the orders >= 2 up to 6 % too bright between nodes at the Sun 4 deg below the
     horizon, docs/multiple_scattering_validation.md.)
     """
-    positive = (low > 0) & (high > 0)
-    tiny = torch.finfo(low.dtype).tiny
     if not (torch.is_grad_enabled() and any(
             isinstance(x, torch.Tensor) and x.requires_grad for x in (low, high, weight))):
-        return _geometric_without_gradient(low, high, weight, positive, tiny)
+        return _geometric_without_gradient(low, high, weight)
+    positive = (low > 0) & (high > 0)
+    tiny = torch.finfo(low.dtype).tiny
     # two logarithms, not the log of the ratio: high / tiny overflows where low is zero,
     # and the unused branch of the where would then give NaN gradients
     log_low = torch.log(torch.clamp(low, min=tiny))
@@ -363,17 +366,21 @@ def _geometric(low, high, weight):
     return torch.where(positive, geometric, linear)
 
 
-def _geometric_without_gradient(low, high, weight, positive, tiny):
+def _geometric_without_gradient(low, high, weight):
     """:func:`_geometric` with its temporaries reused in place (no gradient recorded).
 
-    The same operations in the same order as the differentiable path, so the same values,
-    with fewer large temporaries.
+    The same operations in the same order as the differentiable path where both nodes are
+    positive, so the same values, with fewer passes over the data: no clamp of the nodes
+    (where one is zero its logarithm is -inf and the linear interpolation replaces the
+    result) and the linear interpolation only where a node is not positive.
     """
-    log_low = torch.clamp(low, min=tiny).log_()
-    log_ratio = torch.clamp(high, min=tiny).log_().sub_(log_low)
-    linear = torch.addcmul(low, weight, high - low)
+    positive = torch.minimum(low, high) > 0
+    log_low = torch.log(low)
+    log_ratio = torch.log(high).sub_(log_low)
     geometric = torch.addcmul(log_low, weight, log_ratio, out=log_low).exp_()
-    return torch.where(positive, geometric, linear)
+    if bool(positive.all()):
+        return geometric
+    return torch.where(positive, geometric, torch.addcmul(low, weight, high - low))
 
 
 def _gather4(table, b, corners):
@@ -430,12 +437,9 @@ def _gather_rays(table, ray_corners, sun_corners):
     stages: contiguous (mu_s, phi) blocks are interpolated in (r, mu) once per sample,
     then looked up in (mu_s, phi). Returns (b, *g, m3, m4, λ').
 
-    Parameter sets are looked up one at a time: the temporaries of a whole batch outgrow
-    the caches (a 10 × 10 batch took 4.6 s per set against 0.9 s alone).
+    The ray integrals pass one parameter set at a time: the temporaries of a whole batch
+    outgrow the caches (a 10 × 10 batch took 4.6 s per set against 0.9 s alone).
     """
-    if table.shape[0] > 1:
-        return torch.cat([_gather_rays(table[i:i + 1], ray_corners, sun_corners)
-                          for i in range(table.shape[0])])
     (i1, w1), (i2, w2) = ray_corners
     n1, n2, n3, n4, channels = table.shape[1:]
     # the (mu_s, phi, λ') block of each (r, mu) node is one row of this view
@@ -540,8 +544,13 @@ def forward_peak_shapes(moments, orders):
         On the cosines of :func:`_peak_nodes` (scattering angles uniform on [0, π]), at
         least :data:`_PEAK_FLOOR` / (4π).
     """
+    return _peak_shapes(moments, orders,
+                        _legendre(_peak_nodes(moments.dtype), moments.shape[-1] - 1))
+
+
+def _peak_shapes(moments, orders, legendre):
+    """:func:`forward_peak_shapes` with the Legendre polynomials (l, nodes) at the nodes."""
     n_terms = moments.shape[-1] - 1
-    legendre = _legendre(_peak_nodes(moments.dtype), n_terms)            # (l, nodes)
     degree = torch.arange(n_terms + 1, dtype=moments.dtype)
     shapes = [torch.matmul(moments ** n * (2 * degree + 1) / (4 * math.pi), legendre)
               for n in orders]
@@ -1009,12 +1018,31 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         return torch.cat([sum(integrand(i, rows, k) for k in ks)
                           for rows, ks in ray_chunks(channels)], dim=1)
 
-    def scattered_along_rays(j_table, n_c, n_s, i, rows, k):
-        """Integral of T J over the samples ``k`` of the rays ``rows`` from r node ``i``.
+    # per block of ray samples, what the integrals of every order share: the look-up's
+    # corners and the samples' weights (computed at the first order that needs them and
+    # kept while they fit :data:`_GEOMETRY_BUDGET`; the rest are computed at each order)
+    ray_geometry = {}
+    kept = [0]
 
-        ``j_table`` (b, r, q, ms, phi, c * S * λ) in the ray dtype; returns
-        (b, mu, ms, phi, c, λ) in float64.
+    def geometry_along_rays(i, rows, k):
+        """Corners in the J table and weights of the samples ``k`` of the rays ``rows``.
+
+        Returns ``(ray_corners, sun_corners, weight)`` as :func:`_gather_rays` takes them
+        and the weight (b, mu, K, 1, 1, 1, S, λ) of each sample and species (scattering
+        coefficient x transmittance x trapezoid weight), in the ray dtype.
         """
+        key = (i, rows.start, rows.stop, k.start, k.stop)
+        if key in ray_geometry:
+            return ray_geometry[key]
+        geometry = sample_geometry(i, rows, k)
+        size = geometry[1][0][0].numel()
+        if kept[0] + size <= _GEOMETRY_BUDGET:
+            ray_geometry[key] = geometry
+            kept[0] += size
+        return geometry
+
+    def sample_geometry(i, rows, k):
+        """:func:`geometry_along_rays` computed."""
         mus_s = sample_sun(i, k, rows)                              # (mu, K, ms, phi)
         mv = mu_view_s[i][rows, k]                                  # (mu, K)
         mv4 = mv[:, :, None, None]
@@ -1027,18 +1055,36 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         wmu = torch.clamp((mv - mu_q[pos]) / (mu_q[pos + 1] - mu_q[pos]), 0.0, 1.0)
         cms = _linear(shell.mu_s_coordinate(mus_s) * (res.n_mu_s - 1), res.n_mu_s)
         cph = _linear(phi_s / math.pi * (res.n_phi - 1), res.n_phi)
-        jv = _gather_rays(j_table, (_weights_as(cr, ray_dtype),
-                                    _weights_as((pos, wmu), ray_dtype)),
-                          (_weights_as(cms, ray_dtype), _weights_as(cph, ray_dtype)))
-        jv = jv.reshape(jv.shape[:-1] + (n_c, n_s, n_lambda))
         # per sample and species: scattering coefficient x transmittance x trapezoid weight
         weight = (t_view[:, i, rows, k] * ds[i][rows, k][None, ..., None])[:, :, :, None, :]
         if beta_s:
             weight = torch.stack([bs[:, i, rows, k] for bs in beta_s], -2) * weight
         else:
             weight = torch.zeros_like(weight)
-        weight = weight[:, :, :, None, None, None].to(ray_dtype)     # (b, mu, K, 1, 1, 1, S, λ)
-        return (jv * weight).sum((2, -2)).to(dtype)                 # (b, mu, ms, phi, c, λ)
+        return ((_weights_as(cr, ray_dtype), _weights_as((pos, wmu), ray_dtype)),
+                (_weights_as(cms, ray_dtype), _weights_as(cph, ray_dtype)),
+                weight[:, :, :, None, None, None].to(ray_dtype))
+
+    def scattered_along_rays(j_table, n_c, n_s, i, rows, k):
+        """Integral of T J over the samples ``k`` of the rays ``rows`` from r node ``i``.
+
+        ``j_table`` (b, r, q, ms, phi, c * S * λ) in the ray dtype; returns
+        (b, mu, ms, phi, c, λ) in float64.
+        """
+        ray_corners, sun_corners, weight = geometry_along_rays(i, rows, k)
+        sets = []
+        # one parameter set at a time: the looked-up J of a whole batch outgrows the caches
+        for p in range(j_table.shape[0]):
+            jv = _gather_rays(j_table[p:p + 1], ray_corners, sun_corners)
+            jv = jv.reshape(jv.shape[:-1] + (n_c, n_s, n_lambda))
+            w = weight[p:p + 1] if weight.shape[0] > 1 else weight
+            # the sum over the samples as one multiply-add per sample: a reduction over the
+            # strided sample axis of the product took 8 times as long
+            total = jv[:, :, 0] * w[:, :, 0]
+            for sample in range(1, jv.shape[2]):
+                total.addcmul_(jv[:, :, sample], w[:, :, sample])
+            sets.append(total.sum(-2))
+        return torch.cat(sets).to(dtype)                            # (b, mu, ms, phi, c, λ)
 
     def single_along_rays(i, rows, k):
         """Single scattering per species (no phase) over some samples of some rays.
@@ -1140,11 +1186,13 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         return torch.where(depth > 0, total / torch.where(depth > 0, depth, 1.0), isotropic)
 
     shapes = {}
+    # the Legendre polynomials at the peak-shape nodes, once for all orders
+    peak_legendre = _legendre(_peak_nodes(dtype), _PEAK_TERMS)
 
     def peak(order, nu):
         """Shape of ``order`` scatterings at the cosines ``nu`` (*g): (b, *g, λ)."""
         if order not in shapes:
-            shapes[order] = forward_peak_shapes(moments, [order])[0].transpose(1, 2)
+            shapes[order] = _peak_shapes(moments, [order], peak_legendre)[0].transpose(1, 2)
         return _peak_at(shapes[order], nu)
 
     moments = column_phase_moments()
