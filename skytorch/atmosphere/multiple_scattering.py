@@ -110,9 +110,9 @@ _LOOKUP_BUDGET = 1 << 17
 #: values per block of the ray integrals (samples x Sun directions x channels): the
 #: element-wise work on blocks of this size stays in the caches
 _BUDGET = 1_000_000
-#: samples x Sun directions whose look-up corners (32 bytes each) the ray integrals keep
-#: from one order to the next (2^22: 134 MB)
-_GEOMETRY_BUDGET = 1 << 22
+#: samples x Sun directions whose look-up plans (56 bytes each) the ray integrals keep
+#: from one order to the next (2^21: 117 MB)
+_GEOMETRY_BUDGET = 1 << 21
 
 
 @dataclass(frozen=True)
@@ -374,12 +374,14 @@ def _geometric_without_gradient(low, high, weight):
     (where one is zero its logarithm is -inf and the linear interpolation replaces the
     result) and the linear interpolation only where a node is not positive.
     """
-    positive = torch.minimum(low, high) > 0
     log_low = torch.log(low)
     log_ratio = torch.log(high).sub_(log_low)
     geometric = torch.addcmul(log_low, weight, log_ratio, out=log_low).exp_()
-    if bool(positive.all()):
+    # two reductions decide whether any node is not positive (NaN is not): cheaper than
+    # the element-wise mask, which is formed only then
+    if bool(low.min() > 0) and bool(high.min() > 0):
         return geometric
+    positive = torch.minimum(low, high) > 0
     return torch.where(positive, geometric, torch.addcmul(low, weight, high - low))
 
 
@@ -427,45 +429,58 @@ def _gather4(table, b, corners):
     return out.reshape(shape + (channels,))
 
 
-def _gather_rays(table, ray_corners, sun_corners):
-    """Look ``table`` (b, n1, n2, n3, n4, λ') up at the samples of the table's rays.
+def _ray_plan(ray_corners, sun_corners, n2: int, n3: int, n4: int):
+    """Rows and weights of :func:`_gather_rays` on a table (1, n1, n2, n3, n4, λ').
 
     ``ray_corners`` is two (index, weight) pairs of shape (*g) on dims 1 and 2 (r, mu:
     fixed along a sample of a ray), ``sun_corners`` two pairs of shape (*g, m3, m4) on
-    dims 3 and 4 (mu_s, phi: one per Sun direction of the table). The same interpolation
-    as :func:`_gather4` (multilinear in r, mu, phi, geometric in mu_s), done in two
-    stages: contiguous (mu_s, phi) blocks are interpolated in (r, mu) once per sample,
-    then looked up in (mu_s, phi). Returns (b, *g, m3, m4, λ').
-
-    The ray integrals pass one parameter set at a time: the temporaries of a whole batch
-    outgrow the caches (a 10 × 10 batch took 4.6 s per set against 0.9 s alone).
+    dims 3 and 4 (mu_s, phi: one per Sun direction of the table). The plan depends on
+    the geometry only: every order of scattering and every parameter set reuses it.
     """
     (i1, w1), (i2, w2) = ray_corners
+    # the four (r, mu) corners: the rows of the (mu_s, phi, λ') blocks and their weights
+    nodes = [(((i1 + d1) * n2 + (i2 + d2)).reshape(-1),
+              ((w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2)).reshape(-1, 1))
+             for d1 in (0, 1) for d2 in (0, 1)]
+    (i3, w3), (i4, w4) = sun_corners
+    row = (torch.arange(i1.numel()).reshape(tuple(i1.shape) + (1, 1)) * (n3 * n4)
+           + (i3 * n4 + i4)).reshape(-1)
+    phi_weights = ((1.0 - w4).reshape(-1, 1), w4.reshape(-1, 1))
+    # per mu_s side, the two phi corners' rows and weights
+    sides = [[(row + (d3 * n4 + d4), phi_weights[d4]) for d4 in (0, 1)] for d3 in (0, 1)]
+    return nodes, sides, w3[None, ..., None]
+
+
+def _gather_rays(table, plan):
+    """Look ``table`` (1, n1, n2, n3, n4, λ') up at the samples of the table's rays.
+
+    ``plan`` from :func:`_ray_plan`. The same interpolation as :func:`_gather4`
+    (multilinear in r, mu, phi, geometric in mu_s), done in two stages: contiguous
+    (mu_s, phi) blocks are interpolated in (r, mu) once per sample, then looked up in
+    (mu_s, phi). Returns (1, *g, m3, m4, λ').
+
+    One parameter set at a time: the temporaries of a whole batch outgrow the caches (a
+    10 × 10 batch took 4.6 s per set against 0.9 s alone).
+    """
+    if table.shape[0] != 1:
+        raise ValueError(f"_gather_rays takes one parameter set; got {table.shape[0]}")
+    nodes, sides_plan, w3 = plan
     n1, n2, n3, n4, channels = table.shape[1:]
     # the (mu_s, phi, λ') block of each (r, mu) node is one row of this view
     blocks = table.reshape(n1 * n2, n3 * n4 * channels)
     ray = None
-    for d1 in (0, 1):
-        for d2 in (0, 1):
-            w = ((w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2)).reshape(-1, 1)
-            rows = torch.index_select(blocks, 0, ((i1 + d1) * n2 + (i2 + d2)).reshape(-1))
-            ray = rows * w if ray is None else ray.addcmul_(rows, w)
-    b, n_g = table.shape[0], i1.numel()
-    flat = ray.reshape(-1, channels)                             # (b * g * n3 * n4, λ')
-    (i3, w3), (i4, w4) = sun_corners
-    row = (torch.arange(b * n_g).reshape((b,) + tuple(i1.shape) + (1, 1)) * (n3 * n4)
-           + (i3 * n4 + i4)[None])
-    row = row.reshape(-1)
-    phi_weights = [(1.0 - w4).reshape(-1, 1), w4.reshape(-1, 1)]
+    for index, weight in nodes:
+        rows = torch.index_select(blocks, 0, index)
+        ray = rows.mul_(weight) if ray is None else ray.addcmul_(rows, weight)
+    flat = ray.reshape(-1, channels)                             # (g * n3 * n4, λ')
     sides = []
-    for d3 in (0, 1):
+    for corners in sides_plan:
         side = None
-        for d4 in (0, 1):
-            rows = torch.index_select(flat, 0, row + (d3 * n4 + d4))
-            side = (rows.mul_(phi_weights[d4]) if side is None
-                    else side.addcmul_(rows, phi_weights[d4]))
-        sides.append(side.reshape((b,) + tuple(w3.shape) + (channels,)))
-    return _geometric(sides[0], sides[1], w3[None, ..., None])
+        for index, weight in corners:
+            rows = torch.index_select(flat, 0, index)
+            side = rows.mul_(weight) if side is None else side.addcmul_(rows, weight)
+        sides.append(side.reshape(w3.shape[:-1] + (channels,)))
+    return _geometric(sides[0], sides[1], w3)
 
 
 def balanced_phase_operator(phase, weights, iterations: int = 200):
@@ -510,11 +525,15 @@ _PEAK_FLOOR = 1e-3
 
 
 def _legendre(x, n_terms: int):
-    """Legendre polynomials P_0..P_n at ``x`` (..., ) -> (n + 1, ...) by the recurrence."""
-    out = [torch.ones_like(x), x]
-    for n in range(1, n_terms):
-        out.append(((2 * n + 1) * x * out[n] - n * out[n - 1]) / (n + 1))
-    return torch.stack(out[:n_terms + 1])
+    """Legendre polynomials P_0..P_n at fixed nodes ``x`` (...) -> (n + 1, ...).
+
+    By the recurrence in float64 (:func:`numpy.polynomial.legendre.legvander`), then in
+    the dtype of ``x``; the nodes carry no gradient.
+    """
+    if x.requires_grad:
+        raise ValueError("_legendre takes fixed nodes: x must not require gradients")
+    values = np.polynomial.legendre.legvander(x.detach().to(torch.float64).numpy(), n_terms)
+    return torch.from_numpy(np.ascontiguousarray(np.moveaxis(values, -1, 0))).to(x.dtype)
 
 
 def _peak_nodes(dtype):
@@ -1027,15 +1046,15 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     def geometry_along_rays(i, rows, k):
         """Corners in the J table and weights of the samples ``k`` of the rays ``rows``.
 
-        Returns ``(ray_corners, sun_corners, weight)`` as :func:`_gather_rays` takes them
-        and the weight (b, mu, K, 1, 1, 1, S, λ) of each sample and species (scattering
-        coefficient x transmittance x trapezoid weight), in the ray dtype.
+        Returns the plan of :func:`_gather_rays` (:func:`_ray_plan`) and the weight
+        (b, mu, K, 1, 1, 1, S, λ) of each sample and species (scattering coefficient x
+        transmittance x trapezoid weight), in the ray dtype.
         """
         key = (i, rows.start, rows.stop, k.start, k.stop)
         if key in ray_geometry:
             return ray_geometry[key]
         geometry = sample_geometry(i, rows, k)
-        size = geometry[1][0][0].numel()
+        size = geometry[0][2].numel()
         if kept[0] + size <= _GEOMETRY_BUDGET:
             ray_geometry[key] = geometry
             kept[0] += size
@@ -1061,9 +1080,10 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
             weight = torch.stack([bs[:, i, rows, k] for bs in beta_s], -2) * weight
         else:
             weight = torch.zeros_like(weight)
-        return ((_weights_as(cr, ray_dtype), _weights_as((pos, wmu), ray_dtype)),
-                (_weights_as(cms, ray_dtype), _weights_as(cph, ray_dtype)),
-                weight[:, :, :, None, None, None].to(ray_dtype))
+        plan = _ray_plan((_weights_as(cr, ray_dtype), _weights_as((pos, wmu), ray_dtype)),
+                         (_weights_as(cms, ray_dtype), _weights_as(cph, ray_dtype)),
+                         2 * res.n_sphere_mu, res.n_mu_s, res.n_phi)
+        return plan, weight[:, :, :, None, None, None].to(ray_dtype)
 
     def scattered_along_rays(j_table, n_c, n_s, i, rows, k):
         """Integral of T J over the samples ``k`` of the rays ``rows`` from r node ``i``.
@@ -1071,11 +1091,11 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         ``j_table`` (b, r, q, ms, phi, c * S * λ) in the ray dtype; returns
         (b, mu, ms, phi, c, λ) in float64.
         """
-        ray_corners, sun_corners, weight = geometry_along_rays(i, rows, k)
+        plan, weight = geometry_along_rays(i, rows, k)
         sets = []
         # one parameter set at a time: the looked-up J of a whole batch outgrows the caches
         for p in range(j_table.shape[0]):
-            jv = _gather_rays(j_table[p:p + 1], ray_corners, sun_corners)
+            jv = _gather_rays(j_table[p:p + 1], plan)
             jv = jv.reshape(jv.shape[:-1] + (n_c, n_s, n_lambda))
             w = weight[p:p + 1] if weight.shape[0] > 1 else weight
             # the sum over the samples as one multiply-add per sample: a reduction over the
