@@ -126,7 +126,7 @@ def higher_orders_gathered(tables, atmosphere, altitude_m, view_zenith_rad,
         raise ValueError("higher_orders_gathered takes tables of an atmosphere with scalar "
                          f"parameters; got batch shape {tuple(tables.batch_shape)}")
     if scattering_orders == "converged":
-        incoming_orders = tables.orders_computed
+        incoming_orders = "converged"
     else:
         n = check_int("scattering_orders", scattering_orders, 2, tables.orders_computed + 1)
         incoming_orders = n - 1

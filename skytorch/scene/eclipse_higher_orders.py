@@ -396,8 +396,11 @@ def _unit_vectors(zenith: torch.Tensor, azimuth: torch.Tensor) -> torch.Tensor:
                         torch.cos(zenith)], dim=-1)
 
 
-def _incoming_orders(tables, scattering_orders) -> int:
-    """Check the tables and return the last order of their field to gather (N - 1)."""
+def _incoming_orders(tables, scattering_orders) -> int | str:
+    """Check the tables and return the last order of their field to gather (N - 1).
+
+    ``"converged"`` for every order of the tables (with their remainder, if any).
+    """
     if not isinstance(tables, ScatteringTables):
         raise TypeError(f"tables must be a ScatteringTables; got {type(tables).__name__}")
     if len(tables.batch_shape):
@@ -407,7 +410,7 @@ def _incoming_orders(tables, scattering_orders) -> int:
         raise ValueError("tables must hold at least 2 orders (orders 2..N are dimmed and "
                          f"gathered); got {tables.orders_computed}")
     if scattering_orders == "converged":
-        return tables.orders_computed
+        return "converged"
     return check_int("scattering_orders", scattering_orders, 3, tables.orders_computed + 1) - 1
 
 

@@ -213,7 +213,9 @@ def order_fluxes(tables, source_zenith_rad: float, elevation_m: float) -> np.nda
     The tables' radiance at the 9 directions of the sky estimate (the zenith, 60 and 85
     deg from it at 0, 90, 180, 270 deg from the source's azimuth), averaged and times
     2 pi sr, at the table wavelength nearest 550 nm; order ``k`` is the sum of orders
-    ``1..k`` less that of ``1..k-1``.
+    ``1..k`` less that of ``1..k-1``. Tables with an extrapolated remainder
+    (:attr:`~skytorch.atmosphere.multiple_scattering.ScatteringTables.remainder_extrapolated`)
+    give it as one more entry (orders_computed + 1,): the orders beyond the last computed.
     """
     zenith = torch.tensor([0.0] + [math.radians(60.0)] * 4 + [math.radians(85.0)] * 4,
                           dtype=torch.float64)
@@ -221,23 +223,28 @@ def order_fluxes(tables, source_zenith_rad: float, elevation_m: float) -> np.nda
                            dtype=torch.float64)
     band = int(torch.argmin((tables.wavelength_nm - 550.0).abs()))
     source = torch.full_like(zenith, source_zenith_rad)
+    levels = list(range(1, tables.orders_computed + 1))
+    if tables.remainder_extrapolated:
+        levels.append("converged")
     cumulative = np.array([float(tables.radiance(elevation_m, zenith, azimuth, source,
                                                  scattering_orders=k)[..., band].mean())
-                           for k in range(1, tables.orders_computed + 1)])
+                           for k in levels])
     return 2.0 * math.pi * np.diff(cumulative, prepend=0.0)
 
 
-def orders_needed(fluxes: np.ndarray, total: float, tolerance: float) -> tuple[int, float]:
+def orders_needed(fluxes: np.ndarray, total: float, tolerance: float,
+                  beyond: float = 0.0) -> tuple[int, float]:
     """Fewest orders ``n`` whose omitted orders (``> n``) are below ``tolerance`` of ``total``.
 
-    ``fluxes`` (orders,) are the orders' fluxes, in the unit of ``total``; returns ``n`` and
-    the omitted share.
+    ``fluxes`` (orders,) are the orders' fluxes, in the unit of ``total``, ``beyond`` the
+    flux of the orders after them (which every ``n`` omits); returns ``n`` (at most the
+    number of orders listed) and the omitted share.
     """
-    tail = np.cumsum(fluxes[::-1])[::-1]  # tail[k]: the orders k+1, k+2, ...
+    tail = np.cumsum(fluxes[::-1])[::-1] + beyond  # tail[k]: the orders k+1, k+2, ...
     for n in range(1, fluxes.size):
         if tail[n] / total < tolerance:
             return n, float(tail[n] / total)
-    return int(fluxes.size), 0.0
+    return int(fluxes.size), beyond / total
 
 
 def _sky_flux(resources: SceneResources, elevation_m: float, geometry: Geometry) -> float:
@@ -553,8 +560,10 @@ class _OrderEstimate:
     def _one(self, fluxes, tol) -> tuple[int, str]:
         if self.requested != "converged":
             return int(self.requested), f"{self.requested} orders as requested"
-        n, omitted = orders_needed(fluxes, float(fluxes.sum()), tol)
-        return n, (f"{n} of {fluxes.size} orders (omitted {omitted:.1e} of its flux; "
+        computed = self.tables.orders_computed
+        n, omitted = orders_needed(fluxes[:computed], float(fluxes.sum()), tol,
+                                   beyond=float(fluxes[computed:].sum()))
+        return n, (f"{n} of {computed} orders (omitted {omitted:.1e} of its flux; "
                    f"tables {'converged' if self.tables.converged else 'not converged'})")
 
     def decide(self, computed, tol, moon_flux) -> tuple[dict, str]:
