@@ -1288,7 +1288,9 @@ class Atmosphere(nn.Module):
         [W m^-2 sr^-1 nm^-1].
 
         ``scattering_orders`` is ``"converged"`` (the default: orders are added until the
-        last is below 1e-4 of the sum), an integer N (orders 1..N) or 1 (single
+        sum with its geometric remainder is stable to 1e-4, see
+        :func:`~skytorch.atmosphere.multiple_scattering.precompute_scattering`), an
+        integer N (orders 1..N) or 1 (single
         scattering). Over a black ground (``ground_albedo=0``, the default) order 1 is the
         ray-marched single-scattering kernel, :func:`skytorch.atmosphere.scattering.
         single_scattering_radiance` (``n_samples``, default 128, ``table`` and
