@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import statistics
 import sys
+import time
 from pathlib import Path
 
 import matplotlib
@@ -52,3 +54,19 @@ def load_script(path: Path, name: str):
     sys.modules.setdefault(name, module)
     spec.loader.exec_module(module)
     return sys.modules[name]
+
+
+def median_cpu_seconds(function, repeat: int, warm_up: bool = False) -> float:
+    """Median CPU time [s] of ``repeat`` calls of ``function()`` (all threads of the process).
+
+    CPU time is steadier than wall time on a shared machine. With ``warm_up`` one more call
+    runs first, untimed (it fills the caches).
+    """
+    if warm_up:
+        function()
+    samples = []
+    for _ in range(repeat):
+        clock = time.process_time()
+        function()
+        samples.append(time.process_time() - clock)
+    return statistics.median(samples)

@@ -17,9 +17,7 @@ Writes ``converged_orders_accuracy_cost.nc`` / ``.png``. Run:
 
 from __future__ import annotations
 
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +26,7 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from experiments._common import parse_arguments, save_outputs  # noqa: E402
+from experiments._common import median_cpu_seconds, parse_arguments, save_outputs  # noqa: E402
 from skytorch.atmosphere import Atmosphere  # noqa: E402
 from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
     CONVERGENCE_RTOL,
@@ -55,15 +53,6 @@ def _geometry():
 def _error(value, reference):
     """Largest relative error per Sun zenith (over views, azimuths, wavelengths)."""
     return ((value - reference).abs() / reference).amax(dim=(0, 1, 3)).numpy()
-
-
-def _cpu_seconds(build, repeat: int) -> float:
-    samples = []
-    for _ in range(repeat):
-        clock = time.process_time()
-        build()
-        samples.append(time.process_time() - clock)
-    return statistics.median(samples)
 
 
 def former_rule_orders(contributions: np.ndarray) -> int:
@@ -106,11 +95,11 @@ def main(argv=None):
         former = former_rule_orders(contributions)
         orders[i, 0] = former
         rules[i, 0] = fixed[i, former - 1]
-        seconds[i, 0] = _cpu_seconds(lambda former=former: build(former), repeat)
+        seconds[i, 0] = median_cpu_seconds(lambda former=former: build(former), repeat)
         converged = build("converged")
         orders[i, 1] = converged.orders_computed
         rules[i, 1] = _error(converged.radiance(*geometry), reference)
-        seconds[i, 1] = _cpu_seconds(lambda: build("converged"), repeat)
+        seconds[i, 1] = median_cpu_seconds(lambda: build("converged"), repeat)
     labels = [f"turbidity {t}, albedo {a}" for t, a in cases]
     rule_names = ["last order <= 1e-4 of the table's sum (until 2026-12-06)",
                   "sum + geometric remainder changes <= 1e-4 per Sun node (since 2026-12-06)"]

@@ -17,9 +17,7 @@ Writes ``preset_radius_nodes_accuracy_cost.nc`` / ``.png``. Run:
 
 from __future__ import annotations
 
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +26,7 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from experiments._common import parse_arguments, save_outputs  # noqa: E402
+from experiments._common import median_cpu_seconds, parse_arguments, save_outputs  # noqa: E402
 from experiments._montecarlo_reference import (  # noqa: E402
     CASES,
     REFERENCE,
@@ -62,14 +60,11 @@ def scene_build_seconds(resolution: dict, repeat: int) -> float:
     atmosphere = Atmosphere.earth()
     wavelength = torch.linspace(400.0, 700.0, FIDELITY["default"]["ms_wavelength_nodes"],
                                 dtype=torch.float64)
-    samples = []
-    for _ in range(repeat + 1):  # the first build warms the caches, not timed
-        clock = time.process_time()
-        precompute_scattering(atmosphere, wavelength, ground_albedo=0.0,
-                              scattering_orders="converged",
-                              resolution=TableResolution(**resolution))
-        samples.append(time.process_time() - clock)
-    return statistics.median(samples[1:])
+    return median_cpu_seconds(
+        lambda: precompute_scattering(atmosphere, wavelength, ground_albedo=0.0,
+                                      scattering_orders="converged",
+                                      resolution=TableResolution(**resolution)),
+        repeat, warm_up=True)
 
 
 def main(argv=None):
