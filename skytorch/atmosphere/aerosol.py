@@ -33,6 +33,10 @@ References
 9. Wolff, M. J. et al. 2009, "Wavelength dependence of dust aerosol single scattering
    albedo as observed by the Compact Reconnaissance Imaging Spectrometer", J. Geophys.
    Res. 114, E00D04, doi:10.1029/2009JE003350.
+10. Shettle, E. P. & Fenn, R. W. 1979, "Models for the Aerosols of the Lower Atmosphere
+    and the Effects of Humidity Variations on their Optical Properties", AFGL-TR-79-0214;
+    the stratospheric profiles as tabulated in LOWTRAN 7: Kneizys, F. X. et al. 1988,
+    "Users Guide to LOWTRAN 7", AFGL-TR-88-0177.
 
 Stratospheric sulfate layer
 ---------------------------
@@ -43,7 +47,11 @@ come from Mie theory, tabulated 230–1690 nm in ``data/aerosol_mie_sulfate.csv`
 (generator: ``data/make_aerosol_tables.py``) and interpolated linearly; the phase
 function is Henyey–Greenstein (ref. 7) with the tabulated asymmetry. The vertical profile
 is a Gaussian in altitude, :func:`gaussian_layer`, whose integral from the ground to the
-top of the atmosphere is :func:`gaussian_layer_column` (closed form with erf).
+top of the atmosphere is :func:`gaussian_layer_column` (closed form with erf), or one of
+the LOWTRAN 7 stratospheric models of ref. 10 (:func:`stratospheric_profile_shape`:
+background, moderate, high and extreme volcanic, 11-30 km, spring-summer, fall-winter or
+their mean), whose 550 nm extinction is tabulated in
+``data/stratospheric_aerosol_lowtran7.csv``.
 
 Aerosol types
 -------------
@@ -99,13 +107,35 @@ __all__ = [
     "mars_dust_properties",
     "preetham_angstrom_beta",
     "resolve_aerosol_type",
+    "STRATOSPHERIC_MODELS",
+    "STRATOSPHERIC_PROFILES",
+    "stratospheric_model_optical_depth",
+    "stratospheric_profile_shape",
     "sulfate_mie_properties",
+    "tabulated_layer",
 ]
 
 #: shipped Mie table of the stratospheric sulfate aerosol (``data/``)
 SULFATE_TABLE = "aerosol_mie_sulfate.csv"
 #: wavelengths the sulfate table covers [nm]
 SULFATE_RANGE_NM = (230.0, 1690.0)
+#: shipped LOWTRAN 7 stratospheric aerosol profiles (ref. 10, ``data/``)
+STRATOSPHERIC_PROFILE_TABLE = "stratospheric_aerosol_lowtran7.csv"
+#: the LOWTRAN 7 stratospheric aerosol models (ref. 10), from the quiet stratosphere to
+#: the densest volcanic loading
+STRATOSPHERIC_MODELS = ("background", "moderate_volcanic", "high_volcanic",
+                        "extreme_volcanic")
+#: seasons of the LOWTRAN 7 models; a model named without one is the mean of the two
+STRATOSPHERIC_SEASONS = ("spring_summer", "fall_winter")
+#: vertical profiles of the stratospheric layer: the Gaussian (peak altitude and width
+#: given) and each LOWTRAN 7 model, for one season or the mean of both
+STRATOSPHERIC_PROFILES = ("gaussian", *STRATOSPHERIC_MODELS,
+                          *(f"{model}_{season}" for model in STRATOSPHERIC_MODELS
+                            for season in STRATOSPHERIC_SEASONS))
+#: where the tabulated profiles go to zero [m]: LOWTRAN's tropospheric models take over
+#: below 11 km and its upper-atmosphere models above 30 km; skytorch has its own
+#: tropospheric aerosol, so the layer falls linearly to 0 at 10 km and at 35 km
+STRATOSPHERIC_PROFILE_ENDS_M = (10e3, 35e3)
 #: named aerosol types with a shipped Mie table: the stratospheric sulfate droplets and
 #: the ten OPAC types of Hess et al. 1998 (ref. 8, Table 4)
 AEROSOL_TYPES = (
@@ -336,6 +366,90 @@ def mars_dust_properties(wavelength_nm):
     """
     return _interpolate_table(MARS_DUST_TABLE, MARS_DUST_RANGE_NM, wavelength_nm,
                               "wavelength_nm")
+
+
+@lru_cache(maxsize=1)
+def _stratospheric_table() -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Altitudes [m] and 550 nm extinction [km⁻¹] of the shipped LOWTRAN 7 profiles."""
+    path = data_path(STRATOSPHERIC_PROFILE_TABLE)
+    with open(path, encoding="utf-8") as handle:
+        lines = [line for line in handle if not line.startswith("#")]
+    names = lines[0].strip().split(",")[1:]
+    table = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+    return 1e3 * table[:, 0], {name: table[:, k + 1] for k, name in enumerate(names)}
+
+
+def stratospheric_profile_shape(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Shape of a LOWTRAN 7 stratospheric aerosol profile (ref. 10).
+
+    Parameters
+    ----------
+    name : str
+        A model of :data:`STRATOSPHERIC_MODELS`, optionally with a season of
+        ``("spring_summer", "fall_winter")`` appended (``"high_volcanic_fall_winter"``);
+        without a season the mean of the two seasons' shapes, each normalised to a unit
+        column.
+
+    Returns
+    -------
+    altitude_m, relative : numpy.ndarray (node,)
+        Nodes [m] from 10 to 35 km and the 550 nm extinction relative to its largest
+        value [1], linear between the nodes and 0 outside (0 at 10 and 35 km: the
+        LOWTRAN table covers 11-30 km).
+
+    Examples
+    --------
+    >>> altitude, relative = stratospheric_profile_shape("high_volcanic_spring_summer")
+    >>> float(altitude[relative.argmax()]), float(relative.max())
+    (19000.0, 1.0)
+    """
+    if name not in STRATOSPHERIC_PROFILES or name == "gaussian":
+        raise ValueError(f"name must be one of {STRATOSPHERIC_PROFILES[1:]}; got {name!r}")
+    altitude, columns = _stratospheric_table()
+    low, high = STRATOSPHERIC_PROFILE_ENDS_M
+    altitude = np.concatenate([[low], altitude, [high]])
+    names = ([f"{name}_{season}" for season in STRATOSPHERIC_SEASONS]
+             if name in STRATOSPHERIC_MODELS else [name])
+    shapes = [np.concatenate([[0.0], columns[n], [0.0]]) for n in names]
+    values = sum(shape / np.trapezoid(shape, altitude) for shape in shapes)
+    return altitude, values / values.max()
+
+
+def stratospheric_model_optical_depth(name: str) -> float:
+    """Vertical optical depth at 550 nm of a LOWTRAN 7 stratospheric model (ref. 10) [1].
+
+    The column of its tabulated extinction, 11-30 km (linear between the nodes); for a
+    model named without a season (:func:`stratospheric_profile_shape`) the mean of the
+    two seasons'.
+
+    Examples
+    --------
+    >>> [round(stratospheric_model_optical_depth(m), 4) for m in STRATOSPHERIC_MODELS]
+    [0.007, 0.0268, 0.0851, 0.2707]
+    """
+    if name not in STRATOSPHERIC_PROFILES or name == "gaussian":
+        raise ValueError(f"name must be one of {STRATOSPHERIC_PROFILES[1:]}; got {name!r}")
+    altitude, columns = _stratospheric_table()
+    names = ([f"{name}_{season}" for season in STRATOSPHERIC_SEASONS]
+             if name in STRATOSPHERIC_MODELS else [name])
+    return float(np.mean([np.trapezoid(columns[n], altitude / 1e3) for n in names]))
+
+
+def tabulated_layer(altitude_m, nodes_m: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+    """Relative density linear between increasing ``nodes_m`` [m], 0 outside them.
+
+    The first and last ``values`` should be 0 (:func:`stratospheric_profile_shape`), so
+    that the layer is continuous.
+    """
+    altitude_m = as_tensor("altitude_m", altitude_m)
+    nodes = nodes_m.to(altitude_m.dtype)
+    values = values.to(altitude_m.dtype)
+    i = torch.clamp(torch.searchsorted(nodes, altitude_m.detach().contiguous(), right=True) - 1,
+                    0, nodes.numel() - 2)
+    h0, h1 = nodes[i], nodes[i + 1]
+    inside = values[i] + (values[i + 1] - values[i]) * (altitude_m - h0) / (h1 - h0)
+    outside = (altitude_m < nodes[0]) | (altitude_m > nodes[-1])
+    return torch.where(outside, torch.zeros_like(inside), inside)
 
 
 def gaussian_layer(altitude_m, center_m, width_m) -> torch.Tensor:

@@ -215,7 +215,8 @@ def _check_parameter(name: str, value, *, low=None, high=None, low_inclusive=Non
 _CONSTRUCTOR_KEYWORDS = (
     "planet_radius_m", "top_altitude_m", "gas", "molecule_profile", "refractivity_profile",
     "profile",
-    "aerosol_phase_model", "aerosol_type", "aerosol_albedo_spectrum", "name", *_PARAMETERS,
+    "aerosol_phase_model", "aerosol_type", "aerosol_albedo_spectrum", "name",
+    "stratospheric_aerosol_profile", *_PARAMETERS,
 )
 
 
@@ -333,12 +334,23 @@ class Atmosphere(nn.Module):
     stratospheric_aerosol_optical_depth : float or Tensor
         Vertical optical depth at 550 nm of the stratospheric sulfate layer (species
         ``"stratospheric_aerosol"``), in [0, 100]; default 0 (no layer).
-    stratospheric_aerosol_altitude_m, stratospheric_aerosol_width_m : float or Tensor
-        Peak altitude [m] and width [m] of the layer: a Gaussian in altitude whose width
-        is its standard deviation, normalised so that its column from the ground to
-        ``top_altitude_m`` (truncation included) is the given optical depth. Spectrum,
-        single-scattering albedo and Henyey-Greenstein asymmetry from Mie theory for 75 %
-        H2SO4 droplets (:func:`skytorch.atmosphere.aerosol.sulfate_mie_properties`).
+    stratospheric_aerosol_altitude_m, stratospheric_aerosol_width_m : float or Tensor, optional
+        Peak altitude [m] and width [m] of the ``"gaussian"`` layer (default 20 km and
+        3 km): a Gaussian in altitude whose width is its standard deviation, normalised so
+        that its column from the ground to ``top_altitude_m`` (truncation included) is the
+        given optical depth. Not with a tabulated ``stratospheric_aerosol_profile`` (giving
+        them raises ValueError); the buffers then hold that profile's centroid and rms
+        width. Spectrum, single-scattering albedo and Henyey-Greenstein asymmetry from Mie
+        theory for 75 % H2SO4 droplets
+        (:func:`skytorch.atmosphere.aerosol.sulfate_mie_properties`).
+    stratospheric_aerosol_profile : str
+        Vertical profile of the layer: ``"gaussian"`` (default) or a LOWTRAN 7 model of
+        :data:`skytorch.atmosphere.aerosol.STRATOSPHERIC_PROFILES` (Shettle & Fenn 1979:
+        ``"background"``, ``"moderate_volcanic"``, ``"high_volcanic"``,
+        ``"extreme_volcanic"``, with ``"_spring_summer"`` or ``"_fall_winter"`` or, without,
+        the mean of both), tabulated 11-30 km
+        (:func:`skytorch.atmosphere.aerosol.stratospheric_profile_shape`) and scaled to
+        ``stratospheric_aerosol_optical_depth``.
     precipitable_water_cm : float or Tensor
         Vertical column of water vapour from the ground [cm of precipitable water], in
         [0, 10]; default 0 (:meth:`earth`: 1.4). Species ``"h2o"``, ``"o2"`` and ``"o2o2"``
@@ -397,8 +409,9 @@ class Atmosphere(nn.Module):
                  reference_pressure_pa: float = STANDARD_PRESSURE_PA,
                  reference_temperature_k: float = STANDARD_TEMPERATURE_K,
                  stratospheric_aerosol_optical_depth=0.0,
-                 stratospheric_aerosol_altitude_m=20e3,
-                 stratospheric_aerosol_width_m=3e3,
+                 stratospheric_aerosol_altitude_m=None,
+                 stratospheric_aerosol_width_m=None,
+                 stratospheric_aerosol_profile: str = "gaussian",
                  precipitable_water_cm=0.0,
                  profile=None,
                  name: str = "custom"):
@@ -435,6 +448,13 @@ class Atmosphere(nn.Module):
                                    else "henyeygreenstein1941")
         self.aerosol_phase_model = check_choice("aerosol_phase_model", aerosol_phase_model,
                                                 PHASE_FUNCTIONS)
+        self.stratospheric_aerosol_profile = check_choice(
+            "stratospheric_aerosol_profile", stratospheric_aerosol_profile,
+            _aerosol.STRATOSPHERIC_PROFILES)
+        stratospheric_aerosol_altitude_m, stratospheric_aerosol_width_m = \
+            _stratospheric_layer_moments(self.stratospheric_aerosol_profile,
+                                         stratospheric_aerosol_altitude_m,
+                                         stratospheric_aerosol_width_m)
         if not isinstance(name, str):
             raise TypeError(f"name must be a string; got {name!r}")
         self.name = name
@@ -611,6 +631,8 @@ class Atmosphere(nn.Module):
                   **({"aerosol_type": self.aerosol_type} if self.aerosol_type else {}),
                   **({"aerosol_albedo_spectrum": self.aerosol_albedo_spectrum}
                      if self.aerosol_albedo_spectrum else {}),
+                  **({"stratospheric_aerosol_profile": self.stratospheric_aerosol_profile}
+                     if self.stratospheric_aerosol_profile != "gaussian" else {}),
                   "planet_radius_m": self.planet_radius_m,
                   "top_altitude_m": self.top_altitude_m}
         for key in _PARAMETERS:
@@ -1621,7 +1643,41 @@ def _ozone_species(atm, wavelength, dtype, profile) -> Species:
     return Species("ozone", profile, extinction.to(dtype))
 
 
+def _stratospheric_layer_moments(profile: str, altitude_m, width_m):
+    """Peak altitude and width of the Gaussian layer, or a tabulated profile's moments.
+
+    The Gaussian's default is 20 km and 3 km; a tabulated profile takes neither (ValueError
+    naming them) and returns its centroid and rms width [m].
+    """
+    if profile == "gaussian":
+        return (20e3 if altitude_m is None else altitude_m,
+                3e3 if width_m is None else width_m)
+    if altitude_m is not None or width_m is not None:
+        raise ValueError("stratospheric_aerosol_altitude_m and stratospheric_aerosol_width_m "
+                         "shape the 'gaussian' layer only; got "
+                         f"stratospheric_aerosol_profile={profile!r} with "
+                         f"stratospheric_aerosol_altitude_m={altitude_m!r}, "
+                         f"stratospheric_aerosol_width_m={width_m!r}")
+    altitude, relative = (torch.as_tensor(a, dtype=torch.float64)
+                          for a in _aerosol.stratospheric_profile_shape(profile))
+    column = torch.trapezoid(relative, altitude)
+    centroid = torch.trapezoid(relative * altitude, altitude) / column
+    spread = torch.trapezoid(relative * (altitude - centroid) ** 2, altitude) / column
+    return float(centroid), math.sqrt(float(spread))
+
+
+def _tabulated_stratospheric_profile(atm, dtype) -> Profile:
+    altitude, relative = _aerosol.stratospheric_profile_shape(atm.stratospheric_aerosol_profile)
+    nodes = torch.tensor(altitude, dtype=dtype)
+    values = torch.tensor(relative, dtype=dtype)
+    return Profile(lambda h: _aerosol.tabulated_layer(h, nodes, values), {},
+                   torch.trapezoid(values, nodes), breakpoints_m=nodes, support=True,
+                   aloft=True)
+
+
 def _stratospheric_profile(atm, dtype) -> Profile:
+    if atm.stratospheric_aerosol_profile != "gaussian":
+        return _tabulated_stratospheric_profile(atm, dtype)
     center = atm._p("stratospheric_aerosol_altitude_m", dtype)
     width = atm._p("stratospheric_aerosol_width_m", dtype)
     levels = torch.clamp(center[..., None] + width[..., None]
@@ -1634,9 +1690,12 @@ def _stratospheric_profile(atm, dtype) -> Profile:
 def _stratospheric_species(atm, wavelength, dtype, profile) -> Species:
     wide = wavelength.to(torch.float64)
     extinction, albedo, asymmetry = _aerosol.sulfate_mie_properties(wide)
-    height = _aerosol.gaussian_layer_column(
-        atm._p("stratospheric_aerosol_altitude_m", torch.float64, 1),
-        atm._p("stratospheric_aerosol_width_m", torch.float64, 1), atm.top_altitude_m)
+    if atm.stratospheric_aerosol_profile == "gaussian":
+        height = _aerosol.gaussian_layer_column(
+            atm._p("stratospheric_aerosol_altitude_m", torch.float64, 1),
+            atm._p("stratospheric_aerosol_width_m", torch.float64, 1), atm.top_altitude_m)
+    else:
+        height = profile.column_height_m.to(torch.float64)
     extinction = atm._p("stratospheric_aerosol_optical_depth", torch.float64, 1) / height \
         * extinction
     g = asymmetry.to(dtype)

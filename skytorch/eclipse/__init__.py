@@ -33,6 +33,7 @@ from skytorch.eclipse.eclipse_atmosphere import (  # noqa: F401
     eclipse_atmosphere,
     eclipse_shadow,
     stratospheric_aod,
+    stratospheric_model,
     terminator_bands,
 )
 from skytorch.eclipse.observed import observed_lunar_eclipses  # noqa: F401
@@ -74,6 +75,7 @@ __all__ = [
     "solar_eclipse_path",
     "solar_eclipses",
     "stratospheric_aod",
+    "stratospheric_model",
     "sun_visible_fraction",
     "terminator_bands",
 ]

@@ -8,7 +8,11 @@ adds the clouds and returns the :class:`~skytorch.eclipse.shadow.Shadow`. Ingred
   the eclipse year from ``data/stratospheric_aod.csv`` (readings of Sato et al. 1993 and
   GloSSAC, Thomason et al. 2018, with post-eruption values for El Chichón 1982, Pinatubo
   1991, Calbuco 2015 and Hunga Tonga 2022; about ±30 % in volcanic years, ±0.002 in
-  quiescent ones), as the Atmosphere's Gaussian sulfate layer (peak 20 km, σ 3 km);
+  quiescent ones), as the Atmosphere's sulfate layer with the vertical profile of the
+  LOWTRAN 7 stratospheric model whose optical depth is nearest the year's
+  (:func:`stratospheric_model`: background, moderate, high or extreme volcanic; Shettle &
+  Fenn 1979, ref. 10), the mean of its two seasons (the terminator crosses both
+  hemispheres);
 * **tropospheric aerosol**: a global annual mean optical depth at 550 nm of 0.12
   (Kinne et al. 2013, the MAC-v1 climatology: 0.12 globally) with the Preetham Ångström
   exponent 1.3 and the 1.2 km scale height;
@@ -58,6 +62,10 @@ References
    clouds using CALIPSO data, J. Geophys. Res. 113, D16211, doi:10.1029/2007JD009481.
 9. U.S. Standard Atmosphere 1976, NOAA-S/T 76-1562 (pressure levels 680 hPa at 3.24 km,
    440 hPa at 6.51 km).
+10. Shettle, E. P. & Fenn, R. W. 1979, Models for the Aerosols of the Lower Atmosphere and
+    the Effects of Humidity Variations on their Optical Properties, AFGL-TR-79-0214; the
+    stratospheric profiles as tabulated in LOWTRAN 7 (Kneizys, F. X. et al. 1988,
+    AFGL-TR-88-0177).
 6. WMO 2018, Scientific Assessment of Ozone Depletion: 2018, Global Ozone Research and
    Monitoring Project Report 58, ch. 3.
 
@@ -83,6 +91,11 @@ import torch
 from skytorch._data import data_path
 from skytorch._validate import check_choice, check_range
 from skytorch.atmosphere import Atmosphere
+from skytorch.atmosphere.aerosol import (
+    STRATOSPHERIC_MODELS,
+    STRATOSPHERIC_PROFILES,
+    stratospheric_model_optical_depth,
+)
 from skytorch.atmosphere.climatology import afgl_columns, afgl_profile
 from skytorch.eclipse.circumstances import _parse_one
 from skytorch.eclipse.shadow import LimbCloudCover, Shadow
@@ -107,6 +120,7 @@ __all__ = [
     "eclipse_atmosphere",
     "eclipse_shadow",
     "stratospheric_aod",
+    "stratospheric_model",
     "terminator_bands",
 ]
 
@@ -183,8 +197,62 @@ def stratospheric_aod(date) -> float:
     return float(aod[year - years[0]])
 
 
+def stratospheric_model(date=None, stratospheric_aod_550=None) -> str:
+    """LOWTRAN 7 stratospheric aerosol model of a date: the nearest in optical depth.
+
+    The model of :data:`skytorch.atmosphere.aerosol.STRATOSPHERIC_MODELS` (Shettle & Fenn
+    1979, ref. 10: background 0.0070, moderate volcanic 0.027, high volcanic 0.085,
+    extreme volcanic 0.27 at 550 nm) whose vertical optical depth is nearest, in its
+    logarithm, the record's for the date's year (:func:`stratospheric_aod`), so that the
+    layer's shape is a property of the date and does not change while its optical depth is
+    fitted (:func:`~skytorch.eclipse.retrieval.retrieve_atmosphere`). For a date outside
+    the record, or without a date, the given ``stratospheric_aod_550`` chooses.
+
+    Parameters
+    ----------
+    date : str, datetime or datetime64, optional
+        Date of the eclipse (UTC).
+    stratospheric_aod_550 : float or Tensor (), optional
+        Vertical optical depth at 550 nm [1], in [0, 100]; used where the record has no
+        value (0: the background model).
+
+    Returns
+    -------
+    str
+        A name of ``STRATOSPHERIC_MODELS`` (the mean of its seasons; the latitude bands of
+        :func:`terminator_bands` append their season).
+
+    Examples
+    --------
+    >>> stratospheric_model("1992-12-09"), stratospheric_model("2004-10-28")
+    ('high_volcanic', 'background')
+    """
+    if date is not None:
+        moment = _parse_one("date", date, parse_times)
+        years, _ = _record()
+        if years[0] <= int(str(np.datetime_as_string(moment, "Y"))) <= years[-1]:
+            stratospheric_aod_550 = stratospheric_aod(moment)
+    if stratospheric_aod_550 is None:
+        raise ValueError("stratospheric_model needs a date in the record's years or a "
+                         "stratospheric_aod_550; got neither")
+    aod = float(check_range("stratospheric_aod_550", torch.as_tensor(
+        stratospheric_aod_550).detach(), 0.0, 100.0))
+    if aod == 0.0:  # no layer: any shape; the quiet stratosphere's
+        return STRATOSPHERIC_MODELS[0]
+    return min(STRATOSPHERIC_MODELS,
+               key=lambda model: abs(np.log(stratospheric_model_optical_depth(model) / aod)))
+
+
+def _layer_profile(date, stratospheric_aod_550, stratospheric_profile) -> str:
+    """Return the stratospheric profile asked for, or the date's model (ValueError if unknown)."""
+    if stratospheric_profile is None:
+        return stratospheric_model(date, stratospheric_aod_550)
+    return check_choice("stratospheric_profile", stratospheric_profile,
+                        STRATOSPHERIC_PROFILES)
+
+
 def eclipse_atmosphere(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550, ozone_du=OZONE_DU,
-                       stratospheric_aod_550=None) -> Atmosphere:
+                       stratospheric_aod_550=None, stratospheric_profile=None) -> Atmosphere:
     """Build the atmosphere of ``date``: climatological troposphere, the year's stratosphere.
 
     Parameters
@@ -199,6 +267,10 @@ def eclipse_atmosphere(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550, ozone_du=
     stratospheric_aod_550 : float or Tensor, optional
         Vertical optical depth at 550 nm of the stratospheric sulfate layer [1], in
         [0, 100]; default :func:`stratospheric_aod` of the date's year.
+    stratospheric_profile : str, optional
+        Vertical profile of the layer, a name of
+        :data:`skytorch.atmosphere.aerosol.STRATOSPHERIC_PROFILES` (``"gaussian"``: the
+        Atmosphere's 20 km, σ 3 km layer); default :func:`stratospheric_model` of the date.
 
     Returns
     -------
@@ -212,8 +284,10 @@ def eclipse_atmosphere(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550, ozone_du=
         stratospheric_aod_550 = stratospheric_aod(moment)
     stratospheric_aod_550 = check_range("stratospheric_aod_550", stratospheric_aod_550,
                                         0.0, 100.0)
+    profile = _layer_profile(moment, stratospheric_aod_550, stratospheric_profile)
     return Atmosphere.earth(aerosol_optical_depth=tropospheric_aod, ozone_du=ozone_du,
                             stratospheric_aerosol_optical_depth=stratospheric_aod_550,
+                            stratospheric_aerosol_profile=profile,
                             name=f"eclipse {np.datetime_as_string(moment, 'D')}")
 
 
@@ -307,7 +381,8 @@ def _band_profiles(month: int) -> tuple[str, ...]:
 
 
 def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
-                     stratospheric_aod_550=None) -> tuple[TerminatorBand, ...]:
+                     stratospheric_aod_550=None, stratospheric_profile=None
+                     ) -> tuple[TerminatorBand, ...]:
     """Limb atmospheres along the terminator of ``date``: five latitude bands.
 
     The terminator is cut at ``TERMINATOR_BAND_BOUNDARIES_DEG`` (30 and 52.5 deg north and
@@ -327,6 +402,10 @@ def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
         Date (or time) of the eclipse (UTC).
     tropospheric_aod, stratospheric_aod_550 : float or Tensor ()
         As in :func:`eclipse_atmosphere`.
+    stratospheric_profile : str, optional
+        As in :func:`eclipse_atmosphere`, for every band; default the date's
+        :func:`stratospheric_model` in each band's season (the tropical band: the mean of
+        the two seasons).
 
     Returns
     -------
@@ -349,13 +428,18 @@ def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
     edges = (-90.0, *TERMINATOR_BAND_BOUNDARIES_DEG, 90.0)
     covers = {zone: cloud_climatology(SAGE_CLEAR_7KM[zone])
               for zone in ("tropics", "extratropics")}
+    model = _layer_profile(moment, stratospheric_aod_550, stratospheric_profile)
     bands = []
     for k, profile in enumerate(_band_profiles(month)):
         columns = afgl_columns(profile)
+        layer = model
+        if stratospheric_profile is None and profile != "tropical":
+            layer += "_spring_summer" if profile.endswith("summer") else "_fall_winter"
         atmosphere = Atmosphere.earth(
             aerosol_optical_depth=tropospheric_aod, profile=afgl_profile(profile),
             precipitable_water_cm=columns["precipitable_water_cm"],
             stratospheric_aerosol_optical_depth=stratospheric_aod_550,
+            stratospheric_aerosol_profile=layer,
             name=f"eclipse {np.datetime_as_string(moment, 'D')} {profile}")
         zone = "tropics" if profile == "tropical" else "extratropics"
         window = LimbLatitudeWindow(edges[k], edges[k + 1], float(declination))
@@ -367,7 +451,7 @@ def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
 def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,  # noqa: C901 (three models, their refusals)
                    cloud_fraction=CLOUD_FRACTION, cloud_cover=None, atmosphere=None,
                    terminator="global", tropospheric_aod=None, stratospheric_aod_550=None,
-                   **shadow_options):
+                   stratospheric_profile=None, **shadow_options):
     """Build the Earth's shadow of ``date``: :func:`eclipse_atmosphere` and the clouds.
 
     Parameters
@@ -387,6 +471,10 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
         Aerosol optical depths at 550 nm of :func:`eclipse_atmosphere` (global) or of
         every band (:func:`terminator_bands`); default the climatology and the year's
         record. Not with ``atmosphere`` (which has its own).
+    stratospheric_profile : str, optional
+        Vertical profile of the stratospheric layer (:func:`eclipse_atmosphere`,
+        :func:`terminator_bands`); default the date's :func:`stratospheric_model`. Not
+        with ``atmosphere``.
     clouds : {"rossow1999", "deck", "none"}
         ``"rossow1999"``: the limb cloud profile ``cloud_cover`` (default
         :func:`cloud_climatology`); ``"deck"``: one deck of ``cloud_top_altitude_m`` and
@@ -411,7 +499,8 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
     check_choice("clouds", clouds, CLOUD_MODELS)
     check_choice("terminator", terminator, TERMINATOR_MODELS)
     aerosols = {key: value for key, value in (("tropospheric_aod", tropospheric_aod),
-                                              ("stratospheric_aod_550", stratospheric_aod_550))
+                                              ("stratospheric_aod_550", stratospheric_aod_550),
+                                              ("stratospheric_profile", stratospheric_profile))
                 if value is not None}
     if aerosols and atmosphere is not None:
         raise ValueError(f"give the aerosol optical depths {sorted(aerosols)} or an "
