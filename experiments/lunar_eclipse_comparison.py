@@ -42,6 +42,7 @@ from skytorch.eclipse import (  # noqa: E402
     lunar_light_curve,
     observed_lunar_eclipses,
     stratospheric_aod,
+    stratospheric_model,
 )
 from skytorch.eclipse.eclipse_atmosphere import (  # noqa: E402
     OZONE_DU,
@@ -197,11 +198,16 @@ def ingredients(quick: bool, date: str = "2015-09-28"):
         aerosol_optical_depth=torch.tensor([0.0, 0.0, TROPOSPHERIC_AOD_550,
                                             TROPOSPHERIC_AOD_550], dtype=f64),
         ozone_du=torch.tensor([0.0, OZONE_DU, OZONE_DU, OZONE_DU], dtype=f64),
-        stratospheric_aerosol_optical_depth=torch.tensor([0.0, 0.0, 0.0, saod], dtype=f64))
+        stratospheric_aerosol_optical_depth=torch.tensor([0.0, 0.0, 0.0, saod], dtype=f64),
+        stratospheric_aerosol_profile=stratospheric_model(date))
     clear = lunar_light_curve(date, shadow=Shadow.earth(atm), n_times=n_times,
                               table_n_v=n_v)
+    gaussian = Atmosphere.earth(aerosol_optical_depth=TROPOSPHERIC_AOD_550, ozone_du=OZONE_DU,
+                                stratospheric_aerosol_optical_depth=saod)
     cloudy = {name: lunar_light_curve(date, shadow=shadow, n_times=n_times, table_n_v=n_v)
               for name, shadow in (
+                  ("+ stratospheric aerosol, Gaussian 20 km, 3 km (before 2026-12-06)",
+                   Shadow.earth(gaussian)),
                   ("+ clouds (ISCCP + SAGE profile)", eclipse_shadow(date)),
                   ("+ clouds, SAGE tropics 0.30 at 7 km", eclipse_shadow(
                       date, cloud_cover=cloud_climatology(SAGE_CLEAR_7KM["tropics"]))),
@@ -227,7 +233,7 @@ def ingredients(quick: bool, date: str = "2015-09-28"):
 
     figure, axis = plt.subplots(figsize=(7, 4))
     for label, curve in zip(labels, curves, strict=True):
-        axis.plot(curve, label=label, ls="--" if label.startswith("+ clouds,") else "-")
+        axis.plot(curve, label=label, ls="--" if "," in label else "-")
     axis.invert_yaxis()
     axis.set(xlabel="sample (P1-5% .. P4+5%)", ylabel="V [mag]", title=date)
     axis.legend(fontsize=8)
@@ -415,9 +421,11 @@ def umbral_edge(quick: bool, date: str = "2015-09-28", distance_m: float = 3.844
     along = torch.full_like(offset, distance_m)
     lights = [shadow.relative_illuminance(along, offset, wavelength)[..., 0]
               for shadow in shadows.values()]
-    lights += [bands.relative_illuminance(along, offset, wavelength,
-                                          position_angle_rad=torch.tensor(angle, dtype=f64))[
-                                              ..., 0] for angle in directions.values()]
+    # every offset at the three position angles: (offset, angle, wavelength)
+    resolved = bands.relative_illuminance(
+        along, offset, wavelength,
+        position_angle_rad=torch.tensor(list(directions.values()), dtype=f64))[..., 0]
+    lights += list(resolved.unbind(-1))
     shadows.update(directions)
     for light in lights:
         slope = torch.gradient(torch.log10(light.clamp_min(1e-30)), spacing=(offset,))[0]
