@@ -206,14 +206,15 @@ def ingredients(quick: bool, date: str = "2015-09-28"):
                                 stratospheric_aerosol_optical_depth=saod)
     cloudy = {name: lunar_light_curve(date, shadow=shadow, n_times=n_times, table_n_v=n_v)
               for name, shadow in (
-                  ("+ stratospheric aerosol, Gaussian 20 km, 3 km (before 2026-12-06)",
-                   Shadow.earth(gaussian)),
                   ("+ clouds (ISCCP + SAGE profile)", eclipse_shadow(date)),
                   ("+ clouds, SAGE tropics 0.30 at 7 km", eclipse_shadow(
                       date, cloud_cover=cloud_climatology(SAGE_CLEAR_7KM["tropics"]))),
                   ("+ clouds, SAGE extratropics 0.60 at 7 km", eclipse_shadow(
                       date, cloud_cover=cloud_climatology(SAGE_CLEAR_7KM["extratropics"]))),
-                  ("+ clouds, single deck 5 km 0.66", eclipse_shadow(date, clouds="deck")))}
+                  ("+ clouds, single deck 5 km 0.66", eclipse_shadow(date, clouds="deck")),
+                  # the former layer, no clouds: compare with "+ stratospheric aerosol"
+                  ("+ stratospheric aerosol, Gaussian 20 km, 3 km (before 2026-12-06)",
+                   Shadow.earth(gaussian)))}
     values = [_faintest(clear, (i,)) for i in range(4)] + [_faintest(c)
                                                           for c in cloudy.values()]
     labels += list(cloudy)
