@@ -136,6 +136,9 @@ def test_bad_profiles_refused_by_name():
         eclipse_atmosphere("2015-09-28", stratospheric_profile="lowtran")
     with pytest.raises(ValueError, match="name"):
         stratospheric_profile_shape("gaussian")
+    # a table cut by the top of the atmosphere would not hold the requested column
+    with pytest.raises(ValueError, match="top_altitude_m"):
+        Atmosphere.earth(stratospheric_aerosol_profile="background", top_altitude_m=30e3)
 
 
 def test_model_of_each_eclipse_date():

@@ -464,6 +464,12 @@ class Atmosphere(nn.Module):
             # (checked above; kept explicit: both radii must be > 0)
             raise ValueError("planet_radius_m and top_altitude_m must be > 0")
         self.top_radius_m = self.planet_radius_m + self.top_altitude_m
+        top_of_table = _aerosol.STRATOSPHERIC_PROFILE_ENDS_M[1]
+        if self.stratospheric_aerosol_profile != "gaussian" \
+                and self.top_altitude_m < top_of_table:
+            raise ValueError(f"stratospheric_aerosol_profile={stratospheric_aerosol_profile!r} "
+                             f"spans 10-35 km: top_altitude_m must be >= {top_of_table:g} m; "
+                             f"got {self.top_altitude_m:g}")
         if self.refractivity_profile == "sounding" and self.sounding is None:
             raise ValueError("refractivity_profile='sounding' needs a profile (an "
                              "xarray.Dataset)")
