@@ -20,7 +20,12 @@ from skytorch.atmosphere.aerosol import (
     stratospheric_model_optical_depth,
     stratospheric_profile_shape,
 )
-from skytorch.eclipse import eclipse_atmosphere, stratospheric_model, terminator_bands
+from skytorch.eclipse import (
+    eclipse_atmosphere,
+    eclipse_shadow,
+    stratospheric_model,
+    terminator_bands,
+)
 
 WL = torch.tensor([550.0], dtype=torch.float64)
 AOD = 0.1
@@ -134,6 +139,10 @@ def test_bad_profiles_refused_by_name():
                          stratospheric_aerosol_altitude_m=18e3)
     with pytest.raises(ValueError, match="stratospheric_profile"):
         eclipse_atmosphere("2015-09-28", stratospheric_profile="lowtran")
+    # the profile belongs to the atmosphere: not with an atmosphere of one's own
+    with pytest.raises(ValueError, match="stratospheric_profile"):
+        eclipse_shadow("2015-09-28", atmosphere=Atmosphere.earth(),
+                       stratospheric_profile="background")
     with pytest.raises(ValueError, match="name"):
         stratospheric_profile_shape("gaussian")
     # a table cut by the top of the atmosphere would not hold the requested column
@@ -162,3 +171,20 @@ def test_model_of_each_eclipse_date():
     # December: southern bands in summer, the tropics the seasons' mean, northern in winter
     assert seasons == ["high_volcanic_spring_summer"] * 2 + ["high_volcanic"] \
         + ["high_volcanic_fall_winter"] * 2
+
+
+def test_batched_optical_depths_and_float32():
+    """A batch of optical depths shares the table's shape; float32 keeps the column."""
+    aod = torch.tensor([0.01, 0.1], dtype=torch.float64)
+    atm = Atmosphere.earth(stratospheric_aerosol_optical_depth=aod,
+                           stratospheric_aerosol_profile="background")
+    slant = atm.optical_depth(WL, torch.tensor([1.5], dtype=torch.float64),
+                              per_species=True)["stratospheric_aerosol"][:, 0]
+    # one shape: the slant optical depths scale with the vertical ones
+    assert float(slant[1] / slant[0]) == pytest.approx(10.0, rel=1e-9)
+    assert float(slant[0]) > 5.0 * 0.01  # the air mass of a layer near 17 km at 86 deg
+    single = Atmosphere.earth(stratospheric_aerosol_optical_depth=AOD,
+                              stratospheric_aerosol_profile="background")
+    tau32 = single.optical_depth(WL.float(), per_species=True)["stratospheric_aerosol"]
+    assert tau32.dtype == torch.float32
+    assert float(tau32[0]) == pytest.approx(AOD, rel=1e-5)

@@ -503,7 +503,7 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
                                               ("stratospheric_profile", stratospheric_profile))
                 if value is not None}
     if aerosols and atmosphere is not None:
-        raise ValueError(f"give the aerosol optical depths {sorted(aerosols)} or an "
+        raise ValueError(f"give the aerosol settings {sorted(aerosols)} or an "
                          "atmosphere, not both (the atmosphere has its own)")
     if terminator != "global":
         if atmosphere is not None or cloud_cover is not None:
