@@ -108,6 +108,24 @@ def median_seconds(function: Callable[[], object], repeat: int = 5, warmup: int 
     return statistics.median(samples)
 
 
+def median_cpu_seconds(function: Callable[[], object], repeat: int = 5,
+                       warmup: int = 0) -> float:
+    """Median CPU time of this process (all its threads) for ``function()`` [s].
+
+    Less sensitive than wall time to other jobs on a shared machine; with one torch thread
+    it is the wall time on an idle core.
+    """
+    for _ in range(warmup):
+        function()
+    samples = []
+    for _ in range(repeat):
+        gc.collect()
+        start = time.process_time()
+        function()
+        samples.append(time.process_time() - start)
+    return statistics.median(samples)
+
+
 def machine_description() -> str:
     """One line naming the machine the numbers were measured on."""
     return (

@@ -9,22 +9,20 @@ Run with OMP_NUM_THREADS set to the cores to measure (the targets are for 2 core
 
 import argparse
 import math
-import statistics
+import sys
 import time
+from pathlib import Path
 
 import torch
 
-from skytorch.atmosphere import Atmosphere
-from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-
-def _median(function, repeat):
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+from benchmarks._harness import median_seconds  # noqa: E402
+from skytorch.atmosphere import Atmosphere  # noqa: E402
+from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
+    TableResolution,
+    precompute_scattering,
+)
 
 
 def main(quick: bool) -> None:
@@ -43,8 +41,8 @@ def main(quick: bool) -> None:
             if name.startswith("bruneton") and n > 1:
                 continue
             wavelength = torch.linspace(400.0, 700.0, n, dtype=torch.float64)
-            t = _median(lambda w=wavelength, r=res: precompute_scattering(
-                atm, w, scattering_orders=4, resolution=r), 1 if n > 1 else 2)
+            t = median_seconds(lambda w=wavelength, r=res: precompute_scattering(
+                atm, w, scattering_orders=4, resolution=r), 1 if n > 1 else 2, warmup=0)
             print(f"precompute 4 orders, {name}, {n} wavelengths: {t:.2f} s", flush=True)
     tables = precompute_scattering(atm, torch.linspace(400.0, 700.0, 3, dtype=torch.float64),
                                    scattering_orders=4)
@@ -54,7 +52,7 @@ def main(quick: bool) -> None:
     inside = radius <= 1.0
     zenith = (radius[inside] * math.pi / 2)
     azimuth = torch.atan2(yy[inside], xx[inside])
-    t = _median(lambda: tables.radiance(0.0, zenith, azimuth, 1.0), 5)
+    t = median_seconds(lambda: tables.radiance(0.0, zenith, azimuth, 1.0), 5, warmup=0)
     print(f"512x512 fisheye look-up ({int(inside.sum())} pixels, 3 wavelengths): {t:.3f} s")
 
 

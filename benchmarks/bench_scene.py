@@ -31,27 +31,11 @@ from benchmarks._harness import (  # noqa: E402
     argument_parser,
     machine_description,
     markdown_table,
+    median_cpu_seconds,
     median_seconds,
     parse_arguments,
     report,
 )
-
-
-def median_cpu_seconds(function, repeat: int) -> float:
-    """Median CPU time of ``function()`` (all threads of this process) [s].
-
-    Less sensitive than wall time to other processes on a shared machine.
-    """
-    import statistics
-    import time
-
-    values = []
-    for _ in range(repeat):
-        start = time.process_time()
-        function()
-        values.append(time.process_time() - start)
-    return statistics.median(values)
-
 
 TARGET_NIGHT_S = 2.0
 TARGET_DAY_S = 3.0

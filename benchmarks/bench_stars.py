@@ -20,9 +20,7 @@ two cores shared with other jobs: medians are noisy.
 from __future__ import annotations
 
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +32,7 @@ from benchmarks._harness import (  # noqa: E402
     argument_parser,
     machine_description,
     markdown_table,
+    median_cpu_seconds,
     median_seconds,
     parse_arguments,
     report,
@@ -42,22 +41,6 @@ from benchmarks._harness import (  # noqa: E402
 LAT, LON, ELEVATION = 52.5, 13.4, 34.0
 TARGET_SECONDS = 1.0
 TARGET_RATIO = 20.0
-
-
-def median_cpu_seconds(function, repeat: int = 3, warmup: int = 1) -> float:
-    """Median CPU time of this process for ``function()`` [s].
-
-    Insensitive to other jobs on a shared machine; with one torch thread it is the wall time on an
-    idle core.
-    """
-    for _ in range(warmup):
-        function()
-    samples = []
-    for _ in range(repeat):
-        start = time.process_time()
-        function()
-        samples.append(time.process_time() - start)
-    return statistics.median(samples)
 
 
 def main(argv: list[str] | None = None) -> int:
