@@ -379,6 +379,20 @@ def _stratospheric_table() -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return 1e3 * table[:, 0], {name: table[:, k + 1] for k, name in enumerate(names)}
 
 
+def _seasonal_columns(name: str) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Table altitudes [m] and the extinction columns [km⁻¹] of a model's season(s).
+
+    Both seasons for a model named without one; ValueError for a name that is not a
+    tabulated profile.
+    """
+    if name not in STRATOSPHERIC_PROFILES or name == "gaussian":
+        raise ValueError(f"name must be one of {STRATOSPHERIC_PROFILES[1:]}; got {name!r}")
+    altitude, columns = _stratospheric_table()
+    names = ([f"{name}_{season}" for season in STRATOSPHERIC_SEASONS]
+             if name in STRATOSPHERIC_MODELS else [name])
+    return altitude, [columns[n] for n in names]
+
+
 def stratospheric_profile_shape(name: str) -> tuple[np.ndarray, np.ndarray]:
     """Shape of a LOWTRAN 7 stratospheric aerosol profile (ref. 10).
 
@@ -403,14 +417,10 @@ def stratospheric_profile_shape(name: str) -> tuple[np.ndarray, np.ndarray]:
     >>> float(altitude[relative.argmax()]), float(relative.max())
     (19000.0, 1.0)
     """
-    if name not in STRATOSPHERIC_PROFILES or name == "gaussian":
-        raise ValueError(f"name must be one of {STRATOSPHERIC_PROFILES[1:]}; got {name!r}")
-    altitude, columns = _stratospheric_table()
+    altitude, seasons = _seasonal_columns(name)
     low, high = STRATOSPHERIC_PROFILE_ENDS_M
     altitude = np.concatenate([[low], altitude, [high]])
-    names = ([f"{name}_{season}" for season in STRATOSPHERIC_SEASONS]
-             if name in STRATOSPHERIC_MODELS else [name])
-    shapes = [np.concatenate([[0.0], columns[n], [0.0]]) for n in names]
+    shapes = [np.concatenate([[0.0], column, [0.0]]) for column in seasons]
     values = sum(shape / np.trapezoid(shape, altitude) for shape in shapes)
     return altitude, values / values.max()
 
@@ -427,12 +437,8 @@ def stratospheric_model_optical_depth(name: str) -> float:
     >>> [round(stratospheric_model_optical_depth(m), 4) for m in STRATOSPHERIC_MODELS]
     [0.007, 0.0268, 0.0851, 0.2707]
     """
-    if name not in STRATOSPHERIC_PROFILES or name == "gaussian":
-        raise ValueError(f"name must be one of {STRATOSPHERIC_PROFILES[1:]}; got {name!r}")
-    altitude, columns = _stratospheric_table()
-    names = ([f"{name}_{season}" for season in STRATOSPHERIC_SEASONS]
-             if name in STRATOSPHERIC_MODELS else [name])
-    return float(np.mean([np.trapezoid(columns[n], altitude / 1e3) for n in names]))
+    altitude, seasons = _seasonal_columns(name)
+    return float(np.mean([np.trapezoid(column, altitude / 1e3) for column in seasons]))
 
 
 def tabulated_layer(altitude_m, nodes_m: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
