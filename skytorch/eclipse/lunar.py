@@ -90,6 +90,8 @@ logger = logging.getLogger(__name__)
 SEARCH_DAYS = 20
 #: fraction of the P1–P4 duration added before P1 and after P4
 MARGIN = 0.05
+#: the farthest from greatest eclipse that a given light-curve time may be
+TIMES_WITHIN = np.timedelta64(12, "h")
 #: elements of the largest shadow look-up temporary (times x disc points x members x
 #: wavelengths) in the light curve (~32 MB in float64)
 _LOOKUP_ELEMENTS = 4_000_000
@@ -142,8 +144,25 @@ def nearest_eclipse(date, enlargement: str = "danjon"):
     return table.isel(eclipse=[index])
 
 
-def _eclipse_times(date, n_times: int, enlargement: str):
+def _eclipse_times(date, n_times: int, enlargement: str, times=None):
+    """Return the times of a light curve and the eclipse's circumstances (one row).
+
+    ``times`` given: those instants (UTC, within :data:`TIMES_WITHIN` of greatest
+    eclipse), in the order given; otherwise ``n_times`` from :data:`MARGIN` of the P1–P4
+    duration before P1 to as much after P4.
+    """
     row = nearest_eclipse(date, enlargement).isel(eclipse=0)
+    if times is not None:
+        given = parse_times(times)
+        offset = np.abs(given - row.time.values)
+        if given.size == 0 or not (offset <= TIMES_WITHIN).all():
+            hours = TIMES_WITHIN // np.timedelta64(1, "h")
+            raise ValueError(
+                f"times must be 1 or more instants within {hours} h of greatest eclipse "
+                f"{np.datetime_as_string(row.time.values, 's')}; got {given.size} "
+                f"instant(s), the farthest "
+                f"{offset.max(initial=np.timedelta64(0, 'ns')) / np.timedelta64(1, 'h'):.2f} h")
+        return given, row
     p1, p4 = row.p1.values, row.p4.values
     span = (p4 - p1).astype("timedelta64[ns]").astype(np.int64)
     start = p1 - np.timedelta64(int(MARGIN * span), "ns")
@@ -300,7 +319,7 @@ class _Run:
 
 def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement,
                  shadow, table_n_u, table_n_v, progress,
-                 ring_phase) -> tuple[dict[str, torch.Tensor], _Run]:
+                 ring_phase, times=None) -> tuple[dict[str, torch.Tensor], _Run]:
     """Compute the light curve of :func:`lunar_light_curve` and the run behind it.
 
     Returns the dictionary :func:`lunar_light_curve` returns (batch dimensions ``B`` of the
@@ -322,7 +341,8 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
                         f"{type(shadow).__name__}: {shadow!r:.60}")
     wavelength = (wavelength_grid("bands15") if wavelength_nm is None
                   else _check_wavelength(wavelength_nm, torch.float64))
-    times, row = _eclipse_times(time_or_date, n_times, enlargement)
+    times, row = _eclipse_times(time_or_date, n_times, enlargement, times)
+    n_times = times.size
     vectors = sun_moon_vectors(times, frames=("gcrs",))
     sun, moon = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
     sun_distance = float(torch.linalg.norm(sun, dim=-1).mean())
@@ -372,10 +392,11 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
                        axis_distance, greatest)
 
 
-def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
-                      wavelength_nm=None, n_disc: int = 12, enlargement: str = "danjon",
-                      shadow=None, table_n_v: int = 384, table_n_u: int = 3,
-                      progress: bool = False, ring_phase: bool = True) -> dict[str, torch.Tensor]:
+def lunar_light_curve(time_or_date, atmosphere=None, n_times: int | None = None, *,
+                      times=None, wavelength_nm=None, n_disc: int = 12,
+                      enlargement: str = "danjon", shadow=None, table_n_v: int = 384,
+                      table_n_u: int = 3, progress: bool = False,
+                      ring_phase: bool = True) -> dict[str, torch.Tensor]:
     """Light curve of the Moon through a lunar eclipse for a batch of atmospheres.
 
     The tensor form of :func:`lunar_eclipse` (same times, disc integration and shadow
@@ -387,9 +408,14 @@ def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
 
     Parameters
     ----------
-    time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement, shadow,
-    table_n_v, table_n_u, progress, ring_phase
+    time_or_date, atmosphere, wavelength_nm, n_disc, enlargement, shadow, table_n_v,
+    table_n_u, progress, ring_phase
         As in :func:`lunar_eclipse`; ``atmosphere`` (or ``shadow``) may be batched.
+    n_times : int, optional
+        As in :func:`lunar_eclipse` (default 200); not together with ``times``.
+    times : str, datetime, datetime64 or a list/array of them, optional
+        UTC instants of the light curve instead of the ``n_times`` grid (e.g. those of an
+        observed light curve), within 12 h of greatest eclipse, in the order given.
 
     Returns
     -------
@@ -397,7 +423,8 @@ def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
         ``v_magnitude``, ``b_magnitude``, ``b_minus_v``, ``relative_brightness``
         (*B, time) [mag], [mag], [mag], [1]; ``spectral_irradiance`` (*B, time, wavelength)
         [W m-2 nm-1]; ``greatest_v_magnitude`` and ``danjon_l`` (*B) at the time closest
-        to the shadow axis. The times are those of ``lunar_eclipse(...).time``.
+        to the shadow axis. The times are those of ``lunar_eclipse(...).time``, or
+        ``times``.
 
     Examples
     --------
@@ -408,9 +435,17 @@ def lunar_light_curve(time_or_date, atmosphere=None, n_times: int = 200, *,
     >>> curve = lunar_light_curve("2015-09-28", atm, n_times=8, table_n_v=96)
     >>> tuple(curve["v_magnitude"].shape), tuple(curve["danjon_l"].shape)
     ((2, 2, 8), (2, 2))
+    >>> at = lunar_light_curve("2015-09-28", False, times=["2015-09-28T02:47",
+    ...                        "2015-09-28T03:30"], table_n_v=32)
+    >>> tuple(at["v_magnitude"].shape)
+    (2,)
     """
-    return _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlargement,
-                        shadow, table_n_u, table_n_v, progress, ring_phase)[0]
+    if times is not None and n_times is not None:
+        raise ValueError(f"n_times and times cannot both be given; got n_times={n_times!r} "
+                         "and times (the light curve is at the given times)")
+    return _light_curve(time_or_date, atmosphere, 200 if n_times is None else n_times,
+                        wavelength_nm, n_disc, enlargement, shadow, table_n_u, table_n_v,
+                        progress, ring_phase, times)[0]
 
 
 def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,

@@ -20,10 +20,15 @@ parameters the Hessian is singular and the uncertainties are infinite (reported 
 with a warning in the Dataset's attributes), not regularised.
 
 The modelled value at mid-totality is the faintest V sample of the light curve (and the
-B − V at that sample).
+B − V at that sample). A light curve (an :class:`xarray.Dataset` of V and B samples at
+given times, ``observations`` in its second form) is modelled at its own times
+(``lunar_light_curve(..., times=...)``), each sample in its band.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -36,20 +41,78 @@ from skytorch.eclipse.eclipse_atmosphere import (
     eclipse_shadow,
 )
 from skytorch.eclipse.lunar import lunar_light_curve
+from skytorch.ephemeris import parse_times
 
-__all__ = ["OBSERVABLES", "PARAMETERS", "retrieve_atmosphere"]
+__all__ = ["LIGHT_CURVE_BANDS", "LIGHT_CURVE_VARIABLES", "OBSERVABLES", "PARAMETERS",
+           "retrieve_atmosphere"]
 
 #: the parameters of :func:`~skytorch.eclipse.eclipse_atmosphere` that can be fitted
 PARAMETERS = ("stratospheric_aod_550", "tropospheric_aod", "ozone_du")
 #: the observables at mid-totality [mag]
 OBSERVABLES = ("v_magnitude", "b_minus_v")
+#: the bands of a light curve's samples (Johnson V and B, Bessell passbands)
+LIGHT_CURVE_BANDS = ("V", "B")
+#: the variables of a light curve Dataset over its ``sample`` dimension
+LIGHT_CURVE_VARIABLES = ("time", "band", "magnitude", "uncertainty")
 _INITIAL = {"stratospheric_aod_550": 0.01, "tropospheric_aod": 0.12, "ozone_du": 300.0}
 
 
-def _check_observations(observations) -> dict[str, tuple[float, float]]:
+@dataclass(frozen=True)
+class _Observed:
+    """What is fitted: values, uncertainties, and how the model selects its values.
+
+    ``dim`` and ``coords`` label the observed values in the result; ``times`` are the light
+    curve's instants (None: the model's default grid, mid-totality observables);
+    ``select`` maps the modelled light curve to the observed quantities.
+    """
+
+    target: torch.Tensor
+    sigma: torch.Tensor
+    dim: str
+    coords: dict
+    times: np.ndarray | None
+    select: Callable[[dict], torch.Tensor]
+
+
+def _check_light_curve(observations: xr.Dataset) -> _Observed:
+    missing = [name for name in LIGHT_CURVE_VARIABLES if name not in observations.variables]
+    if missing or any(observations[name].dims != ("sample",) for name in LIGHT_CURVE_VARIABLES):
+        raise ValueError(f"observations (a light curve) must have the variables "
+                         f"{LIGHT_CURVE_VARIABLES} over one dimension 'sample'; missing "
+                         f"{missing}, dimensions "
+                         f"{ {n: observations[n].dims for n in observations.variables} }")
+    bands = [str(b) for b in observations["band"].values]
+    unknown = sorted(set(bands) - set(LIGHT_CURVE_BANDS))
+    if unknown:
+        raise ValueError(f"observations['band'] must hold bands from {LIGHT_CURVE_BANDS}; "
+                         f"got {unknown}")
+    magnitude = np.asarray(observations["magnitude"].values, dtype=np.float64)
+    sigma = np.asarray(observations["uncertainty"].values, dtype=np.float64)
+    if not np.isfinite(magnitude).all() or not (np.isfinite(sigma) & (sigma > 0)).all():
+        raise ValueError("observations (a light curve) must have finite magnitudes and "
+                         f"uncertainties > 0 [mag]; got magnitude {magnitude}, uncertainty "
+                         f"{sigma}")
+    times, time_index = np.unique(parse_times(observations["time"].values),
+                                  return_inverse=True)
+    band_index = torch.tensor([LIGHT_CURVE_BANDS.index(b) for b in bands])
+    time_index = torch.as_tensor(time_index.reshape(-1))
+
+    def select(curve):
+        return torch.stack([curve["v_magnitude"], curve["b_magnitude"]])[band_index,
+                                                                          time_index]
+
+    return _Observed(torch.as_tensor(magnitude), torch.as_tensor(sigma), "sample",
+                     {"time": ("sample", observations["time"].values),
+                      "band": ("sample", np.array(bands))}, times, select)
+
+
+def _check_observations(observations) -> _Observed:
+    if isinstance(observations, xr.Dataset):
+        return _check_light_curve(observations)
     if not isinstance(observations, dict) or not observations:
         raise TypeError("observations must be a non-empty dict {name: (value, uncertainty)} "
-                        f"with names in {OBSERVABLES}; got {observations!r:.80}")
+                        f"with names in {OBSERVABLES}, or a light curve (xarray.Dataset); "
+                        f"got {observations!r:.80}")
     checked = {}
     for name, pair in observations.items():
         if name not in OBSERVABLES:
@@ -59,20 +122,27 @@ def _check_observations(observations) -> dict[str, tuple[float, float]]:
             raise ValueError(f"observations[{name!r}] must be a finite value and an "
                              f"uncertainty > 0 [mag]; got {pair!r}")
         checked[name] = (value, sigma)
-    return checked
+    rows = [OBSERVABLES.index(name) for name in checked]
+
+    def select(curve):
+        k = int(torch.argmax(curve["v_magnitude"].detach()))  # mid-totality: the faintest
+        return torch.stack([curve["v_magnitude"][k], curve["b_minus_v"][k]])[rows]
+
+    return _Observed(torch.tensor([v for v, _ in checked.values()], dtype=torch.float64),
+                     torch.tensor([u for _, u in checked.values()], dtype=torch.float64),
+                     "observable", {"observable": list(checked)}, None, select)
 
 
-def _model(date, names, x, n_times, table_n_v, terminator="global"):
-    """Modelled observables (in OBSERVABLES order) for log-parameters ``x``."""
+def _model(date, names, x, observed, n_times, table_n_v, terminator="global"):
+    """Modelled observed quantities for log-parameters ``x``."""
     values = {name: torch.exp(x[i]) for i, name in enumerate(names)}
     if terminator == "global":
         # the date's shadow: the clouds block the lowest limb rays as in the comparison
         shadow = eclipse_shadow(date, atmosphere=eclipse_atmosphere(date, **values))
     else:  # the bands' own ozone; the aerosol optical depths are those of every band
         shadow = eclipse_shadow(date, terminator=terminator, **values)
-    curve = lunar_light_curve(date, shadow=shadow, n_times=n_times, table_n_v=table_n_v)
-    k = int(torch.argmax(curve["v_magnitude"].detach()))
-    return torch.stack([curve["v_magnitude"][k], curve["b_minus_v"][k]])
+    grid = ({"n_times": n_times} if observed.times is None else {"times": observed.times})
+    return observed.select(lunar_light_curve(date, shadow=shadow, table_n_v=table_n_v, **grid))
 
 
 def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",), *,  # noqa: C901 (argument checks)
@@ -82,9 +152,12 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
 
     Parameters
     ----------
-    observations : dict
-        ``{"v_magnitude": (value, uncertainty), "b_minus_v": (value, uncertainty)}`` [mag]
-        (either or both).
+    observations : dict or xarray.Dataset
+        Mid-totality: ``{"v_magnitude": (value, uncertainty), "b_minus_v": (value,
+        uncertainty)}`` [mag] (either or both). A light curve: a Dataset over ``sample``
+        with ``time`` (UTC, within 12 h of greatest eclipse), ``band`` (``"V"`` or
+        ``"B"``), ``magnitude`` and ``uncertainty`` [mag] (:data:`LIGHT_CURVE_VARIABLES`),
+        each sample modelled at its own time and in its band.
     date : str, datetime or datetime64
         Date of the eclipse (UTC).
     parameters : sequence of str
@@ -93,7 +166,8 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
     initial : dict, optional
         Starting values per fitted parameter (> 0); default 0.01, 0.12, 300 DU.
     n_times, table_n_v : int
-        Light-curve samples and shadow-table rows of the model.
+        Light-curve samples (mid-totality observations only) and shadow-table rows of the
+        model.
     max_iter : int
         L-BFGS iterations.
     terminator : {"global", "latitude_bands", "latitude_bands_mean"}
@@ -106,7 +180,21 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
     xarray.Dataset
         ``best_fit`` and ``uncertainty`` over ``parameter`` [1, 1, DU]; ``observed``,
         ``observed_uncertainty``, ``model`` and ``residual`` (model − observed) over
-        ``observable`` [mag]; attribute ``chi2``.
+        ``observable`` [mag] (over ``sample``, with its ``time`` and ``band``, for a light
+        curve); attribute ``chi2``.
+
+    Examples
+    --------
+    >>> import numpy as np, xarray as xr
+    >>> from skytorch.eclipse import retrieve_atmosphere
+    >>> curve = xr.Dataset({
+    ...     "time": ("sample", np.array(["2019-01-21T04:43", "2019-01-21T05:13:30"],
+    ...                                 dtype="datetime64[ns]")),
+    ...     "band": ("sample", ["V", "V"]), "magnitude": ("sample", [-3.18, -2.04]),
+    ...     "uncertainty": ("sample", [0.3, 0.3])})
+    >>> fit = retrieve_atmosphere(curve, "2019-01-21", table_n_v=16, max_iter=2)
+    >>> fit.residual.dims, fit.band.values.tolist()
+    (('sample',), ['V', 'V'])
     """
     observed = _check_observations(observations)
     names = tuple(parameters)
@@ -127,9 +215,7 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
             raise ValueError(f"initial must map fitted parameters {names} to values > 0; "
                              f"got {name!r}: {value!r}")
         start[name] = float(value)
-    rows = [OBSERVABLES.index(name) for name in observed]
-    target = torch.tensor([observed[n][0] for n in observed], dtype=torch.float64)
-    sigma = torch.tensor([observed[n][1] for n in observed], dtype=torch.float64)
+    target, sigma = observed.target, observed.sigma
     x = torch.tensor([np.log(start[n]) for n in names], dtype=torch.float64,
                      requires_grad=True)
     optimiser = torch.optim.LBFGS([x], lr=1.0, max_iter=max_iter,
@@ -137,7 +223,7 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
 
     def closure():
         optimiser.zero_grad()
-        model = _model(date, names, x, n_times, table_n_v, terminator)[rows]
+        model = _model(date, names, x, observed, n_times, table_n_v, terminator)
         chi2 = (((model - target) / sigma) ** 2).sum()
         chi2.backward()
         return chi2
@@ -145,9 +231,9 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
     optimiser.step(closure)
     best = x.detach().clone()
     jacobian = torch.autograd.functional.jacobian(
-        lambda y: _model(date, names, y, n_times, table_n_v, terminator)[rows], best)
+        lambda y: _model(date, names, y, observed, n_times, table_n_v, terminator), best)
     with torch.no_grad():  # the fit is done: values only from here
-        model = _model(date, names, best, n_times, table_n_v, terminator)[rows]
+        model = _model(date, names, best, observed, n_times, table_n_v, terminator)
         weighted = jacobian / sigma[:, None]
         hessian = 2.0 * weighted.T @ weighted
         note = ""
@@ -161,12 +247,13 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
     return xr.Dataset(
         {"best_fit": (("parameter",), values.numpy()),
          "uncertainty": (("parameter",), (values * sigma_x).numpy()),
-         "observed": (("observable",), target.numpy(), {"units": "mag"}),
-         "observed_uncertainty": (("observable",), sigma.numpy(), {"units": "mag"}),
-         "model": (("observable",), model.numpy(), {"units": "mag"}),
-         "residual": (("observable",), (model - target).numpy(), {"units": "mag"})},
-        coords={"parameter": list(names), "observable": list(observed)},
+         "observed": ((observed.dim,), target.numpy(), {"units": "mag"}),
+         "observed_uncertainty": ((observed.dim,), sigma.numpy(), {"units": "mag"}),
+         "model": ((observed.dim,), model.numpy(), {"units": "mag"}),
+         "residual": ((observed.dim,), (model - target).numpy(), {"units": "mag"})},
+        coords={"parameter": list(names), **observed.coords},
         attrs={"title": "Atmosphere retrieved from a lunar eclipse", "chi2": chi2,
                "terminator": terminator,
                "date": str(np.datetime64(date, "D")) if isinstance(date, str) else str(date),
-               "note": note, "n_times": n_times, "table_n_v": table_n_v})
+               "note": note, "table_n_v": table_n_v,
+               **({"n_times": n_times} if observed.times is None else {})})
