@@ -10,9 +10,16 @@ Rows:
   (13 position angles);
 * ``skytorch.eclipse.lunar_eclipses`` 1950-2050 with contacts, and skyfield's
   ``eclipselib.lunar_eclipses`` over the same century (no contacts), side by side in one
-  run (target: skytorch at least as fast).
+  run (target: skytorch at least as fast);
+* ``--gradients``: the 2019-01-21 light curve (the retrieval's model: the date's shadow
+  with the limb cloud profile, 48 times, table 64) forward, and forward + backward with
+  respect to the stratospheric and tropospheric AOD and the ozone column, alternating
+  (target: with gradients <= 2x forward); and the three-parameter retrieval from the
+  2019-01-21 photometric light curve (six samples, ``retrieve_atmosphere`` defaults;
+  target <= 30 s).
 
-Run: ``python benchmarks/bench_eclipse_lunar_observed.py [--append]``.
+Run: ``python benchmarks/bench_eclipse_lunar_observed.py [--append] [--search-only |
+--gradients]``.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._harness import (  # noqa: E402
+    alternating_medians,
     argument_parser,
     machine_description,
     markdown_table,
@@ -35,13 +43,76 @@ from benchmarks._harness import (  # noqa: E402
 )
 
 TARGET_OBSERVED_SECONDS = 60.0
+TARGET_GRADIENT_RATIO = 2.0
+TARGET_RETRIEVAL_SECONDS = 30.0
+PHOTOMETRY_2019 = (Path(__file__).resolve().parents[1] / "tests" / "data"
+                   / "lunar_eclipse_2019_01_21_photometry.csv")
+
+
+def gradient_rows(repeat: int) -> tuple[list[dict[str, object]], str]:
+    """Light curve forward and with gradients (alternating), and the 3-parameter retrieval."""
+    import torch
+    import xarray as xr
+
+    from experiments.lunar_eclipse_comparison import _read_photometry
+    from skytorch.eclipse import (
+        eclipse_atmosphere,
+        eclipse_shadow,
+        lunar_light_curve,
+        retrieve_atmosphere,
+    )
+
+    date = "2019-01-21"
+    start = {"stratospheric_aod_550": 0.01, "tropospheric_aod": 0.12, "ozone_du": 300.0}
+
+    def curve(parameters):
+        shadow = eclipse_shadow(date, atmosphere=eclipse_atmosphere(date, **parameters))
+        return lunar_light_curve(date, shadow=shadow, n_times=48, table_n_v=64)
+
+    def forward():
+        curve(start)
+
+    def with_gradients():
+        leaves = {k: torch.tensor(v, dtype=torch.float64, requires_grad=True)
+                  for k, v in start.items()}
+        result = curve(leaves)
+        (result["v_magnitude"].sum() + result["b_magnitude"].sum()).backward()
+        if any(leaf.grad is None or not torch.isfinite(leaf.grad) for leaf in leaves.values()):
+            raise RuntimeError("the light curve carried no finite gradient to a parameter")
+
+    medians = alternating_medians({"forward": forward, "gradients": with_gradients}, repeat)
+    times, bands, magnitude = _read_photometry(PHOTOMETRY_2019)
+    observed = xr.Dataset({"time": ("sample", times), "band": ("sample", bands),
+                           "magnitude": ("sample", magnitude),
+                           "uncertainty": ("sample", np.full(times.size, 0.1))})
+    retrieval = median_seconds(lambda: retrieve_atmosphere(
+        observed, date, parameters=tuple(start), max_iter=30), repeat=1, warmup=0)
+    ratio = medians["gradients"] / medians["forward"]
+    rows = [
+        {"case": "2019-01-21 light curve, forward (48 times, table 64)",
+         "median [s]": medians["forward"]},
+        {"case": "same, forward + backward (3 parameters)", "median [s]": medians["gradients"]},
+        {"case": "3-parameter retrieval from the 2019-01-21 light curve (6 samples)",
+         "median [s]": retrieval},
+    ]
+    summary = (f"Gradients / forward = {ratio:.2f} (target <= {TARGET_GRADIENT_RATIO:.0f}); "
+               f"retrieval {retrieval:.1f} s (target <= {TARGET_RETRIEVAL_SECONDS:.0f} s).")
+    return rows, summary
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argument_parser(__doc__.splitlines()[0], repeat=3, threads=1)
     parser.add_argument("--search-only", action="store_true",
                         help="time only the two eclipse searches")
+    parser.add_argument("--gradients", action="store_true",
+                        help="time only the light curve with gradients and the retrieval")
     args = parse_arguments(parser, argv)
+    if args.gradients:
+        rows, summary = gradient_rows(args.repeat)
+        load_avg = " ".join(f"{x:.1f}" for x in os.getloadavg())
+        report(f"\n## Lunar eclipses: gradients and retrieval ({machine_description()})\n\n"
+               f"Load average {load_avg}. {summary}\n\n{markdown_table(rows)}\n", args.append)
+        return 0
 
     from skyfield import eclipselib
     from skyfield.api import load

@@ -142,3 +142,23 @@ def test_light_curve_at_given_times_matches_the_grid():
         assert torch.allclose(at[name], grid[name][[3, 1]], rtol=0.0, atol=1e-9), name
     with pytest.raises(ValueError, match="n_times and times"):
         lunar_light_curve("2019-01-21", False, n_times=5, times=times)
+
+
+def test_initial_values_outside_the_bounds_raise():
+    from skytorch.eclipse.retrieval import PARAMETER_BOUNDS
+
+    low, high = PARAMETER_BOUNDS["ozone_du"]
+    for value in (low, high * 2.0):
+        with pytest.raises(ValueError, match="initial\\['ozone_du'\\] must be in"):
+            retrieve_atmosphere({"v_magnitude": (-2.0, 0.1)}, "2015-09-28",
+                                parameters=("ozone_du",), initial={"ozone_du": value})
+
+
+@pytest.mark.slow
+def test_a_parameter_driven_to_its_bound_is_flagged():
+    """An observed Moon far brighter than any stratospheric layer allows: AOD at 1e-7."""
+    fit = retrieve_atmosphere({"v_magnitude": (-6.0, 0.1)}, "2015-09-28", n_times=3,
+                              table_n_v=16)
+    assert bool(fit.at_bound.sel(parameter="stratospheric_aod_550"))
+    assert float(fit.best_fit[0]) < 2e-7 and np.isnan(float(fit.uncertainty[0]))
+    assert "at a bound" in fit.attrs["note"]

@@ -11,13 +11,18 @@ observed V magnitude and B − V at mid-totality by minimising
 
 with L-BFGS (strong Wolfe line search) on the autograd gradient of the modelled light
 curve (:func:`~skytorch.eclipse.lunar_light_curve`, the shadow carries gradients with
-respect to these parameters). The parameters are fitted in log space (positive). The
-uncertainties are the Laplace approximation with the Gauss–Newton Hessian
-:math:`H = 2 J^\top W J` (J the Jacobian of the modelled observables in x, W the inverse
-variances): :math:`\sigma_{x_i} = \sqrt{(2 H^{-1})_{ii}}`, and
-:math:`\sigma_{p_i} = p_i \sigma_{x_i}` to first order. With fewer observables than
-parameters the Hessian is singular and the uncertainties are infinite (reported as inf,
-with a warning in the Dataset's attributes), not regularised.
+respect to these parameters). Each parameter is kept within its range
+:math:`[p_{lo}, p_{hi}]` (:data:`PARAMETER_BOUNDS`) by a logistic map of log space,
+:math:`\log p = \log p_{lo} + (\log p_{hi} - \log p_{lo})\,s(z)` with :math:`s` the
+logistic function and z unconstrained (without it a line search along a poorly
+constrained direction steps to optical depths of 1e7); a parameter whose s lies within
+0.01 of 0 or 1 (1 % of its log range from a bound) is reported ``at_bound``. The uncertainties are the Laplace approximation
+with the Gauss–Newton Hessian :math:`H = 2 J^\top W J` (J the Jacobian of the modelled
+observables in z, W the inverse variances): :math:`\sigma_{z_i} = \sqrt{(2 H^{-1})_{ii}}`
+and :math:`\sigma_{p_i} = |\mathrm{d}p_i/\mathrm{d}z_i|\,\sigma_{z_i}` to first order
+(the same as in log space away from the bounds; NaN at a bound, where it means nothing).
+With fewer observables than parameters the Hessian is singular and the uncertainties are
+infinite (reported as inf, with a note in the Dataset's attributes), not regularised.
 
 The modelled value at mid-totality is the faintest V sample of the light curve (and the
 B − V at that sample). A light curve (an :class:`xarray.Dataset` of V and B samples at
@@ -44,7 +49,7 @@ from skytorch.eclipse.lunar import lunar_light_curve
 from skytorch.ephemeris import parse_times
 
 __all__ = ["LIGHT_CURVE_BANDS", "LIGHT_CURVE_VARIABLES", "OBSERVABLES", "PARAMETERS",
-           "retrieve_atmosphere"]
+           "PARAMETER_BOUNDS", "retrieve_atmosphere"]
 
 #: the parameters of :func:`~skytorch.eclipse.eclipse_atmosphere` that can be fitted
 PARAMETERS = ("stratospheric_aod_550", "tropospheric_aod", "ozone_du")
@@ -55,6 +60,13 @@ LIGHT_CURVE_BANDS = ("V", "B")
 #: the variables of a light curve Dataset over its ``sample`` dimension
 LIGHT_CURVE_VARIABLES = ("time", "band", "magnitude", "uncertainty")
 _INITIAL = {"stratospheric_aod_550": 0.01, "tropospheric_aod": 0.12, "ozone_du": 300.0}
+#: the range each fitted parameter is kept in [1, 1, DU]: optical depths from none that
+#: matters to beyond any eruption of the record (El Chichón and Pinatubo: 0.1-0.2), ozone
+#: beyond the extremes of the total column (about 100-600 DU)
+PARAMETER_BOUNDS = {"stratospheric_aod_550": (1e-7, 1.0), "tropospheric_aod": (1e-4, 3.0),
+                    "ozone_du": (50.0, 800.0)}
+#: distance of the logistic map from 0 or 1 within which a parameter is at its bound
+_AT_BOUND = 1e-2
 
 
 @dataclass(frozen=True)
@@ -133,9 +145,21 @@ def _check_observations(observations) -> _Observed:
                      "observable", {"observable": list(checked)}, None, select)
 
 
-def _model(date, names, x, observed, n_times, table_n_v, terminator="global"):
-    """Modelled observed quantities for log-parameters ``x``."""
-    values = {name: torch.exp(x[i]) for i, name in enumerate(names)}
+def _log_bounds(names) -> tuple[torch.Tensor, torch.Tensor]:
+    low, high = (torch.tensor([np.log(PARAMETER_BOUNDS[n][k]) for n in names],
+                              dtype=torch.float64) for k in (0, 1))
+    return low, high - low
+
+
+def _values(names, z) -> torch.Tensor:
+    """Parameters (in ``names`` order) from the unconstrained ``z`` (logistic log map)."""
+    low, span = _log_bounds(names)
+    return torch.exp(low + span * torch.sigmoid(z))
+
+
+def _model(date, names, z, observed, n_times, table_n_v, terminator="global"):
+    """Modelled observed quantities for the unconstrained parameters ``z``."""
+    values = dict(zip(names, _values(names, z), strict=True))
     if terminator == "global":
         # the date's shadow: the clouds block the lowest limb rays as in the comparison
         shadow = eclipse_shadow(date, atmosphere=eclipse_atmosphere(date, **values))
@@ -164,7 +188,8 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
         Names among :data:`PARAMETERS` to fit; the others keep the defaults of
         :func:`~skytorch.eclipse.eclipse_atmosphere`.
     initial : dict, optional
-        Starting values per fitted parameter (> 0); default 0.01, 0.12, 300 DU.
+        Starting values per fitted parameter, inside :data:`PARAMETER_BOUNDS`; default
+        0.01, 0.12, 300 DU.
     n_times, table_n_v : int
         Light-curve samples (mid-totality observations only) and shadow-table rows of the
         model.
@@ -178,7 +203,8 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
     Returns
     -------
     xarray.Dataset
-        ``best_fit`` and ``uncertainty`` over ``parameter`` [1, 1, DU]; ``observed``,
+        ``best_fit`` and ``uncertainty`` over ``parameter`` [1, 1, DU] (with ``at_bound``,
+        ``lower_bound`` and ``upper_bound``); ``observed``,
         ``observed_uncertainty``, ``model`` and ``residual`` (model − observed) over
         ``observable`` [mag] (over ``sample``, with its ``time`` and ``band``, for a light
         curve); attribute ``chi2``.
@@ -211,13 +237,19 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
     max_iter = check_int("max_iter", max_iter, low=1)
     start = dict(_INITIAL)
     for name, value in (initial or {}).items():
-        if name not in names or not float(value) > 0:
-            raise ValueError(f"initial must map fitted parameters {names} to values > 0; "
-                             f"got {name!r}: {value!r}")
+        if name not in names:
+            raise ValueError(f"initial must map fitted parameters {names} to values; got "
+                             f"{name!r}: {value!r}")
+        low, high = PARAMETER_BOUNDS[name]
+        if not low < float(value) < high:
+            raise ValueError(f"initial[{name!r}] must be in ({low}, {high}) "
+                             f"(PARAMETER_BOUNDS); got {value!r}")
         start[name] = float(value)
     target, sigma = observed.target, observed.sigma
-    x = torch.tensor([np.log(start[n]) for n in names], dtype=torch.float64,
-                     requires_grad=True)
+    low, span = _log_bounds(names)
+    fraction = (torch.tensor([np.log(start[n]) for n in names], dtype=torch.float64)
+                - low) / span
+    x = torch.logit(fraction).requires_grad_(True)
     optimiser = torch.optim.LBFGS([x], lr=1.0, max_iter=max_iter,
                                   line_search_fn="strong_wolfe")
 
@@ -236,17 +268,29 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
         model = _model(date, names, best, observed, n_times, table_n_v, terminator)
         weighted = jacobian / sigma[:, None]
         hessian = 2.0 * weighted.T @ weighted
-        note = ""
+        notes = []
         if torch.linalg.matrix_rank(hessian) < len(names):
-            sigma_x = torch.full((len(names),), float("inf"), dtype=torch.float64)
-            note = "singular Hessian (fewer constraints than parameters): uncertainty inf"
+            sigma_z = torch.full((len(names),), float("inf"), dtype=torch.float64)
+            notes.append("singular Hessian (fewer constraints than parameters): "
+                         "uncertainty inf")
         else:
-            sigma_x = torch.sqrt(torch.diagonal(2.0 * torch.linalg.inv(hessian)))
-        values = torch.exp(best)
+            sigma_z = torch.sqrt(torch.diagonal(2.0 * torch.linalg.inv(hessian)))
+        values = _values(names, best)
+        s = torch.sigmoid(best)
+        at_bound = (s < _AT_BOUND) | (s > 1.0 - _AT_BOUND)
+        spread = torch.where(at_bound, float("nan"), values * span * s * (1.0 - s) * sigma_z)
+        if at_bound.any():
+            notes.append("at a bound of PARAMETER_BOUNDS (uncertainty NaN): "
+                         + ", ".join(n for n, b in zip(names, at_bound.tolist(), strict=True)
+                                     if b))
+        note = "; ".join(notes)
         chi2 = float((((model - target) / sigma) ** 2).sum())
     return xr.Dataset(
         {"best_fit": (("parameter",), values.numpy()),
-         "uncertainty": (("parameter",), (values * sigma_x).numpy()),
+         "uncertainty": (("parameter",), spread.numpy()),
+         "at_bound": (("parameter",), at_bound.numpy()),
+         "lower_bound": (("parameter",), [PARAMETER_BOUNDS[n][0] for n in names]),
+         "upper_bound": (("parameter",), [PARAMETER_BOUNDS[n][1] for n in names]),
          "observed": ((observed.dim,), target.numpy(), {"units": "mag"}),
          "observed_uncertainty": ((observed.dim,), sigma.numpy(), {"units": "mag"}),
          "model": ((observed.dim,), model.numpy(), {"units": "mag"}),
