@@ -386,9 +386,12 @@ def _profile_densities(atm, names, dtype):
     def densities(altitude):
         if not chosen:
             return altitude.new_zeros(altitude.shape + (0,))
-        # a profile takes its samples on a trailing dim (after the batch dims)
-        return torch.stack([profile(altitude[..., None])[..., 0] for profile in chosen],
-                           dim=-1)
+        # a profile takes its samples on a trailing dim (after the batch dims); a state
+        # shared by several profiles (the U.S. Standard Atmosphere of the gases) is
+        # evaluated once at these samples
+        samples, states = altitude[..., None], {}
+        return torch.stack([profile._evaluate(samples, 0, states)[..., 0]
+                            for profile in chosen], dim=-1)
 
     return densities
 
