@@ -80,6 +80,21 @@ def _needs_grad(atm) -> bool:
     return any(t.requires_grad for t in tensors)
 
 
+def _refractivity_needs_grad(atm, top: float, dtype: torch.dtype) -> bool:
+    """Whether the refractivity profile depends on a tensor that requires gradients.
+
+    Autograd's own record of the dependence: the profile evaluated (gradients enabled) at a
+    few altitudes of [0, top] that do not require gradients. False when only other
+    parameters require them (an aerosol optical depth, an ozone column): the rays' geometry
+    then carries no graph, and derivatives flow through the columns alone.
+    """
+    if not _needs_grad(atm):
+        return False
+    with torch.enable_grad():
+        probe = torch.linspace(0.0, top, 5, dtype=dtype)
+        return bool(atm.refractivity(probe).requires_grad)
+
+
 def _breakpoints(atm, top: float, dtype: torch.dtype) -> torch.Tensor | None:
     """Altitudes where the refractivity profile has kinks, strictly inside (0, top) [m].
 
@@ -187,7 +202,7 @@ class _Geometry:
         #: altitudes where dn/dh jumps, inside (0, top) [m] (RK4 steps end there)
         self.kinks = (self.breakpoints if kinks is None
                       else _inside(kinks, self.top, dtype))
-        self.parameters_need_grad = _needs_grad(atm)
+        self.parameters_need_grad = _refractivity_needs_grad(atm, self.top, dtype)
         zero = torch.zeros((), dtype=dtype)
         self.nu0, slope0 = self.refractivity_and_slope(zero)
         self.nu_top = self.refractivity(zero + self.top)
