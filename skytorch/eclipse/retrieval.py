@@ -16,9 +16,10 @@ respect to these parameters). Each parameter is kept within its range
 :math:`\log p = \log p_{lo} + (\log p_{hi} - \log p_{lo})\,s(z)` with :math:`s` the
 logistic function and z unconstrained (without it a line search along a poorly
 constrained direction steps to optical depths of 1e7); a parameter whose s lies within
-0.01 of 0 or 1 (1 % of its log range from a bound) is reported ``at_bound``. The uncertainties are the Laplace approximation
-with the Gauss–Newton Hessian :math:`H = 2 J^\top W J` (J the Jacobian of the modelled
-observables in z, W the inverse variances): :math:`\sigma_{z_i} = \sqrt{(2 H^{-1})_{ii}}`
+0.01 of 0 or 1 (1 % of its log range from a bound) is reported ``at_bound``. The
+uncertainties are the Laplace approximation with the Gauss–Newton Hessian
+:math:`H = 2 J^\top W J` (J the Jacobian of the modelled observables in z, W the inverse
+variances): :math:`\sigma_{z_i} = \sqrt{(2 H^{-1})_{ii}}`
 and :math:`\sigma_{p_i} = |\mathrm{d}p_i/\mathrm{d}z_i|\,\sigma_{z_i}` to first order
 (the same as in log space away from the bounds; NaN at a bound, where it means nothing).
 With fewer observables than parameters the Hessian is singular and the uncertainties are
