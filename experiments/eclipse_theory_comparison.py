@@ -10,9 +10,10 @@ Four parts, each written as netCDF + PNG:
     year (``eclipse_atmosphere("2015-09-28")``: global-mean troposphere, aerosol optical
     depth 0.12 at 550 nm, 300 DU, and the year's stratospheric sulfate layer); the
     molecular, typical and stratospheric cases again with single-scattered light
-    (``scattering=True``). Reference facts: umbra centre ~1/2400 of sunlight for molecules
-    without ozone (Vollmer & Gedzelman 2008, energy 400–700 nm); about 100x darker with
-    aerosols, ozone and clouds (same paper); bluish umbra rim from ozone.
+    (``scattering=True``); and the default shadow of that date, with the limb cloud profile
+    (``eclipse_shadow("2015-09-28")``). Reference facts: umbra centre ~1/2400 of sunlight
+    for molecules without ozone (Vollmer & Gedzelman 2008, energy 400–700 nm); about 100x
+    darker with aerosols, ozone and clouds (same paper); bluish umbra rim from ozone.
 ``eclipse_theory_ozone``
     Ozone sweep (tent peak density 0, 2, 4, 6, 8 x 1e18 m^-3) -> colour of the umbra.
 ``eclipse_theory_2015``
@@ -88,6 +89,7 @@ def _v_weights(wavelength: torch.Tensor) -> torch.Tensor:
 
 
 def profiles(quick: bool):
+    from skytorch.eclipse import eclipse_shadow
     from skytorch.eclipse.shadow import Shadow
     from skytorch.spectrum import solar_irradiance
 
@@ -104,6 +106,8 @@ def profiles(quick: bool):
         "molecules+scattering": Shadow.earth(atmospheres["molecules"], scattering=True),
         "aerosols+scattering": Shadow.earth(atmospheres["aerosols"], scattering=True),
         "stratospheric+scattering": Shadow.earth(atmospheres["stratospheric"], scattering=True),
+        # the per-eclipse default: the same atmosphere with the limb cloud profile
+        "eclipse_shadow_2015": eclipse_shadow("2015-09-28"),
     }
     step = 20.0 if quick else 10.0
     wavelength = torch.arange(400.0, 720.0 + 0.5 * step, step, dtype=torch.float64)
@@ -125,6 +129,8 @@ def profiles(quick: bool):
             centre_energy["molecules"] / centre_energy["clouds"],
         "darkening_aerosols_ozone_vs_molecules":
             centre_energy["molecules"] / centre_energy["aerosols"],
+        "darkening_eclipse_shadow_2015_vs_molecules":
+            centre_energy["molecules"] / centre_energy["eclipse_shadow_2015"],
         "refraction_only_centre": float(v_band[1, 0]),
         "molecules_scattering_centre_energy_400_700": centre_energy["molecules+scattering"],
         "molecules_scattering_centre_over_vg2008":
