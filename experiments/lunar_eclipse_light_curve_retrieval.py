@@ -7,7 +7,9 @@ form (each sample modelled at its own time and in its band, global limb atmosphe
 ``eclipse_atmosphere`` with the limb cloud profile):
 
 * the stratospheric AOD alone, from V only and from V and B;
-* the stratospheric and tropospheric AOD and the ozone column together, from V and B.
+* the stratospheric and tropospheric AOD and the ozone column together, from V and B;
+* the stratospheric AOD with the limb cloud profile's clear-line-of-sight probability at
+  7 km (``cloud_climatology``; SAGE measured 0.30-0.60), and with the ozone column too.
 
 The paper prints no uncertainty per sample: each gets 0.1 mag (the floor of the
 mid-totality series in ``lunar_eclipse_comparison.py``). With equal uncertainties the best
@@ -37,7 +39,11 @@ SAMPLE_UNCERTAINTY_MAG = 0.1
 FITS = (("stratospheric AOD from V", ("V",), ("stratospheric_aod_550",)),
         ("stratospheric AOD from V and B", ("V", "B"), ("stratospheric_aod_550",)),
         ("three parameters from V and B", ("V", "B"),
-         ("stratospheric_aod_550", "tropospheric_aod", "ozone_du")))
+         ("stratospheric_aod_550", "tropospheric_aod", "ozone_du")),
+        ("stratospheric AOD and limb clouds from V and B", ("V", "B"),
+         ("stratospheric_aod_550", "limb_clear_7km")),
+        ("stratospheric AOD, ozone and limb clouds from V and B", ("V", "B"),
+         ("stratospheric_aod_550", "ozone_du", "limb_clear_7km")))
 
 
 def _observations(bands_used):
@@ -49,27 +55,28 @@ def _observations(bands_used):
 
 
 def _curve(parameters: dict, times, table_n_v: int):
-    from skytorch.eclipse import eclipse_atmosphere, eclipse_shadow, lunar_light_curve
+    from skytorch.eclipse import lunar_light_curve
+    from skytorch.eclipse.retrieval import retrieval_shadow
 
     with torch.no_grad():
-        curve = lunar_light_curve(DATE, shadow=eclipse_shadow(
-            DATE, atmosphere=eclipse_atmosphere(DATE, **parameters)), times=times,
-            table_n_v=table_n_v)
+        curve = lunar_light_curve(DATE, shadow=retrieval_shadow(DATE, parameters),
+                                  times=times, table_n_v=table_n_v)
     return curve["v_magnitude"].numpy(), curve["b_magnitude"].numpy()
 
 
 def retrieval(quick: bool):
     """Fit the light curve; model curves of the prior and of each fit."""
     from skytorch.eclipse import retrieve_atmosphere
+    from skytorch.eclipse.retrieval import PARAMETERS
 
     table_n_v, n_curve = (32, 24) if quick else (64, 121)
     fits = FITS[:1] if quick else FITS
     all_times, all_bands, all_observed = _read_photometry()
     grid = (np.datetime64(f"{DATE}T04:00") + np.linspace(0, 150, n_curve).astype(int)
             * np.timedelta64(1, "m")).astype("datetime64[ns]")
-    names = ("stratospheric_aod_550", "tropospheric_aod", "ozone_du")
-    best = np.full((len(fits), 3), np.nan)
-    spread = np.full((len(fits), 3), np.nan)
+    names = PARAMETERS
+    best = np.full((len(fits), len(names)), np.nan)
+    spread = np.full((len(fits), len(names)), np.nan)
     residual = np.full((len(fits), all_times.size), np.nan)
     chi2, seconds = np.zeros(len(fits)), np.zeros(len(fits))
     curves = [_curve({}, grid, table_n_v)]

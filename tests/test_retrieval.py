@@ -162,3 +162,45 @@ def test_a_parameter_driven_to_its_bound_is_flagged():
     assert bool(fit.at_bound.sel(parameter="stratospheric_aod_550"))
     assert float(fit.best_fit[0]) < 2e-7 and np.isnan(float(fit.uncertainty[0]))
     assert "at a bound" in fit.attrs["note"]
+
+
+def test_the_limb_clear_probability_is_refused_with_bands():
+    with pytest.raises(ValueError, match="limb_clear_7km cannot be fitted"):
+        retrieve_atmosphere({"v_magnitude": (-2.0, 0.1)}, "2015-09-28",
+                            parameters=("limb_clear_7km",), terminator="latitude_bands")
+
+
+@pytest.mark.slow
+def test_recovers_the_limb_clear_probability_from_v_and_b():
+    """The limb's clear probability at 7 km with the stratospheric AOD (σ 0.03 mag).
+
+    Measured (table_n_v 32): 0.0150 ± 0.0004 and 0.399 ± 0.021 against 0.015 and 0.40.
+    """
+    from skytorch.eclipse import cloud_climatology
+
+    date, n_v, sigma = "2019-01-21", 32, 0.03
+    with torch.no_grad():
+        curve = lunar_light_curve(date, shadow=eclipse_shadow(
+            date, atmosphere=eclipse_atmosphere(date, stratospheric_aod_550=0.015),
+            cloud_cover=cloud_climatology(0.40)), times=_TIMES_2019, table_n_v=n_v)
+    noise = np.random.default_rng(2).normal(0.0, sigma, (2, _TIMES_2019.size))
+    observed = _light_curve_dataset(
+        np.concatenate([_TIMES_2019, _TIMES_2019]), ["V"] * 8 + ["B"] * 8,
+        np.concatenate([curve["v_magnitude"].numpy(), curve["b_magnitude"].numpy()])
+        + noise.reshape(-1), np.full(16, sigma))
+    truth = {"stratospheric_aod_550": 0.015, "limb_clear_7km": 0.40}
+    fit = retrieve_atmosphere(observed, date, parameters=tuple(truth), table_n_v=n_v,
+                              max_iter=30)
+    for name, value in truth.items():
+        best = float(fit.best_fit.sel(parameter=name))
+        spread = float(fit.uncertainty.sel(parameter=name))
+        assert 0.0 < spread < value and abs(best - value) < 2.0 * spread, (name, best, spread)
+
+
+def test_retrieval_shadow_refuses_unknown_and_band_parameters():
+    from skytorch.eclipse import retrieval_shadow
+
+    with pytest.raises(ValueError, match="turbidity"):
+        retrieval_shadow("2015-09-28", {"turbidity": 2.0})
+    with pytest.raises(ValueError, match="ozone_du and limb_clear_7km"):
+        retrieval_shadow("2015-09-28", {"limb_clear_7km": 0.5}, "latitude_bands")

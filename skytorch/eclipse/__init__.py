@@ -42,7 +42,7 @@ from skytorch.eclipse.occlusion import (  # noqa: F401
     limb_darkening_profile,
     sun_visible_fraction,
 )
-from skytorch.eclipse.retrieval import retrieve_atmosphere  # noqa: F401
+from skytorch.eclipse.retrieval import retrieval_shadow, retrieve_atmosphere  # noqa: F401
 from skytorch.eclipse.shadow import LimbCloudCover  # noqa: F401
 from skytorch.eclipse.shadow_mixture import ShadowMixture  # noqa: F401
 from skytorch.eclipse.solar import solar_eclipses  # noqa: F401
@@ -68,6 +68,7 @@ __all__ = [
     "lunar_eclipses",
     "observed_lunar_eclipses",
     "obscuration_map",
+    "retrieval_shadow",
     "retrieve_atmosphere",
     "shadow_cone",
     "shadow_radii",

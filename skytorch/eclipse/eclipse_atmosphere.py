@@ -109,6 +109,7 @@ __all__ = [
     "CLOUD_FRACTION",
     "CLOUD_MODELS",
     "CLOUD_TOP_ALTITUDE_M",
+    "LIMB_CLEAR_7KM",
     "SAGE_CLEAR_7KM",
     "OZONE_DU",
     "STRATOSPHERIC_AOD_FILE",
@@ -153,6 +154,10 @@ TERMINATOR_MODELS = ("global", "latitude_bands", "latitude_bands_mean")
 #: share of the terminator's length within 25 deg of the equator (a great circle through
 #: the poles: 50/180; 0.31 at a solar declination of 23.4 deg)
 TROPICAL_TERMINATOR_SHARE = 0.28
+#: the terminator's mean clear-line-of-sight probability at 7 km: the SAGE values weighted
+#: by the tropical share of the terminator (0.516) [1]
+LIMB_CLEAR_7KM = (TROPICAL_TERMINATOR_SHARE * SAGE_CLEAR_7KM["tropics"]
+                  + (1.0 - TROPICAL_TERMINATOR_SHARE) * SAGE_CLEAR_7KM["extratropics"])
 #: cloud models of :func:`eclipse_shadow`
 CLOUD_MODELS = ("rossow1999", "deck", "none")
 
@@ -333,9 +338,7 @@ def cloud_climatology(limb_clear_7km=None, *, amounts=CLOUD_CLASS_AMOUNTS) -> Li
     [0.034, 0.516, 1.0]
     """
     if limb_clear_7km is None:
-        share = TROPICAL_TERMINATOR_SHARE
-        limb_clear_7km = (share * SAGE_CLEAR_7KM["tropics"]
-                          + (1.0 - share) * SAGE_CLEAR_7KM["extratropics"])
+        limb_clear_7km = LIMB_CLEAR_7KM
     clear = check_range("limb_clear_7km", limb_clear_7km, 0.0, 1.0, low_inclusive=False,
                         high_inclusive=False, dtype=torch.float64)
     amounts = check_range("amounts", amounts, 0.0, 1.0, dtype=torch.float64)

@@ -1,8 +1,10 @@
 r"""Retrieval of the atmosphere of an eclipse from the Moon's observed brightness and colour.
 
 :func:`retrieve_atmosphere` fits parameters of :func:`~skytorch.eclipse.eclipse_atmosphere`
-(stratospheric and tropospheric aerosol optical depth at 550 nm, ozone column) to the
-observed V magnitude and B − V at mid-totality by minimising
+(stratospheric and tropospheric aerosol optical depth at 550 nm, ozone column) and of the
+limb cloud profile (:func:`~skytorch.eclipse.cloud_climatology`: the clear-line-of-sight
+probability at 7 km) to the observed V magnitude and B − V at mid-totality, or to a light
+curve, by minimising
 
 .. math::
 
@@ -42,7 +44,9 @@ import xarray as xr
 
 from skytorch._validate import check_choice, check_int
 from skytorch.eclipse.eclipse_atmosphere import (
+    LIMB_CLEAR_7KM,
     TERMINATOR_MODELS,
+    cloud_climatology,
     eclipse_atmosphere,
     eclipse_shadow,
 )
@@ -50,22 +54,26 @@ from skytorch.eclipse.lunar import lunar_light_curve
 from skytorch.ephemeris import parse_times
 
 __all__ = ["LIGHT_CURVE_BANDS", "LIGHT_CURVE_VARIABLES", "OBSERVABLES", "PARAMETERS",
-           "PARAMETER_BOUNDS", "retrieve_atmosphere"]
+           "PARAMETER_BOUNDS", "retrieval_shadow", "retrieve_atmosphere"]
 
-#: the parameters of :func:`~skytorch.eclipse.eclipse_atmosphere` that can be fitted
-PARAMETERS = ("stratospheric_aod_550", "tropospheric_aod", "ozone_du")
+#: the parameters that can be fitted: those of :func:`~skytorch.eclipse.eclipse_atmosphere`
+#: and the limb cloud profile's clear-line-of-sight probability at 7 km
+#: (:func:`~skytorch.eclipse.cloud_climatology`)
+PARAMETERS = ("stratospheric_aod_550", "tropospheric_aod", "ozone_du", "limb_clear_7km")
 #: the observables at mid-totality [mag]
 OBSERVABLES = ("v_magnitude", "b_minus_v")
 #: the bands of a light curve's samples (Johnson V and B, Bessell passbands)
 LIGHT_CURVE_BANDS = ("V", "B")
 #: the variables of a light curve Dataset over its ``sample`` dimension
 LIGHT_CURVE_VARIABLES = ("time", "band", "magnitude", "uncertainty")
-_INITIAL = {"stratospheric_aod_550": 0.01, "tropospheric_aod": 0.12, "ozone_du": 300.0}
-#: the range each fitted parameter is kept in [1, 1, DU]: optical depths from none that
+_INITIAL = {"stratospheric_aod_550": 0.01, "tropospheric_aod": 0.12, "ozone_du": 300.0,
+            "limb_clear_7km": LIMB_CLEAR_7KM}
+#: the range each fitted parameter is kept in [1, 1, DU, 1]: optical depths from none that
 #: matters to beyond any eruption of the record (El Chichón and Pinatubo: 0.1-0.2), ozone
-#: beyond the extremes of the total column (about 100-600 DU)
+#: beyond the extremes of the total column (about 100-600 DU), the limb's clear
+#: probability at 7 km within (0, 1) (SAGE measured 0.30-0.60)
 PARAMETER_BOUNDS = {"stratospheric_aod_550": (1e-7, 1.0), "tropospheric_aod": (1e-4, 3.0),
-                    "ozone_du": (50.0, 800.0)}
+                    "ozone_du": (50.0, 800.0), "limb_clear_7km": (0.01, 0.99)}
 #: distance of the logistic map from 0 or 1 within which a parameter is at its bound
 _AT_BOUND = 1e-2
 
@@ -158,14 +166,47 @@ def _values(names, z) -> torch.Tensor:
     return torch.exp(low + span * torch.sigmoid(z))
 
 
-def _model(date, names, z, observed, n_times, table_n_v, terminator="global"):
-    """Modelled observed quantities for the unconstrained parameters ``z``."""
-    values = dict(zip(names, _values(names, z), strict=True))
+def retrieval_shadow(date, parameters: dict, terminator: str = "global"):
+    """Return the shadow that :func:`retrieve_atmosphere` models for given parameter values.
+
+    Parameters
+    ----------
+    date : str, datetime or datetime64
+        Date of the eclipse (UTC).
+    parameters : dict
+        Values of some of :data:`PARAMETERS` (floats or tensors); the others keep the
+        defaults of :func:`~skytorch.eclipse.eclipse_atmosphere` and
+        :func:`~skytorch.eclipse.cloud_climatology`.
+    terminator : {"global", "latitude_bands", "latitude_bands_mean"}
+        As in :func:`retrieve_atmosphere` (the bands take neither ``ozone_du`` nor
+        ``limb_clear_7km``).
+
+    Returns
+    -------
+    skytorch.eclipse.shadow.Shadow or skytorch.eclipse.shadow_mixture.ShadowMixture
+        ``eclipse_shadow(date, ...)`` with the limb cloud profile.
+    """
+    values = dict(parameters)
+    unknown = sorted(set(values) - set(PARAMETERS))
+    if unknown:
+        raise ValueError(f"parameters must be names from {PARAMETERS}; got {unknown}")
+    clear = values.pop("limb_clear_7km", None)
     if terminator == "global":
         # the date's shadow: the clouds block the lowest limb rays as in the comparison
-        shadow = eclipse_shadow(date, atmosphere=eclipse_atmosphere(date, **values))
-    else:  # the bands' own ozone; the aerosol optical depths are those of every band
-        shadow = eclipse_shadow(date, terminator=terminator, **values)
+        cover = None if clear is None else cloud_climatology(clear)
+        return eclipse_shadow(date, atmosphere=eclipse_atmosphere(date, **values),
+                              cloud_cover=cover)
+    if clear is not None or "ozone_du" in values:
+        raise ValueError(f"terminator={terminator!r} takes each band's AFGL ozone column and "
+                         "SAGE clouds: ozone_du and limb_clear_7km are for terminator='global'")
+    # the aerosol optical depths are those of every band
+    return eclipse_shadow(date, terminator=terminator, **values)
+
+
+def _model(date, names, z, observed, n_times, table_n_v, terminator="global"):
+    """Modelled observed quantities for the unconstrained parameters ``z``."""
+    shadow = retrieval_shadow(date, dict(zip(names, _values(names, z), strict=True)),
+                              terminator)
     grid = ({"n_times": n_times} if observed.times is None else {"times": observed.times})
     return observed.select(lunar_light_curve(date, shadow=shadow, table_n_v=table_n_v, **grid))
 
@@ -187,10 +228,11 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
         Date of the eclipse (UTC).
     parameters : sequence of str
         Names among :data:`PARAMETERS` to fit; the others keep the defaults of
-        :func:`~skytorch.eclipse.eclipse_atmosphere`.
+        :func:`~skytorch.eclipse.eclipse_atmosphere` and
+        :func:`~skytorch.eclipse.cloud_climatology`.
     initial : dict, optional
         Starting values per fitted parameter, inside :data:`PARAMETER_BOUNDS`; default
-        0.01, 0.12, 300 DU.
+        0.01, 0.12, 300 DU and the terminator's SAGE mean 0.516.
     n_times, table_n_v : int
         Light-curve samples (mid-totality observations only) and shadow-table rows of the
         model.
@@ -198,8 +240,9 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
         L-BFGS iterations.
     terminator : {"global", "latitude_bands", "latitude_bands_mean"}
         The limb atmosphere of :func:`~skytorch.eclipse.eclipse_shadow`; with the latitude
-        bands the aerosol optical depths are fitted for every band at once and the ozone
-        is each band's AFGL column (``"ozone_du"`` cannot be fitted: ``ValueError``).
+        bands the aerosol optical depths are fitted for every band at once, the ozone is
+        each band's AFGL column and the clouds each band's SAGE zone (``"ozone_du"`` and
+        ``"limb_clear_7km"`` cannot be fitted: ``ValueError``).
 
     Returns
     -------
@@ -233,6 +276,10 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
     if terminator != "global" and "ozone_du" in names:
         raise ValueError(f"terminator={terminator!r} takes each band's AFGL ozone column: "
                          "ozone_du cannot be fitted there; fit it with terminator='global'")
+    if terminator != "global" and "limb_clear_7km" in names:
+        raise ValueError(f"terminator={terminator!r} takes each band's SAGE clear probability "
+                         "(tropics or higher latitudes): limb_clear_7km cannot be fitted "
+                         "there; fit it with terminator='global'")
     n_times = check_int("n_times", n_times, low=3)
     table_n_v = check_int("table_n_v", table_n_v, low=16)
     max_iter = check_int("max_iter", max_iter, low=1)
