@@ -16,7 +16,9 @@ Writes ``lunar_eclipse_comparison.nc`` / ``.png`` (per-eclipse table),
 ``lunar_eclipse_altitudes`` (umbra-centre light by periapsis altitude),
 ``lunar_eclipse_light_curve_2019`` (the 2019-01-21 photometry overlaid),
 ``lunar_eclipse_umbral_edge`` (the modelled umbral edge) and ``lunar_eclipse_retrieval``
-(stratospheric AOD retrieved from each observed V, beside the record).
+(stratospheric AOD retrieved from each observed V, beside the record) and
+``lunar_eclipse_limb_clouds`` (the limb's clear probability at 7 km retrieved from each V,
+beside SAGE's range).
 """
 
 from __future__ import annotations
@@ -457,6 +459,20 @@ def umbral_edge(quick: bool, date: str = "2015-09-28", distance_m: float = 3.844
     return dataset, figure, summary
 
 
+def _observed_v_only(quick: bool):
+    """Observed eclipses with a printed V (the first only when ``quick``)."""
+    observed = observed_lunar_eclipses()
+    observed = observed.isel(eclipse=np.flatnonzero(np.isfinite(observed.v_magnitude.values)))
+    return observed.isel(eclipse=[0]) if quick else observed
+
+
+def _v_observation(observed, date) -> dict:
+    """Return the V of one eclipse for the retrieval (printed σ, at least 0.1; 0.3 if none)."""
+    printed = float(observed.v_uncertainty.sel(eclipse=date))
+    sigma = max(printed, 0.1) if np.isfinite(printed) else 0.3
+    return {"v_magnitude": (float(observed.v_magnitude.sel(eclipse=date)), sigma)}
+
+
 def retrieval_series(quick: bool, terminator: str = "global"):
     """Stratospheric AOD retrieved from each observed V, beside the record's value.
 
@@ -466,18 +482,11 @@ def retrieval_series(quick: bool, terminator: str = "global"):
     """
     from skytorch.eclipse import retrieve_atmosphere
 
-    observed = observed_lunar_eclipses()
-    observed = observed.isel(eclipse=np.flatnonzero(np.isfinite(observed.v_magnitude.values)))
-    if quick:
-        observed = observed.isel(eclipse=[0])
+    observed = _observed_v_only(quick)
     rows = []
     for date in observed.eclipse.values:
         day = np.datetime_as_string(date, "D")
-        printed = float(observed.v_uncertainty.sel(eclipse=date))
-        sigma = max(printed, 0.1) if np.isfinite(printed) else 0.3
-        fit = retrieve_atmosphere(
-            {"v_magnitude": (float(observed.v_magnitude.sel(eclipse=date)), sigma)}, day,
-            terminator=terminator)
+        fit = retrieve_atmosphere(_v_observation(observed, date), day, terminator=terminator)
         rows.append((float(fit.best_fit[0]), float(fit.uncertainty[0]),
                      stratospheric_aod(day)))
     rows = np.array(rows)
@@ -506,6 +515,53 @@ def retrieval_series(quick: bool, terminator: str = "global"):
 def retrieval_series_bands(quick: bool):
     """Retrieve the series through the latitude bands resolved in direction."""
     return retrieval_series(quick, terminator="latitude_bands")
+
+
+def limb_cloud_series(quick: bool):
+    """Retrieve the limb's clear probability at 7 km from each observed V.
+
+    The stratosphere is the record's, the rest the ``eclipse_atmosphere`` defaults (global
+    limb); against SAGE's 0.30 (tropics) - 0.60 (higher latitudes) and the terminator mean
+    0.516 of ``cloud_climatology``.
+    """
+    from skytorch.eclipse import retrieve_atmosphere
+    from skytorch.eclipse.eclipse_atmosphere import LIMB_CLEAR_7KM, SAGE_CLEAR_7KM
+
+    observed = _observed_v_only(quick)
+    rows = []
+    for date in observed.eclipse.values:
+        fit = retrieve_atmosphere(_v_observation(observed, date),
+                                  np.datetime_as_string(date, "D"),
+                                  parameters=("limb_clear_7km",))
+        rows.append((float(fit.best_fit[0]), float(fit.uncertainty[0]),
+                     bool(fit.at_bound[0]), float(fit.residual[0])))
+    best, spread, at_bound, residual = (np.array(column) for column in zip(*rows, strict=True))
+    dims = ("eclipse",)
+    dataset = xr.Dataset(
+        {"retrieved_limb_clear_7km": (dims, best, {"units": "1"}),
+         "retrieved_uncertainty": (dims, spread, {"units": "1"}),
+         "at_bound": (dims, at_bound),
+         "residual_v": (dims, residual, {"units": "mag"})},
+        coords={"eclipse": observed.eclipse.values},
+        attrs={"title": "The limb's clear probability at 7 km retrieved from observed V",
+               "sage_tropics": SAGE_CLEAR_7KM["tropics"],
+               "sage_extratropics": SAGE_CLEAR_7KM["extratropics"],
+               "climatology": LIMB_CLEAR_7KM})
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(7, 4))
+    years = observed.eclipse.dt.year.values + observed.eclipse.dt.dayofyear.values / 366
+    axis.axhspan(SAGE_CLEAR_7KM["tropics"], SAGE_CLEAR_7KM["extratropics"], color="0.9",
+                 label="SAGE 1979-81: tropics - higher latitudes")
+    axis.axhline(LIMB_CLEAR_7KM, color="k", ls=":", label="terminator mean (the default)")
+    axis.errorbar(years, best, np.nan_to_num(spread), fmt="bs", label="retrieved from V")
+    axis.set(xlabel="year", ylabel="limb clear-line-of-sight probability at 7 km",
+             ylim=(0.0, 1.0))
+    axis.legend(fontsize=7)
+    figure.tight_layout()
+    summary = {f"{str(d)[:10]} limb clear 7 km": r for d, r in
+               zip(observed.eclipse.values, best, strict=True)}
+    return dataset, figure, summary
 
 
 def _observed_with_v():
@@ -707,6 +763,7 @@ def main(argv=None) -> int:
                         (umbral_edge, "lunar_eclipse_umbral_edge"),
                         (retrieval_series, "lunar_eclipse_retrieval"),
                         (retrieval_series_bands, "lunar_eclipse_retrieval_bands"),
+                        (limb_cloud_series, "lunar_eclipse_limb_clouds"),
                         (terminator_comparison, "lunar_eclipse_terminator"),
                         (position_angle_accuracy, "lunar_eclipse_position_angles")):
         dataset, figure, summary = build(args.quick)
