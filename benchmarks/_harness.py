@@ -95,16 +95,21 @@ def alternating_medians(cases: dict[str, Callable[[], object]], repeat: int, *,
     return {label: statistics.median(values) for label, values in samples.items()}
 
 
-def median_seconds(function: Callable[[], object], repeat: int = 5, warmup: int = 1) -> float:
-    """Median wall time of ``function()`` over ``repeat`` runs after ``warmup`` runs [s]."""
+def median_seconds(function: Callable[[], object], repeat: int = 5, warmup: int = 1, *,
+                   clock: Callable[[], float] = time.perf_counter) -> float:
+    """Median time of ``function()`` over ``repeat`` runs after ``warmup`` runs [s].
+
+    ``clock`` is wall time by default; :func:`median_cpu_seconds` passes the process's CPU
+    time.
+    """
     for _ in range(warmup):
         function()
     samples = []
     for _ in range(repeat):
         gc.collect()
-        start = time.perf_counter()
+        start = clock()
         function()
-        samples.append(time.perf_counter() - start)
+        samples.append(clock() - start)
     return statistics.median(samples)
 
 
@@ -115,15 +120,7 @@ def median_cpu_seconds(function: Callable[[], object], repeat: int = 5,
     Less sensitive than wall time to other jobs on a shared machine; with one torch thread
     it is the wall time on an idle core.
     """
-    for _ in range(warmup):
-        function()
-    samples = []
-    for _ in range(repeat):
-        gc.collect()
-        start = time.process_time()
-        function()
-        samples.append(time.process_time() - start)
-    return statistics.median(samples)
+    return median_seconds(function, repeat, warmup, clock=time.process_time)
 
 
 def machine_description() -> str:

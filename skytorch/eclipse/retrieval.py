@@ -166,6 +166,16 @@ def _values(names, z) -> torch.Tensor:
     return torch.exp(low + span * torch.sigmoid(z))
 
 
+def _check_band_parameters(names, terminator: str) -> None:
+    """Refuse the parameters that the latitude bands take from their own climatology."""
+    taken = {"ozone_du": "AFGL ozone column",
+             "limb_clear_7km": "SAGE clear probability (tropics or higher latitudes)"}
+    for name, what in taken.items():
+        if terminator != "global" and name in names:
+            raise ValueError(f"terminator={terminator!r} takes each band's {what}: {name} "
+                             "cannot be fitted there; fit it with terminator='global'")
+
+
 def retrieval_shadow(date, parameters: dict, terminator: str = "global"):
     """Return the shadow that :func:`retrieve_atmosphere` models for given parameter values.
 
@@ -190,15 +200,13 @@ def retrieval_shadow(date, parameters: dict, terminator: str = "global"):
     unknown = sorted(set(values) - set(PARAMETERS))
     if unknown:
         raise ValueError(f"parameters must be names from {PARAMETERS}; got {unknown}")
+    _check_band_parameters(values, terminator)
     clear = values.pop("limb_clear_7km", None)
     if terminator == "global":
         # the date's shadow: the clouds block the lowest limb rays as in the comparison
         cover = None if clear is None else cloud_climatology(clear)
         return eclipse_shadow(date, atmosphere=eclipse_atmosphere(date, **values),
                               cloud_cover=cover)
-    if clear is not None or "ozone_du" in values:
-        raise ValueError(f"terminator={terminator!r} takes each band's AFGL ozone column and "
-                         "SAGE clouds: ozone_du and limb_clear_7km are for terminator='global'")
     # the aerosol optical depths are those of every band
     return eclipse_shadow(date, terminator=terminator, **values)
 
@@ -273,13 +281,7 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
         raise ValueError(f"parameters must be distinct names from {PARAMETERS}; got "
                          f"{parameters!r}")
     check_choice("terminator", terminator, TERMINATOR_MODELS)
-    if terminator != "global" and "ozone_du" in names:
-        raise ValueError(f"terminator={terminator!r} takes each band's AFGL ozone column: "
-                         "ozone_du cannot be fitted there; fit it with terminator='global'")
-    if terminator != "global" and "limb_clear_7km" in names:
-        raise ValueError(f"terminator={terminator!r} takes each band's SAGE clear probability "
-                         "(tropics or higher latitudes): limb_clear_7km cannot be fitted "
-                         "there; fit it with terminator='global'")
+    _check_band_parameters(names, terminator)
     n_times = check_int("n_times", n_times, low=3)
     table_n_v = check_int("table_n_v", table_n_v, low=16)
     max_iter = check_int("max_iter", max_iter, low=1)
