@@ -15,6 +15,7 @@ def test_example_scene_reads_every_table():
     assert scene.view == "fisheye" and scene.size == 256
     assert scene.light_map is not None and float(scene.light_map["flux"].sum()) > 0.0
     assert scene.tolerance == 0.01 and scene.fidelity == "default"
+    assert scene.turbidity == 2.0 and scene.ozone_du == 300.0 and scene.ground_albedo == 0.0
     assert str(scene.time).startswith("2015-09-28T02:47")
 
 

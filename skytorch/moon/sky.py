@@ -377,7 +377,8 @@ def moonlit_sky_multiple_scattering(atmosphere, tables, phase_angle_rad, moon_ze
     radiance per unit irradiance of orders 1..n for a point source at the Moon's zenith
     angle (Bruneton & Neyret 2008). The orders >= 2 of a source of 0.5 deg differ from
     those of a point by the variation of the diffuse field over the disc, below the
-    tables' own interpolation error. Black ground, no refraction (the tables').
+    tables' own interpolation error. The ground is the tables' (over a Lambertian ground,
+    the light it reflects enters with the orders >= 2); no refraction (the tables').
 
     References
     ----------

@@ -543,6 +543,7 @@ class _OrderEstimate:
 
     def __init__(self, scene, resources, geometry, elevation_m):
         self.requested = requested_orders(scene)
+        self.ground_albedo = scene.ground_albedo
         self.eclipse_higher = FIDELITY[scene.fidelity].get("eclipse_higher")
         self.geometry, self.elevation_m = geometry, elevation_m
         self.sun_zenith = math.radians(90.0 - geometry.sun_altitude_deg)
@@ -572,6 +573,11 @@ class _OrderEstimate:
         result, reasons = {"sky": 1, "moon": 1, "tables": tables}, []
         if self.requested == 1:
             return result, "single scattering (scattering_orders 1)"
+        if "sky" in computed and "solar_eclipse" in computed and self.ground_albedo > 0.0:
+            raise ValueError(
+                f"ground_albedo={self.ground_albedo}: the solar-eclipse sky's orders 1 and 2 "
+                "are a direct quadrature over a black ground, which has no ground reflection; "
+                "render scenes with a solar eclipse in sight with ground_albedo=0")
         if "sky" not in computed:
             reasons.append("sky: not computed")
         elif "solar_eclipse" in computed and (

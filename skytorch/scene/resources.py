@@ -97,15 +97,19 @@ class SceneSpec:
     wavelengths : tuple of float
         The wavelength grid [nm] of the renders (the values of
         :meth:`skytorch.scene.Scene.wavelength_nm`).
+    ground_albedo : float
+        Lambertian albedo of the ground under the multiple-scattering tables, in [0, 1]
+        (default 0, a black ground).
     """
 
     turbidity: float
     ozone_du: float
     wavelengths: tuple[float, ...]
+    ground_albedo: float = 0.0
 
     def __post_init__(self):
         """Check the spec's fields and store them as floats (TypeError for non-numbers)."""
-        for name in ("turbidity", "ozone_du"):
+        for name in ("turbidity", "ozone_du", "ground_albedo"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise TypeError(f"SceneSpec.{name} must be a number; got {value!r}")
@@ -115,12 +119,15 @@ class SceneSpec:
             raise TypeError("SceneSpec.wavelengths must be a non-empty tuple of numbers [nm]; "
                             f"got {self.wavelengths!r}")
         object.__setattr__(self, "wavelengths", tuple(float(v) for v in self.wavelengths))
+        if not 0.0 <= self.ground_albedo <= 1.0:
+            raise ValueError(f"SceneSpec.ground_albedo must be in [0, 1]; got "
+                             f"{self.ground_albedo}")
 
     @classmethod
     def of(cls, scene) -> SceneSpec:
         """Return the spec of a :class:`skytorch.scene.Scene`."""
         return cls(float(scene.turbidity), float(scene.ozone_du),
-                   tuple(scene.wavelength_nm().tolist()))
+                   tuple(scene.wavelength_nm().tolist()), float(scene.ground_albedo))
 
 
 #: view zenith nodes of :meth:`SceneResources.scattered_airglow_table` [degree]
@@ -703,10 +710,9 @@ class SceneResources:
         :func:`skytorch.atmosphere.multiple_scattering.precompute_scattering` with
         ``scattering_orders`` (an integer >= 1 or ``"converged"``), the
         :class:`~skytorch.atmosphere.multiple_scattering.TableResolution` of the fields
-        ``resolution`` (a mapping) and a black ground (the scene has no ground
-        reflection); built once per (orders, resolution, nodes) and kept. The tables give
-        the radiance per unit irradiance of a point source in any direction, so the Sun and
-        the Moon share them.
+        ``resolution`` (a mapping) and the spec's Lambertian ``ground_albedo``; built once
+        per (orders, resolution, nodes) and kept. The tables give the radiance per unit
+        irradiance of a point source in any direction, so the Sun and the Moon share them.
         """
         if isinstance(scattering_orders, bool) or not (
                 scattering_orders == "converged"
@@ -722,7 +728,8 @@ class SceneResources:
                 precompute_scattering,
             )
 
-            return precompute_scattering(self.atmosphere, nodes, ground_albedo=0.0,
+            return precompute_scattering(self.atmosphere, nodes,
+                                         ground_albedo=self.spec.ground_albedo,
                                          scattering_orders=scattering_orders,
                                          resolution=TableResolution(**dict(settings)))
 

@@ -49,6 +49,7 @@ from skytorch._toml import loads as toml_loads
 from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
 from skytorch.dataset import open_dataset
 from skytorch.scene.planner import plan as make_plan
+from skytorch.scene.planner import requested_orders
 from skytorch.scene.presets import EFFECTS, FIDELITY_PRESETS, SCATTERING_ORDER_CHOICES
 from skytorch.scene.render import render as render_scene
 from skytorch.scene.resources import SceneResources, SceneSpec
@@ -507,6 +508,14 @@ class Scene:
     turbidity, ozone_du : float
         Atmosphere parameters, checked by :meth:`skytorch.atmosphere.Atmosphere.earth`
         (turbidity >= 1, ozone >= 0 DU). One number each: scenes are not batched.
+    ground_albedo : float
+        Lambertian albedo of the ground around the observer, in [0, 1] (0: a black ground,
+        the default; fresh snow 0.8-0.9, desert 0.3, grass and forest 0.05-0.2 in the
+        visible). The ground's reflection of sunlight and moonlight, scattered back by the
+        air, is light of order >= 2: it enters the sky through the multiple-scattering
+        tables, so a non-zero albedo needs ``scattering_orders`` other than 1 (ValueError
+        otherwise) and no solar eclipse in sight (its sky is a direct quadrature over a
+        black ground: the render raises).
     light_map : xarray.Dataset, optional
         City lights (``flux`` [lm] on ``(y, x)`` [m] around the observer), see
         :meth:`skytorch.skyglow.SkyglowModel.render`.
@@ -593,6 +602,7 @@ class Scene:
     wavelengths: object = "rgb"
     turbidity: float = 2.0
     ozone_du: float = 300.0
+    ground_albedo: float = 0.0
     light_map: object = None
     observer_xy: tuple = (0.0, 0.0)
     lamp: str = "white"
@@ -635,6 +645,14 @@ class Scene:
         # the atmosphere's own checks (Atmosphere.earth): one definition of its ranges
         self.turbidity = _scalar("turbidity", self.turbidity)
         self.ozone_du = _scalar("ozone_du", self.ozone_du)
+        self.ground_albedo = _scalar("ground_albedo", self.ground_albedo, 0.0, 1.0)
+        if self.ground_albedo > 0.0 and requested_orders(self) == 1:
+            raise ValueError(
+                f"ground_albedo={self.ground_albedo} needs the orders of scattering >= 2 (the "
+                "ground's light reaches the sky by scattering once more); the scene's "
+                f"scattering_orders={self.scattering_orders!r} with fidelity "
+                f"{self.fidelity!r} is single scattering: give scattering_orders='converged' "
+                "or ground_albedo=0")
         self.wavelengths = _wavelengths(self.wavelengths)
         spec = SceneSpec.of(self)
         if not (isinstance(self._resources, SceneResources) and self._resources.spec == spec):
@@ -884,7 +902,7 @@ class Scene:
 
         Tables ``[observer]`` (lat_deg, lon_deg, elevation_m), ``[view]`` (kind, size,
         altitude_deg, azimuth_deg; for a camera also fov_deg and target),
-        ``[atmosphere]`` (turbidity, ozone_du), ``[lights]``
+        ``[atmosphere]`` (turbidity, ozone_du, ground_albedo), ``[lights]``
         (``file`` = a netCDF light map, or ``synthetic_city`` = keyword table of
         :func:`skytorch.skyglow.citymap.synthetic_city`; observer_xy, lamp),
         ``[planner]`` (tolerance, fidelity, scattering_orders, force, exclude) and top-level time,
