@@ -265,6 +265,27 @@ def test_ray_integrals_in_blocks_equal_whole_rays(monkeypatch, budget):
     assert torch.allclose(blocks, whole, rtol=1e-12, atol=0.0), (blocks, whole)
 
 
+def test_ray_lookup_by_matrix_product_equals_the_gathered_rows(monkeypatch):
+    """Dense matrix (small tables) or gathered rows (large ones): the same tables.
+
+    The rays' (r, mu) interpolation both ways, over a reflecting ground and with gradients.
+    """
+    from skytorch.atmosphere import multiple_scattering
+
+    turbidity = torch.tensor(2.0, dtype=torch.float64, requires_grad=True)
+    geometry = (0.0, torch.tensor([0.0, 1.0, 1.5, 1.7]), 0.4, torch.tensor([0.5, 1.0, 1.5, 1.8]))
+    options = {"ground_albedo": 0.3, "scattering_orders": 3, "resolution": TableResolution.tiny()}
+    values = []
+    for nodes in (0, 1 << 30):
+        monkeypatch.setattr(multiple_scattering, "_DENSE_RAY_NODES", nodes)
+        atm = Atmosphere.earth(turbidity=turbidity)
+        value = precompute_scattering(atm, WAVELENGTH, **options).radiance(*geometry)
+        values.append((value, torch.autograd.grad(value.sum(), turbidity)[0]))
+    (gathered, d_gathered), (dense, d_dense) = values
+    assert torch.allclose(dense, gathered, rtol=1e-12, atol=0.0), (dense, gathered)
+    assert torch.allclose(d_dense, d_gathered, rtol=1e-10), (d_dense, d_gathered)
+
+
 def test_lookups_in_blocks_equal_one_block(monkeypatch, day_tables):
     """Look-ups in blocks of a few points (the path of large images) equal one block."""
     from skytorch.atmosphere import multiple_scattering

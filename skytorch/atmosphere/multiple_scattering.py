@@ -437,25 +437,35 @@ def _gather4(table, b, corners):
     return out.reshape(shape + (channels,))
 
 
-def _ray_plan(ray_corners, sun_corners, n1: int, n2: int, n3: int, n4: int):
+#: largest number of (r, mu) nodes for which :func:`_ray_plan` interpolates the rays'
+#: samples by a dense matrix product: its cost grows with the nodes, the gather's does not
+#: (both measured in docs/benchmarks.md, "The rays' (r, mu) interpolation")
+_DENSE_RAY_NODES = 256
+
+
+def _ray_plan(ray_corners, sun_corners, n1: int, n2: int, n3: int, n4: int,
+              dense: bool | None = None):
     """Rows and weights of :func:`_gather_rays` on a table (1, n1, n2, n3, n4, λ').
 
     ``ray_corners`` is two (index, weight) pairs of shape (*g) on dims 1 and 2 (r, mu:
     fixed along a sample of a ray), ``sun_corners`` two pairs of shape (*g, m3, m4) on
     dims 3 and 4 (mu_s, phi: one per Sun direction of the table). The plan depends on
     the geometry only: every order of scattering and every parameter set reuses it.
+    ``dense`` (default: when n1 n2 <= :data:`_DENSE_RAY_NODES`) makes the (r, mu)
+    interpolation a matrix (samples, n1 n2) of four weights per row, applied by one matrix
+    product; otherwise the four rows are gathered and accumulated.
     """
     (i1, w1), (i2, w2) = ray_corners
-    # the (r, mu) interpolation as a matrix (samples, n1 * n2) of four weights per row,
-    # applied to the (mu_s, phi, λ') blocks of the nodes by one matrix product (5 times
-    # faster than gathering and accumulating the four rows)
     n_g = i1.numel()
-    nodes = torch.zeros((n_g, n1 * n2), dtype=w1.dtype)
-    for d1 in (0, 1):
-        for d2 in (0, 1):
-            nodes.index_put_((torch.arange(n_g), ((i1 + d1) * n2 + (i2 + d2)).reshape(-1)),
-                             ((w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2)).reshape(-1),
-                             accumulate=True)
+    corners = [(((i1 + d1) * n2 + (i2 + d2)).reshape(-1),
+                ((w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2)).reshape(-1))
+               for d1 in (0, 1) for d2 in (0, 1)]
+    if n1 * n2 <= _DENSE_RAY_NODES if dense is None else dense:
+        nodes = torch.zeros((n_g, n1 * n2), dtype=w1.dtype)
+        for index, weight in corners:
+            nodes.index_put_((torch.arange(n_g), index), weight, accumulate=True)
+    else:
+        nodes = [(index, weight.reshape(-1, 1)) for index, weight in corners]
     (i3, w3), (i4, w4) = sun_corners
     row = (torch.arange(n_g).reshape(tuple(i1.shape) + (1, 1)) * (n3 * n4)
            + (i3 * n4 + i4)).reshape(-1)
@@ -481,7 +491,14 @@ def _gather_rays(table, plan):
     nodes, sides_plan, w3 = plan
     n1, n2, n3, n4, channels = table.shape[1:]
     # the (mu_s, phi, λ') block of each (r, mu) node is one row of this view
-    ray = torch.matmul(nodes, table.reshape(n1 * n2, n3 * n4 * channels))
+    blocks = table.reshape(n1 * n2, n3 * n4 * channels)
+    if torch.is_tensor(nodes):
+        ray = torch.matmul(nodes, blocks)
+    else:
+        ray = None
+        for index, weight in nodes:
+            rows = torch.index_select(blocks, 0, index)
+            ray = rows.mul_(weight) if ray is None else ray.addcmul_(rows, weight)
     flat = ray.reshape(-1, channels)                             # (g * n3 * n4, λ')
     sides = []
     for corners in sides_plan:
@@ -936,9 +953,9 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     Notes
     -----
     Cost grows as ``n_r * n_mu * n_mu_s * n_phi * n_ray * wavelength`` per order (the
-    ray integrals) plus the sphere quadrature; the default resolution takes about a
-    second per order for 3 wavelengths, Bruneton 2017's sizes (``TableResolution.
-    bruneton2017()``) 56 s for 4 orders of 15 wavelengths in float32 on 2 cores
+    ray integrals) plus the sphere quadrature; the default resolution takes 3-6 s per
+    order for 3 wavelengths, Bruneton 2017's sizes (``TableResolution.
+    bruneton2017()``) 48-50 s for 4 orders of 15 wavelengths in float32 on 2 cores
     (benchmarks/bench_multiple_scattering.py, docs/benchmarks.md).
     """
     check_atmosphere("atmosphere", atmosphere)
