@@ -515,7 +515,9 @@ class Scene:
         air, is light of order >= 2: it enters the sky through the multiple-scattering
         tables, so a non-zero albedo needs ``scattering_orders`` other than 1 (ValueError
         otherwise) and no solar eclipse in sight (its sky is a direct quadrature over a
-        black ground: the render raises).
+        black ground: the render raises). City lights keep the skyglow model's own
+        reflectance of the lit ground (Garstang's G = 0.15,
+        :func:`skytorch.skyglow.kernel.emission_intensity`).
     light_map : xarray.Dataset, optional
         City lights (``flux`` [lm] on ``(y, x)`` [m] around the observer), see
         :meth:`skytorch.skyglow.SkyglowModel.render`.
