@@ -514,6 +514,18 @@ def test_ground_albedo_is_checked_and_needs_higher_orders():
         eclipse.plan()
 
 
+def test_white_ground_in_float32_is_finite_and_brightest():
+    """Albedo 1 in a float32 day scene: finite, and brighter than albedo 0 everywhere."""
+    skies = []
+    for albedo in (0.0, 1.0):
+        ds = st.Scene(**DAY, ground_albedo=albedo, dtype=torch.float32).render()
+        sky = ds["component_radiance"].sel(component="sky").values
+        skies.append(sky[np.isfinite(sky)])
+    black, white = skies
+    assert black.size > 0 and black.shape == white.shape
+    assert np.isfinite(white).all() and (white >= black).all() and (white > black).any()
+
+
 def test_ground_albedo_enters_the_sky_through_the_tables():
     """The moonlit sky over a grey ground: brighter, as the moon module's function says.
 

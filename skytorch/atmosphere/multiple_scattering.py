@@ -443,24 +443,23 @@ def _gather4(table, b, corners):
 _DENSE_RAY_NODES = 256
 
 
-def _ray_plan(ray_corners, sun_corners, n1: int, n2: int, n3: int, n4: int,
-              dense: bool | None = None):
+def _ray_plan(ray_corners, sun_corners, n1: int, n2: int, n3: int, n4: int):
     """Rows and weights of :func:`_gather_rays` on a table (1, n1, n2, n3, n4, λ').
 
     ``ray_corners`` is two (index, weight) pairs of shape (*g) on dims 1 and 2 (r, mu:
     fixed along a sample of a ray), ``sun_corners`` two pairs of shape (*g, m3, m4) on
     dims 3 and 4 (mu_s, phi: one per Sun direction of the table). The plan depends on
     the geometry only: every order of scattering and every parameter set reuses it.
-    ``dense`` (default: when n1 n2 <= :data:`_DENSE_RAY_NODES`) makes the (r, mu)
-    interpolation a matrix (samples, n1 n2) of four weights per row, applied by one matrix
-    product; otherwise the four rows are gathered and accumulated.
+    Up to :data:`_DENSE_RAY_NODES` (r, mu) nodes the (r, mu) interpolation is a matrix
+    (samples, n1 n2) of four weights per row, applied by one matrix product; above, the
+    four rows are gathered and accumulated.
     """
     (i1, w1), (i2, w2) = ray_corners
     n_g = i1.numel()
     corners = [(((i1 + d1) * n2 + (i2 + d2)).reshape(-1),
                 ((w1 if d1 else 1.0 - w1) * (w2 if d2 else 1.0 - w2)).reshape(-1))
                for d1 in (0, 1) for d2 in (0, 1)]
-    if n1 * n2 <= _DENSE_RAY_NODES if dense is None else dense:
+    if n1 * n2 <= _DENSE_RAY_NODES:
         nodes = torch.zeros((n_g, n1 * n2), dtype=w1.dtype)
         for index, weight in corners:
             nodes.index_put_((torch.arange(n_g), index), weight, accumulate=True)
