@@ -54,7 +54,9 @@ def main(argv: list[str] | None = None) -> int:
     tables = precompute_scattering(atmosphere, wavelength, scattering_orders="converged",
                                    resolution=TableResolution(n_r=8, n_mu=32, n_mu_s=16,
                                                               n_phi=6, n_ray=48,
-                                                              mu_vertical_weight=0.0))
+                                                              mu_vertical_weight=0.0,
+                                                              r_ground_weight=0.0,
+                                                              sphere_phi_refinement=1))
     table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
     geometry = site_geometries(np.datetime64(TOTALITY), [BURGOS[0]], [BURGOS[1]],
                                [BURGOS[2]])[0]

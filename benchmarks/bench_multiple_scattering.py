@@ -29,9 +29,11 @@ def main(quick: bool) -> None:
     atm = Atmosphere.earth(turbidity=2.0)
     sizes = [("tiny", TableResolution.tiny()),
              ("8x32x16x6", TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32,
-                                           n_sphere_mu=6, mu_vertical_weight=0.0)),
+                                           n_sphere_mu=6, mu_vertical_weight=0.0,
+                                           r_ground_weight=0.0, sphere_phi_refinement=1)),
              ("former default 16x64x24x8, n_ray 48",
-              TableResolution(n_mu_s=24, n_ray=48, mu_vertical_weight=0.0)),
+              TableResolution(n_mu_s=24, n_ray=48, mu_vertical_weight=0.0,
+                              r_ground_weight=0.0, sphere_phi_refinement=1)),
              ("default 16x64x48x8, n_ray 96", TableResolution())]
     if not quick:
         sizes.append(("bruneton2017 32x128x32x8", TableResolution.bruneton2017()))

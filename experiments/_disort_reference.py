@@ -29,7 +29,8 @@ WHERE = ("top (sasktran2, spherical)", "sky from the ground (DISORT)")
 VIEW_ZENITH_DEG = (0.0, 30.0, 60.0)
 #: the coarse tables of the sasktran2 / DISORT / Monte-Carlo tests
 COARSE = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-              transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0)
+              transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
+              r_ground_weight=0.0, sphere_phi_refinement=1)
 
 
 def disort_atmosphere(aod) -> Atmosphere:
@@ -100,3 +101,62 @@ def sky_and_top_errors(references, aods, resolution: dict):
             error[w, 0, :, k] = relative.max(axis=(0, 1, 3))
             error[w, 1, :, k] = relative[0].max(axis=(0, 2))
     return error, seconds
+
+
+def compare_table_sizes(arguments, cases, quick_cases, stem: str, title: str,
+                        case_variables=None) -> xr.Dataset:
+    """Run :func:`sky_and_top_errors` for each table size; write ``<stem>.nc`` / ``.png``.
+
+    ``cases`` and ``quick_cases`` (``arguments.quick``: 550 nm and optical depth 1 only)
+    are (name, sizes on top of the default :class:`TableResolution`) pairs;
+    ``case_variables`` maps a variable name to a function of the sizes giving its value
+    (and to its attributes) per case. Prints one line per case and returns the Dataset.
+    """
+    import matplotlib.pyplot as plt
+
+    from experiments._common import save_outputs
+
+    disort = load_reference()
+    with xr.open_dataset(SPHERICAL_TOP) as ds:
+        top = ds.load()
+    cases = quick_cases if arguments.quick else cases
+    aods = [1.0] if arguments.quick else [0.05, 0.3, 1.0]
+    if arguments.quick:
+        disort = disort.sel(wavelength=[550.0])
+    error = np.zeros((len(cases), 2, 2, len(aods), disort.sun_zenith.size))
+    seconds = np.zeros(len(cases))
+    for i, (_, sizes) in enumerate(cases):
+        error[i], seconds[i] = sky_and_top_errors((disort, top), aods, sizes)
+    extra = {name: ("case", np.array([value(sizes) for _, sizes in cases]), attrs)
+             for name, (value, attrs) in (case_variables or {}).items()}
+    dataset = xr.Dataset(
+        {"error": (("case", "where", "statistic", "aod", "sun_zenith"), error,
+                   {"units": "1", "long_name": "largest |model / reference - 1| over the "
+                    "views (or at the vertical) and wavelengths"}),
+         "precompute_seconds": ("case", seconds, {"units": "s"}), **extra},
+        coords={"case": ("case", np.array([c[0] for c in cases])),
+                **error_coords(aods, disort.sun_zenith.values)},
+        attrs={"title": title, "references": REFERENCES,
+               "wavelengths_nm": str(disort.wavelength.values.tolist()),
+               "torch_threads": torch.get_num_threads()})
+    figure, axes = plt.subplots(1, 2, figsize=(9.5, 3.8), squeeze=False)
+    for w, label in enumerate(WHERE):
+        axis = axes[0, w]
+        for i, (name, _) in enumerate(cases):
+            axis.semilogy(aods, 100 * error[i, w, 0].max(axis=-1), "o-",
+                          label=f"{name} ({seconds[i]:.0f} s)")
+        axis.axhline(1.0, color="grey", lw=0.8, ls=":")
+        axis.set_title(label, fontsize=9)
+        axis.set_xlabel("aerosol optical depth at 550 nm")
+        axis.set_ylabel("largest error, views and Suns [%]")
+        axis.legend(fontsize=7)
+    figure.tight_layout()
+    save_outputs(dataset, figure, arguments.output_dir, stem)
+    for i, (name, _) in enumerate(cases):
+        print(f"{name} ({seconds[i]:.1f} s): " + " | ".join(
+            f"{label.split()[0]}: " + "; ".join(
+                f"τ {aod:g} " + " / ".join(f"{100 * error[i, w, 0, j, k]:.2f}"
+                                           for k in range(disort.sun_zenith.size))
+                for j, aod in enumerate(aods))
+            for w, label in enumerate(WHERE)), flush=True)
+    return dataset

@@ -144,11 +144,12 @@ def test_direct_single_scattering_is_the_plane_parallel_limit(reference, sun_zen
 
 
 def _solver_radiance(reference: xr.Dataset, resolution=None, direct_single=False,
-                     ground_albedo=0.0):
+                     ground_albedo=0.0, tables=None):
     """Return the converged tables on the reference's grid: {"sky", "top"} DataArrays.
 
     ``direct_single`` replaces the tables' order 1 with the ray-marched single scattering,
     as scenes do. Dims (aod, sun_zenith, wavelength, view_zenith | nadir, relative_azimuth).
+    ``tables`` (built for the reference's optical depths and wavelengths) skips the build.
     """
     from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
     from skytorch.atmosphere.scattering import constituent_radiance
@@ -156,9 +157,10 @@ def _solver_radiance(reference: xr.Dataset, resolution=None, direct_single=False
     aod = torch.tensor(reference.aod.values, dtype=torch.float64)
     wavelength = torch.tensor(reference.wavelength.values, dtype=torch.float64)
     atm = _atmosphere(aod)
-    tables = precompute_scattering(atm, wavelength, ground_albedo=ground_albedo,
-                                   scattering_orders="converged",
-                                   resolution=resolution or TableResolution())
+    if tables is None:
+        tables = precompute_scattering(atm, wavelength, ground_albedo=ground_albedo,
+                                       scattering_orders="converged",
+                                       resolution=resolution or TableResolution())
     azimuth = torch.deg2rad(torch.tensor(reference.relative_azimuth.values,
                                          dtype=torch.float64))[None, :, None]
     one = torch.tensor(1.0, dtype=torch.float64)
@@ -189,14 +191,14 @@ def _solver_radiance(reference: xr.Dataset, resolution=None, direct_single=False
 
 
 def solver_errors(reference: xr.Dataset, resolution=None, direct_single=False,
-                  ground_albedo=False):
+                  ground_albedo=False, tables=None):
     """Relative errors against DISORT: {"sky", "top"} DataArrays.
 
     Black ground against the 64-stream run; ``ground_albedo=True``: the reference's
     Lambertian ground (``ground_albedo_run`` attribute) against its 32-stream run.
     """
     albedo = float(reference.attrs["ground_albedo_run"]) if ground_albedo else 0.0
-    ours = _solver_radiance(reference, resolution, direct_single, albedo)
+    ours = _solver_radiance(reference, resolution, direct_single, albedo, tables)
     run = "ground_albedo" if ground_albedo else "streams_64"
     return {"sky": ours["sky"] / reference[f"sky_{run}"].sel(view_zenith=VIEW_ZENITH_DEG) - 1,
             "top": ours["top"] / reference[f"top_{run}"].sel(nadir=NADIR_DEG) - 1}
@@ -204,7 +206,8 @@ def solver_errors(reference: xr.Dataset, resolution=None, direct_single=False,
 
 #: the coarse tables of the sasktran2 and Monte-Carlo comparisons (seconds to build)
 COARSE = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-              transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0)
+              transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
+              r_ground_weight=0.0, sphere_phi_refinement=1)
 
 
 def _max_error(errors, **selection) -> float:
@@ -312,19 +315,36 @@ def test_diffuse_irradiance_against_disort(reference):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not HAS_SOLVER, reason="multiple-scattering solver not available")
-@pytest.mark.xfail(strict=True, reason="default tables alone, max over views, Sun 30 / 60 "
-                   "deg, 400 and 550 nm, aerosol optical depth 0.05 / 0.3 / 1: sky 0.94-0.97 "
-                   "/ 0.68-1.09 / 1.7-2.3 % (the former default tables 1.3 / 1.5 / 2.6 % at "
-                   "550 nm; 1.6 / 18 / 44 % before the forward peak was factored out); the "
-                   "radiance leaving the top 4.0-4.4 % at nadir 60 deg, DISORT's flat geometry "
-                   "(within 0.8 % at the nadir; tests/test_ms_top.py holds the top against "
-                   "sasktran2's spherical radiance); docs/multiple_scattering_validation.md")
 def test_aerosol_sky_against_disort_within_one_percent():
-    """Issue 14: the plane-parallel sky within 1 % of DISORT for aerosol τ 0.05-1."""
+    """Issue 14: the sky from the ground within 1 % of DISORT for aerosol τ 0.05-1.
+
+    Default tables, 550 nm, Sun 30 and 60 deg, view zenith 0-60 deg at relative azimuth 0,
+    90 and 180 deg. The tables alone (``ScatteringTables.radiance``, order 1 looked up
+    too) within the issue's 1 %: measured 0.94 / 0.97 % (τ 0.05, Sun 30 / 60 deg), 0.42 /
+    0.90 % (τ 0.3), 0.63 / 0.66 % (τ 1); 1.7 / 2.3 % at τ 1 before the radius nodes were
+    crowded towards the ground and the sphere quadrature's azimuths refined (2026-12-07).
+    The scenes' sum (ray-marched order 1 + the tables' orders >= 2, what
+    ``Atmosphere.sky_radiance`` returns over a black ground) is held within 1.5 %: measured
+    1.03 / 1.04 % at τ 0.05 (view zenith 60 deg, azimuth 180 deg, too dark: of the size
+    of the sphere's shorter slant path, which DISORT's flat geometry does not have), 0.47
+    / 0.89 %, 0.58 / 0.65 %. At 400 nm (not asserted; total optical depth 1.9 at τ 1) the
+    tables are within 0.69, 0.57 and 1.14 %. The radiance leaving the top is DISORT's flat
+    geometry only at the nadir; tests/test_ms_top.py holds it against sasktran2's
+    spherical radiance (docs/multiple_scattering_validation.md, "Azimuths of the sphere
+    quadrature").
+    """
+    from skytorch.atmosphere.multiple_scattering import precompute_scattering
+
     with xr.open_dataset(TABLE) as ds:
         reference = ds.load().sel(aod=[0.05, 0.3, 1.0], wavelength=[550.0])
-    errors = solver_errors(reference)
-    assert _max_error(errors) < 1 * PERCENT
+    tables = precompute_scattering(
+        _atmosphere(torch.tensor(reference.aod.values, dtype=torch.float64)),
+        torch.tensor(reference.wavelength.values, dtype=torch.float64),
+        scattering_orders="converged")
+    alone = abs(solver_errors(reference, tables=tables)["sky"])
+    assert float(alone.max()) < 1 * PERCENT, alone.max(("view_zenith", "relative_azimuth"))
+    summed = abs(solver_errors(reference, direct_single=True, tables=tables)["sky"])
+    assert float(summed.max()) < 1.5 * PERCENT, summed.max(("view_zenith", "relative_azimuth"))
 
 
 def gathered_errors(reference: xr.Dataset, resolution, ground_albedo=False, top_reference=None):

@@ -297,7 +297,8 @@ def solver_tables():
 
 #: the coarse tables of the solver test (8 x 32 x 16 x 6)
 COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 16, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
-          "transmittance_r": 32, "transmittance_mu": 128, "mu_vertical_weight": 0.0}
+          "transmittance_r": 32, "transmittance_mu": 128, "mu_vertical_weight": 0.0,
+          "r_ground_weight": 0.0, "sphere_phi_refinement": 1}
 
 
 def _solver_radiance(cache, case, orders=None, resolution=None):
@@ -397,7 +398,7 @@ def test_scene_twilight_sky_against_montecarlo_rayleigh(table, solver_tables):
 #: the default tables of 2026-12-05 (``TableResolution()``, 16 x 64 x 48 x 8), spelled out
 DEFAULT_TABLES = {"n_r": 16, "n_mu": 64, "n_mu_s": 48, "n_phi": 8, "n_ray": 96,
                   "n_sphere_mu": 12, "transmittance_r": 64, "transmittance_mu": 256,
-                  "mu_vertical_weight": 0.5}
+                  "mu_vertical_weight": 0.5, "r_ground_weight": 0.0, "sphere_phi_refinement": 1}
 
 
 @pytest.mark.slow

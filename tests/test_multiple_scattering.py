@@ -23,7 +23,8 @@ from skytorch.atmosphere.multiple_scattering import (
 F64 = torch.float64
 WAVELENGTH = torch.tensor([450.0, 650.0], dtype=F64)
 #: a coarse table that still resolves the day sky (about 1.5 s to build 3 orders)
-COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32, n_sphere_mu=6, mu_vertical_weight=0.0)
+COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32, n_sphere_mu=6, mu_vertical_weight=0.0,
+                         r_ground_weight=0.0, sphere_phi_refinement=1)
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +132,8 @@ def _balance_excess(parameters, resolution) -> float:
 
 
 BALANCE_COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
-                                 transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0)
+                                 transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
+                                 r_ground_weight=0.0, sphere_phi_refinement=1)
 
 
 def test_lambertian_ground_under_a_transparent_atmosphere_returns_the_sunlight():
@@ -299,10 +301,11 @@ def test_lookups_in_blocks_equal_one_block(monkeypatch, day_tables):
     assert torch.equal(tables.radiance(*geometry), whole)
 
 
-@pytest.mark.parametrize("weight", [0.0, 0.5])
-def test_gradcheck_turbidity_ozone_albedo(weight):
+@pytest.mark.parametrize(("weight", "refinement"), [(0.0, 1), (0.5, 2)])
+def test_gradcheck_turbidity_ozone_albedo(weight, refinement):
     res = TableResolution(n_r=3, n_mu=4, n_mu_s=3, n_phi=3, n_ray=4, n_sphere_mu=2,
-                          transmittance_r=4, transmittance_mu=6, mu_vertical_weight=weight)
+                          transmittance_r=4, transmittance_mu=6, mu_vertical_weight=weight,
+                          r_ground_weight=weight, sphere_phi_refinement=refinement)
 
     def f(turbidity, ozone, albedo):
         atm = Atmosphere.earth(turbidity=turbidity, ozone_du=ozone)
@@ -340,6 +343,8 @@ def test_bad_input_names_parameter_and_range(day_tables):
         TableResolution(r_ground_weight=1.0)
     with pytest.raises(TypeError, match="r_ground_weight"):
         TableResolution(r_ground_weight=None)
+    with pytest.raises(ValueError, match="sphere_phi_refinement"):
+        TableResolution(sphere_phi_refinement=0)
     with pytest.raises(ValueError, match="forward_peak"):
         precompute_scattering(atm, WAVELENGTH, forward_peak="gaussian")
     assert isinstance(tables, ScatteringTables)
@@ -493,7 +498,8 @@ def test_converged_sum_with_geometric_remainder_against_a_long_series(turbidity,
     atm = Atmosphere.earth(turbidity=turbidity, ozone_du=300.0)
     resolution = TableResolution(n_r=5, n_mu=16, n_mu_s=24, n_phi=5, n_ray=16, n_sphere_mu=4,
                                  transmittance_r=16, transmittance_mu=32,
-                                 mu_vertical_weight=0.0)
+                                 mu_vertical_weight=0.0,
+                                 r_ground_weight=0.0, sphere_phi_refinement=1)
     converged = precompute_scattering(atm, WAVELENGTH, ground_albedo=albedo,
                                       scattering_orders="converged", resolution=resolution)
     series = precompute_scattering(atm, WAVELENGTH, ground_albedo=albedo,
@@ -528,7 +534,8 @@ def test_converged_remainder_gradient_and_float32():
     wavelength = torch.tensor([450.0], dtype=F64)
     resolution = TableResolution(n_r=5, n_mu=16, n_mu_s=16, n_phi=5, n_ray=16, n_sphere_mu=4,
                                  transmittance_r=16, transmittance_mu=32,
-                                 mu_vertical_weight=0.0)
+                                 mu_vertical_weight=0.0,
+                                 r_ground_weight=0.0, sphere_phi_refinement=1)
     view = torch.tensor([0.0, 1.0], dtype=F64)
     sun = torch.deg2rad(torch.tensor([40.0, 96.0], dtype=F64))
 

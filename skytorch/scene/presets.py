@@ -69,13 +69,15 @@ SCATTERING_ORDER_CHOICES = ("auto", "converged")
 #: (view nodes on ref. 2's mapping, ``mu_vertical_weight`` 0: moving them towards the vertical
 #: makes tables of 16 nodes per half worse, docs/multiple_scattering_validation.md)
 _MS_SMALL = {"n_r": 5, "n_mu": 16, "n_mu_s": 24, "n_phi": 5, "n_ray": 16, "n_sphere_mu": 4,
-             "transmittance_r": 16, "transmittance_mu": 32, "mu_vertical_weight": 0.0}
+             "transmittance_r": 16, "transmittance_mu": 32, "mu_vertical_weight": 0.0,
+             "r_ground_weight": 0.0, "sphere_phi_refinement": 1}
 #: the default preset's: 8 radii instead of 5 bring the Rayleigh twilight sky from 27.5 / 35.5 %
 #: to 3.8 / 6.0 % of the Monte-Carlo at Sun 94 / 98 deg for 27 % more build time
 #: (experiments/preset_radius_nodes_accuracy_cost.py, docs/scene.md)
 _MS_DEFAULT = {**_MS_SMALL, "n_r": 8}
 _MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 24, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
-              "transmittance_r": 32, "transmittance_mu": 128, "mu_vertical_weight": 0.0}
+              "transmittance_r": 32, "transmittance_mu": 128, "mu_vertical_weight": 0.0,
+              "r_ground_weight": 0.0, "sphere_phi_refinement": 1}
 
 #: module knobs per fidelity preset (measured error and cost in docs/scene.md);
 #: ``scattering_orders`` is what ``Scene.scattering_orders="auto"`` means, ``ms_tables`` the
