@@ -156,7 +156,8 @@ def test_conservation_rayleigh_white_ground():
 
     What it receives: the intercepted light less the direct beam that crosses the limb
     unscattered (2.51 % at 550 nm), which is not sky radiance. The issue's 0.5 % on the
-    default tables (measured +0.07 %; +0.20 % on the former 16 x 64 x 24 x 8 with 48
+    default tables (measured +0.03 %; +0.07 % before the radii were crowded towards the
+    ground and the sphere quadrature's azimuths refined; +0.20 % on the former 16 x 64 x 24 x 8 with 48
     samples per ray, +0.58 % on coarse 8 x 32 x 16 x 6 tables, +0.12 % at Bruneton 2017's
     sizes).
     """
@@ -168,7 +169,8 @@ def test_conservation_albedo_one():
     """A conservative forward-peaked aerosol over a white ground: the issue's 0.5 %.
 
     Turbidity 2, albedo 1, default tables: the light leaving the top exceeds the
-    conserving value by +0.39 % (measured); +0.86 % on the former default (16 x 64 x 24 x
+    conserving value by +0.17 % (measured; +0.39 % before the radii were crowded towards
+    the ground and the azimuths refined); +0.86 % on the former default (16 x 64 x 24 x
     8, 48 samples per ray), +0.72 % at Bruneton 2017's sizes, +2.7 % on coarse
     8 x 32 x 16 x 6 tables, +6.7 % on the tiny ones (docs/multiple_scattering.md).
     """
