@@ -15,6 +15,7 @@ import numpy as np
 import torch
 import xarray as xr
 
+from experiments._common import save_outputs
 from skytorch.atmosphere import Atmosphere
 from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
 from skytorch.atmosphere.scattering import constituent_radiance
@@ -107,14 +108,19 @@ def compare_table_sizes(arguments, cases, quick_cases, stem: str, title: str,
                         case_variables=None) -> xr.Dataset:
     """Run :func:`sky_and_top_errors` for each table size; write ``<stem>.nc`` / ``.png``.
 
+    References: DISORT's sky seen from the ground (``tests/data/ms_reference/disort_sky.nc``,
+    view zenith 0, 30, 60 deg) and sasktran2's spherical radiance leaving the top
+    (``sasktran2_top.nc``, observer at 100 km, nadir 0, 30, 60 deg), both at relative
+    azimuth 0, 90, 180 deg, 400 and 550 nm, Sun at 30 and 60 deg, U.S. 1976 molecules +
+    Henyey-Greenstein aerosol (g 0.7, albedo 0.95) of optical depth 0.05, 0.3 and 1 at
+    550 nm, black ground.
+
     ``cases`` and ``quick_cases`` (``arguments.quick``: 550 nm and optical depth 1 only)
     are (name, sizes on top of the default :class:`TableResolution`) pairs;
     ``case_variables`` maps a variable name to a function of the sizes giving its value
     (and to its attributes) per case. Prints one line per case and returns the Dataset.
     """
     import matplotlib.pyplot as plt
-
-    from experiments._common import save_outputs
 
     disort = load_reference()
     with xr.open_dataset(SPHERICAL_TOP) as ds:

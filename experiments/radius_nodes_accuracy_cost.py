@@ -1,11 +1,7 @@
 """The radius nodes crowded towards the ground (``r_ground_weight``): accuracy and cost.
 
-References: DISORT's sky seen from the ground (``tests/data/ms_reference/disort_sky.nc``,
-view zenith 0, 30, 60 deg) and sasktran2's spherical radiance leaving the top
-(``sasktran2_top.nc``, observer at 100 km, nadir 0, 30, 60 deg), both at relative azimuth
-0, 90, 180 deg, 400 and 550 nm, Sun at 30 and 60 deg, U.S. 1976 molecules +
-Henyey-Greenstein aerosol (g 0.7, albedo 0.95) of optical depth 0.05-1 at 550 nm, black
-ground.
+References, cases and statistics: :func:`experiments._disort_reference.compare_table_sizes`
+(DISORT's sky from the ground, sasktran2's spherical radiance leaving the top).
 
 An aerosol a kilometre or two deep puts most of the light scattered twice and more below
 the third radius node of ref. 2's mapping (16 radii: 0, 0.45, 1.8, 4.0 km), where the
