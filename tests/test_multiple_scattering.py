@@ -229,11 +229,17 @@ def test_float32_tables_close_to_float64_over_a_lit_ground():
     assert torch.allclose(results[0].to(F64), results[1], rtol=1e-4, atol=0.0)
 
 
-@pytest.mark.parametrize("weight", [0.0, 0.5])
-def test_float32_tables_close_to_float64(weight):
-    """Float32 tables, ref. 2's view nodes and nodes towards the vertical (views at 0 rad)."""
+@pytest.mark.parametrize(("weight", "refinement"), [(0.0, 1), (0.5, 1), (0.5, 2)])
+def test_float32_tables_close_to_float64(weight, refinement):
+    """Float32 tables, ref. 2's view nodes and nodes towards the vertical (views at 0 rad).
+
+    Also with the sphere quadrature's azimuths refined and the radii crowded (the default
+    tables' quadrature and mapping on tiny sizes).
+    """
     atm = Atmosphere.earth(turbidity=2.0)
-    resolution = dataclasses.replace(TableResolution.tiny(), mu_vertical_weight=weight)
+    resolution = dataclasses.replace(TableResolution.tiny(), mu_vertical_weight=weight,
+                                     r_ground_weight=weight if refinement > 1 else 0.0,
+                                     sphere_phi_refinement=refinement)
     results = [precompute_scattering(atm, WAVELENGTH, scattering_orders=3, dtype=dtype,
                                      resolution=resolution)
                .radiance(0.0, torch.tensor([0.0, 1.0, 1.5]), 0.4, 1.0)
