@@ -353,6 +353,10 @@ def test_bad_input_names_parameter_and_range(day_tables):
         TableResolution(r_ground_weight=None)
     with pytest.raises(ValueError, match="sphere_phi_refinement"):
         TableResolution(sphere_phi_refinement=0)
+    with pytest.raises(TypeError, match="sphere_phi_refinement"):
+        TableResolution(sphere_phi_refinement=1.5)
+    whole = TableResolution(n_r=8.0, sphere_phi_refinement=2.0)
+    assert (type(whole.n_r), type(whole.sphere_phi_refinement)) == (int, int)
     with pytest.raises(ValueError, match="forward_peak"):
         precompute_scattering(atm, WAVELENGTH, forward_peak="gaussian")
     assert isinstance(tables, ScatteringTables)

@@ -209,7 +209,8 @@ class TableResolution:
         for name, low in (("n_r", 2), ("n_mu", 4), ("n_mu_s", 2), ("n_phi", 3), ("n_ray", 2),
                           ("n_sphere_mu", 1), ("transmittance_r", 2),
                           ("transmittance_mu", 2), ("sphere_phi_refinement", 1)):
-            check_int(name, getattr(self, name), low)
+            # a whole float (8.0) is kept as the int it stands for: the sizes index tensors
+            object.__setattr__(self, name, check_int(name, getattr(self, name), low))
         if self.n_mu % 2:
             raise ValueError(f"n_mu must be an even integer >= 4; got {self.n_mu}")
         for name, high, closed in (("mu_vertical_weight", 1.0, True),
