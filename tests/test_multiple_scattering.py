@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from skytorch.atmosphere import Atmosphere
-from skytorch.atmosphere import multiple_scattering
+from skytorch.atmosphere import Atmosphere, multiple_scattering
 from skytorch.atmosphere.multiple_scattering import (
     MU_S_MIN,
     ScatteringTables,
