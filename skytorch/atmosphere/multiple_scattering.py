@@ -16,10 +16,13 @@ Method (refs. 1, 2)
 * order 1 (single scattering) per scattering species without its phase function
   (constant along a straight ray), multiplied at look-up by the exact phase
   :math:`P_s(\nu)`; view paths integrated by the trapezoid rule on ``n_ray`` samples
-  with the cumulative per-species columns; plus the Sun reflected once by the
-  Lambertian ground, on the table's nodes as the source of order 2 and computed anew at
-  each look-up (the lit ground's kink at the terminator, interpolated across the nodes,
-  was overestimated: +1.1 % of the light leaving the top of a white planet);
+  with the cumulative per-species columns (``TableResolution.ray_quadrature``
+  "exponential": the columns from sub-samples and the transmittance exponential between
+  samples, :func:`exponential_path_weights`; the same weights for every order); plus
+  the Sun reflected once by the Lambertian ground, on the table's nodes as the source of
+  order 2 and computed anew at each look-up (the lit ground's kink at the terminator,
+  interpolated across the nodes, was overestimated: +1.1 % of the light leaving the top
+  of a white planet);
 * order n >= 2: scattering density :math:`J_n = \sum_s \beta_s\,P_s \otimes L_{n-1}` by
   a product quadrature over the sphere (Gauss-Legendre in each hemisphere of ``mu``,
   periodic trapezoid in azimuth); each row of the discrete phase operator is

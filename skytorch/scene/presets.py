@@ -67,17 +67,21 @@ SCATTERING_ORDER_CHOICES = ("auto", "converged")
 #: TableResolution.tiny() but 24 Sun zenith nodes (8 make the twilight 3-4 mag too bright
 #: at -12 deg: the linear interpolation across a steep fall in mu_s)
 #: (view nodes on ref. 2's mapping, ``mu_vertical_weight`` 0: moving them towards the vertical
-#: makes tables of 16 nodes per half worse, docs/multiple_scattering_validation.md)
+#: makes tables of 16 nodes per half worse, docs/multiple_scattering_validation.md); the
+#: exponential quadrature along the rays, which their 16 samples need through haze (the sky
+#: through an aerosol of τ 1: 113 % → 18 % of DISORT; experiments/ray_quadrature_accuracy_cost.py)
 _MS_SMALL = {"n_r": 5, "n_mu": 16, "n_mu_s": 24, "n_phi": 5, "n_ray": 16, "n_sphere_mu": 4,
              "transmittance_r": 16, "transmittance_mu": 32, "mu_vertical_weight": 0.0,
-             "r_ground_weight": 0.0, "sphere_phi_refinement": 1}
+             "r_ground_weight": 0.0, "sphere_phi_refinement": 1,
+             "ray_quadrature": "exponential"}
 #: the default preset's: 8 radii instead of 5 bring the Rayleigh twilight sky from 27.5 / 35.5 %
 #: to 3.8 / 6.0 % of the Monte-Carlo at Sun 94 / 98 deg for 27 % more build time
 #: (experiments/preset_radius_nodes_accuracy_cost.py, docs/scene.md)
 _MS_DEFAULT = {**_MS_SMALL, "n_r": 8}
 _MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 24, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
               "transmittance_r": 32, "transmittance_mu": 128, "mu_vertical_weight": 0.0,
-              "r_ground_weight": 0.0, "sphere_phi_refinement": 1}
+              "r_ground_weight": 0.0, "sphere_phi_refinement": 1,
+              "ray_quadrature": "exponential"}
 
 #: module knobs per fidelity preset (measured error and cost in docs/scene.md);
 #: ``scattering_orders`` is what ``Scene.scattering_orders="auto"`` means, ``ms_tables`` the

@@ -719,7 +719,8 @@ class SceneResources:
                 or (isinstance(scattering_orders, int) and scattering_orders >= 1)):
             raise ValueError("scattering_orders must be an integer >= 1 or 'converged'; "
                              f"got {scattering_orders!r}")
-        settings = tuple(sorted((str(k), int(v)) for k, v in dict(resolution).items()))
+        # the fields as given (sizes, weights, the ray quadrature's name): the key of the build
+        settings = tuple(sorted((str(k), v) for k, v in dict(resolution).items()))
         nodes = self.scattering_nodes(n_nodes)
 
         def build():
