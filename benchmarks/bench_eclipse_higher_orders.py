@@ -56,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
                                                               n_phi=6, n_ray=48,
                                                               mu_vertical_weight=0.0,
                                                               r_ground_weight=0.0,
-                                                              sphere_phi_refinement=1))
+                                                              sphere_phi_refinement=1,
+                                                              ray_quadrature="trapezoid"))
     table = TransmittanceTable.build(atmosphere, wavelength, cache=False, n_mu=128, n_r=32)
     geometry = site_geometries(np.datetime64(TOTALITY), [BURGOS[0]], [BURGOS[1]],
                                [BURGOS[2]])[0]

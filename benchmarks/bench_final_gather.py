@@ -43,7 +43,8 @@ def main(argv: list[str] | None = None) -> int:
     resolution = TableResolution(n_r=16, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24,
                                  n_sphere_mu=6, transmittance_r=32, transmittance_mu=128,
                                  mu_vertical_weight=0.0,
-                                 r_ground_weight=0.0, sphere_phi_refinement=1)
+                                 r_ground_weight=0.0, sphere_phi_refinement=1,
+                                 ray_quadrature="trapezoid")
     atmosphere = Atmosphere.earth(turbidity=2.0)
     clock = time.perf_counter()
     tables = precompute_scattering(atmosphere, wavelength, scattering_orders="converged",

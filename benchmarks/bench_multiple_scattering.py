@@ -30,11 +30,13 @@ def main(quick: bool) -> None:
     sizes = [("tiny", TableResolution.tiny()),
              ("8x32x16x6", TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32,
                                            n_sphere_mu=6, mu_vertical_weight=0.0,
-                                           r_ground_weight=0.0, sphere_phi_refinement=1)),
+                                           r_ground_weight=0.0, sphere_phi_refinement=1,
+                                           ray_quadrature="trapezoid")),
              ("former default 16x64x24x8, n_ray 48",
-              TableResolution(n_mu_s=24, n_ray=48, mu_vertical_weight=0.0,
-                              r_ground_weight=0.0, sphere_phi_refinement=1)),
-             ("default 16x64x48x8, n_ray 96", TableResolution())]
+              TableResolution(n_r=16, n_mu_s=24, n_ray=48, mu_vertical_weight=0.0,
+                              r_ground_weight=0.0, sphere_phi_refinement=1,
+                              ray_quadrature="trapezoid")),
+             ("default 24x64x48x8, n_ray 96, exponential", TableResolution())]
     if not quick:
         sizes.append(("bruneton2017 32x128x32x8", TableResolution.bruneton2017()))
     counts = (1, 3) if quick else (1, 3, 15)

@@ -67,7 +67,8 @@ def main(argv=None):
                                                               n_phi=6, n_ray=48,
                                                               mu_vertical_weight=0.0,
                                                               r_ground_weight=0.0,
-                                                              sphere_phi_refinement=1))
+                                                              sphere_phi_refinement=1,
+                                                              ray_quadrature="trapezoid"))
     ratio = np.full((len(settings), len(sites), len(WAVELENGTHS), len(views)), np.nan)
     seconds = np.full((len(settings), len(sites)), np.nan)
     for j, site in enumerate(sites):

@@ -63,7 +63,8 @@ def main(argv=None):
                                                               n_phi=6, n_ray=48,
                                                               mu_vertical_weight=0.0,
                                                               r_ground_weight=0.0,
-                                                              sphere_phi_refinement=1))
+                                                              sphere_phi_refinement=1,
+                                                              ray_quadrature="trapezoid"))
     zero = torch.zeros(1, dtype=torch.float64)
 
     def luminance(radiance):

@@ -49,8 +49,9 @@ from skytorch.atmosphere.scattering import constituent_radiance  # noqa: E402
 #: "default" is the default TableResolution before 2026-12-05 (16 x 64 x 24 x 8, 48 samples)
 RESOLUTIONS = {"coarse": TableResolution(**COARSE),
                "coarse, 16 radii": TableResolution(**{**COARSE, "n_r": 16}),
-               "default": TableResolution(n_mu_s=24, n_ray=48, mu_vertical_weight=0.0,
-                                          r_ground_weight=0.0, sphere_phi_refinement=1)}
+               "default": TableResolution(n_r=16, n_mu_s=24, n_ray=48, mu_vertical_weight=0.0,
+                                          r_ground_weight=0.0, sphere_phi_refinement=1,
+                                          ray_quadrature="trapezoid")}
 #: (n_view, n_mu, n_phi); the last is the finest, the reference of part 2
 QUADRATURES = ((8, 4, 16), (16, 8, 32), (32, 16, 64), (48, 24, 96), (64, 32, 128))
 DEFAULT_QUADRATURE = (32, 16, 64)

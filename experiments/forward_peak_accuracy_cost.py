@@ -49,8 +49,9 @@ from skytorch.atmosphere.scattering import constituent_radiance  # noqa: E402
 #: TableResolution before 2026-12-05 (16 x 64 x 24 x 8, 48 samples per ray)
 CASES = (("coarse", TableResolution(**COARSE), 0.0),
          ("coarse, ground 0.3", TableResolution(**COARSE), 0.3),
-         ("default", TableResolution(n_mu_s=24, n_ray=48, mu_vertical_weight=0.0,
-                                     r_ground_weight=0.0, sphere_phi_refinement=1),
+         ("default", TableResolution(n_r=16, n_mu_s=24, n_ray=48, mu_vertical_weight=0.0,
+                                     r_ground_weight=0.0, sphere_phi_refinement=1,
+                                     ray_quadrature="trapezoid"),
           0.0))
 #: (label, forward_peak, dtype)
 VARIANTS = (("none", "none", torch.float64), ("factored", "factored", torch.float64),

@@ -28,8 +28,9 @@ from experiments._common import parse_arguments  # noqa: E402
 from experiments._disort_reference import COARSE, compare_table_sizes  # noqa: E402
 
 #: (name, table sizes on top of the default TableResolution)
-#: (the sphere quadrature on the table's azimuths, as when these were measured)
-_AZIMUTHS = {"sphere_phi_refinement": 1}
+#: (the sphere quadrature on the table's azimuths, 16 radii and the trapezoid along the rays,
+#: as when these were measured)
+_AZIMUTHS = {"n_r": 16, "sphere_phi_refinement": 1, "ray_quadrature": "trapezoid"}
 CASES = (("w 0 (ref. 2)", {**_AZIMUTHS, "r_ground_weight": 0.0}),
          ("w 1/4", {**_AZIMUTHS, "r_ground_weight": 0.25}),
          ("w 1/2", {**_AZIMUTHS, "r_ground_weight": 0.5}),

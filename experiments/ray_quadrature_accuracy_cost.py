@@ -6,7 +6,8 @@ samples; ``"exponential"`` takes the columns from 8 sub-samples per segment and 
 transmittance exponential between the samples (product integration), exact for a source
 linear between them however thick the segment. The scene presets' small tables (16
 samples per ray, the default preset; 24, the reference preset) and the default tables
-(96), each with both quadratures, against three independent references:
+(96 samples, 16 radii), each with both quadratures, and the default tables since
+2026-12-07 (24 radii, exponential), against three independent references:
 
 * DISORT's plane-parallel sky from the ground and sasktran2's spherical radiance leaving
   the top (:func:`experiments._disort_reference.sky_and_top_errors`: U.S. 1976 +
@@ -74,8 +75,9 @@ CASES = tuple(
     for name, sizes in (("default preset", DEFAULT_PRESET),
                         ("default preset, 24 view nodes", {**DEFAULT_PRESET, "n_mu": 24}),
                         ("reference preset", REFERENCE_PRESET),
-                        ("default tables", {}))
-    for quadrature in ("trapezoid", "exponential"))
+                        ("default tables, 16 radii", {"n_r": 16}))
+    for quadrature in ("trapezoid", "exponential")) + (
+    ("default tables (24 radii), exponential", {"n_r": 24, "ray_quadrature": "exponential"}),)
 QUICK = CASES[0], CASES[1]
 AODS = (0.05, 0.3, 1.0)
 
@@ -137,8 +139,9 @@ def main(argv=None):
                "table_sizes": "; ".join(f"{name}: {sizes}" for name, sizes in cases),
                "torch_threads": torch.get_num_threads()})
     figure, axes = plt.subplots(1, 3, figsize=(13.5, 4.0))
-    for i, (name, _) in enumerate(cases):
-        style = dict(color=f"C{i // 2}", ls="-" if i % 2 else "--", marker="o", ms=3,
+    for i, (name, sizes) in enumerate(cases):
+        style = dict(color=f"C{i // 2}", marker="o", ms=3,
+                     ls="-" if sizes["ray_quadrature"] == "exponential" else "--",
                      label=f"{name} ({seconds[i]:.1f} s)")
         for w in range(2):
             axes[w].semilogy(aods, 100 * error[i, w, 0].max(axis=-1), **style)

@@ -47,7 +47,7 @@ RING_NODES = ((6, 4), (12, 6), (16, 8), (24, 12), (32, 16))
 #: coarse tables (seconds) for --quick
 COARSE = TableResolution(n_r=16, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
                          transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
-                         r_ground_weight=0.0, sphere_phi_refinement=1)
+                         r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 
 
 def _umbra_radius(shadow, distance_m: float) -> float:
@@ -63,9 +63,10 @@ def main(argv=None):
     quick = arguments.quick
     wavelength = torch.tensor(WAVELENGTHS_NM, dtype=torch.float64)
     # the default TableResolution before 2026-12-05, on which docs/accuracy.md's numbers are
-    resolution = COARSE if quick else TableResolution(n_mu_s=24, n_ray=48,
+    resolution = COARSE if quick else TableResolution(n_r=16, n_mu_s=24, n_ray=48,
                                                       mu_vertical_weight=0.0,
-                                                      r_ground_weight=0.0, sphere_phi_refinement=1)
+                                                      r_ground_weight=0.0, sphere_phi_refinement=1,
+                                                      ray_quadrature="trapezoid")
     cases = CASES[:2] if quick else CASES
     ring_nodes = RING_NODES[:2] if quick else RING_NODES
     n_off = len(OFFSET_FRACTIONS)

@@ -31,14 +31,18 @@ from experiments._common import parse_arguments  # noqa: E402
 from experiments._disort_reference import COARSE, compare_table_sizes  # noqa: E402
 
 #: (name, table sizes on top of the default TableResolution)
-CASES = (("refinement 1, w 0", {"sphere_phi_refinement": 1, "r_ground_weight": 0.0}),
-         ("refinement 2, w 0", {"sphere_phi_refinement": 2, "r_ground_weight": 0.0}),
-         ("refinement 4, w 0", {"sphere_phi_refinement": 4, "r_ground_weight": 0.0}),
-         ("refinement 1, w 1/2", {"sphere_phi_refinement": 1, "r_ground_weight": 0.5}),
-         ("refinement 2, w 1/2", {"sphere_phi_refinement": 2, "r_ground_weight": 0.5}),
+#: (the default tables' sizes and quadrature when these were measured)
+_TABLES = {"n_r": 16, "ray_quadrature": "trapezoid"}
+CASES = (("refinement 1, w 0", {**_TABLES, "sphere_phi_refinement": 1, "r_ground_weight": 0.0}),
+         ("refinement 2, w 0", {**_TABLES, "sphere_phi_refinement": 2, "r_ground_weight": 0.0}),
+         ("refinement 4, w 0", {**_TABLES, "sphere_phi_refinement": 4, "r_ground_weight": 0.0}),
+         ("refinement 1, w 1/2", {**_TABLES, "sphere_phi_refinement": 1, "r_ground_weight": 0.5}),
+         ("refinement 2, w 1/2", {**_TABLES, "sphere_phi_refinement": 2, "r_ground_weight": 0.5}),
          ("refinement 2, 32 radii, 192 samples",
-          {"sphere_phi_refinement": 2, "r_ground_weight": 0.0, "n_r": 32, "n_ray": 192}))
-QUICK_CASES = (("coarse, refinement 1", {**COARSE, "sphere_phi_refinement": 1}),
+          {**_TABLES, "sphere_phi_refinement": 2, "r_ground_weight": 0.0, "n_r": 32,
+           "n_ray": 192}))
+QUICK_CASES = (("coarse, refinement 1", {**COARSE, "sphere_phi_refinement": 1,
+"ray_quadrature": "trapezoid"}),
                ("coarse, refinement 2", {**COARSE, "sphere_phi_refinement": 2}))
 
 

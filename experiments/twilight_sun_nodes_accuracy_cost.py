@@ -43,7 +43,7 @@ from experiments._montecarlo_reference import (  # noqa: E402
 #: the default tables of 2026-12-05 without their Sun-zenith nodes
 DEFAULT = dict(n_r=16, n_mu=64, n_phi=8, n_ray=96, n_sphere_mu=12, transmittance_r=64,
                transmittance_mu=256, mu_vertical_weight=0.5,
-               r_ground_weight=0.0, sphere_phi_refinement=1)
+               r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 SUN_NODES = (24, 48, 96, 192)
 
 

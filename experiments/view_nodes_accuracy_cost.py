@@ -41,7 +41,8 @@ from experiments._disort_reference import (  # noqa: E402
 #: (name, table sizes): "default" is 16 x 64 x 24 x 8 with 48 samples per ray, the default
 #: TableResolution before 2026-12-05 (now 48 Sun-zenith nodes, 96 samples, weight 1/2)
 #: (the former defaults: radius nodes of ref. 2, the sphere quadrature on the table's azimuths)
-_FORMER = {"r_ground_weight": 0.0, "sphere_phi_refinement": 1}
+_FORMER = {"n_r": 16, "r_ground_weight": 0.0, "sphere_phi_refinement": 1,
+           "ray_quadrature": "trapezoid"}
 CASES = (("coarse", COARSE), ("default", {**_FORMER, "n_mu_s": 24, "n_ray": 48}),
          ("default, n_ray 96", {**_FORMER, "n_mu_s": 24, "n_ray": 96}))
 WEIGHTS = (0.0, 0.5, 1.0)

@@ -97,7 +97,7 @@ def higher(reference):
     tables = precompute_scattering(atmosphere, wavelength, scattering_orders="converged",
                                    resolution=TableResolution(n_r=8, n_mu=32, n_mu_s=16,
                                                               n_phi=6, n_ray=48, mu_vertical_weight=0.0,
-                                                              r_ground_weight=0.0, sphere_phi_refinement=1))
+                                                              r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid"))
     out = []
     for site in reference.site.values:
         geometry, zenith, azimuth = generator.site_lines(site)

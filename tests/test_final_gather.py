@@ -21,7 +21,7 @@ from skytorch.atmosphere.scattering import second_order_radiance
 #: heights of the aerosol (1.2 km scale height) is interpolated 2-7 % low
 COARSE = TableResolution(n_r=16, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
                          transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
-                         r_ground_weight=0.0, sphere_phi_refinement=1)
+                         r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 WAVELENGTH = torch.tensor([450.0, 550.0], dtype=torch.float64)
 
 

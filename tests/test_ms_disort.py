@@ -207,7 +207,7 @@ def solver_errors(reference: xr.Dataset, resolution=None, direct_single=False,
 #: the coarse tables of the sasktran2 and Monte-Carlo comparisons (seconds to build)
 COARSE = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
               transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
-              r_ground_weight=0.0, sphere_phi_refinement=1)
+              r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 
 
 def _max_error(errors, **selection) -> float:
@@ -318,25 +318,25 @@ def test_diffuse_irradiance_against_disort(reference):
 def test_aerosol_sky_against_disort_within_one_percent():
     """Issue 14: the sky from the ground within 1 % of DISORT for aerosol τ 0.05-1.
 
-    Default tables, 550 nm, Sun 30 and 60 deg, view zenith 0-60 deg at relative azimuth 0,
-    90 and 180 deg. The tables alone (``ScatteringTables.radiance``, order 1 looked up
-    too) within the issue's 1 %: measured 0.94 / 0.97 % (τ 0.05, Sun 30 / 60 deg), 0.42 /
-    0.90 % (τ 0.3), 0.63 / 0.66 % (τ 1); 1.7 / 2.3 % at τ 1 before the radius nodes were
-    crowded towards the ground and the sphere quadrature's azimuths refined (2026-12-07).
-    The scenes' sum (ray-marched order 1 + the tables' orders >= 2, what
-    ``Atmosphere.sky_radiance`` returns over a black ground) is held within 1.5 %: measured
-    1.03 / 1.04 % at τ 0.05 (view zenith 60 deg, azimuth 180 deg, too dark: of the size
-    of the sphere's shorter slant path, which DISORT's flat geometry does not have), 0.47
-    / 0.89 %, 0.58 / 0.65 %. At 400 nm (not asserted; total optical depth 1.9 at τ 1) the
-    tables are within 0.69, 0.57 and 1.14 %. The radiance leaving the top is DISORT's flat
-    geometry only at the nadir; tests/test_ms_top.py holds it against sasktran2's
-    spherical radiance (docs/multiple_scattering_validation.md, "Azimuths of the sphere
-    quadrature").
+    Default tables (24 radii and the exponential ray quadrature since 2026-12-07), 400 and
+    550 nm, Sun 30 and 60 deg, view zenith 0-60 deg at relative azimuth 0, 90 and 180 deg.
+    The tables alone (``ScatteringTables.radiance``, order 1 looked up too) within the
+    issue's 1 %: measured at 400 nm 0.62 / 0.61 % (τ 0.05, Sun 30 / 60 deg), 0.42 / 0.49 %
+    (τ 0.3), 0.53 / 0.45 % (τ 1; total optical depth 1.9), at 550 nm 0.90 / 0.93, 0.42 /
+    0.80, 0.69 / 0.60 %. On 16 radii with the trapezoid (the default before) 550 nm was
+    within 0.97 % and 400 nm 1.14 % off at τ 1; with the exact rays alone on 16 radii 1.54 %
+    (docs/multiple_scattering_validation.md, "Exact rays and 24 radii"). The scenes' sum
+    (ray-marched order 1 + the tables' orders >= 2, what ``Atmosphere.sky_radiance``
+    returns over a black ground) is held within 1.5 %: measured 1.01 / 1.02 % at τ 0.05,
+    550 nm (view zenith 60 deg, azimuth 180 deg, too dark: of the size of the sphere's
+    shorter slant path, which DISORT's flat geometry does not have), 0.82 % and 0.64 % at
+    most at τ 0.3 and 1. The radiance leaving the top is DISORT's flat geometry only at the
+    nadir; tests/test_ms_top.py holds it against sasktran2's spherical radiance.
     """
     from skytorch.atmosphere.multiple_scattering import precompute_scattering
 
     with xr.open_dataset(TABLE) as ds:
-        reference = ds.load().sel(aod=[0.05, 0.3, 1.0], wavelength=[550.0])
+        reference = ds.load().sel(aod=[0.05, 0.3, 1.0], wavelength=[400.0, 550.0])
     tables = precompute_scattering(
         _atmosphere(torch.tensor(reference.aod.values, dtype=torch.float64)),
         torch.tensor(reference.wavelength.values, dtype=torch.float64),

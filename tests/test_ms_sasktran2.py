@@ -114,7 +114,7 @@ def test_rayleigh_day_sky_against_sasktran2_coarse_tables(reference):
 
     coarse = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
                              transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
-                             r_ground_weight=0.0, sphere_phi_refinement=1)
+                             r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
     errors = _compare(reference, "rayleigh", (30.0, 60.0), coarse)
     assert max(errors.values()) < 0.03, errors
 
@@ -206,7 +206,7 @@ def test_final_gather_day_sky_against_sasktran2(reference):
 
     coarse = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
                              transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
-                             r_ground_weight=0.0, sphere_phi_refinement=1)
+                             r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
     wavelength, view_zenith, azimuth = _grid(reference)
     height = torch.tensor(1.0, dtype=torch.float64)
     for case in ("rayleigh", "rayleigh_aerosol"):

@@ -33,7 +33,7 @@ PERCENT = 0.01
 #: the coarse tables of the other reference comparisons (seconds to build)
 COARSE_TABLES = dict(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
                      transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
-                     r_ground_weight=0.0, sphere_phi_refinement=1)
+                     r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ F64 = torch.float64
 WAVELENGTH = torch.tensor([450.0, 650.0], dtype=F64)
 #: a coarse table that still resolves the day sky (about 1.5 s to build 3 orders)
 COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=32, n_sphere_mu=6, mu_vertical_weight=0.0,
-                         r_ground_weight=0.0, sphere_phi_refinement=1)
+                         r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 
 
 @pytest.fixture(scope="module")
@@ -133,7 +133,7 @@ def _balance_excess(parameters, resolution) -> float:
 
 BALANCE_COARSE = TableResolution(n_r=8, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
                                  transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
-                                 r_ground_weight=0.0, sphere_phi_refinement=1)
+                                 r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 
 
 def test_lambertian_ground_under_a_transparent_atmosphere_returns_the_sunlight():
@@ -515,7 +515,7 @@ def test_converged_sum_with_geometric_remainder_against_a_long_series(turbidity,
     resolution = TableResolution(n_r=5, n_mu=16, n_mu_s=24, n_phi=5, n_ray=16, n_sphere_mu=4,
                                  transmittance_r=16, transmittance_mu=32,
                                  mu_vertical_weight=0.0,
-                                 r_ground_weight=0.0, sphere_phi_refinement=1)
+                                 r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
     converged = precompute_scattering(atm, WAVELENGTH, ground_albedo=albedo,
                                       scattering_orders="converged", resolution=resolution)
     series = precompute_scattering(atm, WAVELENGTH, ground_albedo=albedo,
@@ -551,7 +551,7 @@ def test_converged_remainder_gradient_and_float32():
     resolution = TableResolution(n_r=5, n_mu=16, n_mu_s=16, n_phi=5, n_ray=16, n_sphere_mu=4,
                                  transmittance_r=16, transmittance_mu=32,
                                  mu_vertical_weight=0.0,
-                                 r_ground_weight=0.0, sphere_phi_refinement=1)
+                                 r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
     view = torch.tensor([0.0, 1.0], dtype=F64)
     sun = torch.deg2rad(torch.tensor([40.0, 96.0], dtype=F64))
 

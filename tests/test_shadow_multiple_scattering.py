@@ -25,7 +25,7 @@ from skytorch.eclipse.shadow_scattering import ScatteringProfile, scattered_illu
 WAVELENGTH = torch.tensor([450.0, 650.0], dtype=torch.float64)
 COARSE = TableResolution(n_r=16, n_mu=32, n_mu_s=16, n_phi=6, n_ray=24, n_sphere_mu=6,
                          transmittance_r=32, transmittance_mu=128, mu_vertical_weight=0.0,
-                         r_ground_weight=0.0, sphere_phi_refinement=1)
+                         r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 MOON_DISTANCE_M = 384.4e6
 PHOBOS_DISTANCE_M = 9376e3
 

@@ -55,16 +55,14 @@ refs. 3, 4); species with a nonlinear optical-depth law enter the view paths by 
 columns but contribute no local scattering.
 
 Accuracy against DISORT in the plane-parallel limit (docs/multiple_scattering_validation.md,
-"Default tables of 2026-12-05"; default :class:`TableResolution`, Sun 30-60 deg, 400 and
-550 nm, largest error over nine views): the sky seen from the ground is within 0.97 % for
-molecules and aerosol optical depths up to 0.05, 1.1 % at 0.3 and 2.3 % at 1 with the
-forward peak factored out (18 % and 44 % at 0.3 and 1 when the orders are interpolated as
-they are, ``forward_peak="none"``, on the former 16 x 64 x 24 x 8 tables); with the final
-gather (:mod:`skytorch.atmosphere.final_gather`) 0.88 %, 0.48 % and 2.4 %. The radiance
-leaving the top (exact single scattering + the tables' orders >= 2) against sasktran2 in
-spherical geometry: within 0.7 % to τ 0.05, 2.0 % at 0.3 and 4.3 % at 1. A conservative
-atmosphere over a white ground returns what it receives within 0.07 % (molecules) and
-0.39 % (forward-peaked aerosol).
+"Exact rays and 24 radii"; default :class:`TableResolution`, Sun 30-60 deg, 400 and 550 nm,
+views 0-60 deg; ray-marched order 1 + the tables' orders >= 2): the sky seen from the
+ground is within 1.02 % for aerosol optical depth 0.05 (the sphere's shorter slant path),
+0.82 % at 0.3 and 0.64 % at 1 (18 % and 44 % at 0.3 and 1 when the orders are interpolated
+with their forward peak, ``forward_peak="none"``, on the tables of 2026-12-05). The
+radiance leaving the top against sasktran2 in spherical geometry: within 0.7 % to τ 0.05,
+1.7 % at 0.3 and 2.2 % at 1. A conservative atmosphere over a white ground returns what it
+receives within 0.5 % (the issue's bound; docs/multiple_scattering.md, "Energy balance").
 
 References
 ----------
@@ -192,26 +190,31 @@ class TableResolution:
         ``"exponential"``: the columns from 8 sub-samples of each segment and the
         transmittance exponential between the samples (product integration,
         :func:`exponential_path_weights`), exact for a source linear between them however
-        thick the segment. With few samples through a thick haze the trapezoid
-        overestimates the light of every order (docs/accuracy.md, "Quadrature along the
-        table's rays").
+        thick the segment (the default since 2026-12-07). With few samples through a thick
+        haze the trapezoid overestimates the light of every order (docs/accuracy.md,
+        "quadrature along the tables' rays").
 
     Notes
     -----
-    The defaults (16 x 64 x 48 x 8, 96 samples per ray, view nodes moved half-way towards
-    the vertical) were chosen by the error against DISORT, sasktran2 and the energy
-    balance, one size at a time (docs/multiple_scattering_validation.md, "Default tables
-    of 2026-12-05"): 96 samples per ray and 48 Sun-zenith nodes are what the converged
-    sky through a thick haze and the conservation of energy need; they cost 3.6 times the
-    former 16 x 64 x 24 x 8 with 48 samples. Since 2026-12-07 the radius nodes are crowded
-    towards the ground (``r_ground_weight`` 1/2) and the sphere quadrature has twice the
-    table's azimuths (``sphere_phi_refinement`` 2): together they take the sky through an
-    aerosol of τ 1 within 1 % of DISORT (docs/multiple_scattering_validation.md,
-    "Azimuths of the sphere quadrature"). Partial sizes take these defaults too; tables of
-    8 radii or fewer should pass ``r_ground_weight=0``.
+    The defaults (24 x 64 x 48 x 8, 96 samples per ray, view nodes moved half-way towards the
+    vertical; 16 radii until 2026-12-07) were chosen by the error against DISORT, sasktran2 and
+    the energy balance, one size at a time (docs/multiple_scattering_validation.md, "Default
+    tables of 2026-12-05"): 96 samples per ray and 48 Sun-zenith nodes are what the converged
+    sky through a thick haze and the conservation of energy need; they cost 3.6 times the former
+    16 x 64 x 24 x 8 with 48 samples. Since 2026-12-07 the radius nodes are crowded towards the
+    ground (``r_ground_weight`` 1/2) and the sphere quadrature has twice the table's azimuths
+    (``sphere_phi_refinement`` 2): together they take the sky through an aerosol of τ 1 within
+    1.15 % of DISORT (docs/multiple_scattering_validation.md, "Azimuths of the sphere
+    quadrature"). Since the second revision of 2026-12-07 the tables have 24 radii and the
+    exponential quadrature along their rays (``ray_quadrature``): on 16 radii the trapezoid's
+    excess had offset the radius nodes' deficit (with 32 radii the trapezoid moves away from
+    DISORT, 1.15 → 2.3 %); with the exact rays the sky converges as radii are added, within 0.64
+    % of DISORT through τ 1 at 400 and 550 nm on 24 radii, for 1.5 times the build
+    (docs/accuracy.md, "quadrature along the tables' rays"). Partial sizes take these defaults
+    too; tables of 8 radii or fewer should pass ``r_ground_weight=0``.
     """
 
-    n_r: int = 16
+    n_r: int = 24
     n_mu: int = 64
     n_mu_s: int = 48
     n_phi: int = 8
@@ -222,7 +225,7 @@ class TableResolution:
     mu_vertical_weight: float = 0.5
     r_ground_weight: float = 0.5
     sphere_phi_refinement: int = 2
-    ray_quadrature: str = "trapezoid"
+    ray_quadrature: str = "exponential"
 
     def __post_init__(self):
         """Check every size (ValueError naming the field)."""
@@ -251,14 +254,14 @@ class TableResolution:
         """Ref. 2's default sizes: R 32, mu 128, mu_s 32, nu 8; transmittance 256 x 64."""
         return cls(n_r=32, n_mu=128, n_mu_s=32, n_phi=8, n_ray=50, n_sphere_mu=16,
                    transmittance_r=64, transmittance_mu=256, mu_vertical_weight=0.0,
-                   r_ground_weight=0.0, sphere_phi_refinement=1)
+                   r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 
     @classmethod
     def tiny(cls) -> TableResolution:
         """Return a coarse table for tests and gradient checks (seconds to build)."""
         return cls(n_r=5, n_mu=16, n_mu_s=8, n_phi=5, n_ray=16, n_sphere_mu=4,
                    transmittance_r=16, transmittance_mu=32, mu_vertical_weight=0.0,
-                   r_ground_weight=0.0, sphere_phi_refinement=1)
+                   r_ground_weight=0.0, sphere_phi_refinement=1, ray_quadrature="trapezoid")
 
 
 # ---------------------------------------------------------------- geometry and mappings
@@ -1050,9 +1053,10 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     Notes
     -----
     Cost grows as ``n_r * n_mu * n_mu_s * n_phi * n_ray * wavelength`` per order (the
-    ray integrals) plus the sphere quadrature; the default resolution takes 3-6 s per
-    order for 3 wavelengths, Bruneton 2017's sizes (``TableResolution.
-    bruneton2017()``) 48-50 s for 4 orders of 15 wavelengths in float32 on 2 cores
+    ray integrals) plus the sphere quadrature; the default resolution takes about 8 s per
+    order for 3 wavelengths (33 s for 4 orders, 2 threads), Bruneton 2017's sizes
+    (``TableResolution.bruneton2017()``) 48-50 s for 4 orders of 15 wavelengths in float32 on
+    2 cores
     (benchmarks/bench_multiple_scattering.py, docs/benchmarks.md).
     """
     check_atmosphere("atmosphere", atmosphere)
