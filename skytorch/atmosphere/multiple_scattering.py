@@ -208,8 +208,8 @@ class TableResolution:
     quadrature"). Since the second revision of 2026-12-07 the tables have 24 radii and the
     exponential quadrature along their rays (``ray_quadrature``): on 16 radii the trapezoid's
     excess had offset the radius nodes' deficit (with 32 radii the trapezoid moves away from
-    DISORT, 1.15 → 2.3 %); with the exact rays the sky converges as radii are added, within 0.64
-    % of DISORT through τ 1 at 400 and 550 nm on 24 radii, for 1.5 times the build
+    DISORT, 1.15 → 2.3 %); with the exact rays the sky converges as radii are added, within
+    0.64 % of DISORT through τ 1 at 400 and 550 nm on 24 radii, for 1.5 times the build
     (docs/accuracy.md, "quadrature along the tables' rays"). Partial sizes take these defaults
     too; tables of 8 radii or fewer should pass ``r_ground_weight=0``.
     """
