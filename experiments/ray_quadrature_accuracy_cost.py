@@ -39,6 +39,7 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from experiments import _montecarlo_reference as montecarlo  # noqa: E402
 from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from experiments._disort_reference import (  # noqa: E402
     REFERENCES,
@@ -47,18 +48,6 @@ from experiments._disort_reference import (  # noqa: E402
     error_coords,
     load_reference,
     sky_and_top_errors,
-)
-from experiments._montecarlo_reference import (  # noqa: E402
-    CASES as MC_CASES,
-)
-from experiments._montecarlo_reference import (  # noqa: E402
-    REFERENCE as MC_REFERENCE,
-)
-from experiments._montecarlo_reference import (  # noqa: E402
-    STATISTICS,
-    SUN_ZENITH_DEG,
-    load_montecarlo,
-    montecarlo_errors,
 )
 from skytorch.atmosphere import Atmosphere  # noqa: E402
 from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
@@ -89,23 +78,24 @@ def main(argv=None):
     quick = arguments.quick
     cases = QUICK if quick else CASES
     aods = [1.0] if quick else list(AODS)
-    mc_cases = MC_CASES[:1] if quick else MC_CASES
+    mc_cases = montecarlo.CASES[:1] if quick else montecarlo.CASES
     disort = load_reference()
     if quick:
         disort = disort.sel(wavelength=[550.0])
     with xr.open_dataset(SPHERICAL_TOP) as ds:
         top = ds.load()
-    mc, mc_reference = load_montecarlo()
+    mc, mc_reference = montecarlo.load_montecarlo()
     # one build that warms the caches before the first timed one
     precompute_scattering(Atmosphere.earth(), torch.tensor([550.0], dtype=torch.float64),
                           scattering_orders=2, resolution=TableResolution.tiny())
     error = np.zeros((len(cases), 2, 2, len(aods), disort.sun_zenith.size))
-    twilight = np.zeros((len(cases), len(mc_cases), len(SUN_ZENITH_DEG), len(STATISTICS)))
+    twilight = np.zeros((len(cases), len(mc_cases), len(montecarlo.SUN_ZENITH_DEG),
+                         len(montecarlo.STATISTICS)))
     seconds = np.zeros(len(cases))
     for i, (name, sizes) in enumerate(cases):
         error[i], seconds[i] = sky_and_top_errors((disort, top), aods, sizes)
         for j, case in enumerate(mc_cases):
-            twilight[i, j], _, _ = montecarlo_errors(mc, mc_reference, case, sizes)
+            twilight[i, j], _, _ = montecarlo.montecarlo_errors(mc, mc_reference, case, sizes)
         print(f"{name} ({seconds[i]:.1f} s): " + " | ".join(
             f"{label.split()[0]}: " + "; ".join(
                 f"τ {aod:g} " + " / ".join(f"{100 * error[i, w, 0, j, k]:.2f}"
@@ -128,13 +118,13 @@ def main(argv=None):
                                      for _, s in cases]))},
         coords={"case": ("case", np.array([c[0] for c in cases])),
                 "atmosphere": ("atmosphere", np.array(mc_cases)),
-                "mc_sun_zenith": ("mc_sun_zenith", np.array(SUN_ZENITH_DEG),
+                "mc_sun_zenith": ("mc_sun_zenith", np.array(montecarlo.SUN_ZENITH_DEG),
                                   {"units": "degree"}),
-                "mc_statistic": ("mc_statistic", np.array(STATISTICS)),
+                "mc_statistic": ("mc_statistic", np.array(montecarlo.STATISTICS)),
                 **error_coords(aods, disort.sun_zenith.values)},
         attrs={"title": "Quadrature along the tables' rays: ray-marched order 1 + the "
                         "tables' orders >= 2 against DISORT, sasktran2 and the Monte-Carlo",
-               "references": f"{REFERENCES}; {MC_REFERENCE}",
+               "references": f"{REFERENCES}; {montecarlo.REFERENCE}",
                "wavelengths_nm": str(disort.wavelength.values.tolist()),
                "table_sizes": "; ".join(f"{name}: {sizes}" for name, sizes in cases),
                "torch_threads": torch.get_num_threads()})
@@ -145,7 +135,7 @@ def main(argv=None):
                      label=f"{name} ({seconds[i]:.1f} s)")
         for w in range(2):
             axes[w].semilogy(aods, 100 * error[i, w, 0].max(axis=-1), **style)
-        axes[2].semilogy(SUN_ZENITH_DEG, 100 * twilight[i, -1, :, 0], **style)
+        axes[2].semilogy(montecarlo.SUN_ZENITH_DEG, 100 * twilight[i, -1, :, 0], **style)
     for w, label in enumerate(WHERE):
         axes[w].set_title(label, fontsize=9)
         axes[w].set_xlabel("aerosol optical depth at 550 nm")
