@@ -309,6 +309,27 @@ def test_lookups_in_blocks_equal_one_block(monkeypatch, day_tables):
     assert torch.equal(tables.radiance(*geometry), whole)
 
 
+def test_one_observer_radius_equals_the_per_point_lookup(day_tables):
+    """One altitude for all points (the table interpolated in r once) equals the per-point one.
+
+    8 corners per point against 16 (each point given the altitude), in value and in the
+    gradient with respect to the altitude.
+    """
+    _, tables = day_tables
+    # more points than the table has (mu, mu_s, phi) rows: the path of a fisheye image
+    zenith = torch.linspace(0.0, 3.1, 64, dtype=F64)[:, None]
+    azimuth = torch.linspace(-3.0, 3.0, 65, dtype=F64)
+    sun = torch.tensor(1.2, dtype=F64)
+    for altitude_m in (0.0, 1234.5, 7.0e3):
+        one = torch.tensor(altitude_m, dtype=F64, requires_grad=True)
+        each = torch.full((64, 65), altitude_m, dtype=F64, requires_grad=True)
+        once, per_point = (tables.radiance(a, zenith, azimuth, sun) for a in (one, each))
+        assert torch.allclose(once, per_point, rtol=1e-13, atol=0.0)
+        (d_once,) = torch.autograd.grad(once.sum(), one)
+        (d_each,) = torch.autograd.grad(per_point.sum(), each)
+        assert torch.allclose(d_once, d_each.sum(), rtol=1e-10, atol=0.0), (d_once, d_each.sum())
+
+
 @pytest.mark.parametrize(("weight", "refinement", "quadrature"),
                          [(0.0, 1, "trapezoid"), (0.5, 2, "trapezoid"), (0.0, 1, "exponential")])
 def test_gradcheck_turbidity_ozone_albedo(weight, refinement, quadrature):
