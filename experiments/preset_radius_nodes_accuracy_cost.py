@@ -45,7 +45,7 @@ from skytorch.scene.presets import FIDELITY  # noqa: E402
 SMALL = FIDELITY["fast"]["ms_tables"]
 VARIANTS = (("5 radii (fast)", SMALL), ("6 radii", {**SMALL, "n_r": 6}),
             ("7 radii", {**SMALL, "n_r": 7}),
-            ("8 radii (default)", FIDELITY["default"]["ms_tables"]),
+            ("8 radii (default until 2026-12-07)", {**SMALL, "n_r": 8}),
             ("10 radii", {**SMALL, "n_r": 10}),
             ("8 radii, 24 samples", {**SMALL, "n_r": 8, "n_ray": 24}),
             ("reference preset", FIDELITY["reference"]["ms_tables"]))

@@ -76,8 +76,12 @@ _MS_SMALL = {"n_r": 5, "n_mu": 16, "n_mu_s": 24, "n_phi": 5, "n_ray": 16, "n_sph
              "ray_quadrature": "exponential"}
 #: the default preset's: 8 radii instead of 5 bring the Rayleigh twilight sky from 27.5 / 35.5 %
 #: to 3.8 / 6.0 % of the Monte-Carlo at Sun 94 / 98 deg for 27 % more build time
-#: (experiments/preset_radius_nodes_accuracy_cost.py, docs/scene.md)
-_MS_DEFAULT = {**_MS_SMALL, "n_r": 8}
+#: (experiments/preset_radius_nodes_accuracy_cost.py, docs/scene.md); 12 view nodes per half
+#: and 8 × 2 sphere directions (since 2026-12-07) take its largest error against the
+#: Monte-Carlo from 14.2 to 5.9 % (Sun 30-98 deg) and its orders >= 2 against the converged
+#: solver at Sun 98-104 deg from 21-87 % to 8-22 %, for 1.2-1.4x the build
+#: (experiments/preset_tables_accuracy_cost.py, docs/scene.md)
+_MS_DEFAULT = {**_MS_SMALL, "n_r": 8, "n_mu": 24, "n_sphere_mu": 8, "sphere_phi_refinement": 2}
 _MS_COARSE = {"n_r": 8, "n_mu": 32, "n_mu_s": 24, "n_phi": 6, "n_ray": 24, "n_sphere_mu": 6,
               "transmittance_r": 32, "transmittance_mu": 128, "mu_vertical_weight": 0.0,
               "r_ground_weight": 0.0, "sphere_phi_refinement": 1,
