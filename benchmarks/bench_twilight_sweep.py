@@ -2,8 +2,9 @@
 
 Workload of the multiple-scattering issue: the zenith sky radiance at the Sun 6, 9, 12, 15
 and 18° below the horizon for turbidity 1.5–6 × ozone 200–450 DU (10 × 10), converged orders
-of scattering on the default scene preset's small tables (8 × 16 × 24 × 5 since 2026-12-06,
-5 radii before; 6 wavelengths 400–700 nm). Rows:
+of scattering on the default scene preset's small tables (8 × 24 × 24 × 5 with 8 × 2 sphere
+directions since 2026-12-07, 8 × 16 × 24 × 5 with 4 × 1 from 2026-12-06, 5 radii before; 6
+wavelengths 400–700 nm). Rows:
 one batched ``precompute_scattering`` of the 100 atmospheres, and ``st.sweep`` of one
 parameter set per call — serial, and on its dask backend with two single-threaded workers
 (threads; worker processes, their start included). Each row runs once (a run is a minute).
