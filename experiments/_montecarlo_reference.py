@@ -19,7 +19,8 @@ import numpy as np
 import torch
 import xarray as xr
 
-from experiments._common import load_script
+from experiments._common import load_script, median_cpu_seconds
+from skytorch.atmosphere import Atmosphere
 from skytorch.atmosphere.multiple_scattering import TableResolution, precompute_scattering
 from skytorch.atmosphere.scattering import constituent_radiance
 
@@ -77,3 +78,22 @@ def montecarlo_errors(mc, reference, case: str, resolution: dict):
         error[k, 0] = np.abs(relative[decided]).max() if decided.any() else np.nan
         error[k, 1] = np.abs(relative[:, 0]).max()
     return error, decided_count, seconds
+
+
+def scene_build_seconds(resolution: dict, repeat: int, warm_up: bool = True) -> float:
+    """Median CPU time [s] of a scene's tables: ``Atmosphere.earth()``, 6 wavelengths.
+
+    Converged orders, black ground, ``TableResolution(**resolution)``, at the scene
+    presets' 6 wavelength nodes (400-700 nm); CPU time of the process (all its threads):
+    steadier than wall time on a shared machine. ``warm_up``: one untimed build first.
+    """
+    from skytorch.scene.presets import FIDELITY
+
+    atmosphere = Atmosphere.earth()
+    wavelength = torch.linspace(400.0, 700.0, FIDELITY["default"]["ms_wavelength_nodes"],
+                                dtype=torch.float64)
+    return median_cpu_seconds(
+        lambda: precompute_scattering(atmosphere, wavelength, ground_albedo=0.0,
+                                      scattering_orders="converged",
+                                      resolution=TableResolution(**resolution)),
+        repeat, warm_up=warm_up)

@@ -26,7 +26,7 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from experiments._common import median_cpu_seconds, parse_arguments, save_outputs  # noqa: E402
+from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from experiments._montecarlo_reference import (  # noqa: E402
     CASES,
     REFERENCE,
@@ -34,11 +34,7 @@ from experiments._montecarlo_reference import (  # noqa: E402
     SUN_ZENITH_DEG,
     load_montecarlo,
     montecarlo_errors,
-)
-from skytorch.atmosphere import Atmosphere  # noqa: E402
-from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
-    TableResolution,
-    precompute_scattering,
+    scene_build_seconds,
 )
 from skytorch.scene.presets import FIDELITY  # noqa: E402
 
@@ -50,21 +46,6 @@ VARIANTS = (("5 radii (fast)", SMALL), ("6 radii", {**SMALL, "n_r": 6}),
             ("8 radii, 24 samples", {**SMALL, "n_r": 8, "n_ray": 24}),
             ("reference preset", FIDELITY["reference"]["ms_tables"]))
 QUICK = VARIANTS[0], VARIANTS[3]
-
-
-def scene_build_seconds(resolution: dict, repeat: int) -> float:
-    """Median CPU time [s] to build converged tables of ``Atmosphere.earth()`` at 6 wavelengths.
-
-    CPU time of the process (all its threads): steadier than wall time on a shared machine.
-    """
-    atmosphere = Atmosphere.earth()
-    wavelength = torch.linspace(400.0, 700.0, FIDELITY["default"]["ms_wavelength_nodes"],
-                                dtype=torch.float64)
-    return median_cpu_seconds(
-        lambda: precompute_scattering(atmosphere, wavelength, ground_albedo=0.0,
-                                      scattering_orders="converged",
-                                      resolution=TableResolution(**resolution)),
-        repeat, warm_up=True)
 
 
 def main(argv=None):

@@ -40,7 +40,7 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from experiments._common import median_cpu_seconds, parse_arguments, save_outputs  # noqa: E402
+from experiments._common import parse_arguments, save_outputs  # noqa: E402
 from experiments._montecarlo_reference import (  # noqa: E402
     CASES,
     REFERENCE,
@@ -48,8 +48,8 @@ from experiments._montecarlo_reference import (  # noqa: E402
     SUN_ZENITH_DEG,
     load_montecarlo,
     montecarlo_errors,
+    scene_build_seconds,
 )
-from skytorch.atmosphere import Atmosphere  # noqa: E402
 from skytorch.atmosphere.multiple_scattering import (  # noqa: E402
     TableResolution,
     precompute_scattering,
@@ -118,18 +118,6 @@ def twilight_errors(mc, reference, case: str, variants, converged: TableResoluti
     return error
 
 
-def build_seconds(resolution: dict, repeat: int) -> float:
-    """Median CPU time [s] of the converged tables of ``Atmosphere.earth()``, 6 wavelengths."""
-    atmosphere = Atmosphere.earth()
-    wavelength = torch.linspace(400.0, 700.0, FIDELITY["default"]["ms_wavelength_nodes"],
-                                dtype=torch.float64)
-    return median_cpu_seconds(
-        lambda: precompute_scattering(atmosphere, wavelength, ground_albedo=0.0,
-                                      scattering_orders="converged",
-                                      resolution=TableResolution(**resolution)),
-        repeat, warm_up=repeat > 1)
-
-
 def _plot(error_mc, error_twilight, seconds, labels, cases):
     import matplotlib.pyplot as plt
 
@@ -169,7 +157,7 @@ def main(argv=None):
         for j, (_, resolution) in enumerate(variants):
             error_mc[i, j], _, _ = montecarlo_errors(mc, reference, case, resolution)
         error_twilight[i] = twilight_errors(mc, reference, case, variants, converged)
-    seconds = np.array([build_seconds(resolution, 1 if quick else 5)
+    seconds = np.array([scene_build_seconds(resolution, 1 if quick else 5, warm_up=not quick)
                         for _, resolution in variants])
     labels = [label for label, _ in variants]
     long_name = "largest |model / reference - 1| over the views and the two wavelengths"

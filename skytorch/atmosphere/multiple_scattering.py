@@ -452,7 +452,7 @@ def _gather4(table, b, corners):
     points are looked up in blocks of :data:`_LOOKUP_BUDGET` values, whose temporaries
     stay in the caches. Where every point has one radius and they outnumber the table's
     (b, mu, mu_s, phi) rows (an image seen by one observer), the table is interpolated in
-    r once and each point gathers 8 corners (0.79x the time of a 512² fisheye,
+    r once and each point gathers 8 corners (0.77x the time of a 512² fisheye,
     docs/benchmarks.md).
     """
     (i1, w1), (i2, w2), (i3, w3), (i4, w4) = corners
