@@ -103,6 +103,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from skytorch._memory import Scratch
 from skytorch._validate import check_int, check_range
 from skytorch.atmosphere.geometry import safe_sqrt
 from skytorch.atmosphere.inputs import check_atmosphere, wavelength_tensor
@@ -421,14 +422,22 @@ def _geometric(low, high, weight):
     return torch.where(positive, geometric, linear)
 
 
-def _geometric_without_gradient(low, high, weight):
+def _geometric_without_gradient(low, high, weight, scratch=None):
     """:func:`_geometric` with its temporaries reused in place (no gradient recorded).
 
     The same operations in the same order as the differentiable path where both nodes are
     positive, so the same values, with fewer passes over the data: no clamp of the nodes
     (where one is zero its logarithm is -inf and the linear interpolation replaces the
     result) and the linear interpolation only where a node is not positive.
+
+    With a :class:`~skytorch._memory.Scratch` ``scratch`` and both nodes positive
+    everywhere, ``high`` is overwritten and the result is the scratch buffer ``"log_low"``
+    (no new memory: the callers' loops reuse it, docs/benchmarks.md "Twilight sweep").
     """
+    if scratch is not None and bool(low.min() > 0) and bool(high.min() > 0):
+        log_low = torch.log(low, out=scratch("log_low", tuple(low.shape), low.dtype))
+        log_ratio = high.log_().sub_(log_low)
+        return log_low.addcmul_(weight, log_ratio).exp_()
     log_low = torch.log(low)
     log_ratio = torch.log(high).sub_(log_low)
     geometric = torch.addcmul(log_low, weight, log_ratio, out=log_low).exp_()
@@ -533,7 +542,7 @@ def _ray_plan(ray_corners, sun_corners, n1: int, n2: int, n3: int, n4: int):
     return nodes, sides, w3[None, ..., None]
 
 
-def _gather_rays(table, plan):
+def _gather_rays(table, plan, scratch=None):
     """Look ``table`` (1, n1, n2, n3, n4, λ') up at the samples of the table's rays.
 
     ``plan`` from :func:`_ray_plan`. The same interpolation as :func:`_gather4`
@@ -542,29 +551,40 @@ def _gather_rays(table, plan):
     (mu_s, phi). Returns (1, *g, m3, m4, λ').
 
     One parameter set at a time: the temporaries of a whole batch outgrow the caches (a
-    10 × 10 batch took 4.6 s per set against 0.9 s alone).
+    10 × 10 batch took 4.6 s per set against 0.9 s alone). With a
+    :class:`~skytorch._memory.Scratch` ``scratch`` (no gradient recorded) every
+    temporary and the result are its buffers, valid until the next call with it: the
+    same values without the first-write page faults of new memory at every call (the
+    serial twilight sweep 84.6 → 70.5 s, docs/benchmarks.md).
     """
     if table.shape[0] != 1:
         raise ValueError(f"_gather_rays takes one parameter set; got {table.shape[0]}")
+    scratch = Scratch(enabled=False) if scratch is None else scratch
     nodes, sides_plan, w3 = plan
     n1, n2, n3, n4, channels = table.shape[1:]
     # the (mu_s, phi, λ') block of each (r, mu) node is one row of this view
     blocks = table.reshape(n1 * n2, n3 * n4 * channels)
     if torch.is_tensor(nodes):
-        ray = torch.matmul(nodes, blocks)
+        ray = torch.matmul(nodes, blocks, out=scratch("ray", (nodes.shape[0], blocks.shape[1]),
+                                                      blocks.dtype))
     else:
         ray = None
         for index, weight in nodes:
-            rows = torch.index_select(blocks, 0, index)
+            rows = torch.index_select(blocks, 0, index, out=scratch(
+                "ray" if ray is None else "rows", (index.shape[0], blocks.shape[1]),
+                blocks.dtype))
             ray = rows.mul_(weight) if ray is None else ray.addcmul_(rows, weight)
     flat = ray.reshape(-1, channels)                             # (g * n3 * n4, λ')
     sides = []
-    for corners in sides_plan:
+    for name, corners in zip(("low", "high"), sides_plan, strict=True):
         side = None
         for index, weight in corners:
-            rows = torch.index_select(flat, 0, index)
+            rows = torch.index_select(flat, 0, index, out=scratch(
+                name if side is None else "rows", (index.shape[0], channels), flat.dtype))
             side = rows.mul_(weight) if side is None else side.addcmul_(rows, weight)
         sides.append(side.reshape(w3.shape[:-1] + (channels,)))
+    if scratch.enabled:
+        return _geometric_without_gradient(sides[0], sides[1], w3, scratch)
     return _geometric(sides[0], sides[1], w3)
 
 
@@ -1237,6 +1257,7 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     # kept while they fit :data:`_GEOMETRY_BUDGET`; the rest are computed at each order)
     ray_geometry = {}
     kept = [0]
+    ray_scratch = Scratch()
 
     def geometry_along_rays(i, rows, k):
         """Corners in the J table and weights of the samples ``k`` of the rays ``rows``.
@@ -1287,15 +1308,19 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         (b, mu, ms, phi, c, λ) in float64.
         """
         plan, weight = geometry_along_rays(i, rows, k)
+        # no gradient recorded: the look-ups' temporaries are buffers reused by every call
+        scratch = None if torch.is_grad_enabled() and (
+            j_table.requires_grad or weight.requires_grad) else ray_scratch
         sets = []
         # one parameter set at a time: the looked-up J of a whole batch outgrows the caches
         for p in range(j_table.shape[0]):
-            jv = _gather_rays(j_table[p:p + 1], plan)
+            jv = _gather_rays(j_table[p:p + 1], plan, scratch)
             jv = jv.reshape(jv.shape[:-1] + (n_c, n_s, n_lambda))
             w = weight[p:p + 1] if weight.shape[0] > 1 else weight
             # the sum over the samples as one multiply-add per sample: a reduction over the
             # strided sample axis of the product took 8 times as long
-            total = jv[:, :, 0] * w[:, :, 0]
+            total = torch.mul(jv[:, :, 0], w[:, :, 0], out=None if scratch is None else scratch(
+                "total", torch.broadcast_shapes(jv[:, :, 0].shape, w[:, :, 0].shape), jv.dtype))
             for sample in range(1, jv.shape[2]):
                 total.addcmul_(jv[:, :, sample], w[:, :, sample])
             sets.append(total.sum(-2))
