@@ -1445,22 +1445,28 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     else:
         field = ground1
 
+    # the quadrature's azimuths between the table's nodes around the circle (periodic), each
+    # node of the circle mirrored onto the table's half circle [0, pi]
     n_nodes_full = 2 * (res.n_phi - 1)
-    phi_low = torch.arange(n_full) // refine
-    phi_high = (phi_low + 1) % n_nodes_full
+    node_low = torch.arange(n_full) // refine
+    node_high = (node_low + 1) % n_nodes_full
+    phi_low, phi_high = (torch.where(j < res.n_phi, j, n_nodes_full - j)
+                         for j in (node_low, node_high))
     phi_weight = (torch.arange(n_full) % refine).to(dtype) / refine
 
     def on_quadrature(table):
-        """``table`` (b, r, mu, ms, phi, ...) at the quadrature directions, phi mirrored."""
+        """``table`` (b, r, mu, ms, phi, ...) at the quadrature directions, phi mirrored.
+
+        Linear in mu, then in azimuth between the table's nodes (two interpolations,
+        one gather per corner).
+        """
         extra = (None,) * (table.ndim - 5)
-        lq = (table[:, ar, iq] * (1 - wq_)[(None, slice(None), slice(None), None, None) + extra]
-              + table[:, ar, iq + 1] * wq_[(None, slice(None), slice(None), None, None) + extra])
-        lq = torch.cat([lq, lq[:, :, :, :, 1:res.n_phi - 1].flip(4)], dim=4)
+        lq = torch.lerp(table[:, ar, iq], table[:, ar, iq + 1],
+                        wq_[(None, slice(None), slice(None), None, None) + extra].to(table.dtype))
         if refine == 1:
-            return lq
-        # linear in azimuth between the table's nodes (periodic)
-        weight = phi_weight[(slice(None),) + extra]
-        return lq[:, :, :, :, phi_low] * (1 - weight) + lq[:, :, :, :, phi_high] * weight
+            return lq[:, :, :, :, phi_low]
+        return torch.lerp(lq[:, :, :, :, phi_low], lq[:, :, :, :, phi_high],
+                          phi_weight[(slice(None),) + extra].to(table.dtype))
 
     def single_at_quadrature():
         """Single scattering at the quadrature directions (b, r, q, ms, m, λ), exact phases.
@@ -1519,8 +1525,8 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     cumulative = [torch.zeros_like(ground1)]
     # the light reflected by the ground is followed apart (not peaked towards the Sun);
     # without the factor both parts are interpolated alike and travel together
-    with_ground = forward_peak == "factored" and (bool((albedo != 0).any())
-                                                  or albedo.requires_grad)
+    black_ground = not (bool((albedo != 0).any()) or albedo.requires_grad)
+    with_ground = forward_peak == "factored" and not black_ground
     scattered_sum = [torch.zeros_like(ground1)]
     # per level, the stored shape: the orders' shapes weighted by their sizes (b, nodes, λ)
     level_weights = [torch.zeros((b, n_lambda), dtype=dtype)]
@@ -1536,17 +1542,23 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         # irradiance at the ground (r node 0), as [light from the Sun scattered in the
         # atmosphere only | light reflected by the ground on its way]; the first is
         # interpolated in mu with the peak shape of its order factored out
+        # (a black ground without gradient reflects nothing: its part is zero, not computed)
         if order == 2:
-            lq = torch.stack([single_at_quadrature(), on_quadrature(ground1)])
+            parts = [single_at_quadrature(), None if black_ground else on_quadrature(ground1)]
+        else:
+            parts = [on_quadrature(sky / peak(order - 1, nu_nodes))
+                     * peak(order - 1, nu_q)[:, None],
+                     None if black_ground else on_quadrature(ground)]
+        if with_ground:
+            lq = torch.stack(parts)
+        else:
+            lq = (parts[0] if parts[1] is None else parts[0] + parts[1])[None]
+        if order == 2:
             e_prev = ground_irradiance_single()                      # (b, ms, λ)
         else:
-            lq = torch.stack([on_quadrature(sky / peak(order - 1, nu_nodes))
-                              * peak(order - 1, nu_q)[:, None], on_quadrature(ground)])
             e_prev = (lq[:, :, 0][:, :, up] * (w_q[up] * mu_q[up])[None, None, :, None, None,
                                                                  None]
                       ).sum((0, 2, 4)) * (2 * math.pi / n_full)
-        if not with_ground:
-            lq = lq.sum(0, keepdim=True)
         n_c = lq.shape[0]
         lin = lq.permute(0, 1, 6, 2, 4, 3, 5).reshape(
             n_c, b, n_lambda, res.n_r * res.n_mu_s, n_in)
