@@ -745,7 +745,8 @@ def _depth_to_top(rows, shell, res, bi, r, mu):
 class ScatteringTables:
     """Precomputed orders of scattering of one atmosphere at given wavelengths.
 
-    Built by :func:`precompute_scattering`; holds tensors only (its state is explicit).
+    Built by :func:`precompute_scattering`; holds tensors only (its state is explicit: the
+    look-up table of an order is joined from them at its first look-up).
 
     Attributes
     ----------
@@ -770,7 +771,7 @@ class ScatteringTables:
     """
 
     def __init__(self, *, shell, resolution, wavelength_nm, batch_shape, single, phases,
-                 cumulative, contributions, converged, ground_albedo, peak_shape,
+                 levels, contributions, converged, ground_albedo, peak_shape,
                  depth_rows, remainder_extrapolated=False):
         self._shell = shell
         self.resolution = resolution
@@ -778,15 +779,16 @@ class ScatteringTables:
         self.batch_shape = torch.Size(batch_shape)
         self._single = single            # (b, r, mu, mu_s, phi, n_species * λ)
         self._phases = phases            # callables phase(cos) -> (b, ..., λ)
-        # per level (orders <= n), [ground's reflections | orders >= 2 scattered in the
-        # atmosphere divided by the peak shape] along the channels
-        self._cumulative = cumulative
+        # per level (orders <= n), a function returning [ground's reflections | orders >= 2
+        # scattered in the atmosphere divided by the peak shape] along the channels
+        self._levels = levels
         self._peak_shape = peak_shape    # (b, nodes, λ): the shape of order 2
-        # per order, [single | cumulative] along the channels: one look-up per pixel
-        self._lookup = [torch.cat([single, part], dim=-1) for part in cumulative]
+        # per order, [single | cumulative] along the channels (one look-up per pixel),
+        # joined at the first look-up of that order
+        self._lookup = {}
         self.order_contributions = contributions
         self.remainder_extrapolated = bool(remainder_extrapolated)
-        self.orders_computed = len(cumulative) - int(self.remainder_extrapolated)
+        self.orders_computed = len(levels) - int(self.remainder_extrapolated)
         self.converged = converged
         self.ground_albedo = ground_albedo
         # optical depth to the top (b * transmittance_r * transmittance_mu, λ), float64:
@@ -803,9 +805,15 @@ class ScatteringTables:
         """Altitude of the top of the atmosphere [m]."""
         return self._shell.Rt - self._shell.R
 
+    def _lookup_table(self, n: int):
+        """[single | orders <= ``n``] along the channels (b, r, mu, mu_s, phi, channels)."""
+        if n not in self._lookup:
+            self._lookup[n] = torch.cat([self._single, self._levels[n - 1]()], dim=-1)
+        return self._lookup[n]
+
     def _order(self, scattering_orders):
         if scattering_orders is None or scattering_orders == "converged":
-            return len(self._lookup)
+            return len(self._levels)
         n = check_int("scattering_orders", scattering_orders, 1, self.orders_computed)
         return n
 
@@ -856,7 +864,7 @@ class ScatteringTables:
         nu = torch.clamp(mu * mu_s + torch.sin(vz) * torch.sin(sz) * torch.cos(dphi),
                          -1.0, 1.0).expand(shape)
         corners = self._corners(r, mu, mu_s, phi)
-        both = _gather4(self._lookup[n - 1], b, corners)
+        both = _gather4(self._lookup_table(n), b, corners)
         n_lambda = self.wavelength_nm.shape[0]
         n_single = len(self._phases) * n_lambda
         single = both[..., :n_single].reshape(shape + (len(self._phases), n_lambda))
@@ -1640,6 +1648,11 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     stored = atmosphere.constituents(wavelength.to(table_dtype), table_dtype)
     stored_phase = {sp.name: sp for sp in stored.scatterers()}
 
+    def level_table(ground_part, scattered, shape):
+        """[ground's reflections | scattered / its peak shape] of one level (tables' dtype)."""
+        return torch.cat([ground_part, scattered / _peak_at(shape, nu_nodes)], -1).to(
+            table_dtype)
+
     def make_phase(sp):
         def phase(nu):
             # the parameters' batch dims broadcast with the geometry (as everywhere)
@@ -1651,9 +1664,8 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
                             wavelength_nm=wavelength.to(table_dtype),
                             batch_shape=shape_b, single=single_flat.to(table_dtype),
                             phases=[make_phase(stored_phase[sp.name]) for sp in scatterers],
-                            cumulative=[torch.cat([c, f / _peak_at(q, nu_nodes)], -1).to(
-                                table_dtype) for c, f, q in zip(
-                                    cumulative, scattered_sum, level_shapes, strict=True)],
+                            levels=[functools.partial(level_table, c, f, q) for c, f, q in zip(
+                                cumulative, scattered_sum, level_shapes, strict=True)],
                             peak_shape=[q.to(table_dtype) for q in level_shapes],
                             contributions=torch.stack(contributions),
                             converged=converged,
