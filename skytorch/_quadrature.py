@@ -24,7 +24,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-__all__ = ["MAX_NODES", "gauss_legendre", "legendre_unit", "unit_nodes"]
+__all__ = ["MAX_NODES", "gauss_legendre", "legendre_signed", "legendre_unit", "unit_nodes"]
 
 #: the largest node count accepted (leggauss stays accurate far beyond; a guard against
 #: a node count taken from a corrupted setting)
@@ -41,12 +41,36 @@ def _check_nodes(n) -> int:
 
 
 @lru_cache(maxsize=64)
-def _unit(n: int) -> tuple[np.ndarray, np.ndarray]:
+def _signed(n: int) -> tuple[np.ndarray, np.ndarray]:
     x, w = np.polynomial.legendre.leggauss(n)
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
+
+
+@lru_cache(maxsize=64)
+def _unit(n: int) -> tuple[np.ndarray, np.ndarray]:
+    x, w = _signed(n)
     x, w = 0.5 * (x + 1.0), 0.5 * w
     x.setflags(write=False)
     w.setflags(write=False)
     return x, w
+
+
+def legendre_signed(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre nodes and weights on [-1, 1] as read-only NumPy arrays.
+
+    Parameters
+    ----------
+    n : int
+        Number of nodes, in [1, :data:`MAX_NODES`].
+
+    Returns
+    -------
+    nodes, weights : numpy.ndarray
+        Shapes ``(n,)``; the weights sum to 2.
+    """
+    return _signed(_check_nodes(n))
 
 
 def legendre_unit(n: int) -> tuple[np.ndarray, np.ndarray]:

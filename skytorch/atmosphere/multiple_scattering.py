@@ -104,6 +104,7 @@ import numpy as np
 import torch
 
 from skytorch._memory import Scratch
+from skytorch._quadrature import legendre_signed, legendre_unit
 from skytorch._validate import check_int, check_range
 from skytorch.atmosphere.geometry import safe_sqrt
 from skytorch.atmosphere.inputs import check_atmosphere, wavelength_tensor
@@ -942,9 +943,9 @@ class ScatteringTables:
         dtype = self._single.dtype
         altitude = torch.as_tensor(altitude_m, dtype=dtype)
         sun = torch.as_tensor(sun_zenith_rad, dtype=dtype)
-        x, w = np.polynomial.legendre.leggauss(n_mu)
-        mu = torch.tensor(0.5 * (x + 1.0), dtype=dtype)
-        weight = torch.tensor(0.5 * w, dtype=dtype) * mu * (2.0 * math.pi / n_phi)
+        x, w = legendre_unit(n_mu)
+        mu = torch.tensor(x, dtype=dtype)
+        weight = torch.tensor(w, dtype=dtype) * mu * (2.0 * math.pi / n_phi)
         az = torch.arange(n_phi, dtype=dtype) * (2.0 * math.pi / n_phi)
         # the quadrature dims lead: the tables' batch dims broadcast with the trailing ones
         rest = (1,) * max(altitude.ndim, sun.ndim, len(self.batch_shape))
@@ -1365,7 +1366,7 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     ground1 = torch.stack(ground1, dim=1)                            # (b, r, mu, ms, phi, λ)
 
     # --- sphere quadrature and the discrete phase operators
-    xq, wq = np.polynomial.legendre.leggauss(res.n_sphere_mu)
+    xq, wq = legendre_signed(res.n_sphere_mu)
     mu_q = tens(np.concatenate([0.5 * (xq - 1.0), 0.5 * (xq + 1.0)]))
     w_q = tens(np.concatenate([0.5 * wq, 0.5 * wq]))
     # the sphere's azimuths: the table's azimuth nodes mirrored to the full circle, each
@@ -1425,12 +1426,12 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         isotropic[..., 0] = 1.0
         if forward_peak == "none" or not scatterers:
             return isotropic
-        xg, wg = np.polynomial.legendre.leggauss(2 * _PEAK_TERMS)
-        legendre = _legendre(tens(xg), _PEAK_TERMS) * tens(wg)          # (l, G)
+        xg, wg = (torch.tensor(v, dtype=dtype) for v in legendre_signed(2 * _PEAK_TERMS))
+        legendre = _legendre(xg, _PEAK_TERMS) * wg                      # (l, G)
         total, depth = 0.0, 0.0
         for k, sp in enumerate(scatterers):
             weight = (beta_s[k][:, 0, -1] * ds[0, -1][None, :, None]).sum(1)  # (b, λ)
-            chi = 2 * math.pi * torch.einsum("bgl,ng->bln", phase_at(sp, tens(xg)), legendre)
+            chi = 2 * math.pi * torch.einsum("bgl,ng->bln", phase_at(sp, xg), legendre)
             total = total + weight[..., None] * chi / chi[..., :1]
             depth = depth + weight[..., None]
         return torch.where(depth > 0, total / torch.where(depth > 0, depth, 1.0), isotropic)
@@ -1499,9 +1500,9 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         """
         if not scatterers:
             return torch.zeros((b, res.n_mu_s, n_lambda), dtype=dtype)
-        xf, wf = np.polynomial.legendre.leggauss(n_mu_fine)
-        mu_f = tens(0.5 * (xf + 1.0))
-        w_f = tens(0.5 * wf) * mu_f * (2 * math.pi / n_phi_fine)
+        xf, wf = legendre_unit(n_mu_fine)
+        mu_f = torch.tensor(xf, dtype=dtype)
+        w_f = torch.tensor(wf, dtype=dtype) * mu_f * (2 * math.pi / n_phi_fine)
         phi_f = (torch.arange(n_phi_fine, dtype=dtype) + 0.5) * (2 * math.pi / n_phi_fine)
         r0 = r_nodes[:1].expand(n_mu_fine)
         im_f, wm_f = _mu_index(shell, r0, mu_f, res.n_mu)
