@@ -1583,8 +1583,9 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         # the Sun's source with the peak shape of this order factored out (restored per
         # ray: the view-Sun angle is constant along a straight ray)
         divisor = torch.ones((1,) * 5 + (n_c, 1, 1), dtype=dtype)
-        divisor = divisor * torch.stack([peak(order, nu_j)] + [torch.ones_like(
-            peak(order, nu_j))] * (n_c - 1), -2)[:, None, :, :, :, :, None]
+        peak_j = peak(order, nu_j)
+        divisor = divisor * torch.stack([peak_j] + [torch.ones_like(peak_j)] * (n_c - 1),
+                                        -2)[:, None, :, :, :, :, None]
         # contiguous: each block of the ray integrals views its (r, mu) rows
         j_table = (j_table / divisor).flatten(-3).to(ray_dtype).contiguous()
         nxt_sky, nxt_ground = [], []
