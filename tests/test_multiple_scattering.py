@@ -314,6 +314,29 @@ def test_ray_lookup_by_matrix_product_equals_the_gathered_rows(monkeypatch):
     assert torch.allclose(d_dense, d_gathered, rtol=1e-10), (d_dense, d_gathered)
 
 
+@pytest.mark.parametrize("nodes, budget", [(0, 1), (0, 1_000_000), (1 << 30, 300)])
+def test_ray_lookups_in_reused_buffers_equal_the_recorded_path(monkeypatch, nodes, budget):
+    """Without gradients the ray look-ups write into buffers reused by every call.
+
+    With gradients recorded they allocate each result: the same tables, whether the rays'
+    (r, mu) rows are gathered or multiplied by a matrix, in blocks of one or many samples
+    (a partial last block), over a reflecting ground.
+    """
+    from skytorch.atmosphere import multiple_scattering
+
+    monkeypatch.setattr(multiple_scattering, "_DENSE_RAY_NODES", nodes)
+    monkeypatch.setattr(multiple_scattering, "_BUDGET", budget)
+    geometry = (0.0, torch.tensor([0.0, 1.0, 1.5, 1.7]), 0.4, torch.tensor([0.5, 1.0, 1.5, 1.8]))
+    options = {"ground_albedo": 0.3, "scattering_orders": 3, "resolution": TableResolution.tiny()}
+    plain = precompute_scattering(Atmosphere.earth(turbidity=2.0), WAVELENGTH,
+                                  **options).radiance(*geometry)
+    turbidity = torch.tensor(2.0, dtype=torch.float64, requires_grad=True)
+    recorded = precompute_scattering(Atmosphere.earth(turbidity=turbidity), WAVELENGTH,
+                                     **options).radiance(*geometry)
+    assert recorded.requires_grad
+    assert torch.allclose(recorded.detach(), plain, rtol=1e-13, atol=0.0), (recorded, plain)
+
+
 def test_lookups_in_blocks_equal_one_block(monkeypatch, day_tables):
     """Look-ups in blocks of a few points (the path of large images) equal one block."""
     from skytorch.atmosphere import multiple_scattering
