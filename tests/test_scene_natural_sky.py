@@ -2,9 +2,12 @@
 
 import math
 
+import numpy as np
 import pytest
+import torch
 
 from skytorch.scene import Scene
+from skytorch.stars.visibility import limiting_magnitude
 
 # Paranal (Patat 2008, A&A 481, 575: dark-time zenith V 22.0 near solar minimum and 21.6
 # near maximum, nightly values scattered by about 0.2 mag)
@@ -53,6 +56,45 @@ def test_every_render_has_a_limiting_magnitude_map():
     assert 6.3 <= float(limit.isel(y=16, x=16)) <= 7.0
     day = Scene(time="2026-03-20T16:00:00", size=32, **PARANAL).render()
     assert float(day.limiting_magnitude.isel(y=16, x=16)) < 0.0
+
+
+def test_limiting_magnitude_map_leaves_out_the_stars_drawn():
+    """A star does not hide itself: the map is that of the sky without the stars drawn.
+
+    Schaefer's threshold is for a point source against its background; with the stars'
+    light in the background a 0-mag star's pixel fell from a limit of 6.1 to 4.1. At night
+    with the Moon down the background is the natural component alone.
+    """
+    night = Scene(time=NIGHT, size=64, natural_model="leinert1998", solar_flux_sfu=70.0,
+                  star_limit_mag=6.0, **PARANAL).render()
+    assert night.attrs["effects_computed"] == "stars,refraction"
+    stars = night.component_radiance.sel(component="stars").sum("wavelength").values
+    assert (stars > 0).sum() > 100                                 # pixels that hold a star
+    natural = night.component_v_mag_arcsec2.sel(component="natural").values
+    valid = ~np.isnan(natural)
+    expected = limiting_magnitude(torch.tensor(natural[valid], dtype=torch.float64)).numpy()
+    np.testing.assert_allclose(night.limiting_magnitude.values[valid], expected, rtol=1e-12)
+    # with the stars in the background, a star's pixel would be brighter than its sky
+    assert (night.v_mag_arcsec2.values[stars > 0] < natural[stars > 0]).all()
+
+
+@pytest.mark.parametrize("turbidity", [4.0, 10.0])
+def test_dark_night_renders_in_hazy_air(turbidity):
+    """A dark night in hazy air renders; where the sky is black the limit is a black sky's.
+
+    The horizon's natural sky is darker than 40 mag arcsec^-2 in hazy air (Garstang's
+    extinction over the long horizontal path).
+
+    Before 2026-12-07 such a pixel stopped the render (ValueError from Schaefer's range).
+    """
+    ds = Scene(time="2015-09-13T23:00", lat_deg=52.52, lon_deg=13.40, size=32,
+               turbidity=turbidity).render()
+    limit = ds.limiting_magnitude.values
+    valid = ~np.isnan(ds.v_mag_arcsec2.values)
+    assert np.isfinite(limit[valid]).all()
+    # Schaefer's limit against a black background (40 mag arcsec^-2) is the largest
+    black = float(limiting_magnitude(torch.tensor(40.0, dtype=torch.float64)))
+    assert limit[valid].max() <= black + 1e-9
 
 
 def test_scattered_airglow_brightens_the_horizon_not_the_zenith(monkeypatch):

@@ -46,6 +46,7 @@ def scene_dataset(scene, view, plan, components, total, seconds):
     xarray.Dataset
     """
     from skytorch.moon.sky import radiance_to_mag_arcsec2
+    from skytorch.scene.visibility_map import sky_mag_from_radiance
     from skytorch.spectrum import spectrum_to_xyz
     from skytorch.stars.visibility import limiting_magnitude
 
@@ -97,13 +98,19 @@ def scene_dataset(scene, view, plan, components, total, seconds):
         data["v_mag_arcsec2"] = variable(dims, mags, VariableSpec(
             "mag arcsec-2", "V surface brightness", "Johnson V surface brightness of the "
             "sky (NaN off the sky)."))
+        # the background a star is seen against: every component but the stars drawn (a
+        # pixel's own star does not hide it); darker than 40 mag arcsec^-2 the limit is
+        # that of a black background (sky_mag_from_radiance)
+        background = sum(value for name, value in components.items() if name != "stars")
+        background_mags = sky_mag_from_radiance(background.to(torch.float64),
+                                                wavelength.to(torch.float64))
         limit = torch.full_like(mags, float("nan"))
-        limit[view.valid] = limiting_magnitude(mags[view.valid])
+        limit[view.valid] = limiting_magnitude(background_mags[view.valid])
         data["limiting_magnitude"] = variable(dims, limit, VariableSpec(
             "mag", "naked-eye limiting magnitude", "Faintest V magnitude of a star seen "
-            "against the sky of each pixel (Schaefer 1990 with his default observer, 7 mm "
-            "pupil, F_s = 1; to compare with a star's magnitude after extinction; NaN off "
-            "the sky)."))
+            "against the sky of each pixel, the stars drawn left out of the sky (Schaefer "
+            "1990 with his default observer, 7 mm pupil, F_s = 1; to compare with a star's "
+            "magnitude after extinction; NaN off the sky)."))
         stack = torch.stack(list(components.values())).to(torch.float64)
         lit = (stack > 0).any(-1) & view.valid
         component_mags = radiance_to_mag_arcsec2(stack.clamp(min=1e-300),
