@@ -217,7 +217,8 @@ def _counts():
 def test_naked_eye_star_count_at_a_dark_site():
     """~4 500 stars V ≤ 6.5 above the horizon; with extinction fewer (S&T: ~3 000 typical).
 
-    Measured at Paranal: 4 489 of V ≤ 6.5 above the horizon, 3 483 seen against a 22.0
+    Measured at Paranal: 4 629 of V ≤ 6.5 above the apparent horizon (1.6° below 0° at
+    2635 m; 4 489 above 0°), 3 483 seen against a 22.0
     sky (limit 6.62), then 2 636, 1 968, 976, 454 and 234 for 21.5 … 18.0.
     """
     stars, seen = _counts()
