@@ -217,6 +217,25 @@ def test_optically_thick_haze_and_albedo_extremes():
     assert bool((bright.radiance(0.0, 0.0, 0.0, 0.5) > dark.radiance(0.0, 0.0, 0.0, 0.5)).all())
 
 
+def test_growing_orders_of_coarse_rays_are_refused():
+    """AOD 5 on 16 trapezoid samples per ray: the orders grow from the 5th; refused.
+
+    Measured 1, 0.35, 0.158, 0.105, 0.149, 0.355 ... 1.5e25 (radiances of 1e23 and more,
+    returned until 2026-12-07 with converged=False alone). The exponential quadrature on
+    the same samples converges (its orders fall monotonically).
+    """
+    atm = Atmosphere.earth(aerosol_optical_depth=5.0)
+    wavelength = torch.tensor([550.0], dtype=F64)
+    with pytest.raises(ValueError, match="orders of scattering grow"):
+        precompute_scattering(atm, wavelength, scattering_orders="converged",
+                              resolution=TableResolution.tiny())
+    tables = precompute_scattering(atm, wavelength, scattering_orders="converged",
+                                   resolution=dataclasses.replace(
+                                       TableResolution.tiny(), ray_quadrature="exponential"))
+    assert tables.converged
+    assert bool((torch.diff(tables.order_contributions) < 0).all())
+
+
 def test_float32_tables_close_to_float64_over_a_lit_ground():
     """Views of the lit ground (the reflected sunlight computed at the look-up) in float32."""
     atm = Atmosphere.earth(turbidity=2.0)
@@ -264,6 +283,35 @@ def test_float32_tables_close_to_float64(weight, refinement):
                for dtype in (torch.float32, torch.float64)]
     assert results[0].dtype == torch.float32 and bool(torch.isfinite(results[0]).all())
     assert torch.allclose(results[0].to(F64), results[1], rtol=1e-4, atol=0.0)
+
+
+def test_float32_horizon_and_bounds_are_those_of_float64():
+    """A view at float32(pi/2), 4e-8 rad below the horizontal, is horizontal.
+
+    At the ground it was a ray meeting the ground at once: the orders >= 2 vanished (the
+    ray-marched order 1 treats it as horizontal: geometry.ray_hits_ground). float32(pi)
+    and float32(108 deg) lie above the bounds in float64 by their round-off: accepted.
+    """
+    atm = Atmosphere.earth(turbidity=2.0)
+    tables = {dtype: precompute_scattering(atm, WAVELENGTH, scattering_orders=3, dtype=dtype,
+                                           resolution=TableResolution.tiny())
+              for dtype in (torch.float32, torch.float64)}
+    reference = tables[F64].radiance(0.0, math.pi / 2, 1.0, 1.0)
+    assert bool((reference > 0).all())
+    for table, view in ((tables[torch.float32], math.pi / 2),
+                        (tables[torch.float32], torch.tensor(math.pi / 2)),
+                        (tables[F64], torch.tensor(math.pi / 2))):
+        value = table.radiance(0.0, view, 1.0, 1.0).to(F64)
+        assert torch.allclose(value, reference, rtol=1e-4, atol=0.0), (value, reference)
+    for bound, name in ((math.pi, "view_zenith_rad"), (math.radians(108.0), "sun_zenith_rad")):
+        angle = torch.tensor(bound)                     # float32, above the float64 bound
+        assert float(angle) > bound
+        args = [tables[F64].top_altitude_m, 0.0, 0.0, 0.5]
+        args[1 if name == "view_zenith_rad" else 3] = angle
+        assert bool(torch.isfinite(tables[F64].radiance(*args)).all())
+        args[1 if name == "view_zenith_rad" else 3] = bound * (1.0 + 1e-5)
+        with pytest.raises(ValueError, match=name):
+            tables[F64].radiance(*args)
 
 
 def test_batched_atmosphere_matches_single_members():
@@ -439,9 +487,10 @@ def test_sky_radiance_orders_knob(day_tables):
                                                                     scattering_orders=1)
     torch.testing.assert_close(multiple, single + higher, rtol=1e-12, atol=0.0)
     assert bool((multiple > single).all())
-    # the default is every order: here the tables' three
-    torch.testing.assert_close(atm.sky_radiance(WAVELENGTH, view, 0.0, 0.8, tables=tables),
-                               multiple, rtol=1e-12, atol=0.0)
+    # the default is the converged sky, which three orders are not: refused, not summed
+    assert not tables.converged
+    with pytest.raises(ValueError, match="pass scattering_orders=3"):
+        atm.sky_radiance(WAVELENGTH, view, 0.0, 0.8, tables=tables)
     with pytest.raises(ValueError, match="tables: scattering_orders=1"):
         atm.sky_radiance(WAVELENGTH, view, 0.0, 0.8, scattering_orders=1, tables=tables)
     with pytest.raises(ValueError, match="n_samples: parameters of the ray-marched"):
@@ -451,6 +500,44 @@ def test_sky_radiance_orders_knob(day_tables):
     with pytest.raises(ValueError, match="wavelengths"):
         atm.sky_radiance(torch.tensor([500.0], dtype=F64), view, scattering_orders=2,
                          tables=tables)
+
+
+def test_tables_refuse_another_atmosphere_albedo_or_lost_gradient(day_tables):
+    """Tables answer only for the atmosphere, ground and gradients they were built with."""
+    from skytorch.moon.sky import moonlit_sky_multiple_scattering
+
+    atm, tables = day_tables
+    hazy = Atmosphere.earth(aerosol_optical_depth=3.0)
+    with pytest.raises(ValueError, match="another atmosphere: angstrom_beta"):
+        hazy.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.8, scattering_orders=3, tables=tables)
+    with pytest.raises(ValueError, match="another atmosphere"):
+        moonlit_sky_multiple_scattering(hazy, tables, 0.1, 0.5, 0.5, 0.0)
+    for albedo in (0.3, np.array([0.3]), torch.tensor([0.0, 0.2], dtype=F64)):
+        with pytest.raises(ValueError, match="is not the tables' 0"):
+            atm.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.8, scattering_orders=3, tables=tables,
+                             ground_albedo=albedo)
+    for albedo in (None, True, "white"):
+        with pytest.raises(TypeError, match="ground_albedo"):
+            atm.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.8, scattering_orders=3, tables=tables,
+                             ground_albedo=albedo)
+    with pytest.raises(ValueError, match="ground_albedo must be finite"):
+        atm.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.8, scattering_orders=3, tables=tables,
+                         ground_albedo=float("nan"))
+    # a parameter that requires a gradient the tables do not carry: refused, not dropped
+    turbidity = torch.tensor(2.0, dtype=F64, requires_grad=True)
+    graded = Atmosphere.earth(turbidity=turbidity)
+    with torch.no_grad():
+        frozen = precompute_scattering(graded, WAVELENGTH, scattering_orders=2,
+                                       resolution=TableResolution.tiny())
+    with pytest.raises(ValueError, match="angstrom_beta require a gradient"):
+        graded.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.8, scattering_orders=2, tables=frozen)
+    with torch.no_grad():  # no gradient asked: the same tables serve
+        graded.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.8, scattering_orders=2, tables=frozen)
+    carried = precompute_scattering(graded, WAVELENGTH, scattering_orders=2,
+                                    resolution=TableResolution.tiny())
+    assert carried.gradient_parameters == {"angstrom_beta"}
+    assert graded.sky_radiance(WAVELENGTH, 0.5, 0.0, 0.8, scattering_orders=2,
+                               tables=carried).requires_grad
 
 
 @pytest.mark.parametrize("g", [0.0, 0.7, 0.9])

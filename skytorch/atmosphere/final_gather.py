@@ -125,6 +125,7 @@ def higher_orders_gathered(tables, atmosphere, altitude_m, view_zenith_rad,
     if len(tables.batch_shape):
         raise ValueError("higher_orders_gathered takes tables of an atmosphere with scalar "
                          f"parameters; got batch shape {tuple(tables.batch_shape)}")
+    tables.check_built_for(atmosphere)
     if scattering_orders == "converged":
         incoming_orders = "converged"
     else:

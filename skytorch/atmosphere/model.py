@@ -1410,7 +1410,12 @@ def _check_sky_options(scattering_orders, final_gather, ground_albedo, tables, m
     if final_gather and scattering_orders == 1:
         raise ValueError("final_gather=True gathers the orders >= 2; scattering_orders=1 "
                          "has none (pass 2 or more, or 'converged')")
-    black = (not torch.is_tensor(ground_albedo) and ground_albedo == 0.0)
+    if ground_albedo is None or isinstance(ground_albedo, (bool, str)):
+        raise TypeError(f"ground_albedo must be a number or a tensor in [0, 1]; got "
+                        f"{ground_albedo!r}")
+    # a Python number 0 (not a bool): anything else goes to the tables, which check it
+    black = (isinstance(ground_albedo, (int, float)) and not isinstance(ground_albedo, bool)
+             and ground_albedo == 0.0)
     given = [name for name, value in marching.items() if value is not None]
     if not black and given:
         raise ValueError(f"{', '.join(given)}: parameters of the ray-marched single "
@@ -1446,6 +1451,13 @@ def _multiple_scattering_sky(atmosphere, wavelength_nm, geometry, scattering_ord
             tables.wavelength_nm.to(torch.float64), wavelength.to(torch.float64))):
         raise ValueError(f"tables were built for other wavelengths: "
                          f"{tables.wavelength_nm.tolist()} nm, not {wavelength.tolist()} nm")
+    else:
+        tables.check_built_for(atmosphere, ground_albedo)
+        if scattering_orders == "converged" and not tables.converged:
+            raise ValueError(f"scattering_orders='converged' (the default) but the tables "
+                             f"hold {tables.orders_computed} orders that have not converged: "
+                             f"pass scattering_orders={tables.orders_computed} for their "
+                             "sum, or tables built with scattering_orders='converged'")
     if single is None and not final_gather:
         return tables.radiance(*geometry, scattering_orders=scattering_orders)
     first = single if single is not None else tables.radiance(*geometry, scattering_orders=1)

@@ -768,11 +768,20 @@ class ScatteringTables:
         integer N sum the orders 1..N exactly).
     resolution : TableResolution
     ground_albedo : Tensor (*batch, wavelength)
+    atmosphere_parameters : dict
+        ``Atmosphere.parameters_dict()`` of the atmosphere they were built for
+        (:meth:`check_built_for` compares it).
+    gradient_parameters : frozenset of str
+        The atmosphere's parameters whose gradients the tables carry (those that required
+        a gradient while gradients were recorded at the build).
     """
 
     def __init__(self, *, shell, resolution, wavelength_nm, batch_shape, single, phases,
                  levels, contributions, converged, ground_albedo, peak_shape,
-                 depth_rows, remainder_extrapolated=False):
+                 depth_rows, atmosphere_parameters, gradient_parameters,
+                 remainder_extrapolated=False):
+        self.atmosphere_parameters = atmosphere_parameters
+        self.gradient_parameters = frozenset(gradient_parameters)
         self._shell = shell
         self.resolution = resolution
         self.wavelength_nm = wavelength_nm
@@ -794,6 +803,50 @@ class ScatteringTables:
         # optical depth to the top (b * transmittance_r * transmittance_mu, λ), float64:
         # the Sun reflected once by the ground is computed at each look-up
         self._depth_rows = depth_rows
+
+    def check_built_for(self, atmosphere, ground_albedo=None) -> None:
+        """Raise ValueError unless the tables are those of ``atmosphere`` (and albedo).
+
+        Parameters
+        ----------
+        atmosphere : skytorch.atmosphere.Atmosphere
+            Its parameters must be those the tables were built with; the parameters that
+            require a gradient (while gradients are recorded) must have required it at the
+            build, or their gradient through the tables would be lost.
+        ground_albedo : float or Tensor, optional
+            The albedo a caller asks for: must equal the tables' (scalar or per
+            wavelength, in [0, 1]); None skips the check.
+        """
+        given = atmosphere.parameters_dict()
+        built = self.atmosphere_parameters
+        differ = sorted(key for key in set(given) | set(built)
+                        if given.get(key) != built.get(key))
+        if differ:
+            shown = ", ".join(f"{key} {given.get(key)!r:.40} (tables: {built.get(key)!r:.40})"
+                              for key in differ[:4])
+            raise ValueError(f"tables were built for another atmosphere: {shown}"
+                             f"{' ...' if len(differ) > 4 else ''}")
+        if torch.is_grad_enabled():
+            lost = sorted(name for name, value in atmosphere.named_buffers()
+                          if value.requires_grad and name not in self.gradient_parameters)
+            if lost:
+                raise ValueError(f"the atmosphere's {', '.join(lost)} require a gradient, "
+                                 "which the tables do not carry (built without gradients "
+                                 "for them): build the tables with gradients recorded, or "
+                                 "pass parameters that do not require one")
+        if ground_albedo is None:
+            return
+        n_lambda = self.wavelength_nm.shape[0]
+        albedo = _check_albedo(ground_albedo, self.batch_shape, n_lambda,
+                               self.ground_albedo.dtype)
+        if not torch.equal(albedo.expand_as(self.ground_albedo).detach(),
+                           self.ground_albedo.detach()):
+            raise ValueError(f"ground_albedo {_brief(albedo)} is not the tables' "
+                             f"{_brief(self.ground_albedo)}: build tables for it")
+        if (torch.is_grad_enabled() and albedo.requires_grad
+                and not self.ground_albedo.requires_grad):
+            raise ValueError("ground_albedo requires a gradient, which the tables do not "
+                             "carry (built without gradients for it)")
 
     @property
     def planet_radius_m(self) -> float:
@@ -843,10 +896,9 @@ class ScatteringTables:
         dtype = self._single.dtype
         altitude = check_range("altitude_m", altitude_m, 0.0, self.top_altitude_m, unit=" m",
                                dtype=dtype)
-        vz = check_range("view_zenith_rad", view_zenith_rad, 0.0, math.pi, dtype=dtype)
+        vz = _angle_within("view_zenith_rad", view_zenith_rad, math.pi, dtype)
         va = check_range("view_azimuth_rad", view_azimuth_rad, dtype=dtype)
-        sz = check_range("sun_zenith_rad", sun_zenith_rad, 0.0, math.radians(108.0),
-                         dtype=dtype)
+        sz = _angle_within("sun_zenith_rad", sun_zenith_rad, math.radians(108.0), dtype)
         sa = check_range("sun_azimuth_rad", sun_azimuth_rad, dtype=dtype)
         try:
             shape = torch.broadcast_shapes(self.batch_shape, altitude.shape, vz.shape,
@@ -858,7 +910,14 @@ class ScatteringTables:
                 f"sun_zenith_rad {tuple(sz.shape)}") from None
         b = self._batch_index(shape)
         r = self._shell.R + altitude  # not expanded: one radius is looked up once
-        mu, mu_s = torch.cos(vz).expand(shape), torch.cos(sz).expand(shape)
+        # a view below the horizontal by the round-off of its input (float32(pi/2) is
+        # 4e-8 rad below) is horizontal: at the ground it would otherwise be a ray that
+        # meets the ground at once (the rule of the ray-marched single scattering,
+        # skytorch.atmosphere.geometry.ray_hits_ground: mu < -8 eps)
+        mu = torch.cos(vz)
+        tolerance = 8.0 * _input_eps(view_zenith_rad, dtype)
+        mu = torch.where((mu < 0.0) & (mu >= -tolerance), torch.zeros_like(mu), mu)
+        mu, mu_s = mu.expand(shape), torch.cos(sz).expand(shape)
         dphi = torch.remainder(va - sa + math.pi, 2.0 * math.pi) - math.pi
         phi = torch.abs(dphi).expand(shape)
         nu = torch.clamp(mu * mu_s + torch.sin(vz) * torch.sin(sz) * torch.cos(dphi),
@@ -1023,7 +1082,38 @@ def _geometry(tensor, n_batch: int):
     return tensor.reshape((1,) * n_batch + tuple(tensor.shape))
 
 
+def _input_eps(value, dtype) -> float:
+    """Machine epsilon of an input: the coarser of its own floating dtype and ``dtype``."""
+    eps = torch.finfo(dtype).eps
+    if torch.is_tensor(value) and value.is_floating_point():
+        return max(eps, torch.finfo(value.dtype).eps)
+    if isinstance(value, np.ndarray) and np.issubdtype(value.dtype, np.floating):
+        return max(eps, float(np.finfo(value.dtype).eps))
+    return eps
+
+
+def _angle_within(name: str, value, high: float, dtype) -> torch.Tensor:
+    """Check an angle in [0, high] [rad]; return it as a ``dtype`` tensor.
+
+    The bound is that of the input's own precision: float32(pi) is 9e-8 above pi, and is
+    pi (the value is brought to the bound it rounds).
+    """
+    slack = 4.0 * _input_eps(value, dtype)
+    angle = check_range(name, value, 0.0, high * (1.0 + slack), dtype=dtype)
+    return torch.clamp(angle, max=high)
+
+
+def _brief(values: torch.Tensor) -> str:
+    """Describe values for a message: the number when all are equal, else their range."""
+    flat = values.detach().reshape(-1)
+    low, high = float(flat.min()), float(flat.max())
+    return f"{low:g}" if low == high else f"{low:g}-{high:g}"
+
+
 def _check_albedo(ground_albedo, batch_shape, n_lambda, dtype):
+    if isinstance(ground_albedo, bool) or ground_albedo is None:
+        raise TypeError(f"ground_albedo must be a number or a tensor in [0, 1]; got "
+                        f"{ground_albedo!r}")
     albedo = check_range("ground_albedo", ground_albedo, 0.0, 1.0, dtype=dtype)
     if albedo.ndim and albedo.shape[-1] not in (1, n_lambda):
         raise ValueError(f"ground_albedo must be a scalar or per wavelength (last dim "
@@ -1609,6 +1699,15 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         level_weights.append(level_weights[-1] + weight)
         size = (sky + ground).detach().abs().sum() / reference
         contributions.append(size.to(dtype))
+        if order >= 4 and float(contributions[-1]) > float(contributions[-2]) > float(
+                contributions[-3]):
+            # an order of scattering holds less light than the one before it in a
+            # physical atmosphere: two growing orders are the tables' error, not light
+            shown = ", ".join(f"{float(c):.3g}" for c in contributions)
+            raise ValueError(
+                f"the orders of scattering grow ({shown} of order 1): the tables' rays "
+                f"sample this atmosphere too coarsely (n_ray {res.n_ray}, ray_quadrature "
+                f"{res.ray_quadrature!r}); use ray_quadrature='exponential' or more n_ray")
         total_size = torch.stack(contributions).sum()
         if float(size) <= CONVERGENCE_RTOL * float(total_size):
             converged = True
@@ -1672,4 +1771,8 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
                             converged=converged,
                             remainder_extrapolated=remainder is not None,
                             ground_albedo=albedo.reshape(tuple(shape_b) + (n_lambda,)),
+                            atmosphere_parameters=atmosphere.parameters_dict(),
+                            gradient_parameters=[
+                                name for name, value in atmosphere.named_buffers()
+                                if value.requires_grad and torch.is_grad_enabled()],
                             depth_rows=tau_rows[dtype])

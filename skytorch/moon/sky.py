@@ -387,10 +387,11 @@ def moonlit_sky_multiple_scattering(atmosphere, tables, phase_angle_rad, moon_ze
     2. Jones, A. et al. 2013, A&A 560, A91, doi:10.1051/0004-6361/201322433 (single and
        multiple scattering of moonlight).
     """
-    required = ("radiance", "wavelength_nm", "orders_computed")
+    required = ("radiance", "wavelength_nm", "orders_computed", "check_built_for")
     if not all(hasattr(tables, name) for name in required):
         raise TypeError("tables must be a skytorch.atmosphere.multiple_scattering."
                         f"ScatteringTables; got {type(tables).__name__}")
+    tables.check_built_for(atmosphere)
     wl = tables.wavelength_nm
     dtype = common_dtype(phase_angle_rad, moon_zenith_rad, view_zenith_rad,
                          relative_azimuth_rad)
