@@ -197,6 +197,28 @@ def check_positive(name: str, value, *, allow_zero: bool = False, unit: str = ""
     return check_range(name, value, low=0.0, low_inclusive=allow_zero, unit=unit, dtype=dtype)
 
 
+def refuse_gradient(what: str, **values) -> None:
+    """Raise ValueError naming the inputs that require a gradient ``what`` cannot carry.
+
+    ``values``: name -> a tensor, an ``nn.Module`` (its parameters and buffers) or anything
+    else (ignored). Used by the entry points that return Datasets: their arrays hold no
+    gradient, so one asked for is refused rather than detached.
+    """
+    wanted = []
+    for name, value in values.items():
+        if torch.is_tensor(value) and value.requires_grad:
+            wanted.append(name)
+        elif isinstance(value, torch.nn.Module):
+            wanted += [f"{name}.{key}" for key, tensor in (*value.named_parameters(),
+                                                          *value.named_buffers())
+                       if tensor.requires_grad]
+    if wanted:
+        verb = "requires" if len(wanted) == 1 else "require"
+        raise ValueError(f"{', '.join(wanted)} {verb} a gradient, which {what} does not "
+                         "carry (its results are arrays of an xarray.Dataset): pass detached "
+                         "values")
+
+
 def check_choice(name: str, value: str, choices: Sequence[str]) -> str:
     """Return ``value`` if it is one of ``choices``; otherwise list the valid names.
 

@@ -264,3 +264,36 @@ def test_wavelength_grid_contract(preset, dtype):
     from skytorch.spectrum import wavelength_grid
 
     call_and_check(wavelength_grid, {"preset": preset, "dtype": dtype}, bounds=(300.0, 900.0))
+
+
+def test_observe_an_empty_catalogue():
+    """A limit brighter than every star: no stars, no visible star, no error."""
+    empty = bright_stars(-2.0)
+    assert empty.sizes["star"] == 0
+    ds = observe(empty, ["2025-09-07T20:00", "2025-09-07T21:00"], 52.5, 13.4)
+    assert ds.sizes["star"] == 0 and ds.color.shape == (2, 0, 3)
+    assert (ds.n_visible.values == 0).all()
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), -1e6])
+def test_observe_refuses_bad_catalogue_magnitudes(value):
+    catalog = bright_stars(2.0)
+    catalog["vmag"] = catalog["vmag"].copy()
+    catalog["vmag"][0] = value
+    with pytest.raises(ValueError, match=r"catalog\['vmag'\]"):
+        observe(catalog, "2025-09-07T20:00", 52.5, 13.4)
+
+
+def test_observe_refuses_inputs_that_require_a_gradient():
+    """A Dataset holds no gradient: one asked for is refused, not detached."""
+    from skytorch.atmosphere import Atmosphere
+
+    catalog = bright_stars(2.0)
+    wanted = torch.tensor(2.0, dtype=torch.float64, requires_grad=True)
+    cases = ({"sky_brightness_mag_arcsec2": wanted * 10.0},
+             {"lat_deg": wanted * 26.0},
+             {"atmosphere": Atmosphere.earth(turbidity=wanted)})
+    for keywords in cases:
+        arguments = {"lat_deg": 52.5, "lon_deg": 13.4, **keywords}
+        with pytest.raises(ValueError, match=f"{next(iter(keywords))}.* a gradient"):
+            observe(catalog, "2025-09-07T20:00", **arguments)

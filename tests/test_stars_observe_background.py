@@ -82,6 +82,19 @@ def test_background_over_time_and_a_gradient_with_altitude(catalog):
                                19.0 + alt[1][above[1]] / 30.0, atol=1e-9)
 
 
+def test_background_times_taken_by_their_labels(catalog):
+    """A background with a time coordinate gives each instant its own row, in any order."""
+    times = np.array(["2025-09-07T21:00", "2025-09-07T23:00"], dtype="datetime64[ns]")
+    background = _grid(lambda a, z: 18.0 + 0 * a, times=2).assign_coords(time=times)
+    background["sky_brightness"][1] += 2.0
+    reversed_ = observe(catalog, times[::-1], *SITE, background=background)
+    np.testing.assert_allclose(reversed_.sky_brightness.values[0], 20.0, atol=1e-12)
+    np.testing.assert_allclose(reversed_.sky_brightness.values[1], 18.0, atol=1e-12)
+    stale = background.assign_coords(time=times - np.timedelta64(365, "D"))
+    with pytest.raises(ValueError, match="background has no row for the times"):
+        observe(catalog, times, *SITE, background=stale)
+
+
 def test_bad_backgrounds_raise(catalog):
     good = _grid(lambda a, z: 21.0 + 0 * a)
     with pytest.raises(ValueError, match="not both"):

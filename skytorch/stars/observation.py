@@ -32,6 +32,7 @@ from skytorch._validate import (
     check_finite,
     check_int,
     check_range,
+    refuse_gradient,
 )
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.ephemeris import check_observer, parse_times, sun_moon
@@ -684,6 +685,27 @@ def _background_sky(background, n_time: int, altitude_rad: torch.Tensor,
             + u * ((1 - v) * corner(i, j - 1) + v * corner(i, j)))
 
 
+def _background_at_times(background, times: np.ndarray):
+    """Return the background's rows of ``times`` by their labels (a time coordinate).
+
+    Without a ``time`` coordinate (no time dimension, or one without labels) the background
+    is returned as given: one sky for every time, or one row per time in order.
+    """
+    if background is None or "time" not in background.coords:
+        return background
+    labels = background["time"].values
+    if not np.issubdtype(labels.dtype, np.datetime64):
+        raise ValueError(f"background's time coordinate must hold instants (datetime64); got "
+                         f"dtype {labels.dtype}")
+    wanted = times.astype("datetime64[ns]")
+    missing = ~np.isin(wanted, labels.astype("datetime64[ns]"))
+    if missing.any():
+        raise ValueError(f"background has no row for the times {wanted[missing][:3]}"
+                         f"{' ...' if missing.sum() > 3 else ''} (its times "
+                         f"{labels.min()}..{labels.max()})")
+    return background.sel(time=wanted)
+
+
 def _check_sky(sky_brightness_mag_arcsec2, background) -> torch.Tensor:
     """Check the two forms of the sky background; return the scalar-per-time values."""
     if background is not None and sky_brightness_mag_arcsec2 is not None:
@@ -814,6 +836,11 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     [('channel', 3), ('star', 50), ('time', 1)]
     """
     _check_catalog(catalog)
+    refuse_gradient("observe", lat_deg=lat_deg, lon_deg=lon_deg, elevation_m=elevation_m,
+                    atmosphere=atmosphere,
+                    sky_brightness_mag_arcsec2=sky_brightness_mag_arcsec2,
+                    control_magnitude=control_magnitude, aperture_m=aperture_m,
+                    exposure_s=exposure_s)
     check_choice("visibility", visibility, VISIBILITY_MODELS)
     refraction = check_flag("refraction", refraction)
     reddening = check_flag("reddening", reddening)
@@ -855,7 +882,10 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     stars = star_vectors(catalog["ra"].values, catalog["dec"].values,
                          catalog["pm_ra"].values, catalog["pm_dec"].values,
                          catalog["parallax"].values, dtype=dtype)
-    vmag = torch.as_tensor(catalog["vmag"].values, dtype=dtype)
+    # the catalogue's magnitudes: finite, from the Sun's to far beyond any catalogue
+    vmag = check_range("catalog['vmag']", torch.as_tensor(catalog["vmag"].values,
+                                                          dtype=dtype), -30.0, 40.0,
+                       unit=" mag")
     bv = torch.as_tensor(catalog["bv"].values, dtype=dtype)
     operators, velocity = time_operators(values, lat, lon, elevation,
                                          epoch_jyear=float(catalog.attrs.get("epoch_jyear",
@@ -869,7 +899,9 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
                              extinction_tab, color_table=per_star)
     factor = (_day_night_factor(values, lat, lon, elevation, dtype)
               if visibility == "muller2012" else None)
-    sky, limit, visible, count = _visibility(result, sky_values, background, visibility,
+    sky, limit, visible, count = _visibility(result, sky_values,
+                                             _background_at_times(background, values),
+                                             visibility,
                                              factor)
     brightness, scint = _brightness_and_scintillation(result, control_magnitude, factor,
                                                       aperture_m, exposure_s, elevation)

@@ -610,7 +610,7 @@ def apparent_color(bv: torch.Tensor, apparent_altitude_rad: torch.Tensor,
     gamma = check_flag("gamma", gamma)
     dtype = apparent_altitude_rad.dtype
     n_nodes = table["linear_srgb"].shape[0]
-    if not star_table_pays_off(apparent_altitude_rad[..., 0].numel(), table):
+    if not star_table_pays_off(apparent_altitude_rad.shape[:-1].numel(), table):
         lower, w = _bv_weights(bv.to(dtype), table["bv"])
         linear = table["linear_srgb"].to(dtype)
         index, weight = table_lookup(apparent_altitude_rad, n_nodes, table_low(table))
