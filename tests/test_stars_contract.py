@@ -297,3 +297,40 @@ def test_observe_refuses_inputs_that_require_a_gradient():
         arguments = {"lat_deg": 52.5, "lon_deg": 13.4, **keywords}
         with pytest.raises(ValueError, match=f"{next(iter(keywords))}.* a gradient"):
             observe(catalog, "2025-09-07T20:00", **arguments)
+
+
+def test_several_observers_twinkle_independently_and_none_is_refused():
+    """Observer k draws its twinkle from SeedSequence([seed, k]); the seed given is kept."""
+    catalog = bright_stars(2.0)
+    ds = observe(catalog, ["2025-09-07T21:00"], [52.5, 52.5], [13.4, 13.41],
+                 twinkle_samples=200, seed=7)
+    first, second = (ds.twinkle.isel(observer=k).values.ravel() for k in (0, 1))
+    assert abs(np.corrcoef(first, second)[0, 1]) < 0.05       # was 1.0: one seed for all
+    assert int(ds.attrs["parameter_seed"]) == 7
+    again = observe(catalog, ["2025-09-07T21:00"], [52.5, 52.5], [13.4, 13.41],
+                    twinkle_samples=200, seed=7)
+    np.testing.assert_array_equal(again.twinkle.values, ds.twinkle.values)
+    with pytest.raises(ValueError, match="lat_deg must hold at least one observer"):
+        observe(catalog, "2025-09-07T21:00", [], [])
+
+
+def test_elevated_observer_without_air_sees_down_to_the_geometric_dip():
+    """atmosphere=False from 3 km: the horizon is acos(R / (R + h)) = 1.758 deg below 0."""
+    from skytorch.constants import EARTH_MEAN_RADIUS_M
+
+    times = np.datetime64("2025-09-07T18:00") + np.arange(0, 720, 10) * np.timedelta64(1, "m")
+    ds = observe(bright_stars(3.0), times, 46.5, 7.0, 3000.0, atmosphere=False)
+    dip = math.degrees(math.acos(EARTH_MEAN_RADIUS_M / (EARTH_MEAN_RADIUS_M + 3000.0)))
+    assert abs(dip - 1.758) < 1e-3
+    altitude, above = ds.altitude.values, ds.above_horizon.values
+    assert altitude[above].min() >= -dip and (above & (altitude < 0.0)).any()
+    assert not above[altitude < -dip].any()
+
+
+@pytest.mark.parametrize(("epoch", "error"), [(float("nan"), ValueError), (5000.0, ValueError),
+                                              ("J2000", TypeError)])
+def test_observe_refuses_a_bad_catalogue_epoch(epoch, error):
+    catalog = bright_stars(2.0)
+    catalog.attrs["epoch_jyear"] = epoch
+    with pytest.raises(error, match="epoch_jyear"):
+        observe(catalog, "2025-09-07T21:00", 52.5, 13.4)

@@ -109,6 +109,13 @@ def test_bad_backgrounds_raise(catalog):
         observe(catalog, TIME, *SITE, background=high)
     with pytest.raises(ValueError, match="times"):
         observe(catalog, TIME, *SITE, background=_grid(lambda a, z: 21.0 + 0 * a, times=3))
+    with pytest.raises(ValueError, match=r"background\['sky_brightness'\] as a surface"):
+        observe(catalog, TIME, *SITE, background=_grid(lambda a, z: 100.0 + 0 * a))
+    with pytest.raises(ValueError, match=r"background\['luminance'\] as a surface"):
+        observe(catalog, TIME, *SITE, background=_grid(lambda a, z: 1e30 + 0 * a,
+                                                       "luminance", "cd m-2"))
+    with pytest.raises(TypeError, match="must hold numbers"):
+        observe(catalog, TIME, *SITE, background=good.astype(str))
 
 
 def test_elevated_observer_needs_a_background_below_zero(catalog):

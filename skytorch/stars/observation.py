@@ -34,6 +34,7 @@ from skytorch._validate import (
     check_range,
     refuse_gradient,
 )
+from skytorch.constants import EARTH_MEAN_RADIUS_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.ephemeris import check_observer, parse_times, sun_moon
 from skytorch.moon.sky import nanolambert_to_mag_arcsec2
@@ -240,6 +241,16 @@ def _check_catalog(catalog) -> xr.Dataset:
     return catalog
 
 
+def _catalog_epoch(catalog: xr.Dataset) -> float:
+    """Return the epoch of the catalogue's positions [Julian year] (attrs, default 2000)."""
+    epoch = catalog.attrs.get("epoch_jyear", 2000.0)
+    if isinstance(epoch, (bool, str)) or not isinstance(epoch, (int, float, np.number)):
+        raise TypeError(f"catalog.attrs['epoch_jyear'] must be a number (Julian year); got "
+                        f"{epoch!r:.40}")
+    return float(check_range("catalog.attrs['epoch_jyear']", float(epoch), 1000.0, 3000.0,
+                             unit=" yr"))
+
+
 def _parse_times(times) -> np.ndarray:
     """:func:`skytorch.ephemeris.parse_times`, its errors prefixed with the parameter name."""
     try:
@@ -263,6 +274,8 @@ def _observer_arrays(lat_deg, lon_deg, elevation_m):
             raise ValueError(f"{name} must be a number or a 1-d array (observer,); got shape "
                              f"{tuple(tensor.shape)}")
         arrays[name] = tensor.reshape(-1).numpy()
+        if arrays[name].size == 0:
+            raise ValueError(f"{name} must hold at least one observer; got an empty array")
     shape = check_broadcastable(**{k: torch.from_numpy(v) for k, v in arrays.items()})
     return tuple(np.broadcast_to(v, shape).copy() for v in arrays.values())
 
@@ -271,8 +284,12 @@ def _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere, 
                      **options) -> xr.Dataset:
     """:func:`observe` for several observers, stacked along a leading ``observer`` dim."""
     lat, lon, elevation = _observer_arrays(lat_deg, lon_deg, elevation_m)
+    # independent twinkle sequences: one seed per observer from the given one
+    seeds = [int(np.random.SeedSequence([options["seed"], k]).generate_state(1, np.uint64)[0]
+                 >> np.uint64(1)) for k in range(lat.size)]
     parts = [observe(catalog, times, float(a), float(b), float(c), atmosphere, refraction,
-                     **options) for a, b, c in zip(lat, lon, elevation, strict=True)]
+                     **{**options, "seed": seed})
+             for a, b, c, seed in zip(lat, lon, elevation, seeds, strict=True)]
     per_observer = [name for name, var in parts[0].data_vars.items() if "time" in var.dims]
     stacked = xr.concat([part[per_observer] for part in parts], dim="observer",
                         coords="minimal", compat="override", combine_attrs="override")
@@ -292,8 +309,9 @@ def _observe_several(catalog, times, lat_deg, lon_deg, elevation_m, atmosphere, 
     observers = {"lat_deg": lat.tolist(), "lon_deg": lon.tolist(),
                  "elevation_m": elevation.tolist()}
     parameters = json.loads(result.attrs.get("parameters", "{}"))
-    parameters.update(observers)
+    parameters.update(observers, seed=int(options["seed"]))
     result.attrs["parameters"] = json.dumps(parameters, default=str)
+    result.attrs["parameter_seed"] = int(options["seed"])
     result.attrs["observers"] = json.dumps(observers)
     return result
 
@@ -473,9 +491,11 @@ _SPECS = {
                                   "True where the apparent altitude is at or above "
                                   "the apparent horizon (0 at the surface; minus the "
                                   "refracted dip of the horizon for an elevated "
-                                  "observer)."),
+                                  "observer, the geometric dip without an atmosphere)."),
     "visible": VariableSpec("1", "star visible to the naked eye",
-                            "Above the horizon and brighter than the limiting magnitude."),
+                            "Above the horizon and brighter than the limiting magnitude "
+                            "(with visibility='muller2012' the limit plus 2.5 log10 of "
+                            "day_night_factor, Mueller et al. 2012)."),
     "relative_brightness": VariableSpec(
         "1", "relative brightness", "10^(0.4 (m_a - m)) times the day-night factor "
         "(Mueller et al. 2012), 0 below the horizon."),
@@ -492,7 +512,9 @@ _SPECS = {
         "V sky background interpolated from the background Dataset at the star's "
         "apparent altitude and azimuth."),
     "n_visible": VariableSpec("1", "number of visible stars",
-                              "Stars above the horizon brighter than the limiting magnitude."),
+                              "Stars above the horizon brighter than the limiting magnitude "
+                              "(with visibility='muller2012' the limit plus 2.5 log10 of "
+                              "day_night_factor): the count of visible."),
     "day_night_factor": VariableSpec(
         "1", "day-night visibility factor",
         "(1 + (sin h_sun + 1.14)^32)^(-1/2) (Mueller et al. 2012, section 5)."),
@@ -646,6 +668,8 @@ def _background_sky(background, n_time: int, altitude_rad: torch.Tensor,
     if "time" in var.dims and var.sizes["time"] != n_time:
         raise ValueError(f"background has {var.sizes['time']} times; observe has {n_time}")
     dtype = altitude_rad.dtype
+    if not (np.issubdtype(var.dtype, np.floating) or np.issubdtype(var.dtype, np.integer)):
+        raise TypeError(f"background[{name!r}] must hold numbers; got dtype {var.dtype}")
     values = torch.tensor(np.array(var.values, dtype=np.float64), dtype=dtype)
     if "time" not in var.dims:
         values = values.expand(n_time, *values.shape)
@@ -655,6 +679,9 @@ def _background_sky(background, n_time: int, altitude_rad: torch.Tensor,
         if bool((values <= 0).any()):
             raise ValueError("background['luminance'] must be > 0 everywhere")
         values = nanolambert_to_mag_arcsec2(values / scale)
+    # the range of Schaefer's threshold model (skytorch.stars.visibility.limiting_magnitude)
+    check_range(f"background[{name!r}] as a surface brightness", values, -20.0, 40.0,
+                unit=" mag/arcsec^2")
     alt_nodes = torch.tensor(np.array(var["altitude"].values, float), dtype=dtype)
     az_nodes = torch.tensor(np.array(var["azimuth"].values, float), dtype=dtype)
     # periodic azimuth: the first column again at +360°
@@ -801,7 +828,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
     twinkle_interval_s : float
         Sample spacing of the twinkle sequence [s] (correlation time 10 ms).
     seed : int
-        Seed of the twinkle sequence.
+        Seed of the twinkle sequence. Several observers scintillate independently: observer
+        k draws with the seed of ``numpy.random.SeedSequence([seed, k])``.
     reddening : bool
         ``color`` after the spectral extinction along each path (default); False skips
         that step (about half of the Dataset's cost for 9 000 stars × 1 440 times) and
@@ -888,8 +916,7 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
                        unit=" mag")
     bv = torch.as_tensor(catalog["bv"].values, dtype=dtype)
     operators, velocity = time_operators(values, lat, lon, elevation,
-                                         epoch_jyear=float(catalog.attrs.get("epoch_jyear",
-                                                                             2000.0)))
+                                         epoch_jyear=_catalog_epoch(catalog))
     refraction_tab, extinction_tab = _site_atmosphere_tables(
         atmosphere if has_atmosphere else None, elevation, refraction)
     colour_table, per_star = _colour_source(
@@ -897,6 +924,10 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
         values.size)
     result = observe_tensors(stars, vmag, bv, operators, velocity, refraction_tab,
                              extinction_tab, color_table=per_star)
+    if not has_atmosphere and elevation > 0.0:
+        # no air: the ground's horizon is the geometric one, acos(R / (R + h)) below 0
+        dip = math.acos(EARTH_MEAN_RADIUS_M / (EARTH_MEAN_RADIUS_M + elevation))
+        result["above_horizon"] = result["altitude"] >= -dip
     factor = (_day_night_factor(values, lat, lon, elevation, dtype)
               if visibility == "muller2012" else None)
     sky, limit, visible, count = _visibility(result, sky_values,
