@@ -92,6 +92,11 @@ def as_tensor(
         return value
     if value is None or isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be a number or an array of numbers; got {value!r}")
+    if isinstance(value, (bool, np.bool_)) or (isinstance(value, np.ndarray)
+                                               and value.dtype == np.bool_):
+        # True is not the number 1 here: a flag passed where a quantity is expected
+        raise TypeError(f"{name} must be a number or an array of numbers; got a bool "
+                        f"{value!r:.40}")
     if isinstance(value, np.ndarray) and not value.flags.writeable:
         # a read-only array (e.g. pandas ``.values``) cannot be shared with a tensor
         value = value.copy()
@@ -173,6 +178,27 @@ def _range_text(low, high, low_inclusive, high_inclusive, unit) -> str:
     if high is not None:
         return f"{'<=' if high_inclusive else '<'} {high}{unit}"
     return "finite"
+
+
+def input_eps(value, dtype) -> float:
+    """Machine epsilon of an input: the coarser of its own floating dtype and ``dtype``."""
+    eps = torch.finfo(dtype).eps
+    if torch.is_tensor(value) and value.is_floating_point():
+        return max(eps, torch.finfo(value.dtype).eps)
+    if isinstance(value, np.ndarray) and np.issubdtype(value.dtype, np.floating):
+        return max(eps, float(np.finfo(value.dtype).eps))
+    return eps
+
+
+def check_angle(name: str, value, high: float, dtype) -> torch.Tensor:
+    """Check an angle in [0, high] [rad]; return it as a ``dtype`` tensor.
+
+    The bound is that of the input's own precision: float32(pi) is 9e-8 above pi, and is
+    pi (the value is brought to the bound it rounds).
+    """
+    slack = 4.0 * input_eps(value, dtype)
+    angle = check_range(name, value, 0.0, high * (1.0 + slack), dtype=dtype)
+    return torch.clamp(angle, max=high)
 
 
 def check_zenith(value, *, name: str = "zenith_rad",

@@ -476,6 +476,34 @@ def test_bad_input_names_parameter_and_range(day_tables):
     assert isinstance(tables, ScatteringTables)
 
 
+def test_bools_empty_wavelengths_and_zenith_ranges_are_refused(day_tables):
+    """A flag is not a number, no wavelength is no grid, 7 rad is no zenith angle.
+
+    The single-scattering path used to accept 7 rad, which the tables' refused.
+    """
+    atm, tables = day_tables
+    with pytest.raises(TypeError, match="view_zenith_rad must be a number .* bool"):
+        tables.radiance(0.0, True, 0.0, 0.5)
+    with pytest.raises(TypeError, match="sun_zenith_rad must be a number .* bool"):
+        tables.diffuse_irradiance(0.0, True)
+    with pytest.raises(TypeError, match="sun_zenith_rad"):
+        tables.diffuse_irradiance(0.0, "0.5")
+    with pytest.raises(ValueError, match="altitude_m"):
+        tables.diffuse_irradiance(-10.0, 0.5)
+    with pytest.raises(TypeError, match="ground_albedo"):
+        precompute_scattering(atm, WAVELENGTH, ground_albedo=True,
+                              resolution=TableResolution.tiny())
+    with pytest.raises(ValueError, match="at least one wavelength"):
+        precompute_scattering(atm, torch.tensor([], dtype=F64),
+                              resolution=TableResolution.tiny())
+    for orders in (1, 3):
+        with pytest.raises(ValueError, match="view_zenith_rad"):
+            atm.sky_radiance(WAVELENGTH, 7.0, scattering_orders=orders,
+                             tables=None if orders == 1 else tables)
+    with pytest.raises(ValueError, match="sun_zenith_rad"):
+        atm.sky_radiance(WAVELENGTH, 0.5, sun_zenith_rad=100.0, scattering_orders=1)
+
+
 def test_sky_radiance_orders_knob(day_tables):
     """Over a black ground: the ray-marched order 1 plus the tables' orders 2..N."""
     atm, tables = day_tables

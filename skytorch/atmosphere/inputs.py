@@ -75,6 +75,8 @@ def wavelength_tensor(wavelength_nm, dtype: torch.dtype | None = None) -> torch.
     if wavelength.ndim > 1:
         raise ValueError("wavelength_nm must be a scalar or a 1-D tensor (n_wavelength,); "
                          f"got shape {tuple(wavelength.shape)}")
+    if wavelength.numel() == 0:
+        raise ValueError("wavelength_nm must hold at least one wavelength; got none")
     return wavelength.reshape(-1)
 
 

@@ -105,7 +105,7 @@ import torch
 
 from skytorch._memory import Scratch
 from skytorch._quadrature import legendre_signed, legendre_unit
-from skytorch._validate import check_int, check_range
+from skytorch._validate import check_angle, check_int, check_range, input_eps
 from skytorch.atmosphere.geometry import safe_sqrt
 from skytorch.atmosphere.inputs import check_atmosphere, wavelength_tensor
 
@@ -896,9 +896,9 @@ class ScatteringTables:
         dtype = self._single.dtype
         altitude = check_range("altitude_m", altitude_m, 0.0, self.top_altitude_m, unit=" m",
                                dtype=dtype)
-        vz = _angle_within("view_zenith_rad", view_zenith_rad, math.pi, dtype)
+        vz = check_angle("view_zenith_rad", view_zenith_rad, math.pi, dtype)
         va = check_range("view_azimuth_rad", view_azimuth_rad, dtype=dtype)
-        sz = _angle_within("sun_zenith_rad", sun_zenith_rad, math.radians(108.0), dtype)
+        sz = check_angle("sun_zenith_rad", sun_zenith_rad, math.radians(108.0), dtype)
         sa = check_range("sun_azimuth_rad", sun_azimuth_rad, dtype=dtype)
         try:
             shape = torch.broadcast_shapes(self.batch_shape, altitude.shape, vz.shape,
@@ -915,7 +915,7 @@ class ScatteringTables:
         # meets the ground at once (the rule of the ray-marched single scattering,
         # skytorch.atmosphere.geometry.ray_hits_ground: mu < -8 eps)
         mu = torch.cos(vz)
-        tolerance = 8.0 * _input_eps(view_zenith_rad, dtype)
+        tolerance = 8.0 * input_eps(view_zenith_rad, dtype)
         mu = torch.where((mu < 0.0) & (mu >= -tolerance), torch.zeros_like(mu), mu)
         mu, mu_s = mu.expand(shape), torch.cos(sz).expand(shape)
         dphi = torch.remainder(va - sa + math.pi, 2.0 * math.pi) - math.pi
@@ -1000,8 +1000,9 @@ class ScatteringTables:
         n_mu = check_int("n_mu", n_mu, 1)
         n_phi = check_int("n_phi", n_phi, 2)
         dtype = self._single.dtype
-        altitude = torch.as_tensor(altitude_m, dtype=dtype)
-        sun = torch.as_tensor(sun_zenith_rad, dtype=dtype)
+        altitude = check_range("altitude_m", altitude_m, 0.0, self.top_altitude_m, unit=" m",
+                               dtype=dtype)
+        sun = check_angle("sun_zenith_rad", sun_zenith_rad, math.radians(108.0), dtype)
         x, w = legendre_unit(n_mu)
         mu = torch.tensor(x, dtype=dtype)
         weight = torch.tensor(w, dtype=dtype) * mu * (2.0 * math.pi / n_phi)
@@ -1080,27 +1081,6 @@ def exponential_path_weights(step, depth):
 def _geometry(tensor, n_batch: int):
     """Geometry ``tensor`` (*shape) with ``n_batch`` leading singleton dims."""
     return tensor.reshape((1,) * n_batch + tuple(tensor.shape))
-
-
-def _input_eps(value, dtype) -> float:
-    """Machine epsilon of an input: the coarser of its own floating dtype and ``dtype``."""
-    eps = torch.finfo(dtype).eps
-    if torch.is_tensor(value) and value.is_floating_point():
-        return max(eps, torch.finfo(value.dtype).eps)
-    if isinstance(value, np.ndarray) and np.issubdtype(value.dtype, np.floating):
-        return max(eps, float(np.finfo(value.dtype).eps))
-    return eps
-
-
-def _angle_within(name: str, value, high: float, dtype) -> torch.Tensor:
-    """Check an angle in [0, high] [rad]; return it as a ``dtype`` tensor.
-
-    The bound is that of the input's own precision: float32(pi) is 9e-8 above pi, and is
-    pi (the value is brought to the bound it rounds).
-    """
-    slack = 4.0 * _input_eps(value, dtype)
-    angle = check_range(name, value, 0.0, high * (1.0 + slack), dtype=dtype)
-    return torch.clamp(angle, max=high)
 
 
 def _brief(values: torch.Tensor) -> str:

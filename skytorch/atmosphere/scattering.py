@@ -35,6 +35,7 @@ from skytorch._validate import (
     check_finite,
     check_int,
     check_range,
+    check_zenith,
     common_dtype,
 )
 from skytorch.atmosphere.constituents import insert_dims
@@ -153,7 +154,8 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     wavelength_nm : Tensor (wavelength,)
         Wavelengths [nm].
     view_zenith_rad, view_azimuth_rad : Tensor (...)
-        Viewing direction at the observer [rad] (azimuth from north through east).
+        Viewing direction at the observer [rad] (azimuth from north through east; the
+        zenith angle in [-pi, pi], a negative one the ray mirrored through the zenith).
     sun_zenith_rad, sun_azimuth_rad : Tensor (...)
         Direction of the Sun [rad]; zenith angles beyond 90° (twilight) are allowed.
     altitude_m : Tensor (...)
@@ -192,9 +194,10 @@ def single_scattering_radiance(atmosphere, wavelength_nm, view_zenith_rad,
     dtype = common_dtype(wavelength_nm, view_zenith_rad, view_azimuth_rad, sun_zenith_rad,
                          sun_azimuth_rad, altitude_m)
     wavelength = wavelength_tensor(wavelength_nm, dtype)
-    view_zenith = check_finite("view_zenith_rad", view_zenith_rad, dtype=dtype)
+    # zenith angles in [-pi, pi] (a negative one is the ray mirrored through the zenith)
+    view_zenith = check_zenith(view_zenith_rad, name="view_zenith_rad", dtype=dtype)
     view_azimuth = check_finite("view_azimuth_rad", view_azimuth_rad, dtype=dtype)
-    sun_zenith = check_finite("sun_zenith_rad", sun_zenith_rad, dtype=dtype)
+    sun_zenith = check_zenith(sun_zenith_rad, name="sun_zenith_rad", dtype=dtype)
     sun_azimuth = check_finite("sun_azimuth_rad", sun_azimuth_rad, dtype=dtype)
     altitude = altitude_tensor(altitude_m, dtype)
     if bool((altitude > atmosphere.top_altitude_m).any()):
