@@ -314,6 +314,25 @@ def test_float32_horizon_and_bounds_are_those_of_float64():
             tables[F64].radiance(*args)
 
 
+@pytest.mark.parametrize("dtype", [torch.float32, F64])
+def test_gradient_finite_for_a_view_grazing_the_ground_from_the_top(dtype):
+    """From 100 km, the view tangent to the ground: a finite gradient (was NaN in float32).
+
+    The ground distance's discriminant is 0 there; its square root had an infinite slope.
+    """
+    tables = precompute_scattering(Atmosphere.earth(turbidity=2.0), WAVELENGTH,
+                                   scattering_orders=2, dtype=dtype,
+                                   resolution=TableResolution.tiny())
+    radius, top = tables.planet_radius_m, tables.planet_radius_m + tables.top_altitude_m
+    grazing = math.acos(-math.sqrt(1.0 - (radius / top) ** 2))
+    for view, sun in ((grazing, 1.0), (0.5, math.pi / 2)):
+        view = torch.tensor(view, dtype=F64, requires_grad=True)
+        sun = torch.tensor(sun, dtype=F64, requires_grad=True)
+        value = tables.radiance(tables.top_altitude_m, view, 0.0, sun)
+        gradients = torch.autograd.grad(value.sum(), (view, sun))
+        assert all(bool(torch.isfinite(g)) for g in gradients), gradients
+
+
 def test_batched_atmosphere_matches_single_members():
     turbidity = torch.tensor([2.0, 4.0], dtype=F64)
     batched = precompute_scattering(Atmosphere.earth(turbidity=turbidity), WAVELENGTH,

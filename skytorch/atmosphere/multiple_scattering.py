@@ -309,13 +309,15 @@ class _Shell:
     def mu_horizon(self, r):
         return -self.rho(r) / r
 
+    # the discriminants through safe_sqrt: a zero gradient where a ray grazes the ground
+    # or the top (sqrt's is infinite at 0, and NaN through the clamp in float32)
     def distance_top(self, r, mu):
-        return torch.clamp(-r * mu + torch.sqrt(torch.clamp(
-            r * r * mu * mu + (self.Rt - r) * (self.Rt + r), min=0.0)), min=0.0)
+        return torch.clamp(-r * mu + safe_sqrt(
+            r * r * mu * mu + (self.Rt - r) * (self.Rt + r)), min=0.0)
 
     def distance_ground(self, r, mu):
-        return torch.clamp(-r * mu - torch.sqrt(torch.clamp(
-            r * r * mu * mu - (r - self.R) * (r + self.R), min=0.0)), min=0.0)
+        return torch.clamp(-r * mu - safe_sqrt(
+            r * r * mu * mu - (r - self.R) * (r + self.R)), min=0.0)
 
     # r <-> coordinate in [0, 1]: rho / H = (1 - w) x + w x^2
     def r_of(self, x):
