@@ -288,3 +288,11 @@ def test_contract_helper_catches_a_raw_runtime_error():
     # the assertion itself can fail: a raw torch error is a violation
     with pytest.raises(ContractViolation):
         check_contract(lambda: torch.zeros(3) + torch.zeros(4), ("x",))
+
+
+def test_batch_shape_error_names_the_keyword_given():
+    """A turbidity of shape (2,) against ozone (3,): the message names the turbidity."""
+    with pytest.raises(ValueError, match=r"angstrom_beta \(from turbidity or "
+                                         r"aerosol_optical_depth\) \(2,\), ozone_du \(3,\)"):
+        Atmosphere.earth(turbidity=torch.tensor([2.0, 3.0]),
+                         ozone_du=torch.tensor([200.0, 300.0, 400.0]))

@@ -249,9 +249,13 @@ def _parameter_batch_shape(values: dict) -> torch.Size:
     try:
         return broadcast_shape(*(v.shape for v in values.values()))
     except ValueError:
-        listing = ", ".join(f"{key} {tuple(v.shape)}" for key, v in values.items()
-                            if v.ndim > 0)
+        listing = ", ".join(f"{key}{_FROM_PRESET.get(key, '')} {tuple(v.shape)}"
+                            for key, v in values.items() if v.ndim > 0)
         raise ValueError(f"Atmosphere parameters do not broadcast: {listing}") from None
+
+
+#: parameters that the presets derive from another keyword (named in shape errors)
+_FROM_PRESET = {"angstrom_beta": " (from turbidity or aerosol_optical_depth)"}
 
 
 @lru_cache(maxsize=1)
