@@ -134,3 +134,33 @@ def test_bsc5_reader_errors(tmp_path):
     empty.write_text("\n")
     with pytest.raises(ValueError, match="no BSC5 records"):
         read_bsc5(empty)
+    # a malformed number: the file, the field and the record are named
+    lines = (DATA / "bsc5_sample.dat").read_text().splitlines()
+    vmag = slice(102, 107)
+    lines[2] = lines[2][:vmag.start] + " x.3 " + lines[2][vmag.stop:]
+    bad = tmp_path / "bad.dat"
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=r"bad.dat, field 'vmag': record 3 holds 'x.3'"):
+        read_bsc5(bad)
+
+
+def test_tensor_layer_refuses_mismatched_shapes_and_nan():
+    from skytorch.stars.gaia import gaia_g_to_johnson_v
+    from skytorch.stars.visibility import count_visible
+
+    with pytest.raises(ValueError, match=r"hp_mag \(3,\), bv_mag \(2,\)"):
+        hipparcos_to_johnson_v([1.0, 2.0, 3.0], [0.5, 0.6])
+    with pytest.raises(ValueError, match=r"g_mag \(3,\), bp_rp_mag \(2,\)"):
+        gaia_g_to_johnson_v([1.0, 2.0, 3.0], [0.5, 0.6])
+    with pytest.raises(ValueError, match="ra_rad must be finite"):
+        propagate_space_motion(float("nan"), 0.0, 0.0, 0.0, 1.0, 10.0)
+    with pytest.raises(ValueError, match="dt_years must be finite"):
+        propagate_space_motion(0.0, 0.0, 0.0, 0.0, 1.0, float("inf"))
+    magnitude, above = torch.zeros(2, 3), torch.ones(2, 3, dtype=torch.bool)
+    with pytest.raises(ValueError, match="limit_mag"):
+        count_visible(magnitude, above, torch.zeros(5))
+    with pytest.raises(TypeError, match="above_horizon must be a bool"):
+        count_visible(magnitude, torch.ones(2, 3), torch.zeros(2))
+    visible, count = count_visible(np.zeros((2, 3)), np.ones((2, 3), dtype=bool),
+                                   np.array([1.0, -1.0]))
+    assert count.tolist() == [3, 0]

@@ -43,7 +43,7 @@ import torch
 import xarray as xr
 
 from skytorch._data import data_path
-from skytorch._validate import check_range
+from skytorch._validate import check_broadcastable, check_finite, check_range
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
 
 __all__ = [
@@ -124,8 +124,11 @@ def propagate_space_motion(ra_rad, dec_rad, pm_ra_mas_yr, pm_dec_mas_yr, paralla
     a century misses by ~(mu t)² mu t: 1.2 mas for α Centauri (3.7″/yr), microarcseconds
     for ordinary stars; over the 8.75 years from J1991.25 to J2000.0 it is below 1 µas.
     """
-    values = [torch.as_tensor(v, dtype=torch.float64) for v in
-              (ra_rad, dec_rad, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas)]
+    names = ("ra_rad", "dec_rad", "pm_ra_mas_yr", "pm_dec_mas_yr", "parallax_mas")
+    values = [check_finite(name, value, dtype=torch.float64) for name, value in zip(
+        names, (ra_rad, dec_rad, pm_ra_mas_yr, pm_dec_mas_yr, parallax_mas), strict=True)]
+    check_broadcastable(**dict(zip(names, values, strict=True)))
+    dt_years = float(check_finite("dt_years", dt_years, dtype=torch.float64))
     ra, dec, pm_ra, pm_dec, parallax = values
     unit, east, north = direction_and_tangents(ra, dec)
     motion = (pm_ra[..., None] * east + pm_dec[..., None] * north) * MAS  # [rad/yr]
@@ -197,6 +200,7 @@ def hipparcos_to_johnson_v(hp_mag, bv_mag) -> torch.Tensor:
     """
     hp = check_range("hp_mag", hp_mag, -5.0, 20.0, unit=" mag")
     bv = check_range("bv_mag", bv_mag, -1.0, 6.0, unit=" mag", dtype=hp.dtype)
+    check_broadcastable(hp_mag=hp, bv_mag=bv)
     table_bv, table_v_hp = _bessell_table()
     xp = torch.as_tensor(table_bv, dtype=hp.dtype)
     fp = torch.as_tensor(table_v_hp, dtype=hp.dtype)
@@ -235,7 +239,18 @@ def _to_float(text: np.ndarray, missing: float = np.nan) -> np.ndarray:
     stripped = np.char.strip(text)
     out = np.full(stripped.shape, missing)
     present = stripped != b""
-    out[present] = stripped[present].astype(np.float64)
+    try:
+        out[present] = stripped[present].astype(np.float64)
+    except ValueError:
+        bad = []
+        for index in np.flatnonzero(present):
+            try:
+                float(stripped[index])
+            except ValueError:
+                bad.append(index)
+        raise ValueError(f"record {bad[0] + 1} holds {stripped[bad[0]].decode(errors='replace')!r}"
+                         f" where a number belongs ({len(bad)} such record"
+                         f"{'s' if len(bad) > 1 else ''})") from None
     return out
 
 
@@ -380,6 +395,12 @@ def read_bsc5(path, limit_magnitude: float | None = None) -> xr.Dataset:
     text = _fixed_width_columns(path, BSC5_FIELDS, BSC5_RECORD_LENGTH)
     if text["hr"].size == 0:
         raise ValueError(f"path {path} contains no BSC5 records")
+    for name, column in text.items():
+        if name not in ("name", "dec_sign"):
+            try:
+                _to_float(column)
+            except ValueError as error:
+                raise ValueError(f"{path}, field {name!r}: {error}") from None
     ra_h, vmag = _to_float(text["ra_h"]), _to_float(text["vmag"])
     present = np.isfinite(ra_h) & np.isfinite(vmag)
     if limit_magnitude is not None:

@@ -43,7 +43,7 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_range
+from skytorch._validate import check_broadcastable, check_range
 from skytorch.dataset import VariableSpec
 from skytorch.stars.catalog import (
     CATALOG_EPOCH_JYEAR,
@@ -103,6 +103,7 @@ def gaia_g_to_johnson_v(g_mag, bp_rp_mag) -> torch.Tensor:
     g = check_range("g_mag", g_mag, -5.0, 25.0, unit=" mag")
     x = check_range("bp_rp_mag", bp_rp_mag, *RIELLO2021_BP_RP_RANGE, unit=" mag",
                     dtype=g.dtype)
+    check_broadcastable(g_mag=g, bp_rp_mag=x)
     c0, c1, c2, c3 = RIELLO2021_G_V
     return g - (c0 + x * (c1 + x * (c2 + x * c3)))
 

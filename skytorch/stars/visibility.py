@@ -31,7 +31,7 @@ import math
 
 import torch
 
-from skytorch._validate import check_choice, check_range
+from skytorch._validate import as_tensor, check_choice, check_range
 from skytorch.moon.sky import mag_arcsec2_to_nanolambert  # K&S 1991 eq. 1, shared
 
 __all__ = [
@@ -143,6 +143,17 @@ def count_visible(magnitude: torch.Tensor, above_horizon: torch.Tensor,
     count : torch.Tensor (int64), shape (time,)
     """
     check_choice("model", model, VISIBILITY_MODELS)
+    magnitude = as_tensor("magnitude", magnitude)
+    limit_mag = as_tensor("limit_mag", limit_mag, dtype=magnitude.dtype)
+    above_horizon = torch.as_tensor(above_horizon)
+    if above_horizon.dtype != torch.bool:
+        raise TypeError(f"above_horizon must be a bool tensor (time, star); got dtype "
+                        f"{above_horizon.dtype}")
+    if magnitude.ndim != 2 or above_horizon.shape != magnitude.shape or limit_mag.ndim > 1 \
+            or limit_mag.numel() not in (1, magnitude.shape[0]):
+        raise ValueError(f"magnitude and above_horizon must have one shape (time, star) and "
+                         f"limit_mag () or (time,); got {tuple(magnitude.shape)}, "
+                         f"{tuple(above_horizon.shape)} and {tuple(limit_mag.shape)}")
     limit = limit_mag.to(magnitude.dtype).reshape(-1, 1) if limit_mag.ndim else limit_mag
     if model == "muller2012":
         if day_night_factor is None:
