@@ -195,12 +195,12 @@ def _parse_string(text: str) -> np.datetime64:
         )
     try:
         if text[-1:] in "Zz":
-            return np.datetime64(text[:-1].strip(), "ns")
+            return np.datetime64(text[:-1].strip())
         if "T" in text[10:11] or " " in text[10:11]:
             if _OFFSET.search(text[11:]):
                 moment = _dt.datetime.fromisoformat(text)
                 return _from_datetime(moment)
-        return np.datetime64(text, "ns")
+        return np.datetime64(text)
     except (ValueError, IndexError) as error:
         raise ValueError(
             f"times: cannot parse time {original!r}; expected ISO 8601 UTC such as "
@@ -211,7 +211,7 @@ def _parse_string(text: str) -> np.datetime64:
 def _from_datetime(moment: _dt.datetime) -> np.datetime64:
     if moment.tzinfo is not None and moment.utcoffset() is not None:
         moment = moment.astimezone(_dt.timezone.utc).replace(tzinfo=None)
-    return np.datetime64(moment, "ns")
+    return np.datetime64(moment)
 
 
 def _parse_one(value) -> np.datetime64:
@@ -220,9 +220,9 @@ def _parse_one(value) -> np.datetime64:
     if isinstance(value, _dt.datetime):
         return _from_datetime(value)
     if isinstance(value, _dt.date):
-        return np.datetime64(value, "ns")
+        return np.datetime64(value)
     if isinstance(value, np.datetime64):
-        return value.astype("datetime64[ns]")
+        return value
     raise TypeError(
         "times must be ISO 8601 strings, datetime, date or numpy datetime64 values; got "
         f"{type(value).__name__}: {value!r:.60}"
@@ -265,7 +265,7 @@ def parse_times(times) -> np.ndarray:
     if not isinstance(times, np.ndarray) and hasattr(times, "__array__"):
         times = np.asarray(times)  # xarray / pandas datetime containers
     if isinstance(times, np.ndarray) and np.issubdtype(times.dtype, np.datetime64):
-        values = times.astype("datetime64[ns]")
+        values = times
     else:
         if not isinstance(times, (Iterable, np.ndarray)):
             raise TypeError(
@@ -275,20 +275,29 @@ def parse_times(times) -> np.ndarray:
         array = np.asarray(times, dtype=object)
         if array.ndim > 1:
             raise ValueError(f"times must be one-dimensional; got shape {array.shape}")
-        values = np.array([_parse_one(v) for v in array.reshape(-1)], dtype="datetime64[ns]")
+        parsed = [_parse_one(v) for v in array.reshape(-1)]
+        # each in its own unit until the range is checked: datetime64[ns] holds the years
+        # 1678-2261 only, and converting a time outside wraps it round silently
+        values = np.empty(len(parsed), dtype=object)
+        values[:] = parsed
     if values.ndim > 1:
         raise ValueError(f"times must be one-dimensional; got shape {values.shape}")
     values = values.reshape(-1)
     if values.size == 0:
         raise ValueError("times is empty; give at least one time")
-    if np.isnat(values).any():
-        raise ValueError(f"times contains NaT at index {int(np.flatnonzero(np.isnat(values))[0])}")
-    _check_time_range(values)
-    return values
+    coarse = np.array([np.datetime64(v, "us") for v in values], dtype="datetime64[us]")
+    if np.isnat(coarse).any():
+        raise ValueError(f"times contains NaT at index {int(np.flatnonzero(np.isnat(coarse))[0])}")
+    _check_time_range(coarse)
+    return np.array([np.datetime64(v, "ns") for v in values], dtype="datetime64[ns]")
 
 
 def _check_time_range(values: np.ndarray) -> None:
-    bad = (values < TIME_MIN) | (values > TIME_MAX)
+    # compared in microseconds: a comparison with the datetime64[ns] bounds would convert
+    # the values to ns, which wraps the years outside 1678-2261 round
+    low, high = (bound.astype("datetime64[us]") for bound in (TIME_MIN, TIME_MAX))
+    values = values.astype("datetime64[us]")
+    bad = (values < low) | (values > high)
     if bad.any():
         index = int(np.flatnonzero(bad)[0])
         raise ValueError(

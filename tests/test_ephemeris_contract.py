@@ -31,7 +31,11 @@ VALID_TIMES = ["2015-09-28T02:47Z", "2000-01-01 12:00", np.datetime64("2024-03-2
 #: invalid times: outside DE421, unparseable, leap-second labels, NaT, numbers, tensors
 BAD_TIMES = ["1850-01-01", "2100-01-01", "not a time", "2016-12-31T23:59:60", "2015-13-45",
              np.datetime64("NaT"), 5, 2.5, None, torch.tensor([1.0]), [], [["2015-01-01"]],
-             str(eph.TIME_MAX + np.timedelta64(1, "s"))]
+             str(eph.TIME_MAX + np.timedelta64(1, "s")),
+             # beyond datetime64[ns] (1678-2261): converting them wrapped them round into
+             # valid years (2600 became 2015-06-13) until 2026-12-07
+             "2600-01-01", "1400-01-01", np.datetime64("2600-01-01"),
+             np.array(["2500-06-01", "2015-01-01"], dtype="datetime64[D]")]
 
 
 def _labelled(valid, bad):

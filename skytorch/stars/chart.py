@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from skytorch._validate import check_int
+
 __all__ = ["all_sky_chart", "marker_sizes"]
 
 
@@ -105,8 +107,6 @@ def all_sky_chart(observation: xr.Dataset, time_index: int = 0, *, limit: float 
 
 def _frame(observation: xr.Dataset, time_index: int, observer_index: int | None):
     """One time (and one observer) of an observation, checked."""
-    from skytorch._validate import check_int
-
     if not isinstance(observation, xr.Dataset) or "time" not in observation.dims:
         raise TypeError("observation must be the xarray.Dataset of skytorch.stars.observe; "
                         f"got {type(observation).__name__}")
