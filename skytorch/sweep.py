@@ -110,7 +110,7 @@ import xarray as xr
 from skytorch import __version__
 from skytorch._cache import discard, file_sha256, read_verified, write_verified
 from skytorch._modules import FunctionModule, make_callable
-from skytorch._validate import check_choice, check_int
+from skytorch._validate import check_choice, check_int, refuse_gradient
 from skytorch.dataset import (
     ZARR_SUFFIX,
     batch_coordinates,
@@ -881,6 +881,7 @@ def sweep(
     [[2.0, 4.0], [3.0, 9.0]]
     """
     _check_call(fn, backend, parameter_grids)
+    refuse_gradient("sweep", **parameter_grids)
     names = tuple(parameter_grids)
     _check_accepted(fn, names)
     grids = tuple(_grid_values(n, v) for n, v in parameter_grids.items())

@@ -103,3 +103,27 @@ def test_lookup_float32_and_gradients(table):
     assert bool(torch.isfinite(value).all()) and bool((value > 0).all())
     grads = torch.autograd.grad(value.sum(), [distance, offset])
     assert all(bool(torch.isfinite(g).all()) for g in grads)
+
+
+def test_lookup_outside_the_tables_distances_is_refused(shadow, table):
+    """Beyond the distances it was built for the table would return its edge values."""
+    offset = torch.tensor([0.0, 2.0e6], dtype=torch.float64)
+    for distance in (1.0e9, 2.0e8):
+        with pytest.raises(ValueError, match=r"distance_m: .* \(3.5e\+08..4.1e\+08 m"):
+            table.lookup(torch.full_like(offset, distance), offset)
+    edge = torch.tensor([3.5e8, 4.1e8], dtype=torch.float64)
+    assert bool(torch.isfinite(table.lookup(edge, torch.zeros_like(edge))).all())
+
+
+def test_black_umbra_looks_up_as_no_light():
+    """Without an atmosphere the umbra is black: 0 exactly (the log's floor gave 1e-300)."""
+    black = Shadow.earth(atmosphere=False)
+    table = ShadowTable.compute(black, RGB, n_u=4, n_v=64, min_distance_m=3.5e8,
+                                max_distance_m=4.1e8, progress=False)
+    distance = torch.full((3,), MEAN_EARTH_MOON_DISTANCE_M, dtype=torch.float64)
+    offset = torch.tensor([0.0, 2.0e6, 8.0e6], dtype=torch.float64)
+    direct = black.relative_illuminance(distance, offset, RGB)
+    looked = table.lookup(distance, offset)
+    assert torch.equal(direct[:2], torch.zeros_like(direct[:2]))
+    assert torch.equal(looked[:2], torch.zeros_like(looked[:2]))
+    assert bool((looked[2] > 0).all())

@@ -203,6 +203,12 @@ def test_render_refuses_what_is_not_a_scene_or_a_plan():
                      directions={"altitude_deg": [90.0], "azimuth_deg": [0.0]})
     expect_rejected(lambda: scene.render(plan="all"), ("plan",))
     expect_rejected(lambda: st.scene.render_times(None, ["2015-01-01"]), ("scene",))
+    # a plan of another scene (here noon instead of night) would draw that scene's sky
+    noon = scene.replace(time="2015-06-21T12:00")
+    with pytest.raises(ValueError, match="plan was made for another scene"):
+        scene.render(plan=noon.plan())
+    assert scene.render(plan=scene.plan()).attrs["effects_computed"] == \
+        scene.render().attrs["effects_computed"]
 
 
 #: render arguments: cheap (fast fidelity, tiny images, few stars) but covering the hard

@@ -115,3 +115,19 @@ def test_kernel_gradient_for_a_source_at_the_observer():
     distance = torch.tensor([0.5], dtype=torch.float64, requires_grad=True)
     assert gradcheck(lambda r: _kernel(math.pi / 2 - 1e-3, r), (distance,), eps=1e-4,
                      atol=1e-18, rtol=1e-4)
+
+
+def test_dataset_render_refuses_a_gradient_it_cannot_carry():
+    """A Dataset holds arrays: a flux or position that requires a gradient is refused.
+
+    It was detached; as_dataset=False keeps the graph (tests above).
+    """
+    import pytest
+
+    model = cached_model()
+    flux = FLUX.clone().requires_grad_(True)
+    with pytest.raises(ValueError, match="flux requires a gradient"):
+        model.render(flux, x_m=X, y_m=Y)
+    xy = torch.tensor([130.0, 270.0], dtype=torch.float64, requires_grad=True)
+    with pytest.raises(ValueError, match="observer_xy requires a gradient"):
+        model.render(FLUX, observer_xy=xy, x_m=X, y_m=Y)

@@ -77,3 +77,14 @@ def test_bad_inputs_are_refused():
         pass  # a valid call is accepted: the helper reports it
     else:  # pragma: no cover
         raise AssertionError("a valid sweep was reported as refused")
+
+
+def test_sweep_refuses_a_grid_that_requires_a_gradient():
+    """The sweep returns a Dataset: a gradient asked for is refused, not detached."""
+    try:
+        st.sweep(lambda x: x * 2.0, x=torch.tensor([1.0, 2.0], requires_grad=True),
+                 progress=False)
+    except ValueError as error:
+        assert "x requires a gradient" in str(error)
+    else:
+        raise AssertionError("a grid that requires a gradient was accepted")

@@ -40,9 +40,11 @@ References
 
 from __future__ import annotations
 
+import math
+
 import torch
 
-from skytorch._validate import check_choice, check_finite
+from skytorch._validate import as_tensor, check_choice, check_finite
 
 __all__ = [
     "DANJON_ANCHORS",
@@ -144,7 +146,8 @@ def danjon_l(v_magnitude, *, outside: str = "raise", return_uncertainty: bool = 
     Raises
     ------
     ValueError
-        For a non-finite magnitude, or one outside [-3.8, 4.2] mag with ``outside="raise"``.
+        For a non-finite magnitude (+inf, no light, gives NaN with ``outside="nan"``), or one
+        outside [-3.8, 4.2] mag with ``outside="raise"``.
 
     Examples
     --------
@@ -155,7 +158,11 @@ def danjon_l(v_magnitude, *, outside: str = "raise", return_uncertainty: bool = 
     (3.17, 0.4)
     """
     outside = check_choice("outside", outside, OUTSIDE_CHOICES)
-    v = check_finite("v_magnitude", v_magnitude)
+    v = as_tensor("v_magnitude", v_magnitude)
+    # a Moon without light (V = +inf, a black umbra) lies beyond the correlation like
+    # any faint one: NaN with outside="nan"
+    if outside == "raise" or bool((torch.isnan(v) | (v == -math.inf)).any()):
+        v = check_finite("v_magnitude", v)
     low, high = DANJON_V_RANGE
     with torch.no_grad():
         bad = (v < low) | (v > high)

@@ -45,7 +45,7 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_choice, check_int
+from skytorch._validate import check_choice, check_int, refuse_gradient
 from skytorch.constants import EARTH_MEAN_RADIUS_M, MOON_RADIUS_M
 from skytorch.dataset import (
     VariableSpec,
@@ -517,6 +517,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
     >>> ds.v_magnitude.dims, ds.sizes["turbidity_case"]
     (('turbidity_case', 'time'), 2)
     """
+    refuse_gradient("lunar_eclipse", atmosphere=atmosphere, wavelength_nm=wavelength_nm)
     from skytorch.spectrum import spectrum_to_xyz
 
     n_images = check_int("n_images", n_images, low=0)

@@ -480,7 +480,7 @@ class ShadowTable(nn.Module):
         check_broadcastable(u=u, v=v)
         u, v = torch.broadcast_tensors(u, v)
         grid_u, grid_v = self.u.to(dtype), self.v.to(dtype)
-        values = self.values.to(dtype)
+        raw = values = self.values.to(dtype)
         if self.interpolation == "log":
             values = torch.log(torch.clamp(values, min=_FLOOR if dtype == torch.float64
                                            else torch.finfo(dtype).tiny))
@@ -493,10 +493,17 @@ class ShadowTable(nn.Module):
         trailing = (1,) * (len(self.batch_shape) + 1)  # batch members, wavelength
         fx = (x - i.to(dtype)).reshape(*x.shape, *trailing)
         fy = (y - j.to(dtype)).reshape(*y.shape, *trailing)
-        result = ((1 - fx) * (1 - fy) * values[i, j] + fx * (1 - fy) * values[i + 1, j]
-                  + (1 - fx) * fy * values[i, j + 1] + fx * fy * values[i + 1, j + 1])
+        def bilinear(table):
+            return ((1 - fx) * (1 - fy) * table[i, j] + fx * (1 - fy) * table[i + 1, j]
+                    + (1 - fx) * fy * table[i, j + 1] + fx * fy * table[i + 1, j + 1])
+
+        result = bilinear(values)
         if self.interpolation == "log":
-            result = torch.exp(result)
+            # linear where a corner holds no light (a dark umbra): 0 stays 0, where the
+            # logarithm's floor gave 1e-300 (V = 737 mag for a Moon in a black umbra)
+            dark = torch.minimum(torch.minimum(raw[i, j], raw[i + 1, j]),
+                                 torch.minimum(raw[i, j + 1], raw[i + 1, j + 1])) <= 0.0
+            result = torch.where(dark, bilinear(raw), torch.exp(result))
         return torch.where((v >= 1.0).reshape(*v.shape, *trailing), torch.ones_like(result),
                            result)
 
@@ -539,6 +546,19 @@ class ShadowTable(nn.Module):
                                  "farther from the centre")
         u, v = shadow_uv(angles["sun_radius_rad"], angles["occluder_radius_rad"],
                          angles["separation_rad"])
+        # the table answers within the distances it was built for (u grows with the
+        # distance), not beyond them: there its edge values would be returned
+        low, high = float(self.u[0]), float(self.u[-1])
+        slack = 1e-9 * (high - low)
+        with torch.no_grad():
+            outside = (u < low - slack) | (u > high + slack)
+        if bool(outside.any()):
+            span = (f"{self.attrs['min_distance_m']:.6g}..{self.attrs['max_distance_m']:.6g} m"
+                    if "min_distance_m" in self.attrs else f"u {low:.6g}..{high:.6g}")
+            raise ValueError(f"distance_m: a point lies outside the distances the table was "
+                             f"built for ({span} behind the occluder; got "
+                             f"{float(distance.detach().reshape(-1)[outside.reshape(-1).nonzero()[0]]):.6g}"
+                             " m): compute a table for it, or use Shadow.relative_illuminance")
         return self.lookup_uv(u, v)
 
     forward = lookup

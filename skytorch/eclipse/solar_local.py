@@ -27,6 +27,7 @@ import numpy as np
 import torch
 import xarray as xr
 
+from skytorch._validate import refuse_gradient
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
 from skytorch.eclipse.circumstances import _parse_one
 from skytorch.eclipse.occlusion import sun_visible_fraction
@@ -135,6 +136,8 @@ def solar_eclipse_local(time_or_date, lat_deg, lon_deg, elevation_m=0.0,
     >>> str(ds.kind.values), int(ds.central_duration)
     ('total', 231)
     """
+    refuse_gradient("solar_eclipse_local", lat_deg=lat_deg, lon_deg=lon_deg,
+                    elevation_m=elevation_m)
     if not isinstance(refraction, bool):
         raise TypeError(f"refraction must be a bool; got {type(refraction).__name__}")
     lat, lon, height = check_observer(lat_deg, lon_deg, elevation_m)

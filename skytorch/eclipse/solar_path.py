@@ -32,7 +32,7 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_range
+from skytorch._validate import check_range, refuse_gradient
 from skytorch.constants import EARTH_EQUATORIAL_RADIUS_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
 from skytorch.eclipse.circumstances import _parse_one
@@ -95,6 +95,7 @@ def obscuration_map(time, lat_deg=None, lon_deg=None) -> xr.Dataset:
     >>> round(float(ds.obscuration[0, 0]), 3)
     1.0
     """
+    refuse_gradient("obscuration_map", lat_deg=lat_deg, lon_deg=lon_deg)
     instant = _parse_one("time", time, parse_times)
     lat = _grid(lat_deg, "lat_deg", -90.0, 90.0, np.arange(-89.875, 90.0, 0.25))
     lon = _grid(lon_deg, "lon_deg", -180.0, 360.0, np.arange(-179.875, 180.0, 0.25))

@@ -89,6 +89,7 @@ References
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import time as _time
@@ -129,6 +130,11 @@ def _flux(magnitude: float) -> float:
     return 10.0 ** (-0.4 * magnitude)
 
 
+def scene_key(scene) -> tuple:
+    """Return what a plan depends on: the scene's parameters, its light map (identity)."""
+    return (json.dumps(scene.parameters(), sort_keys=True, default=str), id(scene.light_map))
+
+
 def _surface_flux(mag_arcsec2: float, area_arcsec2: float = HEMISPHERE_ARCSEC2) -> float:
     return _flux(mag_arcsec2) * area_arcsec2
 
@@ -155,6 +161,9 @@ class Plan:
         (``"tables"``: an integer or ``"converged"``; 1 when none were needed).
     scattering_reason : str
         Why those orders (the estimated share of the omitted orders).
+    made_for : tuple
+        :func:`scene_key` of the scene it was made for (empty for a plan built by hand);
+        a render refuses it for another scene.
     """
 
     computed: tuple[str, ...]
@@ -165,6 +174,7 @@ class Plan:
     scattering_orders: dict = field(default_factory=lambda: {"sky": 1, "moon": 1,
                                                              "tables": 1})
     scattering_reason: str = "single scattering"
+    made_for: tuple = ()
 
     def __contains__(self, effect: str) -> bool:
         """Whether ``effect`` is among the computed effects."""
@@ -533,7 +543,7 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
                                                        2 * gather["quadrature"][1],
                                                        gather["quadrature"][2]))
     result = Plan(tuple(computed), skipped, shares, g, _time.perf_counter() - start,
-                  decision, reason)
+                  decision, reason, scene_key(scene))
     logger.info("plan: computed %s; skipped %s", result.computed, result.skipped)
     return result
 

@@ -52,7 +52,7 @@ from skytorch._validate import as_tensor
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MOON_RADIUS_M, SUN_RADIUS_M
 from skytorch.dataset import VariableSpec, coordinate, time_coordinate, variable
 from skytorch.scene.dataset import scene_dataset, stack_frames
-from skytorch.scene.planner import Plan
+from skytorch.scene.planner import Plan, scene_key
 from skytorch.scene.planner import plan as make_plan
 from skytorch.scene.presets import FIDELITY, HORIZON_REFRACTION_RAD, RESOLVED_DISC_PIXELS
 from skytorch.scene.resources import SceneResources
@@ -1148,6 +1148,9 @@ def render(scene, plan=None, resources=None):
     if plan is not None and not isinstance(plan, Plan):
         raise TypeError(f"plan must be a skytorch.scene.Plan (Scene.plan()) or None; got "
                         f"{type(plan).__name__}")
+    if plan is not None and plan.made_for and plan.made_for != scene_key(scene):
+        raise ValueError("plan was made for another scene (its time, site, light map or "
+                         "settings differ): pass this scene's own Scene.plan(), or None")
     view = scene.make_view(resources)
     plan = make_plan(scene, view, resources) if plan is None else plan
     start = _time.perf_counter()

@@ -53,6 +53,7 @@ from skytorch._validate import (
     check_int,
     check_positive,
     check_range,
+    refuse_gradient,
 )
 from skytorch.skyglow.basis import fit_basis, resolve_components
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
@@ -1312,6 +1313,10 @@ class SkyglowModel(nn.Module):
             outputs = {k: v[0] for k, v in outputs.items()}
         if not as_dataset:
             return outputs
+        refuse_gradient("render with as_dataset=True (as_dataset=False keeps the graph)",
+                        **{name: value for name, value in cells.items()
+                           if torch.is_tensor(value)},
+                        observer_xy=observer_xy, observer_altitude_m=observer_altitude_m)
         return self._dataset(outputs, cells, observer_xy, observer_altitude_m, lamp, natural,
                              single, resampling=resampling, oversampling=oversampling)
 
