@@ -47,6 +47,10 @@ def test_bad_observations_raise():
     with pytest.raises(ValueError, match="parameters"):
         retrieve_atmosphere({"v_magnitude": (-2.0, 0.1)}, "2015-09-28",
                             parameters=("turbidity",))
+    # 2020-01-10 is penumbral: no mid-totality to fit (it fitted chi2 8952 before)
+    with pytest.raises(ValueError, match="is penumbral, without a totality"):
+        retrieve_atmosphere({"v_magnitude": (-3.0, 0.1)}, "2020-01-10", max_iter=1,
+                            table_n_v=16)
 
 
 @pytest.mark.slow

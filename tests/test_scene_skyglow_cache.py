@@ -132,3 +132,27 @@ def test_a_file_of_another_key_is_refused(cache):
     assert _cache.verify(clear_path, clear_key) is None
     assert _cache.verify(hazy_path, hazy_key) is None
     assert np.isfinite(clear_mag) and np.isfinite(hazy_mag)
+
+
+def test_an_elevated_observer_sees_the_skyglow_of_their_height(cache):
+    """From 3 km the city's zenith glow is that of a model whose observer node is at 3 km.
+
+    It was the ground's (every height gave 18.92 mag arcsec^-2 at the zenith, measured
+    with the "fast" preset). The reference: SkyglowModel with observer nodes at 0 and
+    3 km, read at its 3 km node; the glow from 3 km is fainter (less air above the
+    observer scatters the city's light).
+    """
+    from skytorch.moon.sky import radiance_to_mag_arcsec2
+
+    ground, high = _scene(), _scene().replace(elevation_m=3000.0)
+    at_ground, at_height = _zenith_mag(ground), _zenith_mag(high)
+    assert at_height > at_ground + 0.5
+    resources = SceneResources.for_scene(high)
+    settings = {**FIDELITY["fast"]["skyglow"], "n_observer_altitude": 2,
+                "observer_altitude_range_m": (0.0, 3000.0)}
+    model = SkyglowModel.precompute(resources.atmosphere, wavelength_nm=resources.wavelength_nm,
+                                    progress=False, **settings)
+    out = model.render(high.light_map, observer_altitude_m=3000.0, as_dataset=False)
+    reference = radiance_to_mag_arcsec2(out["radiance"][-1:].mean(1).to(torch.float64),
+                                        resources.wavelength_nm)
+    assert abs(at_height - float(reference[0])) < 0.05

@@ -349,10 +349,19 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     if shadow is None:
         shadow = Shadow.earth(atmosphere, sun_distance_m=sun_distance)
     distances = torch.linalg.norm(moon, dim=-1)
+    # the disc's points, by their distance along the anti-Sun axis: within a lunar radius
+    # of the centre's distance, and up to distance x (1 - cos 1.5 deg) nearer for points
+    # off the axis in the penumbra; each is looked up at its own Sun distance, which moves
+    # its u as a change of its distance by the same fraction would (a shadow given for
+    # 1 au against the Sun's 1.0026 au in September): ShadowTable.lookup refuses points
+    # beyond the table's range
+    table_sun = float(getattr(shadow, "sun_distance_m", sun_distance))
+    shift = float((torch.linalg.norm(sun, dim=-1) - table_sun).abs().max()) / table_sun
+    margin = 1.05 * MOON_RADIUS_M + (4e-4 + 1.5 * shift) * float(distances.max())
     table = ShadowTable.compute(
         shadow, wavelength, n_u=table_n_u, n_v=table_n_v,
-        min_distance_m=float(distances.min()) - 1.05 * MOON_RADIUS_M,
-        max_distance_m=float(distances.max()) + 1.05 * MOON_RADIUS_M, progress=progress)
+        min_distance_m=float(distances.min()) - margin,
+        max_distance_m=float(distances.max()) + margin, progress=progress)
     grid = disc_grid(n_disc)
     solid = (MOON_RADIUS_M / distances) ** 2  # sr per unit disc area
     weight = grid["weight"] * solid[:, None]  # (n_time, n_point) [sr]

@@ -50,7 +50,7 @@ from skytorch.eclipse.eclipse_atmosphere import (
     eclipse_atmosphere,
     eclipse_shadow,
 )
-from skytorch.eclipse.lunar import lunar_light_curve
+from skytorch.eclipse.lunar import lunar_light_curve, nearest_eclipse
 from skytorch.ephemeris import parse_times
 
 __all__ = ["LIGHT_CURVE_BANDS", "LIGHT_CURVE_VARIABLES", "OBSERVABLES", "PARAMETERS",
@@ -275,6 +275,12 @@ def retrieve_atmosphere(observations, date, parameters=("stratospheric_aod_550",
     (('sample',), ['V', 'V'])
     """
     observed = _check_observations(observations)
+    eclipse = nearest_eclipse(date)
+    if str(eclipse["kind"].values[0]) != "total":
+        raise ValueError(f"date: the lunar eclipse nearest it "
+                         f"({np.datetime_as_string(eclipse.time.values[0], 'm')}) is "
+                         f"{eclipse['kind'].values[0]}, without a totality; the observables "
+                         "are those of mid-totality")
     names = tuple(parameters)
     if not names or any(name not in PARAMETERS for name in names) or len(set(names)) != len(
             names):

@@ -547,18 +547,20 @@ class ShadowTable(nn.Module):
         u, v = shadow_uv(angles["sun_radius_rad"], angles["occluder_radius_rad"],
                          angles["separation_rad"])
         # the table answers within the distances it was built for (u grows with the
-        # distance), not beyond them: there its edge values would be returned
+        # distance), not beyond them: there its edge values would be returned. The slack,
+        # 1e-4 of u, is what a lookup's own Sun distance moves u by against the table's
+        # during an eclipse (parts in 1e5), not a distance beyond the table's
         low, high = float(self.u[0]), float(self.u[-1])
-        slack = 1e-9 * (high - low)
         with torch.no_grad():
-            outside = (u < low - slack) | (u > high + slack)
+            outside = (u < low * (1.0 - 1e-4)) | (u > high * (1.0 + 1e-4))
         if bool(outside.any()):
             span = (f"{self.attrs['min_distance_m']:.6g}..{self.attrs['max_distance_m']:.6g} m"
                     if "min_distance_m" in self.attrs else f"u {low:.6g}..{high:.6g}")
+            first = outside.reshape(-1).nonzero()[0]
+            got = float(torch.broadcast_to(distance, outside.shape).detach().reshape(-1)[first])
             raise ValueError(f"distance_m: a point lies outside the distances the table was "
-                             f"built for ({span} behind the occluder; got "
-                             f"{float(distance.detach().reshape(-1)[outside.reshape(-1).nonzero()[0]]):.6g}"
-                             " m): compute a table for it, or use Shadow.relative_illuminance")
+                             f"built for ({span} behind the occluder; got {got:.6g} m): "
+                             "compute a table for it, or use Shadow.relative_illuminance")
         return self.lookup_uv(u, v)
 
     forward = lookup

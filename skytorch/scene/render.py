@@ -1044,9 +1044,16 @@ def skyglow_component(resources, view, geometry, wavelength, knobs) -> torch.Ten
     :meth:`~skytorch.scene.resources.SceneResources.skyglow_model`, cached on disk; ``geometry`` is
     not used.
     """
-    model = resources.skyglow_model(knobs["skyglow"])
+    settings = dict(knobs["skyglow"])
+    height = float(knobs.elevation_m)
+    if height > 0.0:
+        # the observer's own height: a model with its one observer node there (the
+        # preset's models have theirs at the ground; the sky seen from a mountain is
+        # darker by ~0.9 mag from 3 km)
+        settings.update(n_observer_altitude=1, observer_altitude_range_m=(height, height))
+    model = resources.skyglow_model(settings)
     out = model.render(knobs.light_map, observer_xy=tuple(knobs.observer_xy),
-                       lamp=knobs.lamp, as_dataset=False)
+                       observer_altitude_m=height, lamp=knobs.lamp, as_dataset=False)
     panorama = out["radiance"].to(torch.float64)  # (elevation, azimuth, wl)
     elevation = model.elevation_rad.to(torch.float64)
     azimuth = model.azimuth_rad.to(torch.float64)
