@@ -89,6 +89,10 @@ def test_dataset_round_trip(table, tmp_path):
     for name in ("u", "v", "wavelength", "distance", "offset"):
         assert "long_name" in dataset[name].attrs
     restored = ShadowTable.from_dataset(open_dataset(to_netcdf(dataset, tmp_path / "t.nc")))
+    # its settings too (the limb darkening law, the distances, the shadow's): they were
+    # lost, and a reloaded quadratic-law table was used with the linear law
+    assert restored.attrs == table.attrs
+    assert restored.attrs["limb_darkening_law"] == table.attrs["limb_darkening_law"]
     distance = torch.tensor([3.7e8, 3.9e8], dtype=torch.float64)
     offset = torch.tensor([1.0e6, 5.0e6], dtype=torch.float64)
     assert torch.allclose(restored.lookup(distance, offset), table.lookup(distance, offset),

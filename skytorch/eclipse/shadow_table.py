@@ -671,6 +671,18 @@ class ShadowTable(nn.Module):
         for key in ("n_u", "n_v"):
             if key in provenance:
                 provenance[key] = int(provenance[key])
+        # the table's settings (limb darkening and its law, distances, the shadow's), as
+        # written in the "parameters" attribute: the look-ups and the light curves read them
+        try:
+            written = json.loads(attrs.get("parameters", "{}"))
+        except (TypeError, ValueError):
+            raise ValueError("dataset's 'parameters' attribute is not the JSON that "
+                             "to_dataset writes") from None
+        table_attrs = {key: value for key, value in written.items()
+                       if not key.startswith(("provenance_", "table_"))
+                       and key != "interpolation"}
+        if "position_angle" in dataset.dims:
+            table_attrs["position_angle_rad"] = dataset["position_angle"].values.tolist()
         return cls(np.array(dataset["u"].values), np.array(dataset["v"].values),
                    np.array(dataset["wavelength"].values),
                    np.array(dataset["relative_illuminance"].values),
@@ -678,8 +690,7 @@ class ShadowTable(nn.Module):
                    sun_radius_m=number("table_sun_radius_m"),
                    occluder_radius_m=number("table_occluder_radius_m"),
                    interpolation=interpolation, provenance=provenance,
-                   attrs=({"position_angle_rad": dataset["position_angle"].values.tolist()}
-                          if "position_angle" in dataset.dims else None))
+                   attrs=table_attrs or None)
 
 
 def _is_terminal() -> bool:
