@@ -213,3 +213,17 @@ def test_light_curve_gradient_with_respect_to_the_cloud_profile():
                                          offset.double(), [550.0])
     assert single.dtype == torch.float32
     torch.testing.assert_close(single.double(), double, rtol=1e-5, atol=0.0)
+
+
+def test_eclipse_shadow_refuses_cloud_settings_of_another_model():
+    """A cloud setting of another cloud model is refused (it was ignored: no deck at all)."""
+    from skytorch.eclipse import cloud_climatology
+
+    with pytest.raises(ValueError, match="cloud_fraction, cloud_top_altitude_m: settings"):
+        eclipse_shadow("2015-09-28", cloud_top_altitude_m=8000.0, cloud_fraction=0.2)
+    with pytest.raises(ValueError, match="cloud_top_altitude_m: settings of clouds='deck'"):
+        eclipse_shadow("2015-09-28", clouds="none", cloud_top_altitude_m=8000.0)
+    with pytest.raises(ValueError, match="cloud_cover: the profile"):
+        eclipse_shadow("2015-09-28", clouds="deck", cloud_cover=cloud_climatology())
+    deck = eclipse_shadow("2015-09-28", clouds="deck", cloud_top_altitude_m=8000.0)
+    assert deck.parameters_dict()["cloud_top_altitude_m"] == 8000.0

@@ -451,8 +451,8 @@ def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
     return tuple(bands)
 
 
-def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M,  # noqa: C901 (three models, their refusals)
-                   cloud_fraction=CLOUD_FRACTION, cloud_cover=None, atmosphere=None,
+def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=None,  # noqa: C901 (three models, their refusals)
+                   cloud_fraction=None, cloud_cover=None, atmosphere=None,
                    terminator="global", tropospheric_aod=None, stratospheric_aod_550=None,
                    stratospheric_profile=None, **shadow_options):
     """Build the Earth's shadow of ``date``: :func:`eclipse_atmosphere` and the clouds.
@@ -501,6 +501,16 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
     """
     check_choice("clouds", clouds, CLOUD_MODELS)
     check_choice("terminator", terminator, TERMINATOR_MODELS)
+    # a cloud setting of another model would be ignored: refused
+    deck = sorted(name for name, value in (("cloud_top_altitude_m", cloud_top_altitude_m),
+                                           ("cloud_fraction", cloud_fraction))
+                  if value is not None)
+    if deck and clouds != "deck":
+        raise ValueError(f"{', '.join(deck)}: settings of clouds='deck', unused with "
+                         f"clouds={clouds!r}")
+    if cloud_cover is not None and clouds != "rossow1999":
+        raise ValueError(f"cloud_cover: the profile of clouds='rossow1999', unused with "
+                         f"clouds={clouds!r}")
     aerosols = {key: value for key, value in (("tropospheric_aod", tropospheric_aod),
                                               ("stratospheric_aod_550", stratospheric_aod_550),
                                               ("stratospheric_profile", stratospheric_profile))
@@ -516,7 +526,8 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
         bands = terminator_bands(date, **aerosols)
         shadows = [eclipse_shadow(date, clouds=clouds, cloud_top_altitude_m=cloud_top_altitude_m,
                                   cloud_fraction=cloud_fraction, atmosphere=band.atmosphere,
-                                  cloud_cover=band.cloud_cover, **shadow_options)
+                                  cloud_cover=(band.cloud_cover if clouds == "rossow1999"
+                                               else None), **shadow_options)
                    for band in bands]
         windows = ([band.window for band in bands] if terminator == "latitude_bands"
                    else None)
@@ -526,8 +537,10 @@ def eclipse_shadow(date, *, clouds="rossow1999", cloud_top_altitude_m=CLOUD_TOP_
     if atmosphere is None:
         atmosphere = eclipse_atmosphere(date, **aerosols)
     if clouds == "deck":
-        return Shadow.earth(atmosphere, cloud_top_altitude_m=cloud_top_altitude_m,
-                            cloud_fraction=cloud_fraction, **shadow_options)
+        return Shadow.earth(atmosphere, cloud_top_altitude_m=CLOUD_TOP_ALTITUDE_M
+                            if cloud_top_altitude_m is None else cloud_top_altitude_m,
+                            cloud_fraction=CLOUD_FRACTION if cloud_fraction is None
+                            else cloud_fraction, **shadow_options)
     if clouds == "none":
         return Shadow.earth(atmosphere, **shadow_options)
     cover = cloud_climatology() if cloud_cover is None else cloud_cover
