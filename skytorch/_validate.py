@@ -245,6 +245,13 @@ def refuse_gradient(what: str, **values) -> None:
                          "values")
 
 
+def check_flag(name: str, value) -> bool:
+    """Check a boolean option; strings such as "no", numbers and None are a ``TypeError``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False; got {value!r:.60}")
+    return bool(value)
+
+
 def check_choice(name: str, value: str, choices: Sequence[str]) -> str:
     """Return ``value`` if it is one of ``choices``; otherwise list the valid names.
 

@@ -465,3 +465,19 @@ def test_light_curve_small_settings_is_finite_and_in_bounds():
     dataset = check_contract(lambda: lunar_eclipse("2015-09-28", False, n_images=1,
                                                    image_pixels=4, **FAST), ("time_or_date",))
     assert dataset.sizes["time"] == 3
+
+
+def test_flags_are_booleans_not_anything_true():
+    """'no', None and NaN were taken as True or False by their truth value."""
+    from skytorch.eclipse import Shadow, ShadowTable
+    from skytorch.eclipse.danjon import danjon_l
+
+    for name, value in (("refraction", "no"), ("scattering", "no"), ("refraction", None),
+                        ("extinction", float("nan"))):
+        with pytest.raises(TypeError, match=f"{name} must be True or False"):
+            Shadow.earth(**{name: value})
+    with pytest.raises(TypeError, match="return_uncertainty must be True or False"):
+        danjon_l(0.0, return_uncertainty="no")
+    with pytest.raises(TypeError, match="progress must be True or False"):
+        ShadowTable.compute(Shadow.earth(n_altitude=9), torch.tensor([550.0]), n_u=2, n_v=4,
+                            progress="no")

@@ -65,6 +65,7 @@ from skytorch._validate import (
     as_tensor,
     broadcast_shape,
     check_choice,
+    check_flag,
     check_int,
     check_range,
     check_zenith,
@@ -1188,8 +1189,8 @@ class Atmosphere(nn.Module):
         integrals are computed per species (3) and multiplied by the spectral
         coefficients, so the cost does not grow with the number of wavelengths.
         """
-        _check_flag("per_species", per_species)
-        _check_flag("refraction", refraction)
+        check_flag("per_species", per_species)
+        check_flag("refraction", refraction)
         if refraction:
             from skytorch.atmosphere import refraction as _refraction
 
@@ -1280,7 +1281,7 @@ class Atmosphere(nn.Module):
         for :meth:`optical_depth`).
         """
         check_choice("species", species, SPECIES)
-        _check_flag("refraction", refraction)
+        check_flag("refraction", refraction)
         dtype = common_dtype(zenith_rad, altitude_m)
         zenith = check_zenith(zenith_rad, dtype=dtype)
         if refraction:
@@ -1348,7 +1349,7 @@ class Atmosphere(nn.Module):
         """
         from skytorch.atmosphere.scattering import single_scattering_radiance
 
-        _check_flag("solar_irradiance", solar_irradiance)
+        check_flag("solar_irradiance", solar_irradiance)
         black = _check_sky_options(scattering_orders, final_gather, ground_albedo, tables,
                                    {"n_samples": n_samples, "table": table,
                                     "sun_steps": sun_steps})
@@ -1405,7 +1406,7 @@ def _check_sky_options(scattering_orders, final_gather, ground_albedo, tables, m
     Returns whether the ground is black (a Python number 0; a tensor albedo, even of
     zeros, goes to the tables).
     """
-    _check_flag("final_gather", final_gather)
+    check_flag("final_gather", final_gather)
     if not (scattering_orders == "converged" or (
             not isinstance(scattering_orders, (bool, str))
             and isinstance(scattering_orders, int) and scattering_orders >= 1)):
@@ -1740,13 +1741,6 @@ SPECIES_BUILDERS = (
                    absent=lambda atm: atm._stratospheric_absent()),
     *_gases.species_builders(),  # h2o, o2, o2o2 (skytorch.atmosphere.gases)
 )
-
-
-def _check_flag(name: str, value) -> bool:
-    """Return a boolean option (TypeError for anything else, e.g. a string "False")."""
-    if not isinstance(value, bool):
-        raise TypeError(f"{name} must be True or False; got {value!r}")
-    return value
 
 
 def _check_vertical(species: str, vertical: torch.Tensor, altitude_m) -> None:

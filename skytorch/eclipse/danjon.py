@@ -44,7 +44,7 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_choice, check_finite
+from skytorch._validate import as_tensor, check_choice, check_finite, check_flag
 
 __all__ = [
     "DANJON_ANCHORS",
@@ -158,6 +158,7 @@ def danjon_l(v_magnitude, *, outside: str = "raise", return_uncertainty: bool = 
     (3.17, 0.4)
     """
     outside = check_choice("outside", outside, OUTSIDE_CHOICES)
+    return_uncertainty = check_flag("return_uncertainty", return_uncertainty)
     v = as_tensor("v_magnitude", v_magnitude)
     # a Moon without light (V = +inf, a black umbra) lies beyond the correlation like
     # any faint one: NaN with outside="nan"

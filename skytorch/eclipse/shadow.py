@@ -104,6 +104,7 @@ from skytorch._validate import (
     broadcast_shape,
     check_broadcastable,
     check_choice,
+    check_flag,
     check_int,
     check_positive,
     check_range,
@@ -1219,8 +1220,8 @@ class Shadow(nn.Module):
         self.sun_distance_m = float(check_positive("sun_distance_m", sun_distance_m,
                                                    unit=" m"))
         self.sun_radius_m = float(check_positive("sun_radius_m", sun_radius_m, unit=" m"))
-        self.refraction = bool(refraction)
-        self.extinction = bool(extinction)
+        self.refraction = check_flag("refraction", refraction)
+        self.extinction = check_flag("extinction", extinction)
         top = atmosphere.top_altitude_m if atmosphere is not None else 0.0
         cloud_top = check_range("cloud_top_altitude_m", cloud_top_altitude_m, 0.0,
                                 max(top, 0.0), unit=" m", dtype=torch.float64)
@@ -1257,7 +1258,7 @@ class Shadow(nn.Module):
         self.n_split = (None if n_split is None
                         else check_int("n_split", n_split, low=1, high=64))
         self.trace_nodes = check_int("trace_nodes", trace_nodes, low=4)
-        self.scattering = bool(scattering)
+        self.scattering = check_flag("scattering", scattering)
         self.scattering_resolution = float(check_positive(
             "scattering_resolution", scattering_resolution))
         self.name = str(name)

@@ -66,6 +66,7 @@ from skytorch._validate import (
     check_broadcastable,
     check_choice,
     check_finite,
+    check_flag,
     check_int,
     check_positive,
     check_range,
@@ -374,6 +375,7 @@ class ShadowTable(nn.Module):
                             f"{type(shadow).__name__}: {shadow!r:.60}")
         n_u = check_int("n_u", n_u, low=2)
         n_v = check_int("n_v", n_v, low=2)
+        progress = check_flag("progress", progress)
         if n_position_angle is None:
             n_position_angle = getattr(shadow, "n_position_angle", DEFAULT_POSITION_ANGLES)
         n_position_angle = check_int("n_position_angle", n_position_angle, low=2)

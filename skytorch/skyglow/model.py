@@ -50,6 +50,7 @@ from skytorch._validate import (
     as_tensor,
     check_choice,
     check_finite,
+    check_flag,
     check_int,
     check_positive,
     check_range,
@@ -163,13 +164,6 @@ def check_model(name: str, model) -> SkyglowModel:
         raise TypeError(f"{name} must be a SkyglowModel (SkyglowModel.precompute or "
                         f"SkyglowModel.load); got {type(model).__name__}: {model!r:.60}")
     return model
-
-
-def check_flag(name: str, value) -> bool:
-    """Check a boolean option; strings such as "no" and numbers are a ``TypeError``."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False; got {value!r:.60}")
-    return bool(value)
 
 
 def observer_positions(observer_xy, dtype: torch.dtype | None = None

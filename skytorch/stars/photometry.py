@@ -37,7 +37,6 @@ import logging
 import math
 from collections.abc import Mapping
 
-import numpy as np
 import torch
 
 from skytorch._cache import MemoryCache, atmosphere_key, clone_tables, value_key
@@ -47,6 +46,7 @@ from skytorch._validate import (
     check_broadcastable,
     check_choice,
     check_finite,
+    check_flag,
     check_int,
     check_positive,
     check_range,
@@ -299,13 +299,6 @@ def check_atmosphere(name: str, atmosphere, methods=("optical_depth",)):
                         f"{', '.join(methods)}); got {type(atmosphere).__name__}: "
                         f"{atmosphere!r:.60}")
     return atmosphere
-
-
-def check_flag(name: str, value) -> bool:
-    """Check a boolean option; strings such as "no" and numbers are a ``TypeError``."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False; got {value!r:.60}")
-    return bool(value)
 
 
 def _check_table(name: str, table, keys) -> None:
