@@ -10,6 +10,7 @@ from _conditioning import well_scaled_linprog
 from _skyglow_standin import cached_model, single_torch_thread  # noqa: F401
 
 from skytorch.constants import PERCENT
+from skytorch.skyglow.citymap import synthetic_city
 from skytorch.skyglow.inverse import (
     apply_reduction,
     minimal_reduction,
@@ -102,3 +103,22 @@ def test_minimal_reduction_matches_linear_programme():
     removed = result.attrs["parameter_removed_flux_lm"]
     assert removed == pytest.approx(lp.fun * total_flux, rel=1e-6)
     assert float(result["reduction"].min()) >= 0 and float(result["reduction"].max()) <= 1
+
+
+def test_reduction_applied_by_dimension_name_on_a_transposed_map():
+    """A map stored as (x, y): gamma goes to the cells it was computed for.
+
+    It was applied by position: 98 % of the peak flux moved, 3.59e7 lm removed instead of
+    5.64e6. The influence DataArray itself is accepted by reduction_factors.
+    """
+    model = cached_model()
+    city = synthetic_city(20e3, 1000.0, population=1e5, centre_xy=(6000.0, 0.0))
+    transposed = city.transpose("x", "y")
+    influence = pollution_influence(model, transposed)["pollution_level"]
+    gamma = reduction_factors(influence, 0.0, float(influence.max()))
+    reduced = apply_reduction(transposed, gamma)["flux"]
+    assert reduced.dims == ("x", "y")
+    expected = apply_reduction(city, gamma)["flux"]
+    np.testing.assert_array_equal(reduced.transpose("y", "x").values, expected.values)
+    same = apply_reduction(city, influence / float(influence.max()))["flux"]
+    assert float(same.sum()) < float(city["flux"].sum())

@@ -172,3 +172,23 @@ def test_reused_splat_plan_gradient_and_altitude_warning():
     for _ in range(2):  # building the plan, then with the kept plan
         with pytest.warns(UserWarning, match="source altitude"):
             model.radiance_per_lumen(high, (0.0, 0.0))
+
+
+def test_sampling_refuses_a_decreasing_coordinate():
+    """A north-up raster (y decreasing) gave negative luminance with 'sample': refused.
+
+    'splat' takes it; the map sorted gives the same splat sky as the unsorted one.
+    """
+    model = cached_model()
+    city = synthetic_city(20e3, 1000.0, population=1e5, centre_xy=(6000.0, 0.0))
+    north_up = city.isel(y=slice(None, None, -1))
+    with pytest.raises(ValueError, match="evenly spaced increasing 'y'"):
+        model.render(north_up, observer_xy=(8e3, 1e3), resampling="sample", as_dataset=False)
+    repeated = city.assign_coords(x=np.zeros(city.sizes["x"]))
+    with pytest.raises(ValueError, match="evenly spaced increasing 'x'"):
+        model.render(repeated, observer_xy=(8e3, 1e3), resampling="sample", as_dataset=False)
+    splat = model.render(north_up, observer_xy=(8e3, 1e3), as_dataset=False)["luminance"]
+    sorted_ = model.render(north_up.sortby("y"), observer_xy=(8e3, 1e3),
+                          as_dataset=False)["luminance"]
+    assert bool((splat > 0).all())
+    torch.testing.assert_close(sorted_, splat, rtol=1e-12, atol=0.0)

@@ -42,6 +42,7 @@ import logging
 
 import numpy as np
 import torch
+import xarray as xr
 
 from skytorch._validate import as_tensor, check_finite, check_int, check_range
 from skytorch.skyglow.lamps import luminance_weights
@@ -288,6 +289,8 @@ def reduction_factors(influence, q_a: float, q_b: float, gamma_user: float = 1.0
     gamma_user : float
         Overall strength in [0, 1].
     """
+    if isinstance(influence, xr.DataArray):  # pollution_influence's variable, (y, x)
+        influence = influence.values
     influence = check_finite("influence", influence)
     gamma_user = float(check_range("gamma_user", gamma_user, 0.0, 1.0))
     q_a = float(check_finite("q_a", q_a))
@@ -298,22 +301,35 @@ def reduction_factors(influence, q_a: float, q_b: float, gamma_user: float = 1.0
 
 
 def apply_reduction(light_map, gamma):
-    """Return a copy of the light map with fluxes ``(1 − γ_i) L_i``."""
+    """Return a copy of the light map with fluxes ``(1 − γ_i) L_i``.
+
+    ``gamma`` is on the cells (y, x) — a number, an array (y, x) as
+    :func:`reduction_factors` returns, or a DataArray with dimensions ``y`` and ``x`` —
+    and is applied by dimension name, whatever the order of the map's ``flux``.
+    """
     if not hasattr(light_map, "data_vars") or "flux" not in light_map:
         raise TypeError(f"light_map must be a Dataset with a variable 'flux' (y, x); got "
                         f"{type(light_map).__name__}")
-    gamma = check_range("gamma", gamma, 0.0, 1.0, dtype=torch.float64).detach().numpy()
-    flux_shape = light_map["flux"].shape
+    flux = light_map["flux"]
+    if set(flux.dims) != {"y", "x"}:
+        raise ValueError(f"light_map['flux'] must have the dimensions (y, x); got {flux.dims}")
+    if isinstance(gamma, xr.DataArray):
+        if set(gamma.dims) - {"y", "x"}:
+            raise ValueError(f"gamma must have the dimensions (y, x); got {gamma.dims}")
+        gamma = gamma.transpose(*[d for d in ("y", "x") if d in gamma.dims]).values
+    values = check_range("gamma", gamma, 0.0, 1.0, dtype=torch.float64).detach().numpy()
+    cells = (flux.sizes["y"], flux.sizes["x"])
     try:
-        np.broadcast_shapes(gamma.shape, flux_shape)
-    except ValueError as error:
-        raise ValueError(f"gamma of shape {gamma.shape} does not broadcast to the light "
-                         f"map's flux (y, x) = {flux_shape}") from error
-    if np.broadcast_shapes(gamma.shape, flux_shape) != flux_shape:
-        raise ValueError(f"gamma of shape {gamma.shape} does not broadcast to the light "
-                         f"map's flux (y, x) = {flux_shape}")
+        shape = np.broadcast_shapes(values.shape, cells)
+    except ValueError:
+        shape = None
+    if shape != cells:
+        raise ValueError(f"gamma of shape {values.shape} does not broadcast to the light "
+                         f"map's cells (y, x) = {cells}")
+    kept = xr.DataArray(1.0 - np.broadcast_to(values, cells), dims=("y", "x"))
     out = light_map.copy()
-    out["flux"] = light_map["flux"] * (1.0 - gamma)
+    out["flux"] = (flux * kept).transpose(*flux.dims)
+    out["flux"].attrs = dict(flux.attrs)
     return out
 
 

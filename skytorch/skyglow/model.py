@@ -1005,9 +1005,12 @@ class SkyglowModel(nn.Module):
         for name, c in (("x", x_c), ("y", y_c)):
             step = torch.diff(c)
             rtol = 1e-6 if c.dtype == torch.float64 else 1e-4  # float32 coordinates round
-            if c.numel() < 2 or not bool(torch.allclose(step, step[0], rtol=rtol, atol=0.0)):
+            if c.numel() < 2 or not bool(step[0] > 0) or not bool(
+                    torch.allclose(step, step[0], rtol=rtol, atol=0.0)):
+                # a decreasing coordinate (north-up rasters: y falls) gave negative light
                 raise ValueError(f"resampling='sample' needs an evenly spaced increasing '{name}' "
-                                 "coordinate with at least two cells")
+                                 "coordinate with at least two cells (reverse a decreasing one, "
+                                 "e.g. light_map.sortby('y'), or use resampling='splat')")
             spacing.append(step[0])
         dx, dy = spacing
         n_t, n_r, n_h = (self.azimuth_rad.numel(), self.distance_m.numel(),
