@@ -219,3 +219,21 @@ def test_render_times_keeps_the_orders_of_scattering_per_frame():
     assert ds["sky_scattering_orders"].dims == ("time",)
     assert list(ds["sky_scattering_orders"].values) == [
         str(f.attrs["sky_scattering_orders"]) for f in frames]
+
+
+def test_scene_png_refuses_what_it_cannot_draw(tmp_path):
+    """No xyz among the outputs, a non-positive or NaN exposure, a night flag 'yes'."""
+    from skytorch.scene import scene_png
+
+    scene = st.Scene(time="2015-06-21T19:45", lat_deg=48.85, lon_deg=2.35, size=8,
+                     fidelity="fast")
+    ds = scene.render()
+    for exposure, message in ((-1.0, "exposure must be > 0"), (0.0, "exposure must be > 0"),
+                              (float("nan"), "exposure must be finite")):
+        with pytest.raises(ValueError, match=message):
+            scene_png(ds, tmp_path / "x.png", exposure=exposure)
+    with pytest.raises(TypeError, match="night must be True or False"):
+        scene_png(ds, tmp_path / "x.png", night="yes")
+    with pytest.raises(ValueError, match=r"lacks \['xyz'\]"):
+        scene_png(scene.replace(outputs=("v_mag",)).render(), tmp_path / "x.png")
+    assert scene_png(ds, tmp_path / "x.png", exposure=2.0).stat().st_size > 0

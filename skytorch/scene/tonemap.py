@@ -41,6 +41,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from skytorch._validate import check_flag, check_positive
+
 #: Reinhard's middle-grey key
 KEY = 0.18
 #: mesopic range of the night-vision blend [cd m^-2] (scotopic below, photopic above)
@@ -96,9 +98,11 @@ def tonemap(xyz: torch.Tensor, valid: torch.Tensor | None = None, *, exposure=No
     from skytorch.spectrum import xyz_to_srgb
 
     xyz = xyz.to(torch.float64).clamp(min=0.0)
-    if night:
+    if check_flag("night", night):
         xyz = night_vision(xyz)
-    k = auto_exposure(xyz[..., 1], valid) if exposure is None else float(exposure)
+    if exposure is not None:
+        exposure = float(check_positive("exposure", exposure))
+    k = auto_exposure(xyz[..., 1], valid) if exposure is None else exposure
     scaled = xyz * k
     y = scaled[..., 1:2]
     mapped = scaled * (1.0 / (1.0 + y))
@@ -133,6 +137,10 @@ def save_png(rgb, path, *, title: str | None = None) -> Path:
 def scene_png(dataset, path, *, exposure=None, night: bool = False,
               title: str | None = None) -> Path:
     """Tone-map a rendered scene Dataset (``xyz``) and write it as a PNG."""
+    missing = [name for name in ("xyz", "solid_angle") if name not in dataset]
+    if missing:
+        raise ValueError(f"dataset lacks {missing}: scene_png needs a render with 'xyz' among "
+                         "the Scene's outputs")
     xyz = torch.as_tensor(dataset["xyz"].values)
     valid = torch.as_tensor(dataset["solid_angle"].values > 0)
     if xyz.ndim != 3:
