@@ -194,6 +194,11 @@ def test_toml_tables_missing_a_direction_key_are_refused():
     expect_rejected(lambda: st.Scene.from_dict({"view": {"kind": "fisheye", "sise": 8}}),
                     ("sise",))
     expect_rejected(lambda: st.Scene.from_dict({"observer": 52.0}), ("observer",))
+    # a key of another table is refused (it was taken: [observer] turbidity = 3)
+    with pytest.raises(ValueError, match=r"unknown keys \['turbidity'\] in \[observer\]"):
+        st.Scene.from_dict({"observer": {"lat_deg": 52.5, "turbidity": 3.0}})
+    with pytest.raises(ValueError, match=r"unknown keys \['lat_deg'\] in \[planner\]"):
+        st.Scene.from_dict({"planner": {"lat_deg": 52.5}})
     expect_rejected(lambda: st.Scene.from_dict([("time", "2015-01-01")]), ("config",))
 
 

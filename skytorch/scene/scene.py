@@ -472,6 +472,13 @@ def _camera(value) -> dict:
     return camera
 
 
+#: the keys of the TOML tables whose keys go straight to the Scene (docs/scene.md)
+_TOML_TABLE_KEYS = {"observer": ("lat_deg", "lon_deg", "elevation_m"),
+                    "atmosphere": ("turbidity", "ozone_du", "ground_albedo"),
+                    "planner": ("tolerance", "fidelity", "scattering_orders", "force",
+                                "exclude")}
+
+
 @dataclass
 class Scene:
     """A sky to render: observer, time, view, spectral grid, atmosphere, lights, tolerance.
@@ -920,7 +927,14 @@ class Scene:
             value = config.pop(name, {})
             if not isinstance(value, Mapping):
                 raise TypeError(f"scene: [{name}] must be a table; got {value!r:.60}")
-            return dict(value)
+            value = dict(value)
+            # a key in another table is not silently taken (docs/scene.md's format)
+            allowed = _TOML_TABLE_KEYS.get(name)
+            stray = sorted(set(value) - set(allowed)) if allowed is not None else []
+            if stray:
+                raise ValueError(f"scene: unknown keys {stray} in [{name}]; valid: "
+                                 f"{list(allowed)}")
+            return value
 
         def no_leftovers(name: str, rest: dict) -> None:
             if rest:
