@@ -204,3 +204,19 @@ def test_batched_dataset_round_trip_and_dimension_names(tmp_path):
     with pytest.raises(ValueError, match="batch_dims"):
         lunar_eclipse(DATE, atmosphere, n_times=3, n_images=0, table_n_v=32,
                       batch_dims=["time"])
+
+
+def test_greatest_magnitude_is_at_greatest_eclipse_whatever_the_samples():
+    """The 'greatest V' of a series is the light curve's value at greatest eclipse.
+
+    From a single sample 2 h 17 min before greatest eclipse it was that sample's (-12.93).
+    """
+    from skytorch.eclipse import lunar_light_curve
+
+    options = {"n_disc": 4, "table_n_v": 32}
+    early = lunar_light_curve(DATE, times=["2015-09-28T00:30"], **options)
+    at_greatest = lunar_light_curve(DATE, times=["2015-09-28T02:47:08"], **options)
+    assert float(early["v_magnitude"][0]) < -12.0                     # the uneclipsed Moon
+    assert float(early["greatest_v_magnitude"]) == pytest.approx(
+        float(at_greatest["v_magnitude"][0]), abs=0.01 * MAG)
+    assert float(early["greatest_v_magnitude"]) > -3.3

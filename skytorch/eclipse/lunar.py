@@ -281,7 +281,7 @@ _SPECS = {
                                       "Disc-integrated V magnitude at the image times"),
     "greatest_v_magnitude": VariableSpec(
         "mag", "V magnitude at greatest eclipse",
-        "Disc-integrated V magnitude at the time closest to the shadow axis"),
+        "Disc-integrated V magnitude at greatest eclipse (computed at that instant)"),
     "danjon_l": VariableSpec("1", "Danjon L estimate",
                              "Danjon luminosity L from the V magnitude at greatest eclipse "
                              "(Vital's correlation; NaN outside [-3.8, 4.2] mag; see the "
@@ -342,8 +342,12 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     wavelength = (wavelength_grid("bands15") if wavelength_nm is None
                   else _check_wavelength(wavelength_nm, torch.float64))
     times, row = _eclipse_times(time_or_date, n_times, enlargement, times)
-    n_times = times.size
-    vectors = sun_moon_vectors(times, frames=("gcrs",))
+    n_series = times.size
+    # the greatest eclipse itself as one more instant, after the series: its V (and the
+    # Danjon L from it) is that of greatest eclipse, not of the nearest sample
+    computed = np.concatenate([times, np.array([row.time.values], dtype=times.dtype)])
+    n_times = computed.size
+    vectors = sun_moon_vectors(computed, frames=("gcrs",))
     sun, moon = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
     sun_distance = float(torch.linalg.norm(sun, dim=-1).mean())
     if shadow is None:
@@ -387,18 +391,19 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     v_mag = spectrum_to_magnitude(flux, wavelength, "V")
     b_mag = spectrum_to_magnitude(flux, wavelength, "B")
     v_full = spectrum_to_magnitude(flux_full, wavelength, "V")
-    greatest = int(torch.argmin(axis_distance))
+    series = slice(0, n_series)
+    greatest = int(torch.argmin(axis_distance[series]))
     curve = {
-        "v_magnitude": v_mag,
-        "b_magnitude": b_mag,
-        "b_minus_v": b_mag - v_mag,
-        "relative_brightness": 10 ** (-0.4 * (v_mag - v_full)),
-        "spectral_irradiance": flux,
-        "greatest_v_magnitude": v_mag[..., greatest],
-        "danjon_l": danjon_l(v_mag[..., greatest], outside="nan"),
+        "v_magnitude": v_mag[..., series],
+        "b_magnitude": b_mag[..., series],
+        "b_minus_v": (b_mag - v_mag)[..., series],
+        "relative_brightness": 10 ** (-0.4 * (v_mag - v_full))[..., series],
+        "spectral_irradiance": flux[..., series, :],
+        "greatest_v_magnitude": v_mag[..., n_series],
+        "danjon_l": danjon_l(v_mag[..., n_series], outside="nan"),
     }
-    return curve, _Run(times, row, sun, moon, sun_distance, shadow, table, wavelength,
-                       axis_distance, greatest)
+    return curve, _Run(times, row, sun[series], moon[series], sun_distance, shadow, table,
+                       wavelength, axis_distance[series], greatest)
 
 
 def lunar_light_curve(time_or_date, atmosphere=None, n_times: int | None = None, *,
@@ -431,9 +436,9 @@ def lunar_light_curve(time_or_date, atmosphere=None, n_times: int | None = None,
     dict of Tensor
         ``v_magnitude``, ``b_magnitude``, ``b_minus_v``, ``relative_brightness``
         (*B, time) [mag], [mag], [mag], [1]; ``spectral_irradiance`` (*B, time, wavelength)
-        [W m-2 nm-1]; ``greatest_v_magnitude`` and ``danjon_l`` (*B) at the time closest
-        to the shadow axis. The times are those of ``lunar_eclipse(...).time``, or
-        ``times``.
+        [W m-2 nm-1]; ``greatest_v_magnitude`` and ``danjon_l`` (*B) at greatest eclipse
+        (computed at that instant, whatever the times of the series). The times are those
+        of ``lunar_eclipse(...).time``, or ``times``.
 
     Examples
     --------
@@ -594,7 +599,7 @@ def lunar_eclipse(time_or_date, atmosphere=None, n_times: int = 200, *,
         "greatest_eclipse": when("time"), **{c: when(c) for c in ("p1", "u1", "u2", "u3",
                                                                   "u4", "p4")},
         "enlargement": enlargement, "greatest_v_magnitude": scalar_or_list(greatest_v),
-        "greatest_time": np.datetime_as_string(times[run.greatest], unit="s"),
+        "greatest_time": np.datetime_as_string(run.row.time.values, unit="s"),
         "danjon_l": scalar_or_list(curve["danjon_l"]) if total else "none",
         "danjon_l_relation": DANJON_RELATION,
         "n_disc": n_disc, "table_n_u": table_n_u, "table_n_v": table_n_v,
