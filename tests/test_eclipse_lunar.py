@@ -220,3 +220,18 @@ def test_greatest_magnitude_is_at_greatest_eclipse_whatever_the_samples():
     assert float(early["greatest_v_magnitude"]) == pytest.approx(
         float(at_greatest["v_magnitude"][0]), abs=0.01 * MAG)
     assert float(early["greatest_v_magnitude"]) > -3.3
+
+
+def test_a_grid_that_misses_the_bands_gives_no_false_colour():
+    """A grid without a wavelength in V is refused; without two in B, B and B - V are NaN.
+
+    One red wavelength gave V -5.27 at totality and B - V 0.60 in the umbra.
+    """
+    from skytorch.eclipse import lunar_light_curve
+
+    options = {"n_times": 3, "n_disc": 3, "table_n_v": 16}
+    with pytest.raises(ValueError, match="within the V band"):
+        lunar_light_curve(DATE, wavelength_nm=[700.0], **options)
+    curve = lunar_light_curve(DATE, wavelength_nm=[550.0, 650.0], **options)
+    assert bool(torch.isnan(curve["b_minus_v"]).all())
+    assert bool(torch.isfinite(curve["v_magnitude"]).all())

@@ -341,6 +341,17 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
                         f"{type(shadow).__name__}: {shadow!r:.60}")
     wavelength = (wavelength_grid("bands15") if wavelength_nm is None
                   else _check_wavelength(wavelength_nm, torch.float64))
+    # the magnitudes integrate the bands where their responses exceed 10 % of the peak
+    # (B 377-529 nm, V 486-636 nm): V needs a wavelength in its band; without two in B the
+    # B magnitude and B - V are NaN (a grid of one red wavelength gave B - V 0.60 in the
+    # umbra and V -5.27 at totality)
+    def sampled(low, high):
+        return int(((wavelength >= low) & (wavelength <= high)).sum())
+
+    if sampled(486.0, 636.0) < 1:
+        raise ValueError(f"wavelength_nm must hold a wavelength within the V band "
+                         f"(486-636 nm); got {wavelength.tolist()!r:.80}")
+    b_sampled = sampled(377.0, 529.0) >= 2
     times, row = _eclipse_times(time_or_date, n_times, enlargement, times)
     n_series = times.size
     # the greatest eclipse itself as one more instant, after the series: its V (and the
@@ -389,7 +400,8 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     axis_distance = torch.linalg.norm(moon - along[:, None] * anti_sun, dim=-1)
     flux = flux.movedim(0, len(batch))  # (*B, time, wavelength)
     v_mag = spectrum_to_magnitude(flux, wavelength, "V")
-    b_mag = spectrum_to_magnitude(flux, wavelength, "B")
+    b_mag = (spectrum_to_magnitude(flux, wavelength, "B") if b_sampled
+             else torch.full_like(v_mag, math.nan))
     v_full = spectrum_to_magnitude(flux_full, wavelength, "V")
     series = slice(0, n_series)
     greatest = int(torch.argmin(axis_distance[series]))
@@ -435,7 +447,8 @@ def lunar_light_curve(time_or_date, atmosphere=None, n_times: int | None = None,
     -------
     dict of Tensor
         ``v_magnitude``, ``b_magnitude``, ``b_minus_v``, ``relative_brightness``
-        (*B, time) [mag], [mag], [mag], [1]; ``spectral_irradiance`` (*B, time, wavelength)
+        (*B, time) [mag], [mag], [mag], [1] (B and B − V NaN for a grid with fewer than
+        two wavelengths in 377-529 nm); ``spectral_irradiance`` (*B, time, wavelength)
         [W m-2 nm-1]; ``greatest_v_magnitude`` and ``danjon_l`` (*B) at greatest eclipse
         (computed at that instant, whatever the times of the series). The times are those
         of ``lunar_eclipse(...).time``, or ``times``.
