@@ -223,12 +223,14 @@ def check_positive(name: str, value, *, allow_zero: bool = False, unit: str = ""
     return check_range(name, value, low=0.0, low_inclusive=allow_zero, unit=unit, dtype=dtype)
 
 
-def refuse_gradient(what: str, **values) -> None:
+def refuse_gradient(what: str, *, why: str = "its results are arrays of an xarray.Dataset",
+                    **values) -> None:
     """Raise ValueError naming the inputs that require a gradient ``what`` cannot carry.
 
     ``values``: name -> a tensor, an ``nn.Module`` (its parameters and buffers) or anything
-    else (ignored). Used by the entry points that return Datasets: their arrays hold no
-    gradient, so one asked for is refused rather than detached.
+    else (ignored); ``why`` says why there is no gradient. Used by the entry points that
+    return Datasets (their arrays hold no gradient) and by those that return classes: a
+    gradient asked for is refused rather than detached.
     """
     wanted = []
     for name, value in values.items():
@@ -241,8 +243,7 @@ def refuse_gradient(what: str, **values) -> None:
     if wanted:
         verb = "requires" if len(wanted) == 1 else "require"
         raise ValueError(f"{', '.join(wanted)} {verb} a gradient, which {what} does not "
-                         "carry (its results are arrays of an xarray.Dataset): pass detached "
-                         "values")
+                         f"carry ({why}): pass detached values")
 
 
 def check_flag(name: str, value) -> bool:

@@ -116,3 +116,11 @@ def test_verbal_classes_batched_and_checked():
     assert classes.tolist() == [0.0, 4.0]
     with pytest.raises(ValueError, match="rim_to_centre"):
         danjon_class_l(0.0, 0.0, 1.0)
+
+
+def test_class_l_refuses_mismatched_shapes_and_a_gradient():
+    """A class carries no gradient (it was dropped); shapes are checked by name."""
+    with pytest.raises(ValueError, match=r"centre_v_magnitude \(3,\), rim_to_centre \(2,\)"):
+        danjon_class_l(torch.zeros(3), torch.ones(2), 1.0)
+    with pytest.raises(ValueError, match="centre_v_magnitude requires a gradient"):
+        danjon_class_l(torch.tensor(-3.9, requires_grad=True), 3.0, 0.5)

@@ -44,7 +44,14 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_choice, check_finite, check_flag
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_choice,
+    check_finite,
+    check_flag,
+    refuse_gradient,
+)
 
 __all__ = [
     "DANJON_ANCHORS",
@@ -255,9 +262,14 @@ def danjon_class_l(centre_v_magnitude, rim_to_centre, rim_b_minus_v) -> torch.Te
     >>> float(danjon_class_l(3.0, 30.0, 1.8))
     2.0
     """
+    # a class has no gradient: one asked for is refused, not dropped
+    refuse_gradient("danjon_class_l", why="a class, a whole number",
+                    centre_v_magnitude=centre_v_magnitude,
+                    rim_to_centre=rim_to_centre, rim_b_minus_v=rim_b_minus_v)
     centre = check_finite("centre_v_magnitude", centre_v_magnitude)
     ratio = check_finite("rim_to_centre", rim_to_centre, dtype=centre.dtype)
     colour = check_finite("rim_b_minus_v", rim_b_minus_v, dtype=centre.dtype)
+    check_broadcastable(centre_v_magnitude=centre, rim_to_centre=ratio, rim_b_minus_v=colour)
     with torch.no_grad():
         if bool((ratio <= 0).any()):
             value = ratio[ratio <= 0].flatten()[0].item()
