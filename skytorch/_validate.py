@@ -52,6 +52,13 @@ def _describe(value: torch.Tensor, mask: torch.Tensor | None = None) -> str:
     return f"tensor of shape {tuple(value.shape)}"
 
 
+def _holds_bool(value) -> bool:
+    """Whether a list or tuple (nested) holds a bool."""
+    if isinstance(value, (list, tuple)):
+        return any(isinstance(v, (bool, np.bool_)) or _holds_bool(v) for v in value)
+    return False
+
+
 def as_tensor(
     name: str,
     value,
@@ -93,7 +100,7 @@ def as_tensor(
     if value is None or isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be a number or an array of numbers; got {value!r}")
     if isinstance(value, (bool, np.bool_)) or (isinstance(value, np.ndarray)
-                                               and value.dtype == np.bool_):
+                                               and value.dtype == np.bool_) or _holds_bool(value):
         # True is not the number 1 here: a flag passed where a quantity is expected
         raise TypeError(f"{name} must be a number or an array of numbers; got a bool "
                         f"{value!r:.40}")

@@ -283,3 +283,17 @@ def test_units_contract(value):
     call_and_check(luminance_to_mag_arcsec2,
                    {"luminance_cd_m2": (torch.as_tensor(value[0]) * 1e-5, False)
                     if not value[1] else value}, bounds=(-100.0, 100.0))
+
+
+def test_render_refuses_a_mask_for_a_flux_and_bools_for_a_position():
+    """A bool flux rendered as 0/1 lm, (True, False) as an observer at (1, 0) m."""
+    from skytorch.skyglow.citymap import synthetic_city
+
+    model = cached_model()
+    city = synthetic_city(20e3, 2000.0, population=1e5)
+    mask = city.copy()
+    mask["flux"] = city["flux"] > 100.0
+    with pytest.raises(TypeError, match=r"light_map\['flux'\] must hold numbers"):
+        model.render(mask, as_dataset=False)
+    with pytest.raises(TypeError, match="observer_xy must be a number .* bool"):
+        model.render(city, observer_xy=(True, False), as_dataset=False)

@@ -307,6 +307,9 @@ def _dataset_light_map(light_map):
         raise ValueError(f"light_map flux must have the dimensions (y, x); got "
                          f"{light_map['flux'].dims}")
     da = light_map["flux"].transpose("y", "x")
+    if not (np.issubdtype(da.dtype, np.floating) or np.issubdtype(da.dtype, np.integer)):
+        # a mask (bool) or text is not a flux in lumens
+        raise TypeError(f"light_map['flux'] must hold numbers [lm]; got dtype {da.dtype}")
     flux = torch.tensor(np.array(da.values, dtype=np.float64))
     x_m = torch.tensor(np.array(light_map["x"].values, dtype=np.float64))
     y_m = torch.tensor(np.array(light_map["y"].values, dtype=np.float64))
