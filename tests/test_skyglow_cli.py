@@ -33,6 +33,13 @@ def test_skyglow_command_synthetic_city(tmp_path, capsys):
     assert main(["skyglow", "--lights", str(lights), "--model", str(model), "-o", str(again),
                  "--observer-x", "5000"]) == 0
     assert open_dataset(again)["luminance"].shape == (4, 16)
+    # a built model's settings with --model were ignored (turbidity 5 drew turbidity 2)
+    capsys.readouterr()
+    assert main(["skyglow", "--lights", str(lights), "--model", str(model), "-o", str(again),
+                 "--turbidity", "5"]) == 2
+    assert "--turbidity: settings of a model to build" in capsys.readouterr().err
+    assert main(["skyglow", "--synthetic", "--lat", "200", "-o", str(again), *SMALL]) == 2
+    assert "--lat must be in [-90.0 degree, 90.0 degree]" in capsys.readouterr().err
 
 
 def test_skyglow_command_reports_bad_map(tmp_path, capsys):

@@ -20,6 +20,8 @@ from __future__ import annotations
 import argparse
 import logging
 
+from skytorch._validate import check_range
+
 logger = logging.getLogger(__name__)
 
 
@@ -41,20 +43,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
     model = parser.add_argument_group("model")
     model.add_argument("--model", help="precomputed model file (from --save-model)")
     model.add_argument("--save-model", help="write the precomputed model to this file")
-    model.add_argument("--turbidity", type=float, default=2.0,
+    model.add_argument("--turbidity", type=float,
                        help="atmospheric turbidity (1 = no aerosols; default 2)")
-    model.add_argument("--emission", default="garstang1986",
-                       help="upward emission function: garstang1986, lambertian, dobashi2023")
-    model.add_argument("--n-azimuth", type=int, default=128)
-    model.add_argument("--n-elevation", type=int, default=32)
-    model.add_argument("--n-distance", type=int, default=64)
-    model.add_argument("--max-distance", type=float, default=20_000.0,
+    model.add_argument("--emission",
+                       help="upward emission function: garstang1986 (default), lambertian, "
+                            "dobashi2023")
+    model.add_argument("--n-azimuth", type=int, help="default 128")
+    model.add_argument("--n-elevation", type=int, help="default 32")
+    model.add_argument("--n-distance", type=int, help="default 64")
+    model.add_argument("--max-distance", type=float,
                        help="largest source distance [m] (default 20000)")
-    model.add_argument("--components", type=int, default=32, help="PCA components M")
-    model.add_argument("--steps", type=int, default=8,
+    model.add_argument("--components", type=int, help="PCA components M (default 32)")
+    model.add_argument("--steps", type=int,
                        help="Gauss nodes per half view ray (default 8: kernel error 0.014 %% "
                             "mean, 0.36 %% max)")
-    model.add_argument("--kernel-dtype", choices=("float64", "float32"), default="float64",
+    model.add_argument("--kernel-dtype", choices=("float64", "float32"),
                        help="dtype of the kernel quadrature (float32: about twice as fast, "
                             "within 0.01 %% of float64; the PCA stays float64)")
     parser.add_argument("--lamp", default="led4000k",
@@ -62,6 +65,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", required=True, help="netCDF file to write")
     parser.add_argument("--png", help="also draw the panorama into this PNG file")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+#: the model options and their values when a model is built (None on the command line:
+#: not given, which --model requires)
+MODEL_DEFAULTS = {"turbidity": 2.0, "emission": "garstang1986", "n_azimuth": 128,
+                  "n_elevation": 32, "n_distance": 64, "max_distance": 20_000.0,
+                  "components": 32, "steps": 8, "kernel_dtype": "float64"}
 
 
 def _plot(ds, path):
@@ -88,21 +98,32 @@ def run(args: argparse.Namespace) -> int:
     from skytorch.skyglow.citymap import synthetic_city
     from skytorch.skyglow.model import SkyglowModel, light_map_arrays
 
+    for name, low, high in (("lat", -90.0, 90.0), ("lon", -180.0, 360.0)):
+        if getattr(args, name) is not None:
+            check_range(f"--{name}", getattr(args, name), low, high, unit=" degree")
     light_map = synthetic_city() if args.synthetic else open_dataset(args.lights)
     light_map_arrays(light_map)  # fail early on a bad map, before any precomputation
+    given = [name for name in MODEL_DEFAULTS if getattr(args, name) is not None]
     if args.model:
+        if given:
+            # a loaded model is already built: its settings would be ignored
+            raise ValueError(f"{', '.join('--' + n.replace('_', '-') for n in given)}: "
+                             f"settings of a model to build, not of --model {args.model}")
         model = SkyglowModel.load(args.model)
     else:
         import torch
 
         from skytorch.atmosphere import Atmosphere
 
+        options = {name: MODEL_DEFAULTS[name] if getattr(args, name) is None
+                   else getattr(args, name) for name in MODEL_DEFAULTS}
         model = SkyglowModel.precompute(
-            Atmosphere.earth(turbidity=args.turbidity), n_azimuth=args.n_azimuth,
-            n_elevation=args.n_elevation, n_distance=args.n_distance,
-            max_distance_m=args.max_distance, n_components=args.components,
-            emission=args.emission, n_steps=args.steps, progress=not args.no_progress,
-            compute_dtype=getattr(torch, args.kernel_dtype))
+            Atmosphere.earth(turbidity=options["turbidity"]), n_azimuth=options["n_azimuth"],
+            n_elevation=options["n_elevation"], n_distance=options["n_distance"],
+            max_distance_m=options["max_distance"], n_components=options["components"],
+            emission=options["emission"], n_steps=options["steps"],
+            progress=not args.no_progress,
+            compute_dtype=getattr(torch, options["kernel_dtype"]))
         if args.save_model:
             model.save(args.save_model)
             logger.info("model written to %s", args.save_model)
