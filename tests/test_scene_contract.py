@@ -289,3 +289,17 @@ def test_natural_gradient_carries_gradients_and_refuses_observers_above_the_laye
     expect_rejected(lambda: natural_gradient(zenith, observer_height_m=95_000.0),
                     ("observer_height_m",))
     expect_rejected(lambda: natural_gradient("up"), ("zenith_rad",))
+
+
+def test_scene_refuses_a_light_map_with_nan_or_negative_flux_before_planning():
+    """plan() took such a map (only render refused it); the Scene refuses it on creation."""
+    from skytorch.skyglow.citymap import synthetic_city
+
+    city = synthetic_city(20e3, 2e3, population=1e5)
+    for value, message in ((float("nan"), "must be finite"), (-1.0, "non-negative")):
+        bad = city.copy()
+        bad["flux"] = city["flux"].copy()
+        bad["flux"][0, 0] = value
+        with pytest.raises(ValueError, match=message):
+            st.Scene(time="2015-09-13T23:00", lat_deg=52.5, lon_deg=13.4, light_map=bad,
+                     size=8, fidelity="fast")

@@ -715,6 +715,10 @@ class Scene:
                 self.light_map["flux"].dims):
             raise ValueError("light_map must hold a variable 'flux' [lm] on dimensions (y, x); "
                              f"got variables {sorted(self.light_map.data_vars)}")
+        # the fluxes and coordinates too (NaN or negative flux), before a plan is made
+        from skytorch.skyglow.model import light_map_arrays
+
+        light_map_arrays(self.light_map)
 
     # ------------------------------------------------------------------ observers
     def _observers(self, atmosphere) -> None:
