@@ -47,6 +47,9 @@ def test_bad_observations_raise():
     with pytest.raises(ValueError, match="parameters"):
         retrieve_atmosphere({"v_magnitude": (-2.0, 0.1)}, "2015-09-28",
                             parameters=("turbidity",))
+    for pair in (-3.0, (-3.0,), ("abc", 0.1), (True, 0.1)):
+        with pytest.raises(TypeError, match="must be a pair of numbers"):
+            retrieve_atmosphere({"v_magnitude": pair}, "2015-09-28")
     # 2020-01-10 is penumbral: no mid-totality to fit (it fitted chi2 8952 before)
     with pytest.raises(ValueError, match="is penumbral, without a totality"):
         retrieve_atmosphere({"v_magnitude": (-3.0, 0.1)}, "2020-01-10", max_iter=1,

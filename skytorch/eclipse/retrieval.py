@@ -138,6 +138,11 @@ def _check_observations(observations) -> _Observed:
     for name, pair in observations.items():
         if name not in OBSERVABLES:
             raise ValueError(f"observations key must be one of {OBSERVABLES}; got {name!r}")
+        if (not isinstance(pair, (tuple, list)) or len(pair) != 2
+                or not all(isinstance(v, (int, float, np.number))
+                           and not isinstance(v, (bool, np.bool_)) for v in pair)):
+            raise TypeError(f"observations[{name!r}] must be a pair of numbers (value, "
+                            f"uncertainty) [mag]; got {pair!r:.60}")
         value, sigma = (float(v) for v in pair)
         if not np.isfinite(value) or not (np.isfinite(sigma) and sigma > 0):
             raise ValueError(f"observations[{name!r}] must be a finite value and an "
