@@ -481,3 +481,13 @@ def test_flags_are_booleans_not_anything_true():
     with pytest.raises(TypeError, match="progress must be True or False"):
         ShadowTable.compute(Shadow.earth(n_altitude=9), torch.tensor([550.0]), n_u=2, n_v=4,
                             progress="no")
+
+
+def test_a_sun_distance_that_puts_the_point_inside_the_sun_is_named():
+    """It said 'sun_radius_rad must be finite; got nan', an internal name."""
+    from skytorch.eclipse import Shadow
+
+    shadow = Shadow.earth(n_altitude=17)
+    with pytest.raises(ValueError, match="sun_distance_m: a point lies within the Sun"):
+        shadow.relative_illuminance(3.844e8, 0.0, torch.tensor([550.0], dtype=torch.float64),
+                                    sun_distance_m=1e8)

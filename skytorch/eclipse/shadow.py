@@ -319,6 +319,13 @@ def shadow_angles(distance_m, offset_m, sun_distance_m, sun_radius_m, occluder_r
     centre = torch.hypot(d, rho)
     sun_range = torch.hypot(sun_distance_m + d, rho)
     separation = torch.atan2(rho, d) - torch.atan2(rho, sun_distance_m + d)
+    with torch.no_grad():
+        inside = sun_range <= sun_radius_m
+        if bool(inside.any()):
+            raise ValueError(f"sun_distance_m: a point lies within the Sun (radius "
+                             f"{float(torch.as_tensor(sun_radius_m).max()):.6g} m of its "
+                             "centre): the Sun–occluder distance must put the points outside "
+                             "it")
     return {
         "centre_distance_m": centre,
         "sun_range_m": sun_range,
