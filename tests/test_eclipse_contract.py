@@ -454,17 +454,26 @@ def test_light_curve_rejects(function, keywords, name):
 def test_light_curve_small_settings_is_finite_and_in_bounds():
     curve = check_contract(lambda: lunar_light_curve("2015-09-28", False, **FAST),
                            ("time_or_date",), finite=False)
-    # Danjon L is NaN exactly when V lies outside Vital's relation (documented); all else
-    # is finite
-    assert all(bool(torch.isfinite(torch.as_tensor(value)).all())
-               for name, value in curve.items() if name != "danjon_l")
+    # an airless Earth's umbra is black: the totally eclipsed Moon sends no light (V = +inf,
+    # B - V NaN, relative brightness 0; until 2026-12-07 a floor gave V = 737 mag and the
+    # uneclipsed colour); Danjon L is NaN outside Vital's relation; all else is finite
+    dark = curve["relative_brightness"] == 0.0
+    assert bool(dark.any()) and bool(torch.isinf(curve["v_magnitude"][dark]).all())
+    for name in ("v_magnitude", "relative_brightness"):
+        assert bool(torch.isfinite(curve[name][~dark]).all()), name
+    # one wavelength (550 nm) does not sample the B band: B and B - V are NaN throughout
+    assert bool(torch.isnan(curve["b_magnitude"]).all())
+    assert bool(torch.isnan(curve["b_minus_v"]).all())
+    assert bool(torch.isfinite(curve["spectral_irradiance"]).all())
     v = float(curve["greatest_v_magnitude"])
-    assert math.isnan(float(curve["danjon_l"])) == (not -3.8 <= v <= 4.2)
-    assert bool((curve["relative_brightness"] > 0).all())
+    assert v == math.inf and math.isnan(float(curve["danjon_l"]))
+    assert bool((curve["relative_brightness"] >= 0).all())
     assert bool((curve["relative_brightness"] <= 1.0 + 1e-9).all())
     dataset = check_contract(lambda: lunar_eclipse("2015-09-28", False, n_images=1,
-                                                   image_pixels=4, **FAST), ("time_or_date",))
+                                                   image_pixels=4, **FAST), ("time_or_date",),
+                             finite=False)
     assert dataset.sizes["time"] == 3
+    np.testing.assert_array_equal(dataset["v_magnitude"].values, curve["v_magnitude"].numpy())
 
 
 def test_flags_are_booleans_not_anything_true():

@@ -163,12 +163,22 @@ def _eclipse_times(date, n_times: int, enlargement: str, times=None):
                 f"instant(s), the farthest "
                 f"{offset.max(initial=np.timedelta64(0, 'ns')) / np.timedelta64(1, 'h'):.2f} h")
         return given, row
-    p1, p4 = row.p1.values, row.p4.values
-    span = (p4 - p1).astype("timedelta64[ns]").astype(np.int64)
-    start = p1 - np.timedelta64(int(MARGIN * span), "ns")
-    offsets = np.linspace(0.0, (1 + 2 * MARGIN) * span, n_times).astype(np.int64)
+    start, end = _grid_extent(row)
+    span = (end - start).astype("timedelta64[ns]").astype(np.int64)
+    offsets = np.linspace(0.0, span, n_times).astype(np.int64)
     times = start + offsets.astype("timedelta64[ns]")
     return times, row
+
+
+def _grid_extent(row) -> tuple[np.datetime64, np.datetime64]:
+    """Return the first and last instant of a light curve's default grid.
+
+    P1 - MARGIN x (P4 - P1) and P4 + MARGIN x (P4 - P1).
+    """
+    p1, p4 = row.p1.values, row.p4.values
+    margin = np.timedelta64(int(MARGIN * (p4 - p1).astype("timedelta64[ns]").astype(np.int64)),
+                            "ns")
+    return p1 - margin, p4 + margin
 
 
 def _disc_images(shadow_fn, sun, moon, wavelength, n_pixels, sun_distance, ring_phase=True):
@@ -360,10 +370,19 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     n_times = computed.size
     vectors = sun_moon_vectors(computed, frames=("gcrs",))
     sun, moon = vectors["sun_gcrs_m"], vectors["moon_gcrs_m"]
-    sun_distance = float(torch.linalg.norm(sun, dim=-1).mean())
+    # the mean over the series' times (the instant of greatest eclipse added for its V
+    # does not move the shadow's Sun distance)
+    sun_distance = float(torch.linalg.norm(sun[:n_series], dim=-1).mean())
     if shadow is None:
         shadow = Shadow.earth(atmosphere, sun_distance_m=sun_distance)
+    # the table's range: the Moon's distances over the default grid's extent (the same
+    # table for any times within it: the light curve at given times equals the grid's) and
+    # at every computed instant
+    extent = sun_moon_vectors(np.array(_grid_extent(row), dtype=computed.dtype),
+                              frames=("gcrs",))
     distances = torch.linalg.norm(moon, dim=-1)
+    spanned = torch.cat([distances, torch.linalg.norm(extent["moon_gcrs_m"], dim=-1)])
+    sun_all = torch.cat([sun, extent["sun_gcrs_m"]])
     # the disc's points, by their distance along the anti-Sun axis: within a lunar radius
     # of the centre's distance, and up to distance x (1 - cos 1.5 deg) nearer for points
     # off the axis in the penumbra; each is looked up at its own Sun distance, which moves
@@ -371,12 +390,12 @@ def _light_curve(time_or_date, atmosphere, n_times, wavelength_nm, n_disc, enlar
     # 1 au against the Sun's 1.0026 au in September): ShadowTable.lookup refuses points
     # beyond the table's range
     table_sun = float(getattr(shadow, "sun_distance_m", sun_distance))
-    shift = float((torch.linalg.norm(sun, dim=-1) - table_sun).abs().max()) / table_sun
-    margin = 1.05 * MOON_RADIUS_M + (4e-4 + 1.5 * shift) * float(distances.max())
+    shift = float((torch.linalg.norm(sun_all, dim=-1) - table_sun).abs().max()) / table_sun
+    margin = 1.05 * MOON_RADIUS_M + (4e-4 + 1.5 * shift) * float(spanned.max())
     table = ShadowTable.compute(
         shadow, wavelength, n_u=table_n_u, n_v=table_n_v,
-        min_distance_m=float(distances.min()) - margin,
-        max_distance_m=float(distances.max()) + margin, progress=progress)
+        min_distance_m=float(spanned.min()) - margin,
+        max_distance_m=float(spanned.max()) + margin, progress=progress)
     grid = disc_grid(n_disc)
     solid = (MOON_RADIUS_M / distances) ** 2  # sr per unit disc area
     weight = grid["weight"] * solid[:, None]  # (n_time, n_point) [sr]
