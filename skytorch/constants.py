@@ -74,4 +74,7 @@ MARS_TOP_OF_ATMOSPHERE_M = 80_000.0
 #: luminance of 0 mag/arcsec^2 in the V band: L[cd/m^2] = 10.8e4 * 10^(-0.4 m) (ref. 7)
 CANDELA_PER_M2_AT_ZERO_MAG_ARCSEC2 = 10.8e4
 NATURAL_ZENITH_SKY_MAG_ARCSEC2 = 22.0  #: natural zenith sky brightness, V band (ref. 7)
+#: accepted natural zenith background [V mag arcsec^-2]: from the brightest sky of the world
+#: atlas (14.0, ref. 7) to 4 mag darker than the darkest natural sky (~22)
+NATURAL_MAG_RANGE = (14.0, 26.0)
 LUMINOUS_EFFICACY_LM_PER_W = 683.002  #: K_cd at 540 THz (SI definition)

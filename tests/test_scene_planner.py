@@ -102,6 +102,10 @@ def test_city_scene_computes_skyglow():
     assert "skyglow" in plan.computed
     # the same city cannot matter in daylight (Falchi 2016 brightest sky bound)
     assert "skyglow" in scene("day", light_map=city).plan().skipped
+    # a map whose lamps are all off sends no light at any hour
+    dark_city = city.assign(flux=city["flux"] * 0.0)
+    assert scene("dark", light_map=dark_city).plan().skipped["skyglow"] == (
+        "the light map emits no light")
 
 
 def test_attributes_are_netcdf_strings():

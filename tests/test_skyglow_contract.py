@@ -13,6 +13,7 @@ refused; a call with only valid inputs must be accepted.
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
 
@@ -110,6 +111,18 @@ def test_render_accepts_valid_inputs(model, xy, altitude, lamp, natural, light_m
     assert (result["luminance"].values >= 0).all()
     n = _observer_count(xy[0])
     assert result["luminance"].shape == ((16, 32) if np.ndim(xy[0]) == 1 else (n, 16, 32))
+
+
+def test_dataset_records_the_altitude_the_tables_rendered(model):
+    """An observer above a one-node model renders at the node: the Dataset says so."""
+    assert model.observer_altitude_m.numel() == 1
+    node = float(model.observer_altitude_m[0])
+    with pytest.warns(UserWarning, match="tabulated range"):
+        ds = model.render(CITY, observer_xy=[(0.0, 0.0), (1e3, 0.0)],
+                          observer_altitude_m=[node + 3000.0, node])
+    parameters = json.loads(ds.attrs["parameters"])
+    assert parameters["observer_altitude_m"] == [node + 3000.0, node]
+    assert parameters["observer_altitude_rendered_m"] == [node, node]
 
 
 @SETTINGS

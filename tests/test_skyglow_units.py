@@ -90,3 +90,13 @@ def test_star_overlay_counts():
     limits = units.naked_eye_limiting_magnitude(torch.tensor([22.0, 20.0, 18.0]))
     counts = units.visible_star_count(limits)
     assert bool((torch.diff(limits) < 0).all()) and bool((torch.diff(counts) < 0).all())
+
+
+@pytest.mark.parametrize("natural", [8.0, 30.0, math.nan])
+def test_natural_sky_outside_the_range_of_the_renders_is_refused(natural):
+    """The units take the natural sky of the scene and the skyglow render: 14–26."""
+    for function in (units.natural_luminance,
+                     lambda n: units.total_mag_arcsec2(torch.zeros(2), n),
+                     lambda n: units.artificial_to_natural_ratio(torch.zeros(2), n)):
+        with pytest.raises(ValueError, match="natural_mag_arcsec2"):
+            function(natural)

@@ -491,6 +491,8 @@ def plan(scene, view=None, resources: SceneResources | None = None,  # noqa: C90
                                        "star" if stars_on else "no stars in the image")
     if scene.light_map is None:
         decided["skyglow"] = (False, "no light map")
+    elif not bool((scene.light_map["flux"] != 0).any()):
+        decided["skyglow"] = (False, "the light map emits no light")
     else:
         s = share("skyglow", _surface_flux(BRIGHTEST_SKYGLOW_MAG_ARCSEC2))
         decided["skyglow"] = (s >= tol, f"even the brightest city sky (Falchi 2016) is "

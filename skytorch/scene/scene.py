@@ -47,6 +47,7 @@ import torch
 
 from skytorch._toml import loads as toml_loads
 from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
+from skytorch.constants import NATURAL_MAG_RANGE
 from skytorch.dataset import open_dataset
 from skytorch.scene.planner import plan as make_plan
 from skytorch.scene.planner import requested_orders
@@ -72,9 +73,6 @@ CAMERA_KEYS = ("fov_deg", "target", "altitude_deg", "azimuth_deg")
 CAMERA_FOV_RANGE_DEG = (0.0, 120.0)
 #: largest image side [pixels] (a 8192² fisheye already holds 1.6 GB per component)
 MAX_SIZE = 8192
-#: natural zenith background [V mag arcsec^-2]: from the brightest sky of the world atlas
-#: (14.0, Falchi et al. 2016) to 4 mag darker than the darkest natural sky (~22)
-NATURAL_MAG_RANGE = (14.0, 26.0)
 #: faintest-star limit [V mag]: the range of :func:`skytorch.stars.bright_stars`
 STAR_LIMIT_RANGE_MAG = (-30.0, 15.0)
 #: height of the airglow layer [m]

@@ -56,6 +56,7 @@ from skytorch._validate import (
     check_range,
     refuse_gradient,
 )
+from skytorch.constants import NATURAL_MAG_RANGE
 from skytorch.skyglow.basis import fit_basis, resolve_components
 from skytorch.skyglow.kernel import EMISSION_FUNCTIONS, Medium, converged_steps, kernel_radiance
 from skytorch.skyglow.lamps import luminance_weights
@@ -121,8 +122,6 @@ _MANY_OBSERVERS = 16
 #: largest splat plan (corner × observer × cell entries) that a model keeps for reuse
 SPLAT_PLAN_ENTRIES = 2**21
 
-#: accepted natural zenith sky brightness [mag arcsec^-2] (the darkest sky is ~22)
-NATURAL_MAG_RANGE = (10.0, 30.0)
 
 
 def _plain(value, single: bool):
@@ -1098,6 +1097,17 @@ class SkyglowModel(nn.Module):
         radiance = torch.fft.irfft(spectrum, n=n_t, dim=0)  # (azimuth, φ·λ, observer)
         return radiance.reshape(n_t, n_p, n_wl, n_obs).permute(3, 1, 0, 2)
 
+    def rendered_altitude(self, observer_altitude_m) -> torch.Tensor:
+        """Altitudes [m] at which the tables render observers of ``observer_altitude_m``.
+
+        The tabulated observer altitudes are interpolated between their nodes and held at
+        the ends beyond them (with a warning from :meth:`observer_altitude_weights`): a
+        one-node model renders every observer at its node.
+        """
+        grid = self.observer_altitude_m
+        value = torch.as_tensor(observer_altitude_m, dtype=torch.float64).detach()
+        return value.clamp(float(grid[0]), float(grid[-1]))
+
     def observer_altitude_weights(self, observer_altitude_m: torch.Tensor):
         """Lower node index and weight of the upper node for each observer altitude."""
         grid = self.observer_altitude_m
@@ -1268,7 +1278,7 @@ class SkyglowModel(nn.Module):
             Coordinates for a tensor light map.
         natural_mag_arcsec2 : float, optional
             Natural zenith brightness added in ``total_brightness``, within
-            :data:`NATURAL_MAG_RANGE` (default 22.0) [mag arcsec^-2].
+            :data:`skytorch.constants.NATURAL_MAG_RANGE` (14–26; default 22.0) [mag arcsec^-2].
         as_dataset : bool
             Return a Dataset (default) or a dict of tensors.
         resampling, oversampling
@@ -1365,6 +1375,8 @@ class SkyglowModel(nn.Module):
         parameters = dict(self.parameters_used, lamp=lamp_name,
                           observer_xy=_plain(observer_xy, single),
                           observer_altitude_m=_plain(observer_altitude_m, single),
+                          observer_altitude_rendered_m=_plain(
+                              self.rendered_altitude(observer_altitude_m), single),
                           natural_mag_arcsec2=natural, **resampling,
                           total_flux_lm=float(cells["flux"].detach().sum()))
         return build_dataset(data, coords, title="Artificial skyglow panorama",

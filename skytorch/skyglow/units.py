@@ -28,7 +28,11 @@ import numpy as np
 import torch
 
 from skytorch._validate import as_tensor, check_finite, check_range
-from skytorch.constants import CANDELA_PER_M2_AT_ZERO_MAG_ARCSEC2, NATURAL_ZENITH_SKY_MAG_ARCSEC2
+from skytorch.constants import (
+    CANDELA_PER_M2_AT_ZERO_MAG_ARCSEC2,
+    NATURAL_MAG_RANGE,
+    NATURAL_ZENITH_SKY_MAG_ARCSEC2,
+)
 
 __all__ = [
     "BORTLE_LIMITS_MAG_ARCSEC2",
@@ -79,8 +83,13 @@ def nanolambert_to_luminance(nanolambert) -> torch.Tensor:
 
 
 def natural_luminance(natural_mag_arcsec2: float = NATURAL_ZENITH_SKY_MAG_ARCSEC2):
-    """Natural zenith sky luminance [cd m^-2] (22.0 mag arcsec^-2: 1.71e-4 cd m^-2)."""
-    return mag_arcsec2_to_luminance(natural_mag_arcsec2)
+    """Natural zenith sky luminance [cd m^-2] (22.0 mag arcsec^-2: 1.71e-4 cd m^-2).
+
+    ``natural_mag_arcsec2`` [V mag arcsec^-2] must lie in
+    :data:`skytorch.constants.NATURAL_MAG_RANGE` (14–26).
+    """
+    return mag_arcsec2_to_luminance(check_range("natural_mag_arcsec2", natural_mag_arcsec2,
+                                                *NATURAL_MAG_RANGE, unit=" mag arcsec-2"))
 
 
 def artificial_to_natural_ratio(luminance_cd_m2,
