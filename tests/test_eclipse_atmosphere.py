@@ -13,6 +13,7 @@ from skytorch.eclipse.eclipse_atmosphere import (
     CLOUD_CLASS_TOPS_M,
     SAGE_CLEAR_7KM,
     cloud_climatology,
+    stratospheric_model,
 )
 from skytorch.eclipse.shadow import LimbCloudCover, Shadow
 
@@ -51,6 +52,16 @@ def test_out_of_record_and_bad_values_raise():
         stratospheric_aod("1970-02-21")
     with pytest.raises(ValueError, match="stratospheric_aod_550"):
         eclipse_atmosphere("2015-09-28", stratospheric_aod_550=-0.1)
+    # each named as the caller gave it (not as the Atmosphere's parameter)
+    with pytest.raises(ValueError, match="tropospheric_aod must be finite"):
+        eclipse_atmosphere("2015-09-28", tropospheric_aod=float("nan"))
+    with pytest.raises(TypeError, match="tropospheric_aod"):
+        eclipse_atmosphere("2015-09-28", tropospheric_aod="0.1")
+    with pytest.raises(TypeError, match="stratospheric_aod_550"):
+        stratospheric_model(stratospheric_aod_550="0.1")
+    # checked even where the date's record chooses the model
+    with pytest.raises(ValueError, match="stratospheric_aod_550"):
+        stratospheric_model("2015-09-28", stratospheric_aod_550=-1.0)
     # an explicit layer does not need the record
     atm = eclipse_atmosphere("1970-02-21", stratospheric_aod_550=0.02)
     assert float(atm.stratospheric_aerosol_optical_depth) == pytest.approx(0.02)

@@ -89,7 +89,7 @@ import numpy as np
 import torch
 
 from skytorch._data import data_path
-from skytorch._validate import check_choice, check_range
+from skytorch._validate import as_tensor, check_choice, check_range
 from skytorch.atmosphere import Atmosphere
 from skytorch.atmosphere.aerosol import (
     STRATOSPHERIC_MODELS,
@@ -97,6 +97,7 @@ from skytorch.atmosphere.aerosol import (
     stratospheric_model_optical_depth,
 )
 from skytorch.atmosphere.climatology import afgl_columns, afgl_profile
+from skytorch.atmosphere.model import AEROSOL_OPTICAL_DEPTH_RANGE
 from skytorch.eclipse.circumstances import _parse_one
 from skytorch.eclipse.shadow import LimbCloudCover, Shadow
 from skytorch.eclipse.shadow_mixture import ShadowMixture
@@ -232,6 +233,9 @@ def stratospheric_model(date=None, stratospheric_aod_550=None) -> str:
     >>> stratospheric_model("1992-12-09"), stratospheric_model("2004-10-28")
     ('high_volcanic', 'background')
     """
+    if stratospheric_aod_550 is not None:  # checked even where the record decides
+        stratospheric_aod_550 = check_range("stratospheric_aod_550", as_tensor(
+            "stratospheric_aod_550", stratospheric_aod_550).detach(), 0.0, 100.0)
     if date is not None:
         moment = _parse_one("date", date, parse_times)
         years, _ = _record()
@@ -240,8 +244,7 @@ def stratospheric_model(date=None, stratospheric_aod_550=None) -> str:
     if stratospheric_aod_550 is None:
         raise ValueError("stratospheric_model needs a date in the record's years or a "
                          "stratospheric_aod_550; got neither")
-    aod = float(check_range("stratospheric_aod_550", torch.as_tensor(
-        stratospheric_aod_550).detach(), 0.0, 100.0))
+    aod = float(torch.as_tensor(stratospheric_aod_550))
     if aod == 0.0:  # no layer: any shape; the quiet stratosphere's
         return STRATOSPHERIC_MODELS[0]
     return min(STRATOSPHERIC_MODELS,
@@ -285,6 +288,9 @@ def eclipse_atmosphere(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550, ozone_du=
         ``"eclipse YYYY-MM-DD"``.
     """
     moment = _parse_one("date", date, parse_times)
+    # named as given here (Atmosphere.earth would name its aerosol_optical_depth)
+    tropospheric_aod = check_range("tropospheric_aod", as_tensor(
+        "tropospheric_aod", tropospheric_aod), *AEROSOL_OPTICAL_DEPTH_RANGE)
     if stratospheric_aod_550 is None:
         stratospheric_aod_550 = stratospheric_aod(moment)
     stratospheric_aod_550 = check_range("stratospheric_aod_550", stratospheric_aod_550,
@@ -422,6 +428,9 @@ def terminator_bands(date, *, tropospheric_aod=TROPOSPHERIC_AOD_550,
     [('subarctic_winter', 0.208), ('midlatitude_winter', 0.125), ('tropical', 0.334)]
     """
     moment = _parse_one("date", date, parse_times)
+    # named as given here (Atmosphere.earth would name its aerosol_optical_depth)
+    tropospheric_aod = check_range("tropospheric_aod", as_tensor(
+        "tropospheric_aod", tropospheric_aod), *AEROSOL_OPTICAL_DEPTH_RANGE)
     if stratospheric_aod_550 is None:
         stratospheric_aod_550 = stratospheric_aod(moment)
     sun = sun_moon_vectors(np.array([moment]), frames=("tod",))["sun_tod_m"][0]
