@@ -236,6 +236,9 @@ def test_cone_gradients_and_errors():
         shadow_radii(384e6, ASTRONOMICAL_UNIT_M, SUN_RADIUS_M, 6.378e6, enlargement="lahire")
     with pytest.raises(ValueError, match="smaller than the Sun"):
         shadow_radii(384e6, ASTRONOMICAL_UNIT_M, 1e6, 6.378e6)
+    # the message names the first offending values of a batch
+    with pytest.raises(ValueError, match=r"occluder_radius_m=7e\+08, sun_radius_m=6\.96e\+08"):
+        shadow_radii(384e6, ASTRONOMICAL_UNIT_M, 6.96e8, torch.tensor([6.378e6, 7e8]))
 
 
 # 2015-09-28 contacts (UTC) as listed for NASA's predictions in the Wikipedia infobox

@@ -165,9 +165,14 @@ def shadow_cone(
         effective = radius * _occluder_factors(enlargement)[0]
         bad = (sun_radius + effective >= sun_distance) | (effective >= sun_radius)
         if bool(bad.any()):
+            first = tuple(bad.nonzero()[0].tolist())
+            values = torch.broadcast_tensors(radius, sun_radius, sun_distance, bad)[:3]
+            occluder, sun, distance = (float(v[first]) for v in values)
             raise ValueError(
                 "shadow cones need an occluder smaller than the Sun and both well separated "
-                "(occluder_radius_m < sun_radius_m and their sum < sun_distance_m)"
+                "(occluder_radius_m < sun_radius_m and their sum < sun_distance_m); got "
+                f"occluder_radius_m={occluder:g}, sun_radius_m={sun:g}, "
+                f"sun_distance_m={distance:g} (enlargement {enlargement!r})"
             )
     umbra, penumbra, sin_u, sin_p, radius = _cone(x, sun_distance, sun_radius, radius,
                                                   enlargement)
