@@ -174,6 +174,25 @@ def test_apparent_altitude_below_the_horizon_against_ode(atm):
     assert abs(float(apparent) - e) < 1.0 * ARCSEC
 
 
+@pytest.mark.parametrize("height", [1000.0, 3000.0, 10_000.0])
+def test_apparent_altitude_just_above_the_lowest_visible_against_ode(atm, height):
+    """A source just above the lowest visible true altitude is seen above the horizon.
+
+    Two apparent altitudes give such a true altitude: the visible ray and, below the
+    apparent horizon, a continued ray into the ground (the inversion returned it: at 3 km
+    true -2.45 deg gave -1.89 deg, 0.27 deg below the horizon, instead of -1.605 deg).
+    """
+    dip = rf.horizon_dip(atm, torch.tensor(height, dtype=torch.float64))
+    true = float(dip["true_altitude_rad"]) + math.radians(0.02)
+    for ground in ("raise", "allow"):
+        apparent = float(rf.apparent_altitude(atm, torch.tensor(true, dtype=torch.float64),
+                                              height, ground=ground))
+        assert apparent > -float(dip["apparent_dip_rad"])
+        traced, _, _, hit = _trace_ode(atm, apparent, height)
+        assert not hit
+        assert abs(traced - true) < 1.0 * ARCSEC
+
+
 def test_optical_depth_below_the_horizon_against_ode(atm):
     """Extinction of a ray from 3 km that dips below the horizon and climbs to space."""
     height, e = 3000.0, math.radians(-1.0)

@@ -394,6 +394,27 @@ def _check_visible(atm, target, height, dtype, options):
             "horizon (horizon_dip)")
 
 
+def _visible_branch(atm, target, height, dtype, options, raise_hidden):
+    """Lower bound and mask of the apparent altitudes of visible sources.
+
+    Above the ground, :math:`e - R(e)` has its minimum at the apparent horizon
+    :math:`-d_a`: a true altitude just above the lowest visible one (:func:`horizon_dip`)
+    is reached by two apparent altitudes, one above the horizon (the visible source) and
+    one below it on the continued refraction (a ray into the ground). Returns
+    ``(-d_a, visible)``; ``visible`` is false everywhere when the index ducts (no ray
+    grazes the ground, ``ground="allow"`` only).
+    """
+    try:
+        _, dip = _dip_terms(atm, height, dtype)
+    except ValueError:
+        if raise_hidden:
+            raise
+        return torch.zeros_like(target), torch.zeros_like(target, dtype=torch.bool)
+    low = torch.broadcast_to(-dip, target.shape)
+    lowest = low - refraction_angle(atm, low, height, **options)
+    return low.clone(), target >= lowest
+
+
 def apparent_altitude(
     atm,
     true_altitude_rad,
@@ -460,7 +481,8 @@ def apparent_altitude(
                "n_steps": n_steps, "wavelength_nm": wavelength_nm}
     _check_method(method, n_nodes, n_steps)
     _ray_shape(atm, true_altitude_rad=target, altitude_m=height)
-    if check_choice("ground", ground, GROUND_MODES) == "raise":
+    raise_hidden = check_choice("ground", ground, GROUND_MODES) == "raise"
+    if raise_hidden:
         _check_visible(atm, target, height, dtype, options)
     target, height = torch.broadcast_tensors(target, height)
     limit = math.pi / 2
@@ -471,13 +493,22 @@ def apparent_altitude(
         return e - refraction_angle(atm, e, height, **options) - target
 
     with torch.no_grad():
+        low, visible = _visible_branch(atm, target, height, dtype, options, raise_hidden)
         e = torch.clamp(target + 0.01 * (target < 0.5), -limit, limit)
+        e = torch.where(visible, torch.maximum(e, low), e)
+        high = torch.full_like(e, limit)
         for _ in range(iterations):
             lo = torch.clamp(e - delta, -limit, limit)
             hi = torch.clamp(e + delta, -limit, limit)
             derivative = (residual(hi) - residual(lo)) / (hi - lo)
             f = residual(e)
-            e = torch.clamp(e - f / derivative, -limit, limit)
+            step = torch.clamp(e - f / derivative, -limit, limit)
+            # a visible source: the root above the apparent horizon, kept in its bracket
+            # [low, high] (bisection where Newton's step leaves it)
+            low = torch.where(visible & (f < 0), e, low)
+            high = torch.where(visible & (f > 0), e, high)
+            outside = visible & ((step <= low) | (step >= high) | ~torch.isfinite(step))
+            e = torch.where(outside, 0.5 * (low + high), step)
             if bool((f.abs() <= max(tolerance, float(floor))).all()):
                 break
     needs_grad = (target.requires_grad or height.requires_grad
