@@ -22,7 +22,7 @@ from skytorch.constants import MAG  # noqa: E402
 
 
 def test_twilight_zenith_profiles_experiment_quick(tmp_path):
-    """Tent of 300 and 258 DU at Sun 95, 98, 101 deg.
+    """Tent of 300 and 258 DU, and 300 DU with the stratospheric layer, at Sun 95, 98, 101 deg.
 
     Measured +0.37 / +0.60 / +0.39 mag (300 DU) and +0.27 / +0.49 / +0.27 mag (258 DU)
     against the measured scattered light; the bound of 1 mag is that of
@@ -35,7 +35,12 @@ def test_twilight_zenith_profiles_experiment_quick(tmp_path):
         sunlit = dataset["sunlit_v"].values
         difference = dataset["difference"].values
         column = dataset["ozone_column"].values
+        dataset_layer = dataset["stratospheric_aod"].values[2]
     assert column[1] < column[0]
     assert (sunlit[1] < sunlit[0]).all()          # less ozone: brighter at every depression
+    # the stratosphere's background sulfate layer brightens the deep twilight (measured
+    # 0.02 / 0.17 / 0.03 mag at 95 / 98 / 101 deg)
+    assert 0.0 < float(dataset_layer) < 0.02
+    assert (sunlit[2] < sunlit[0]).all()
     assert (np.diff(sunlit, axis=1) > 0).all()    # the sky falls with the Sun's depression
     assert (np.abs(difference) < 1.0 * MAG).all(), difference

@@ -100,16 +100,20 @@ class SceneSpec:
     ground_albedo : float
         Lambertian albedo of the ground under the multiple-scattering tables, in [0, 1]
         (default 0, a black ground).
+    stratospheric_aod : float
+        Vertical optical depth at 550 nm of the stratospheric sulfate layer (LOWTRAN 7's
+        background profile) [1]; default 0, no layer.
     """
 
     turbidity: float
     ozone_du: float
     wavelengths: tuple[float, ...]
     ground_albedo: float = 0.0
+    stratospheric_aod: float = 0.0
 
     def __post_init__(self):
         """Check the spec's fields and store them as floats (TypeError for non-numbers)."""
-        for name in ("turbidity", "ozone_du", "ground_albedo"):
+        for name in ("turbidity", "ozone_du", "ground_albedo", "stratospheric_aod"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise TypeError(f"SceneSpec.{name} must be a number; got {value!r}")
@@ -127,9 +131,13 @@ class SceneSpec:
     def of(cls, scene) -> SceneSpec:
         """Return the spec of a :class:`skytorch.scene.Scene`."""
         return cls(float(scene.turbidity), float(scene.ozone_du),
-                   tuple(scene.wavelength_nm().tolist()), float(scene.ground_albedo))
+                   tuple(scene.wavelength_nm().tolist()), float(scene.ground_albedo),
+                   float(scene.stratospheric_aod))
 
 
+#: vertical profile of a scene's stratospheric sulfate layer (LOWTRAN 7's background,
+#: :data:`skytorch.atmosphere.aerosol.STRATOSPHERIC_PROFILES`)
+STRATOSPHERIC_PROFILE = "background"
 #: view zenith nodes of :meth:`SceneResources.scattered_airglow_table` [degree]
 SCATTERED_AIRGLOW_ZENITH_DEG = (0.0, 20.0, 40.0, 55.0, 65.0, 72.0, 78.0, 82.0, 85.0, 87.0,
                                 88.5, 90.0)
@@ -218,11 +226,19 @@ class SceneResources:
 
     @property
     def atmosphere(self):
-        """``Atmosphere.earth(turbidity, ozone_du)`` of the spec."""
+        """``Atmosphere.earth(turbidity, ozone_du)`` of the spec.
+
+        With a stratospheric layer (``spec.stratospheric_aod`` > 0) in LOWTRAN 7's
+        background profile.
+        """
         def build():
             from skytorch.atmosphere import Atmosphere
 
-            return Atmosphere.earth(turbidity=self.spec.turbidity, ozone_du=self.spec.ozone_du)
+            layer = {} if not self.spec.stratospheric_aod else {
+                "stratospheric_aerosol_optical_depth": self.spec.stratospheric_aod,
+                "stratospheric_aerosol_profile": STRATOSPHERIC_PROFILE}
+            return Atmosphere.earth(turbidity=self.spec.turbidity, ozone_du=self.spec.ozone_du,
+                                    **layer)
 
         return self._get("atmosphere", build)
 
@@ -649,6 +665,7 @@ class SceneResources:
         sources.
         """
         text = json.dumps({"turbidity": self.spec.turbidity, "ozone_du": self.spec.ozone_du,
+                           "stratospheric_aod": self.spec.stratospheric_aod,
                            "wavelength": list(self.spec.wavelengths),
                            "settings": settings, "code": self._skyglow_code_hash(),
                            "format": 1}, sort_keys=True)

@@ -73,6 +73,9 @@ CAMERA_KEYS = ("fov_deg", "target", "altitude_deg", "azimuth_deg")
 CAMERA_FOV_RANGE_DEG = (0.0, 120.0)
 #: largest image side [pixels] (a 8192² fisheye already holds 1.6 GB per component)
 MAX_SIZE = 8192
+#: stratospheric optical depth at 550 nm accepted by a scene: from none to beyond the
+#: largest eruption of the record (Pinatubo, about 0.15 in 1992)
+STRATOSPHERIC_AOD_RANGE = (0.0, 1.0)
 #: faintest-star limit [V mag]: the range of :func:`skytorch.stars.bright_stars`
 STAR_LIMIT_RANGE_MAG = (-30.0, 15.0)
 #: height of the airglow layer [m]
@@ -472,7 +475,8 @@ def _camera(value) -> dict:
 
 #: the keys of the TOML tables whose keys go straight to the Scene (docs/scene.md)
 _TOML_TABLE_KEYS = {"observer": ("lat_deg", "lon_deg", "elevation_m"),
-                    "atmosphere": ("turbidity", "ozone_du", "ground_albedo"),
+                    "atmosphere": ("turbidity", "ozone_du", "ground_albedo",
+                                   "stratospheric_aod"),
                     "planner": ("tolerance", "fidelity", "scattering_orders", "force",
                                 "exclude")}
 
@@ -523,6 +527,13 @@ class Scene:
         black ground: the render raises). City lights keep the skyglow model's own
         reflectance of the lit ground (Garstang's G = 0.15,
         :func:`skytorch.skyglow.kernel.emission_intensity`).
+    stratospheric_aod : float
+        Vertical optical depth at 550 nm of the stratospheric sulfate layer [1], in
+        :data:`STRATOSPHERIC_AOD_RANGE` (LOWTRAN 7's background profile, sulfate Mie optics;
+        :meth:`skytorch.atmosphere.Atmosphere.earth`). Default 0: no layer. The quiet
+        stratosphere holds 0.004–0.007 (:func:`skytorch.eclipse.stratospheric_aod` of the
+        year); it brightens the deep twilight's zenith by up to 0.2 mag
+        (docs/multiple_scattering.md, "The stratospheric aerosol").
     light_map : xarray.Dataset, optional
         City lights (``flux`` [lm] on ``(y, x)`` [m] around the observer), see
         :meth:`skytorch.skyglow.SkyglowModel.render`.
@@ -610,6 +621,7 @@ class Scene:
     turbidity: float = 2.0
     ozone_du: float = 300.0
     ground_albedo: float = 0.0
+    stratospheric_aod: float = 0.0
     light_map: object = None
     observer_xy: tuple = (0.0, 0.0)
     lamp: str = "white"
@@ -653,6 +665,8 @@ class Scene:
         self.turbidity = _scalar("turbidity", self.turbidity)
         self.ozone_du = _scalar("ozone_du", self.ozone_du)
         self.ground_albedo = _scalar("ground_albedo", self.ground_albedo, 0.0, 1.0)
+        self.stratospheric_aod = _scalar("stratospheric_aod", self.stratospheric_aod,
+                                         *STRATOSPHERIC_AOD_RANGE)
         if self.ground_albedo > 0.0 and requested_orders(self) == 1:
             raise ValueError(
                 f"ground_albedo={self.ground_albedo} needs the orders of scattering >= 2 (the "
@@ -913,7 +927,7 @@ class Scene:
 
         Tables ``[observer]`` (lat_deg, lon_deg, elevation_m), ``[view]`` (kind, size,
         altitude_deg, azimuth_deg; for a camera also fov_deg and target),
-        ``[atmosphere]`` (turbidity, ozone_du, ground_albedo), ``[lights]``
+        ``[atmosphere]`` (turbidity, ozone_du, ground_albedo, stratospheric_aod), ``[lights]``
         (``file`` = a netCDF light map, or ``synthetic_city`` = keyword table of
         :func:`skytorch.skyglow.citymap.synthetic_city`; observer_xy, lamp),
         ``[planner]`` (tolerance, fidelity, scattering_orders, force, exclude) and top-level time,
