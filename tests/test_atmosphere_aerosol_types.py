@@ -203,6 +203,14 @@ def test_typed_aerosol_refuses_scalar_optics_and_wavelength_free_phase():
         Atmosphere.earth(aerosol_type="urban", aerosol_single_scattering_albedo=0.8)
     with pytest.raises(ValueError, match="aerosol_type='soot'"):
         Atmosphere.earth(aerosol_type="soot")
+    # the type's spectrum replaces the Angstrom exponent of a given optical depth (0.1 and 2
+    # gave the same depths at every wavelength); with a turbidity it still sets the 550 nm
+    # depth of Preetham's beta
+    with pytest.raises(ValueError, match="angstrom_alpha would not be used"):
+        Atmosphere.earth(aerosol_type="urban", aerosol_optical_depth=0.2, angstrom_alpha=2.0)
+    steep, flat = (Atmosphere.earth(turbidity=3.0, aerosol_type="urban", angstrom_alpha=alpha)
+                   for alpha in (2.0, 0.1))
+    assert not torch.allclose(steep.optical_depth(WL), flat.optical_depth(WL))
     with pytest.raises(ValueError, match="depends on the wavelength"):
         Atmosphere.earth(aerosol_type="urban").aerosol_phase(torch.tensor([0.5]))
     with pytest.raises(ValueError, match="wavelength_nm"):

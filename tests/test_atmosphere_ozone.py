@@ -332,3 +332,26 @@ def test_refusals_name_the_parameter():
     expect_rejected(lambda: ozone_cross_section(_f64(600.0), 300.0), ("temperature_k",))
     expect_rejected(lambda: ozone_cross_section(_f64(1101.0), 230.0), ("wavelength_nm",))
     expect_rejected(lambda: ozone_effective_temperature(0.0, 1e3), ("peak_altitude_m",))
+
+
+def test_ozone_column_of_a_tent_cut_by_the_ground():
+    """The vertical ozone depth is ozone_du's wherever the tent lies.
+
+    A tent cut by the ground (peak 2 km, half-width 15 km) or by the top (peak 99 km)
+    held 62 % and 94 % of the column before its area was taken between the ground and the
+    top; the uncut tent (peak 25 km) is the reference, at one cross-section temperature.
+    """
+    wavelength = torch.tensor([500.0, 600.0], dtype=torch.float64)
+
+    def ozone_depth(peak_m):
+        atm = Atmosphere.earth(ozone_peak_altitude_m=peak_m, ozone_half_width_m=15e3,
+                               ozone_temperature_k=230.0)
+        return atm.optical_depth(wavelength, per_species=True)["ozone"]
+
+    reference = ozone_depth(25e3)
+    for peak in (2e3, 10e3, 99e3):
+        assert torch.allclose(ozone_depth(peak), reference, rtol=1e-12)
+    # a layer centred at or above the top would hold its column in no air
+    for key in ("ozone_peak_altitude_m", "stratospheric_aerosol_altitude_m"):
+        with pytest.raises(ValueError, match=f"{key} must be < 100000"):
+            Atmosphere.earth(**{key: 150e3})

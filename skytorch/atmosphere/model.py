@@ -508,6 +508,11 @@ class Atmosphere(nn.Module):
             "precipitable_water_cm": precipitable_water_cm,
         }
         values = {key: _check_parameter(key, value) for key, value in given.items()}
+        for key in ("ozone_peak_altitude_m", "stratospheric_aerosol_altitude_m"):
+            # a layer centred at or above the top (top_altitude_m) would hold its column
+            # in no air (0 / 0)
+            check_range(key, values[key], high=self.top_altitude_m, high_inclusive=False,
+                        unit=" m")
         values["ozone_temperature_k"] = self._ozone_temperature(ozone_temperature_k, values,
                                                                 self.sounding)
         for key, value in values.items():
@@ -519,7 +524,7 @@ class Atmosphere(nn.Module):
     # ------------------------------------------------------------------ presets
     @classmethod
     def earth(cls, turbidity=None, ozone_du=FROM_PROFILE, *, aerosol_optical_depth=None,
-              angstrom_alpha=_aerosol.PREETHAM_ANGSTROM_ALPHA, **options) -> Atmosphere:
+              angstrom_alpha=None, **options) -> Atmosphere:
         r"""Earth: air, U.S. Standard Atmosphere 1976 molecules, Preetham aerosols, ozone tent.
 
         One vertical structure: optical depths, scattering and the refractive index all
@@ -543,8 +548,10 @@ class Atmosphere(nn.Module):
         aerosol_optical_depth : float or Tensor, optional
             Vertical aerosol optical depth at 550 nm, in [0, 100]; replaces
             ``turbidity`` (giving both raises ValueError).
-        angstrom_alpha : float or Tensor
-            Ångström exponent [1].
+        angstrom_alpha : float or Tensor, optional
+            Ångström exponent [1]; default Preetham's 1.3. With ``aerosol_type`` and
+            ``aerosol_optical_depth`` the type's Mie spectrum replaces it (giving it
+            raises ValueError).
         **options
             Other constructor arguments (keywords of :class:`Atmosphere` except
             ``angstrom_beta``, which ``turbidity`` sets); an unknown keyword raises
@@ -559,6 +566,14 @@ class Atmosphere(nn.Module):
         """
         _check_options("Atmosphere.earth", options, exclude=("angstrom_beta", "ozone_du"))
         _check_type_options("Atmosphere.earth", options)
+        if (angstrom_alpha is not None and aerosol_optical_depth is not None
+                and options.get("aerosol_type") is not None):
+            raise ValueError(
+                "Atmosphere.earth(): angstrom_alpha would not be used with aerosol_type="
+                f"{options['aerosol_type']!r} and aerosol_optical_depth (the type's Mie "
+                f"table gives the spectrum about 550 nm); got angstrom_alpha={angstrom_alpha!r}")
+        if angstrom_alpha is None:
+            angstrom_alpha = _aerosol.PREETHAM_ANGSTROM_ALPHA
         if aerosol_optical_depth is not None:
             if turbidity is not None:
                 raise ValueError("give turbidity or aerosol_optical_depth, not both; got "
@@ -1648,7 +1663,10 @@ def _ozone_profile(atm, dtype) -> Profile:
     width = atm._p("ozone_half_width_m", dtype)
     levels = torch.stack(torch.broadcast_tensors(torch.clamp(center - width, min=0.0), center,
                                                  center + width), dim=-1)
-    return Profile(_profiles.tent, {"center_m": center, "half_width_m": width}, width,
+    # the column between the ground and the top, so that a tent cut by either still holds
+    # ozone_du
+    column = _profiles.tent_column(center, width, atm.top_altitude_m)
+    return Profile(_profiles.tent, {"center_m": center, "half_width_m": width}, column,
                    breakpoints_m=levels, support=True)
 
 

@@ -135,6 +135,36 @@ def tent(altitude_m, center_m, half_width_m) -> torch.Tensor:
     return torch.clamp(1.0 - torch.abs(altitude_m - center_m) / half_width_m, min=0.0)
 
 
+def tent_column(center_m, half_width_m, top_m) -> torch.Tensor:
+    r"""Integral of :func:`tent` from the ground to ``top_m`` [m] (truncated at both).
+
+    With the tent's cumulative integral :math:`F(h)`: :math:`(h - h_c + w)^2 / (2w)` on
+    :math:`[h_c - w, h_c]`, :math:`w - (h_c + w - h)^2 / (2w)` on :math:`[h_c, h_c + w]`
+    (0 below, :math:`w` above), the column is :math:`F(h_{top}) - F(0)`; :math:`w` when
+    the whole tent lies between the ground and the top.
+
+    Parameters
+    ----------
+    center_m, half_width_m : Tensor (...)
+        Peak altitude and half width [m] of :func:`tent`.
+    top_m : float
+        Altitude of the top of the atmosphere [m].
+
+    Returns
+    -------
+    Tensor (...)
+        Column height [m].
+    """
+    def cumulative(h):
+        below = torch.minimum(torch.clamp(h - center_m + half_width_m, min=0.0), half_width_m)
+        above = torch.minimum(torch.clamp(center_m + half_width_m - h, min=0.0), half_width_m)
+        return torch.where(h <= center_m, below * below / (2.0 * half_width_m),
+                           half_width_m - above * above / (2.0 * half_width_m))
+
+    zero = torch.zeros_like(center_m)
+    return cumulative(zero + top_m) - cumulative(zero)
+
+
 def us1976(altitude_m) -> torch.Tensor:
     r"""Density ratio :math:`\rho(z)/\rho(0)` of the U.S. Standard Atmosphere 1976.
 
