@@ -355,3 +355,12 @@ def test_ozone_column_of_a_tent_cut_by_the_ground():
     for key in ("ozone_peak_altitude_m", "stratospheric_aerosol_altitude_m"):
         with pytest.raises(ValueError, match=f"{key} must be < 100000"):
             Atmosphere.earth(**{key: 150e3})
+
+
+def test_tent_shape_refused_with_a_sounding_that_gives_the_ozone():
+    """The sounding's ozone replaces the tent: its shape keywords are not silently dropped."""
+    from skytorch.atmosphere.climatology import afgl_profile
+
+    for key in ("ozone_peak_altitude_m", "ozone_half_width_m"):
+        with pytest.raises(ValueError, match=key):
+            Atmosphere.earth(profile=afgl_profile("us_standard"), **{key: 10e3})

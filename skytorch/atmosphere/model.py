@@ -165,6 +165,9 @@ PARAMETER_RANGES = {
     # gases: observed columns stay below ~7 cm (skytorch.atmosphere.gases)
     "precipitable_water_cm": (*_gases.PRECIPITABLE_WATER_RANGE_CM, True, " cm"),
 }
+#: default peak altitude and half width of the ozone tent [m]
+OZONE_PEAK_ALTITUDE_M = 25_000.0
+OZONE_HALF_WIDTH_M = 15_000.0
 #: Preetham turbidity accepted by :meth:`Atmosphere.earth`: 1 (aerosol-free) to 64
 #: (beta = 2.9, a vertical aerosol optical depth of 6.3 at 550 nm: thick fog)
 TURBIDITY_RANGE = (1.0, 64.0)
@@ -326,9 +329,11 @@ class Atmosphere(nn.Module):
         Ozone column [DU]; default 0, or the column of the sounding's
         ``ozone_number_density``. Given with a sounding that has ozone, it scales the
         sounding's ozone shape to this column (the knob of a sweep).
-    ozone_peak_altitude_m, ozone_half_width_m : float or Tensor
-        Altitude of the ozone peak and half width of the tent [m] (unused when the
-        sounding gives the ozone).
+    ozone_peak_altitude_m, ozone_half_width_m : float or Tensor, optional
+        Altitude of the ozone peak and half width of the tent [m]; default 25 km and
+        15 km. The tent holds ``ozone_du`` between the ground and the top, however cut
+        by either. A sounding that gives the ozone replaces the tent (giving either
+        raises ValueError).
     ozone_temperature_k : float or Tensor, optional
         Temperature of the ozone cross-sections [K], in [203, 293] K; default: the
         tent-weighted mean U.S. Standard Atmosphere 1976 temperature over the layer
@@ -408,7 +413,7 @@ class Atmosphere(nn.Module):
                  aerosol_phase_model: str | None = None,
                  aerosol_type: str | None = None,
                  aerosol_albedo_spectrum: str | None = None,
-                 ozone_du=FROM_PROFILE, ozone_peak_altitude_m=25_000.0, ozone_half_width_m=15_000.0,
+                 ozone_du=FROM_PROFILE, ozone_peak_altitude_m=None, ozone_half_width_m=None,
                  ozone_temperature_k=None,
                  reference_refractivity: float = EARTH_REFRACTIVITY_SEA_LEVEL,
                  reference_pressure_pa: float = STANDARD_PRESSURE_PA,
@@ -485,6 +490,18 @@ class Atmosphere(nn.Module):
                                  else surface_temperature_k)
         if ozone_du is FROM_PROFILE:
             ozone_du = _sounding_ozone_du(self.sounding, self.top_altitude_m)
+        if self.sounding is not None and "ozone_number_density_m3" in self.sounding:
+            shaped = {key: value for key, value in (
+                ("ozone_peak_altitude_m", ozone_peak_altitude_m),
+                ("ozone_half_width_m", ozone_half_width_m)) if value is not None}
+            if shaped:
+                raise ValueError(f"{sorted(shaped)} shape the ozone tent, which the "
+                                 "sounding's ozone profile replaces; got "
+                                 + ", ".join(f"{k}={v!r}" for k, v in shaped.items()))
+        ozone_peak_altitude_m = (OZONE_PEAK_ALTITUDE_M if ozone_peak_altitude_m is None
+                                 else ozone_peak_altitude_m)
+        ozone_half_width_m = (OZONE_HALF_WIDTH_M if ozone_half_width_m is None
+                              else ozone_half_width_m)
         if molar_mass_kg_mol is None:
             molar_mass_kg_mol = (_rayleigh.air_molar_mass() if gas == "air"
                                  else _rayleigh.MARS_MOLAR_MASS_KG_MOL)
