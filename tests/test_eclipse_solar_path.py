@@ -118,6 +118,24 @@ def test_path_width_at_greatest_eclipse_2024():
     assert (ds.moon_sun_ratio > 1).all()
 
 
+def test_path_width_near_the_ends_2017():
+    """No width where a limit has left Earth; the same width at an instant for any step.
+
+    The rows at the path's ends gave 1 061-1 466 km (distances to the far end of the other
+    limit line) against the canon's 115 km at greatest eclipse, and at 16:50 UTC the width
+    grew with the step (70.0 km at 60 s, 80.7 km at 600 s: chords of the limit lines).
+    """
+    instant = np.datetime64("2017-08-21T16:50")
+    widths = []
+    for step in (60.0, 600.0):
+        ds = solar_eclipse_path("2017-08-21", step_s=step)
+        missing = ds.north_latitude.isnull() | ds.south_latitude.isnull()
+        assert bool(missing.any()) and bool(ds.path_width.where(missing).isnull().all())
+        assert float(ds.path_width.max()) / 1e3 < 120.0
+        widths.append(float(ds.path_width.sel(time=instant, method="nearest")))
+    assert widths[0] == pytest.approx(widths[1], rel=1e-9)
+
+
 def test_hybrid_path_changes_kind():
     ds = solar_eclipse_path("2023-04-20", step_s=120.0)
     ratio = ds.moon_sun_ratio.values
