@@ -140,6 +140,38 @@ def test_refraction_raises_low_contacts():
     assert (refracted.c2.values == plain.c2.values)
 
 
+def test_night_side_observers_are_not_visible():
+    """Geometric circumstances on the night side are flagged: the Sun is down throughout.
+
+    Bay of Bengal at local midnight of 2024-04-08: kind "total", obscuration 1, Sun -68 deg
+    at maximum; Dallas sees its totality; an observer 3 km up sees the Sun 0.5 deg below
+    the astronomical horizon (above the dip of 1.6 deg).
+    """
+    ds = solar_eclipse_local("2024-04-08", [13.78, 32.78, 60.0], [86.06, -96.8, -10.0],
+                             [0.0, 0.0, 3000.0], refraction=True)
+    assert ds.kind.values.tolist()[:2] == ["total", "total"]
+    assert ds.visible.values.tolist() == [False, True, True]
+    assert -1.62 < float(ds.sun_altitude_maximum[2]) < 0.0
+    assert not bool(solar_eclipse_local("2024-04-08", -40.0, 120.0).visible)
+
+
+def test_refraction_is_continuous_down_to_the_horizon():
+    """Refracted altitudes rise monotonically with the true ones down to the horizon.
+
+    Saemundsson's formula was cut at -1.9 deg: true -1.89 deg became -1.15 deg apparent and
+    -1.91 deg stayed -1.91 deg; now ray-traced, to the apparent horizon (sea level: the
+    Sun's centre at true -0.57 deg, Bennett's 34' within 2'), below it geometric.
+    """
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.eclipse.solar_local import _refracted
+
+    true = torch.linspace(-3.0, 5.0, 801, dtype=torch.float64)[None]
+    apparent = _refracted(true, torch.zeros(1, 1, dtype=torch.float64), Atmosphere.earth())
+    assert bool((torch.diff(apparent) >= 0).all())
+    horizon = true[apparent >= 0].min()
+    assert -0.62 < float(horizon) < -0.52
+
+
 def test_float32_inputs_match_float64():
     a = solar_eclipse_local("2024-04-08", torch.tensor([32.7767], dtype=torch.float32),
                             torch.tensor([-96.797], dtype=torch.float32))

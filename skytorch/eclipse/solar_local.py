@@ -28,6 +28,8 @@ import torch
 import xarray as xr
 
 from skytorch._validate import refuse_gradient
+from skytorch.atmosphere import Atmosphere
+from skytorch.atmosphere.refraction import apparent_altitude, horizon_dip
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, variable
 from skytorch.eclipse.circumstances import _parse_one
 from skytorch.eclipse.occlusion import sun_visible_fraction
@@ -51,11 +53,26 @@ from skytorch.ephemeris import check_observer, parse_times
 
 __all__ = ["LOCAL_CONTACTS", "solar_eclipse_local"]
 
-def _refracted(altitude_deg: torch.Tensor) -> torch.Tensor:
-    """Apparent altitude [deg] from the true one (Saemundsson, Meeus eq. 16.4)."""
-    bend = 1.02 / torch.tan(torch.deg2rad(altitude_deg + 10.3 / (altitude_deg + 5.11))) / 60.0
-    usable = altitude_deg > -1.9
-    return torch.where(usable, altitude_deg + torch.where(usable, bend, 0.0), altitude_deg)
+
+def _refracted(altitude_deg: torch.Tensor, height_m: torch.Tensor, atmosphere) -> torch.Tensor:
+    """Apparent altitude [deg] of the Sun's centre at true ``altitude_deg``, seen from ``height_m``.
+
+    Ray-traced through ``atmosphere`` (the standard one,
+    :meth:`skytorch.atmosphere.Atmosphere.earth`,
+    :func:`skytorch.atmosphere.refraction.apparent_altitude`) down to the apparent horizon
+    of an elevated observer; a Sun below the lowest visible true altitude
+    (:func:`skytorch.atmosphere.refraction.horizon_dip`) is hidden by the ground and keeps
+    its geometric altitude. NaN stays NaN.
+    """
+    true = torch.deg2rad(altitude_deg)
+    height = torch.broadcast_to(torch.clamp(height_m, min=0.0), true.shape)
+    lowest = horizon_dip(atmosphere, height)["true_altitude_rad"]
+    seen = torch.isfinite(true) & (true >= lowest)
+    apparent = torch.full_like(true, torch.nan)
+    if bool(seen.any()):
+        apparent[seen] = apparent_altitude(atmosphere, true[seen], height[seen],
+                                           ground="raise")
+    return torch.where(seen, torch.rad2deg(apparent), altitude_deg)
 
 
 _SPECS = {
@@ -68,7 +85,14 @@ _SPECS = {
     "obscuration": VariableSpec("1", "obscuration at maximum",
                                 "Fraction of the Sun's disc area covered by the Moon "
                                 "(uniform disc, penumbral k)."),
-    "kind": VariableSpec("1", "local kind", "none, partial, annular or total."),
+    "kind": VariableSpec("1", "local kind", "none, partial, annular or total: the geometric "
+                         "circumstances, whether or not the Sun is up (see visible)."),
+    "visible": VariableSpec("1", "eclipse above the horizon",
+                            "True where the Sun's centre is above the apparent horizon "
+                            "(refraction through the standard atmosphere and the dip of an "
+                            "elevated observer's horizon, horizon_dip) at C1, maximum or C4; "
+                            "the geometric circumstances of the other observers happen "
+                            "below their horizon."),
     "central_duration": VariableSpec("s", "duration of totality or annularity",
                                      "C3 - C2; NaN where the phase does not occur."),
     "moon_sun_ratio": VariableSpec("1", "Moon/Sun apparent diameter ratio at maximum",
@@ -115,15 +139,20 @@ def solar_eclipse_local(time_or_date, lat_deg, lon_deg, elevation_m=0.0,
     elevation_m : float or array_like (*obs)
         Height above the ellipsoid [m], in [-500, 1e5].
     refraction : bool
-        Refract the Sun altitudes (Saemundsson's formula; the contacts stay geometric).
+        Refract the Sun altitudes (ray-traced through the standard atmosphere from the
+        observer's height, to an elevated observer's apparent horizon; a Sun hidden by the
+        ground keeps its geometric altitude; the contacts stay geometric).
 
     Returns
     -------
     xarray.Dataset
-        Over dimensions ``obs_0 ...`` of the observers' broadcast shape: ``c1`` .. ``c4``,
-        ``maximum_time`` (UTC, NaT when absent), ``magnitude``, ``obscuration``,
-        ``moon_sun_ratio``, ``kind``, ``central_duration`` [s], ``sun_altitude_<contact>``
-        [degree]; attribute ``greatest_eclipse``.
+        Over dimensions ``obs_0 ...`` of the observers' broadcast shape: ``c1`` .. ``c4``
+        (UTC, NaT when absent), ``maximum_time`` (UTC: the minimum separation, for every
+        observer), ``magnitude``, ``obscuration``, ``moon_sun_ratio``, ``kind`` (geometric),
+        ``central_duration`` [s], ``visible`` (the Sun up at C1, maximum or C4),
+        ``sun_altitude_<contact>`` [degree]; attribute ``greatest_eclipse``. The
+        circumstances are geometric: an observer on the night side gets its contacts and
+        kind with ``visible`` false.
 
     Raises
     ------
@@ -157,8 +186,20 @@ def solar_eclipse_local(time_or_date, lat_deg, lon_deg, elevation_m=0.0,
         sun_dir = _state(geometry, torch.nan_to_num(seconds), points)[4]
         alt = torch.rad2deg(torch.asin((up * sun_dir).sum(-1) / torch.linalg.vector_norm(
             sun_dir, dim=-1)))
-        alt = _refracted(alt) if refraction else alt
         altitudes[f"sun_altitude_{name}"] = torch.where(torch.isnan(seconds), torch.nan, alt)
+    # some of the eclipse seen: the Sun above the (refracted, dipped) horizon at C1,
+    # maximum or C4
+    # the standard atmosphere (U.S. 1976 molecules, turbidity 2) refracts
+    atmosphere = Atmosphere.earth()
+    lowest = torch.rad2deg(horizon_dip(atmosphere, torch.clamp(
+        height.reshape(1, -1).to(torch.float64), min=0.0))["true_altitude_rad"])
+    visible = torch.zeros_like(found["c1"], dtype=torch.bool)
+    for name in ("c1", "maximum", "c4"):
+        visible |= altitudes[f"sun_altitude_{name}"] >= lowest
+    if refraction:
+        altitudes = {name: _refracted(alt, height.reshape(1, -1).to(torch.float64), atmosphere)
+                     for name, alt in altitudes.items()}
+    visible &= ~torch.isnan(found["c1"])
     central = ~torch.isnan(found["c2"])
     kind = np.where(central.numpy(), np.where((m_umb > s).numpy(), "total", "annular"),
                     np.where(~torch.isnan(found["c1"]).numpy(), "partial", "none"))
@@ -174,7 +215,8 @@ def solar_eclipse_local(time_or_date, lat_deg, lon_deg, elevation_m=0.0,
     values["maximum_time"] = _to_times(geometry.centres, found["maximum"])
     values.update(magnitude=magnitude, obscuration=torch.where(
         torch.isnan(found["c1"]), 0.0, obscuration), moon_sun_ratio=m_umb / s,
-        kind=kind.astype(str), central_duration=found["c3"] - found["c2"], **altitudes)
+        kind=kind.astype(str), central_duration=found["c3"] - found["c2"], visible=visible,
+        **altitudes)
     data_vars = {name: variable(dims, out(value), _SPECS[name]) for name, value in values.items()}
     coords = {dim: coordinate(dim, np.arange(size), VariableSpec(
         "1", f"observer index {i}", "Index of the observer along this dimension."))
