@@ -334,3 +334,30 @@ def test_observe_refuses_a_bad_catalogue_epoch(epoch, error):
     catalog.attrs["epoch_jyear"] = epoch
     with pytest.raises(error, match="epoch_jyear"):
         observe(catalog, "2025-09-07T21:00", 52.5, 13.4)
+
+
+def test_observer_set_up_gradients_are_refused_not_dropped():
+    """Scalars of the observing set-up became Python floats: a gradient was dropped silently.
+
+    The scintillation law's aperture, exposure, altitude and site factor and the eye's pupil
+    and acuity are refused with a gradient; the Earth's albedo of the earthshine keeps it.
+    """
+    from skytorch.moon.earthshine import earthshine_irradiance_ratio
+    from skytorch.stars.scintillation import scintillation_index
+    from skytorch.stars.visibility import limiting_magnitude
+
+    wanted = torch.tensor(0.5, dtype=torch.float64, requires_grad=True)
+    for name in ("aperture_m", "exposure_s", "altitude_m"):
+        with pytest.raises(ValueError, match=f"{name} requires a gradient"):
+            scintillation_index(2.0, **{name: wanted})
+    with pytest.raises(ValueError, match="site_factor requires a gradient"):
+        scintillation_index(2.0, model="osborn2015", site_factor=wanted * 3.0)
+    with pytest.raises(ValueError, match="model='young1967' has none"):
+        scintillation_index(2.0, site_factor=2.0)
+    for name, value in (("pupil_diameter_mm", wanted * 14.0), ("acuity_factor", wanted)):
+        with pytest.raises(ValueError, match=f"{name} requires a gradient"):
+            limiting_magnitude(21.0, **{name: value})
+    albedo = torch.tensor(0.3, dtype=torch.float64, requires_grad=True)
+    earthshine_irradiance_ratio(torch.tensor(1.0, dtype=torch.float64),
+                                bond_albedo=albedo).backward()
+    assert albedo.grad is not None and float(albedo.grad) > 0.0

@@ -117,8 +117,9 @@ def earthshine_irradiance_ratio(phase_angle_rad, *, distance_m=MEAN_EARTH_MOON_D
         Lunar phase angle φ in [0, π] [rad]; the Earth's phase seen from the Moon is π − φ.
     distance_m : float or Tensor (...)
         Earth–Moon distance [m], larger than the Earth's radius.
-    bond_albedo : float
-        Earth's Bond albedo A (Lambert sphere: geometric albedo 2A/3).
+    bond_albedo : float or Tensor (...)
+        Earth's Bond albedo A in [0, 1] (Lambert sphere: geometric albedo 2A/3); a tensor
+        keeps its gradient.
 
     Returns
     -------
@@ -127,9 +128,10 @@ def earthshine_irradiance_ratio(phase_angle_rad, *, distance_m=MEAN_EARTH_MOON_D
     """
     dtype = common_dtype(phase_angle_rad, distance_m)
     phi = _phase(phase_angle_rad, dtype)
-    bond_albedo = float(check_range("bond_albedo", bond_albedo, 0.0, 1.0))
+    # a tensor albedo keeps its gradient (a fit of the Earth's albedo to earthshine)
+    bond_albedo = check_range("bond_albedo", bond_albedo, 0.0, 1.0, dtype=dtype)
     d = check_range("distance_m", distance_m, EARTH_MEAN_RADIUS_M, low_inclusive=False,
                     unit=" m", dtype=dtype)
-    check_broadcastable(phase_angle_rad=phi, distance_m=d)
+    check_broadcastable(phase_angle_rad=phi, distance_m=d, bond_albedo=bond_albedo)
     ratio = (EARTH_MEAN_RADIUS_M / d) ** 2
     return (2.0 / 3.0) * bond_albedo * lambert_phase_function(math.pi - phi) * ratio

@@ -30,7 +30,7 @@ import math
 
 import torch
 
-from skytorch._validate import check_choice, check_int, check_range
+from skytorch._validate import check_choice, check_int, check_range, refuse_gradient
 
 _AR1_BLOCK = 256
 
@@ -84,7 +84,7 @@ OSBORN_DEFAULT_CY = 1.5
 
 def scintillation_index(airmass, aperture_m: float = 0.007, exposure_s: float = 0.1,
                         altitude_m: float = 0.0, model: str = "young1967",
-                        site_factor: float = OSBORN_DEFAULT_CY) -> torch.Tensor:
+                        site_factor: float | None = None) -> torch.Tensor:
     """Young's scintillation index σ_I² for a star at a given air mass.
 
     Parameters
@@ -100,8 +100,9 @@ def scintillation_index(airmass, aperture_m: float = 0.007, exposure_s: float = 
         Observatory altitude h [m].
     model : {"young1967", "osborn2015"}
         Young's original law or Osborn et al.'s form with site factor C_Y.
-    site_factor : float
-        C_Y of ``"osborn2015"`` (1.5: median of the sites studied; 1: Young's law).
+    site_factor : float, optional
+        C_Y of ``"osborn2015"`` in [0.1, 10] (default 1.5: median of the sites studied; 1:
+        Young's law); ``"young1967"`` takes none (ValueError).
 
     Returns
     -------
@@ -123,7 +124,7 @@ def scintillation_index(airmass, aperture_m: float = 0.007, exposure_s: float = 
 
 def scintillation_law(aperture_m: float = 0.007, exposure_s: float = 0.1,
                       altitude_m: float = 0.0, model: str = "young1967",
-                      site_factor: float = OSBORN_DEFAULT_CY) -> tuple[float, float]:
+                      site_factor: float | None = None) -> tuple[float, float]:
     """Zenith scintillation index and air-mass exponent of :func:`scintillation_index`.
 
     Parameters
@@ -139,14 +140,21 @@ def scintillation_law(aperture_m: float = 0.007, exposure_s: float = 0.1,
         p of σ_I² = coefficient · X^p: 3.5 (Young 1967) or 3 (Osborn et al. 2015).
     """
     check_choice("model", model, SCINTILLATION_MODELS)
+    refuse_gradient("the scintillation law", why="its coefficient is a number of the "
+                    "observing set-up", aperture_m=aperture_m, exposure_s=exposure_s,
+                    altitude_m=altitude_m, site_factor=site_factor)
     diameter = float(check_range("aperture_m", aperture_m, 1e-4, 100.0, unit=" m"))
     exposure = float(check_range("exposure_s", exposure_s, 1e-6, 1e5, unit=" s"))
     height = float(check_range("altitude_m", altitude_m, -500.0, 1e4, unit=" m"))
+    if model == "young1967" and site_factor is not None:
+        raise ValueError(f"site_factor={site_factor!r} is C_Y of model='osborn2015'; "
+                         "model='young1967' has none")
     decay = math.exp(-2.0 * height / SCINTILLATION_SCALE_HEIGHT_M)
     if model == "young1967":
         return (YOUNG_COEFFICIENT**2 * (100.0 * diameter) ** (-4.0 / 3.0)
                 / (2.0 * exposure) * decay), 3.5
-    c_y = float(check_range("site_factor", site_factor, 0.1, 10.0))
+    c_y = float(check_range("site_factor", OSBORN_DEFAULT_CY if site_factor is None
+                            else site_factor, 0.1, 10.0))
     return OSBORN_COEFFICIENT * c_y**2 * diameter ** (-4.0 / 3.0) / exposure * decay, 3.0
 
 

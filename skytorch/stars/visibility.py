@@ -31,7 +31,7 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_choice, check_range
+from skytorch._validate import as_tensor, check_choice, check_range, refuse_gradient
 from skytorch.moon.sky import mag_arcsec2_to_nanolambert  # K&S 1991 eq. 1, shared
 
 __all__ = [
@@ -86,6 +86,9 @@ def limiting_magnitude(sky_mag_arcsec2, *, pupil_diameter_mm: float = REFERENCE_
     any background m → 7.93.
     """
     brightness = mag_arcsec2_to_nanolambert(sky_mag_arcsec2)
+    refuse_gradient("limiting_magnitude", why="the observer's pupil and acuity are numbers of "
+                    "the observer, not of the sky", pupil_diameter_mm=pupil_diameter_mm,
+                    acuity_factor=acuity_factor)
     pupil = float(check_range("pupil_diameter_mm", pupil_diameter_mm, 1.0, 10.0, unit=" mm"))
     acuity = float(check_range("acuity_factor", acuity_factor, 0.01, 100.0))
     night = brightness < SCHAEFER_SWITCH_NL
