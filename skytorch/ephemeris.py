@@ -84,6 +84,7 @@ __all__ = [
     "aberration_matrix",
     "altaz_from_horizontal",
     "check_observer",
+    "one_observer",
     "earth_barycentric_velocity",
     "earth_rotation",
     "geodetic_to_itrs",
@@ -375,6 +376,38 @@ def check_observer(lat_deg, lon_deg, elevation_m=0.0, dtype=torch.float64):
                             unit=" m", dtype=dtype)
     shape = check_broadcastable(lat_deg=lat, lon_deg=lon, elevation_m=elevation)
     return lat.expand(shape), lon.expand(shape), elevation.expand(shape)
+
+
+def _no_height_without_observer(where: str, elevation_m) -> None:
+    """ValueError for a height other than 0 m given without an observer (it would be unused)."""
+    if elevation_m is None:
+        return
+    height = check_range("elevation_m", elevation_m, ELEVATION_MIN_M, ELEVATION_MAX_M,
+                         unit=" m")
+    if bool((height != 0.0).any()):
+        raise ValueError(f"{where}: elevation_m={elevation_m!r} needs an observer (give "
+                         "lat_deg and lon_deg)")
+
+
+def one_observer(where: str, lat_deg=None, lon_deg=None, elevation_m=None):
+    """Validate an optional single observer: ``(lat, lon, elevation)`` floats or None.
+
+    Latitude and longitude come together or not at all; a height without them, or more
+    than one observer, is refused (ValueError naming ``where``); ranges as
+    :func:`check_observer` (height default 0 m).
+    """
+    if (lat_deg is None) != (lon_deg is None):
+        raise ValueError(f"{where}: give both lat_deg and lon_deg for an observer, or "
+                         f"neither; got lat_deg={lat_deg!r}, lon_deg={lon_deg!r}")
+    if lat_deg is None:
+        _no_height_without_observer(where, elevation_m)
+        return None
+    lat, lon, elevation = check_observer(lat_deg, lon_deg,
+                                         0.0 if elevation_m is None else elevation_m)
+    if lat.ndim:
+        raise ValueError(f"{where} takes one observer: lat_deg, lon_deg and elevation_m "
+                         f"must be scalars; got shape {tuple(lat.shape)}")
+    return float(lat), float(lon), float(elevation)
 
 
 def horizontal_rows(lat_rad: torch.Tensor, lon_rad: torch.Tensor) -> torch.Tensor:
@@ -797,8 +830,8 @@ def sun_moon(times, lat_deg=None, lon_deg=None, elevation_m=0.0) -> xr.Dataset:
     if (lat_deg is None) != (lon_deg is None):
         raise ValueError("give both lat_deg and lon_deg for an observer, or neither; got "
                          f"lat_deg={lat_deg!r}, lon_deg={lon_deg!r}")
-    if lat_deg is None:  # validated although unused: a bad value is never accepted silently
-        check_range("elevation_m", elevation_m, ELEVATION_MIN_M, ELEVATION_MAX_M, unit=" m")
+    if lat_deg is None:  # a height other than 0 would go unused
+        _no_height_without_observer("sun_moon", elevation_m)
     else:
         lat, lon, elevation = check_observer(lat_deg, lon_deg, elevation_m)
         if lat.ndim > 1:

@@ -40,3 +40,16 @@ def test_ephemeris_command_refuses_bad_observers(tmp_path, capsys):
                    "--lat", "95", "--lon", "0", "-o", str(tmp_path / "e.nc")])
     assert status == 2
     assert "lat_deg" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("arguments", "name"), [
+    (["planets", "--times", "2020-03-24T00:00", "--turbidity", "5"], "--turbidity"),
+    (["planets", "--times", "2020-03-24T00:00", "--elevation", "300"], "elevation_m"),
+    (["stars", "--time", "2020-03-24T00:00", "--lat", "50", "--lon", "10",
+      "--no-atmosphere", "--ozone", "250"], "--ozone"),
+])
+def test_settings_that_would_go_unused_are_errors(tmp_path, capsys, arguments, name):
+    """Atmosphere settings without an atmosphere, a height without an observer."""
+    assert main([*arguments, "-o", str(tmp_path / "x.nc")]) == 2
+    assert name in capsys.readouterr().err
+    assert not (tmp_path / "x.nc").exists()

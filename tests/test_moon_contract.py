@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import torch
 from _contract import arg, bad_values, call_and_check
 from hypothesis import given, settings
@@ -230,3 +231,19 @@ def test_earthshine_ratio_contract(phase, distance):
     arguments = {"phase_angle_rad": phase, "distance_m": distance}
     call_and_check(st_sky.moon.earthshine_irradiance_ratio, arguments,
                    shape_arguments=tuple(arguments), bounds=(0.0, 1.0))
+
+
+def test_moon_geometry_and_planets_take_one_whole_observer():
+    """A latitude without a longitude, a height without an observer, several observers."""
+    from skytorch.moon.datasets import moon_geometry
+    from skytorch.stars.planets import planets
+
+    for function in (moon_geometry, planets):
+        with pytest.raises(ValueError, match="give both lat_deg and lon_deg"):
+            function("2024-01-01", lat_deg=52.5)
+        with pytest.raises(ValueError, match="elevation_m=100.0 needs an observer"):
+            function("2024-01-01", elevation_m=100.0)
+        with pytest.raises(ValueError, match="takes one observer"):
+            function("2024-01-01", lat_deg=[52.5, 40.0], lon_deg=[13.4, 2.0])
+    with pytest.raises(ValueError, match="each planet once"):
+        planets("2024-01-01", bodies=("mars", "mars"))

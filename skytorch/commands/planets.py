@@ -30,8 +30,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--atmosphere", action="store_true",
                         help="refract and extinguish through Atmosphere.earth() (needs "
                              "--lat and --lon)")
-    parser.add_argument("--turbidity", type=float, default=2.0,
-                        help="aerosol turbidity of that atmosphere (default 2)")
+    parser.add_argument("--turbidity", type=float,
+                        help="aerosol turbidity of that atmosphere (default 2; needs "
+                             "--atmosphere)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -41,7 +42,11 @@ def run(args: argparse.Namespace) -> int:
     from skytorch.stars.planets import planets
 
     times = requested_times(args)
-    atmosphere = Atmosphere.earth(turbidity=args.turbidity) if args.atmosphere else None
+    if args.turbidity is not None and not args.atmosphere:
+        raise ValueError(f"--turbidity {args.turbidity:g} sets the atmosphere, which needs "
+                         "--atmosphere")
+    atmosphere = (Atmosphere.earth(turbidity=2.0 if args.turbidity is None else args.turbidity)
+                  if args.atmosphere else None)
     dataset = planets(times, lat_deg=args.lat, lon_deg=args.lon, elevation_m=args.elevation,
                       bodies=tuple(args.bodies), atmosphere=atmosphere)
     path = to_netcdf(dataset, args.output)

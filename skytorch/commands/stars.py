@@ -50,9 +50,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                      help="faintest catalogue V magnitude (default 6.5)")
     sky.add_argument("--bsc5", help="read this Yale Bright Star Catalogue file instead of "
                                     "the bundled Hipparcos 2")
-    sky.add_argument("--turbidity", type=float, default=2.0,
+    sky.add_argument("--turbidity", type=float,
                      help="Preetham turbidity of the atmosphere (default 2)")
-    sky.add_argument("--ozone", type=float, default=300.0, help="ozone column [DU]")
+    sky.add_argument("--ozone", type=float, help="ozone column [DU] (default 300)")
     sky.add_argument("--no-atmosphere", action="store_true",
                      help="no refraction or extinction (magnitudes above the atmosphere)")
     sky.add_argument("--no-refraction", action="store_true", help="geometric altitudes")
@@ -73,11 +73,17 @@ def run(args: argparse.Namespace) -> int:
     catalog = (read_bsc5(args.bsc5, args.limit_magnitude) if args.bsc5
                else bright_stars(args.limit_magnitude))
     if args.no_atmosphere:
+        given = [f"--{name}" for name in ("turbidity", "ozone") if getattr(args, name) is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)}: settings of the atmosphere, which "
+                             "--no-atmosphere leaves out")
         atmosphere = False
     else:
         from skytorch.atmosphere import Atmosphere
 
-        atmosphere = Atmosphere.earth(turbidity=args.turbidity, ozone_du=args.ozone)
+        atmosphere = Atmosphere.earth(
+            turbidity=2.0 if args.turbidity is None else args.turbidity,
+            ozone_du=300.0 if args.ozone is None else args.ozone)
     ds = observe(catalog, times, args.lat, args.lon, args.elevation, atmosphere=atmosphere,
                  refraction=not args.no_refraction,
                  sky_brightness_mag_arcsec2=args.sky_brightness, visibility=args.visibility)

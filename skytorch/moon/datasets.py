@@ -17,7 +17,6 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import check_range
 from skytorch.constants import ASTRONOMICAL_UNIT_M, DEGREE, MEAN_EARTH_MOON_DISTANCE_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.moon import geometry as _geometry
@@ -79,7 +78,7 @@ _SPECS = {
 }
 
 
-def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -> xr.Dataset:
+def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m=None) -> xr.Dataset:
     """Phase, illumination, bright limb, libration, size and magnitude of the Moon.
 
     Parameters
@@ -87,11 +86,13 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     times : str, datetime, datetime64 or sequence of them
         UTC times (see :func:`skytorch.ephemeris.parse_times`).
     lat_deg, lon_deg : float, optional
-        Observer's geodetic latitude and longitude [degree]; with them the phase angle,
-        illuminated fraction, magnitude and apparent diameter are topocentric and the
-        parallactic angle is added (bright limb and librations stay geocentric).
-    elevation_m : float
-        Observer's height above the WGS84 ellipsoid [m].
+        Observer's geodetic latitude and longitude [degree], both or neither (one
+        observer); with them the phase angle, illuminated fraction, magnitude and apparent
+        diameter are topocentric and the parallactic angle is added (bright limb and
+        librations stay geocentric).
+    elevation_m : float, optional
+        Observer's height above the WGS84 ellipsoid [m] (default 0; not without an
+        observer).
 
     Returns
     -------
@@ -105,12 +106,20 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m: float = 0.0) -
     from skyfield.api import wgs84
     from skyfield.nutationlib import iau2000b_radians, mean_obliquity
 
-    from skytorch.ephemeris import load_ephemeris, parse_times, skyfield_time, sun_moon_vectors
+    from skytorch.ephemeris import (
+        load_ephemeris,
+        one_observer,
+        parse_times,
+        skyfield_time,
+        sun_moon_vectors,
+    )
 
-    if lat_deg is not None and lon_deg is not None:
-        lat_deg = float(check_range("lat_deg", lat_deg, -90.0, 90.0, unit=" deg"))
-        lon_deg = float(check_range("lon_deg", lon_deg, -180.0, 360.0, unit=" deg"))
-        elevation_m = float(check_range("elevation_m", elevation_m, -500.0, 1e5, unit=" m"))
+    observer = one_observer("moon_geometry", lat_deg, lon_deg, elevation_m)
+    if observer is not None:
+        lat_deg, lon_deg, elevation_m = observer
+    else:
+        lat_deg = lon_deg = None
+        elevation_m = 0.0
     values = parse_times(times)
     t = skyfield_time(values)
     vectors = sun_moon_vectors(values)

@@ -69,8 +69,8 @@ from skytorch.constants import ASTRONOMICAL_UNIT_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.ephemeris import (
     EPHEMERIS_FILE,
-    check_observer,
     load_ephemeris,
+    one_observer,
     parse_times,
     skyfield_time,
 )
@@ -392,18 +392,11 @@ def _check_request(bodies, lat_deg, lon_deg, elevation_m, atmosphere):
         raise ValueError(f"bodies must be a non-empty sequence of {PLANETS}; got {bodies!r}")
     for body in bodies:
         check_choice("bodies", body, PLANETS)
-    if (lat_deg is None) != (lon_deg is None):
-        raise ValueError("give both lat_deg and lon_deg for an observer, or neither; got "
-                         f"lat_deg={lat_deg!r}, lon_deg={lon_deg!r}")
-    observer = None
-    if atmosphere is not None and lat_deg is None:
+    if len(set(bodies)) != len(bodies):
+        raise ValueError(f"bodies must name each planet once; got {tuple(bodies)!r}")
+    observer = one_observer("planets", lat_deg, lon_deg, elevation_m)
+    if atmosphere is not None and observer is None:
         raise ValueError("atmosphere needs an observer: give lat_deg and lon_deg")
-    if lat_deg is not None:
-        lat, lon, elevation = check_observer(lat_deg, lon_deg, elevation_m)
-        if lat.ndim:
-            raise ValueError("planets takes one observer: lat_deg, lon_deg and elevation_m "
-                             f"must be scalars; got shape {tuple(lat.shape)}")
-        observer = (float(lat), float(lon), float(elevation))
     return observer
 
 
