@@ -333,3 +333,16 @@ def test_planets_through_the_atmosphere():
     assert checked > 40
     with pytest.raises(ValueError, match="observer"):
         planets(times[:1], atmosphere=atmosphere)
+
+
+def test_phase_curve_settings_of_other_planets_are_refused():
+    """Mars took a sub-solar latitude of 5 rad and rings="no" was Saturn with rings."""
+    geometry = {"sun_distance_au": 1.5, "observer_distance_au": 1.0, "phase_angle_rad": 0.1}
+    with pytest.raises(TypeError, match="rings"):
+        planet_magnitude("saturn", **geometry, rings="no", sun_latitude_rad=0.1,
+                         observer_latitude_rad=0.1)
+    for planet, setting in (("mars", {"sun_latitude_rad": 5.0}), ("mars", {"rings": False}),
+                            ("jupiter", {"year": 2000.0})):
+        with pytest.raises(ValueError, match=f"{next(iter(setting))}: not used by the phase "
+                                             f"curve of {planet}"):
+            planet_magnitude(planet, **geometry, **setting)

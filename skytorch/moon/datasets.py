@@ -66,7 +66,9 @@ _SPECS = {
     "magnitude": VariableSpec("mag", "V magnitude of the Moon",
                               "Disc-integrated Johnson V magnitude above the atmosphere from "
                               "the Hapke reflectance law, solar spectrum and actual distances "
-                              "(earthshine included), at the observer-Moon distance."),
+                              "(earthshine included), at the observer-Moon distance; the "
+                              "uneclipsed Moon: the Earth's shadow is not applied "
+                              "(skytorch.eclipse.lunar_eclipse gives the eclipsed Moon)."),
     "distance": VariableSpec("m", "observer-Moon distance",
                              "Distance from the observer (the Earth's centre without one) to "
                              "the Moon's centre."),

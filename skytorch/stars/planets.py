@@ -64,7 +64,13 @@ import numpy as np
 import torch
 import xarray as xr
 
-from skytorch._validate import as_tensor, check_broadcastable, check_choice, check_range
+from skytorch._validate import (
+    as_tensor,
+    check_broadcastable,
+    check_choice,
+    check_flag,
+    check_range,
+)
 from skytorch.constants import ASTRONOMICAL_UNIT_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.ephemeris import (
@@ -224,7 +230,16 @@ def planet_magnitude(planet: str, sun_distance_au, observer_distance_au, phase_a
     alpha = check_range("phase_angle_rad", phase_angle_rad, 0.0, math.pi,
                         dtype=r.dtype).rad2deg()
     check_broadcastable(sun_distance_au=r, observer_distance_au=delta, phase_angle_rad=alpha)
-    extra = {"rings": bool(rings)}
+    extra = {"rings": check_flag("rings", rings)}
+    # a setting of another planet's phase curve is refused, not ignored
+    unused = [name for name, value, owners in (
+        ("sun_latitude_rad", sun_latitude_rad, ("saturn", "uranus")),
+        ("observer_latitude_rad", observer_latitude_rad, ("saturn", "uranus")),
+        ("year", year, ("neptune",)), ("rings", None if extra["rings"] else False, ("saturn",)))
+        if value is not None and planet not in owners]
+    if unused:
+        raise ValueError(f"{', '.join(unused)}: not used by the phase curve of {planet} "
+                         "(sub-latitudes: saturn and uranus; year: neptune; rings: saturn)")
     if planet in ("saturn", "uranus"):
         for name, value in (("sun_latitude_rad", sun_latitude_rad),
                             ("observer_latitude_rad", observer_latitude_rad)):
@@ -297,7 +312,7 @@ def _planet_columns(t, earth, earth_to_sun: np.ndarray, planet: str) -> dict[str
     sun_to_planet = planet_at_emission - sun
     phase = _angle(sun_to_planet, observer_to_planet)
     extra = {}
-    if planet in _POLES:
+    if planet in ("saturn", "uranus"):  # their phase curves take the sub-latitudes
         centuries = (np.asarray(t.tdb, np.float64).reshape(-1) - 2451545.0) / 36525.0
         sun_latitude, observer_latitude = sub_latitudes(
             torch.from_numpy(_pole(planet, centuries)), torch.from_numpy(sun_to_planet),
@@ -307,7 +322,8 @@ def _planet_columns(t, earth, earth_to_sun: np.ndarray, planet: str) -> dict[str
     delta = np.linalg.norm(observer_to_planet, axis=-1)
     magnitude = planet_magnitude(
         planet, torch.from_numpy(np.linalg.norm(sun_to_planet, axis=-1)),
-        torch.from_numpy(delta), torch.from_numpy(phase), year=year, **extra)
+        torch.from_numpy(delta), torch.from_numpy(phase),
+        year=year if planet == "neptune" else None, **extra)
     radius_au = PLANET_RADIUS_M[planet] / ASTRONOMICAL_UNIT_M
     return {
         "ra": 15.0 * np.asarray(ra.hours, np.float64).reshape(-1),
