@@ -40,15 +40,16 @@ __all__ = [
 ]
 
 
-def _describe(value: torch.Tensor, mask: torch.Tensor | None = None) -> str:
-    """Short human description of (the offending part of) a tensor."""
+def _describe(value: torch.Tensor, mask: torch.Tensor | None = None, unit: str = "") -> str:
+    """Short human description of (the offending part of) a tensor, its unit after the number."""
     if value.ndim == 0:
-        return repr(value.item())
+        return f"{value.item()!r}{unit}"
     if mask is not None and bool(mask.any()):
         index = tuple(int(i) for i in torch.nonzero(mask)[0])
         bad = value[index].item()
         count = int(mask.sum())
-        return f"{bad!r} at index {index} ({count} offending element{'s' * (count > 1)})"
+        return (f"{bad!r}{unit} at index {index} ({count} offending "
+                f"element{'s' * (count > 1)})")
     return f"tensor of shape {tuple(value.shape)}"
 
 
@@ -170,7 +171,7 @@ def check_range(
         if bool(bad.any()):
             raise ValueError(
                 f"{name} must be {_range_text(low, high, low_inclusive, high_inclusive, unit)}; "
-                f"got {_describe(tensor, bad)}{unit}"
+                f"got {_describe(tensor, bad, unit)}"
             )
     return tensor
 

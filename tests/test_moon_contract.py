@@ -247,3 +247,13 @@ def test_moon_geometry_and_planets_take_one_whole_observer():
             function("2024-01-01", lat_deg=[52.5, 40.0], lon_deg=[13.4, 2.0])
     with pytest.raises(ValueError, match="each planet once"):
         planets("2024-01-01", bodies=("mars", "mars"))
+
+
+def test_position_angles_stay_below_a_full_turn():
+    """remainder(-1e-17, 2 pi) is 2 pi in floating point: the documented range is [0, 2 pi)."""
+    from skytorch.moon.geometry import bright_limb_position_angle
+
+    angle = bright_limb_position_angle(1.0, math.pi / 2, 2.0, 0.2)
+    assert 0.0 <= float(angle) < 2.0 * math.pi
+    with pytest.raises(ValueError, match=r"got -4.0 rad"):
+        st_sky.moon.magnitude(torch.tensor(-4.0))

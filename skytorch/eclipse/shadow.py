@@ -111,6 +111,7 @@ from skytorch._validate import (
     common_dtype,
 )
 from skytorch.atmosphere.rayleigh import WAVELENGTH_RANGE_NM
+from skytorch.atmosphere.refraction import trace_grazing_rays
 from skytorch.constants import (
     ASTRONOMICAL_UNIT_M,
     EARTH_MEAN_RADIUS_M,
@@ -1365,8 +1366,6 @@ class Shadow(nn.Module):
                 "refraction=False")
         if key in self._profiles and not differentiable:
             return self._profiles[key]
-        from skytorch.atmosphere.refraction import trace_grazing_rays
-
         atm = self.atmosphere if self.refraction else _NoRefraction(self.atmosphere)
         top = float(atm.top_altitude_m)
         # a cloud top given as a tensor is a step in the ray weight (closed or not) with a
@@ -1450,8 +1449,6 @@ class Shadow(nn.Module):
         cloud = self.cloud_top_parameter
         if cloud is None or self.cloud_fraction <= 0.0 or not 0.0 < float(cloud.detach()) < top:
             return None
-        from skytorch.atmosphere.refraction import trace_grazing_rays
-
         rays = trace_grazing_rays(atm, periapsis_altitude_m=cloud)
         impact = rays["impact_altitude_m"].reshape(-1)[0]
         return impact.to(torch.float64)

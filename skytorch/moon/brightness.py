@@ -101,8 +101,8 @@ def _quadrature(n_quadrature) -> int:
 
 def _phase(phase_angle_rad):
     alpha = as_tensor("phase_angle_rad", phase_angle_rad)
-    alpha = check_range("phase_angle_rad", alpha.abs(), 0.0, math.pi, unit=" rad")
-    return alpha
+    # signed phase angles (waxing / waning) are symmetric; the message shows the value given
+    return check_range("phase_angle_rad", alpha, -math.pi, math.pi, unit=" rad").abs()
 
 
 def magnitude_ks1991(phase_angle_rad) -> torch.Tensor:

@@ -17,6 +17,7 @@ import numpy as np
 import torch
 import xarray as xr
 
+from skytorch._angles import wrap_to_turn
 from skytorch.constants import ASTRONOMICAL_UNIT_M, DEGREE, MEAN_EARTH_MOON_DISTANCE_M
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
 from skytorch.moon import geometry as _geometry
@@ -191,7 +192,7 @@ def moon_geometry(times, lat_deg=None, lon_deg=None, elevation_m=None) -> xr.Dat
 
 def _radec(vector: torch.Tensor):
     x, y, z = vector.unbind(-1)
-    ra = torch.remainder(torch.atan2(y, x), 2.0 * math.pi)
+    ra = wrap_to_turn(torch.atan2(y, x), 2.0 * math.pi)
     dec = torch.atan2(z, torch.sqrt(x * x + y * y))
     return ra, dec
 

@@ -57,6 +57,7 @@ import math
 
 import torch
 
+from skytorch._angles import wrap_to_turn
 from skytorch._validate import (
     as_tensor,
     check_broadcastable,
@@ -245,7 +246,7 @@ def bright_limb_position_angle(sun_ra_rad, sun_dec_rad, moon_ra_rad,
     _broadcast_inputs(sun_ra_rad=a0, sun_dec_rad=d0, moon_ra_rad=a, moon_dec_rad=d)
     numerator = torch.cos(d0) * torch.sin(a0 - a)
     denominator = torch.sin(d0) * torch.cos(d) - torch.cos(d0) * torch.sin(d) * torch.cos(a0 - a)
-    return torch.remainder(torch.atan2(numerator, denominator), 2.0 * math.pi)
+    return wrap_to_turn(torch.atan2(numerator, denominator), 2.0 * math.pi)
 
 
 def mean_lunar_elements(julian_centuries_tt) -> tuple[torch.Tensor, torch.Tensor]:
@@ -288,7 +289,7 @@ def _mean_element(t_in: torch.Tensor, coefficients) -> torch.Tensor:
     t = t_in.to(torch.float64)
     c0, c1, c2, c3, c4 = coefficients
     value = c0 + c1 * t + c2 * t**2 + t**3 / c3 + t**4 / c4
-    return (torch.remainder(value, 360.0) * DEGREE).to(t_in.dtype)
+    return (wrap_to_turn(value, 360.0) * DEGREE).to(t_in.dtype)
 
 
 #: Meeus (1998, ch. 53) physical-libration series [deg]: (amplitude, function, multiples

@@ -35,6 +35,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
+from skytorch._angles import wrap_to_turn
 from skytorch._validate import as_tensor, check_range
 
 __all__ = [
@@ -80,7 +81,7 @@ def galactic_coordinates(icrs_unit: torch.Tensor) -> tuple[torch.Tensor, torch.T
     vectors = as_tensor("icrs_unit", icrs_unit)
     rotation = torch.tensor(ICRS_TO_GALACTIC, dtype=vectors.dtype)
     g = vectors @ rotation.T
-    lon = torch.remainder(torch.atan2(g[..., 1], g[..., 0]), 2.0 * math.pi)
+    lon = wrap_to_turn(torch.atan2(g[..., 1], g[..., 0]), 2.0 * math.pi)
     lat = torch.asin(g[..., 2].clamp(-1.0, 1.0))
     return lon, lat
 

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from skytorch._angles import wrap_to_turn
 from skytorch._validate import as_tensor
 from skytorch.constants import ASTRONOMICAL_UNIT_M, MOON_RADIUS_M, SUN_RADIUS_M
 from skytorch.dataset import VariableSpec, coordinate, time_coordinate, variable
@@ -947,7 +948,7 @@ def _lookup_full(table: torch.Tensor, zenith: torch.Tensor, azimuth: torch.Tenso
     """Bilinear look-up of a (zenith node, periodic azimuth node, wl) table."""
     n_z, n_a, n_wl = table.shape
     u = _zenith_coordinate(zenith.reshape(-1)) * 2.0 - 1.0
-    v = torch.remainder(azimuth.reshape(-1), 2 * math.pi) / math.pi - 1.0
+    v = wrap_to_turn(azimuth.reshape(-1), 2 * math.pi) / math.pi - 1.0
     grid = torch.stack([v, u], dim=-1).to(table.dtype)[None, None]
     image = table.permute(2, 0, 1)[None]
     out = torch.nn.functional.grid_sample(image, grid, mode="bilinear",

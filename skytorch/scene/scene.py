@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from skytorch._angles import wrap_to_turn
 from skytorch._toml import loads as toml_loads
 from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
 from skytorch.constants import NATURAL_MAG_RANGE
@@ -159,7 +160,7 @@ class View:
         else:
             n_el, n_az = self.shape
             row = torch.floor(altitude / (0.5 * math.pi) * n_el).long()
-            column = torch.floor(torch.remainder(azimuth, 2 * math.pi) / (2 * math.pi)
+            column = torch.floor(wrap_to_turn(azimuth, 2 * math.pi) / (2 * math.pi)
                                  * n_az).long().clamp(max=n_az - 1)
             index = row * n_az + column
             inside = (altitude >= 0.0) & (row < n_el)
@@ -214,7 +215,7 @@ def camera_view(altitude_deg: float, azimuth_deg: float, fov_deg: float, size: i
     direction = centre + x[..., None] * right + y[..., None] * up
     direction = direction / torch.linalg.vector_norm(direction, dim=-1, keepdim=True)
     altitude = torch.asin(direction[..., 2].clamp(-1.0, 1.0))
-    azimuth = torch.remainder(torch.atan2(direction[..., 1], direction[..., 0]), 2 * math.pi)
+    azimuth = wrap_to_turn(torch.atan2(direction[..., 1], direction[..., 0]), 2 * math.pi)
     valid = altitude >= 0.0
     pixel = (2.0 * half_width / size) ** 2
     solid_angle = torch.where(valid, pixel / (1.0 + x * x + y * y) ** 1.5,
@@ -240,7 +241,7 @@ def fisheye_view(size: int, dtype=torch.float64) -> View:
     y, x = torch.meshgrid(-centres, centres, indexing="ij")
     radius = torch.sqrt(x * x + y * y)
     zenith = radius * (0.5 * math.pi)
-    azimuth = torch.remainder(torch.atan2(-x, y), 2 * math.pi)
+    azimuth = wrap_to_turn(torch.atan2(-x, y), 2 * math.pi)
     valid = radius <= 1.0
     pixel_area = (2.0 / size) ** 2
     jacobian = (0.5 * math.pi) ** 2 * torch.sinc(zenith / math.pi)  # sin z (pi/2) / r

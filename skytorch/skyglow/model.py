@@ -46,6 +46,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from skytorch._angles import wrap_to_turn
 from skytorch._validate import (
     as_tensor,
     check_choice,
@@ -292,7 +293,7 @@ def polar_offsets(dx: torch.Tensor, dy: torch.Tensor) -> tuple[torch.Tensor, tor
     safe_dx = torch.where(at_observer, torch.ones_like(dx), dx)
     r = torch.sqrt(torch.where(at_observer, torch.ones_like(r2), r2))
     r = torch.where(at_observer, torch.zeros_like(r), r)
-    azimuth = torch.remainder(torch.atan2(safe_dx, dy), 2 * math.pi)
+    azimuth = wrap_to_turn(torch.atan2(safe_dx, dy), 2 * math.pi)
     return r, torch.where(at_observer, torch.zeros_like(azimuth), azimuth)
 
 
