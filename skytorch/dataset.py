@@ -152,9 +152,11 @@ def coordinate(dim: str, values, spec: VariableSpec | Mapping[str, str]) -> xr.V
 #: UDUNITS strings of the parameter-name suffixes :func:`units_from_name` recognises, the
 #: longest first (``gravity_m_s2`` is ``m s-2``, not ``1``; ``pressure_hpa`` is ``hPa``)
 UNIT_SUFFIXES = (
-    ("_kg_mol", "kg mol-1"), ("_m_s2", "m s-2"), ("_hpa", "hPa"), ("_deg", "degree"),
-    ("_rad", "rad"), ("_mag", "mag"), ("_nm", "nm"), ("_km", "km"), ("_pa", "Pa"),
-    ("_du", "DU"), ("_m", "m"), ("_k", "K"), ("_s", "s"),
+    ("_kg_mol", "kg mol-1"), ("_m_s2", "m s-2"), ("_m_s", "m s-1"),
+    ("_mag_arcsec2", "mag arcsec-2"), ("_hpa", "hPa"), ("_deg", "degree"), ("_rad", "rad"),
+    ("_mag", "mag"), ("_nm", "nm"), ("_km", "km"), ("_cm", "cm"), ("_mm", "mm"),
+    ("_pa", "Pa"), ("_du", "DU"), ("_au", "au"), ("_lm", "lm"), ("_m", "m"), ("_k", "K"),
+    ("_s", "s"),
 )
 
 
@@ -179,6 +181,8 @@ def units_from_name(name: str, units: Mapping[str, str] | None = None) -> str:
     --------
     >>> units_from_name("ozone_du"), units_from_name("gravity_m_s2"), units_from_name("turbidity")
     ('DU', 'm s-2', '1')
+    >>> units_from_name("precipitable_water_cm"), units_from_name("wind_m_s")
+    ('cm', 'm s-1')
     >>> units_from_name("turbidity", {"turbidity": "1e-3"})
     '1e-3'
     """

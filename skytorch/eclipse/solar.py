@@ -411,16 +411,16 @@ _SPECS = {
                               "(central eclipses, umbral k), else the fraction of the Sun's "
                               "diameter covered at the point nearest the axis (penumbral "
                               "k)."),
-    "latitude": VariableSpec("degree", "latitude of greatest eclipse",
+    "latitude": VariableSpec("degree_north", "latitude of greatest eclipse",
                              "Geodetic (WGS84) latitude of the point of greatest eclipse.",
                              "latitude"),
-    "longitude": VariableSpec("degree", "longitude of greatest eclipse",
+    "longitude": VariableSpec("degree_east", "longitude of greatest eclipse",
                               "East longitude of the point of greatest eclipse.",
                               "longitude"),
     "sun_altitude": VariableSpec("degree", "Sun altitude at greatest eclipse",
                                  "Geometric altitude of the Sun's centre at the point of "
                                  "greatest eclipse (0 on the outline for non-central "
-                                 "eclipses)."),
+                                 "eclipses).", "solar_elevation_angle"),
     "central_duration": VariableSpec("s", "duration of the central phase",
                                      "C3 - C2 (totality or annularity) at the point of "
                                      "greatest eclipse (for non-central eclipses the "

@@ -109,7 +109,7 @@ for _name in (*LOCAL_CONTACTS, "maximum"):
     _SPECS[f"sun_altitude_{_name}"] = VariableSpec(
         "degree", f"Sun altitude at {_name}",
         f"Topocentric altitude of the Sun's centre at {_name} (refracted when refraction "
-        "is requested); NaN when the contact does not occur.")
+        "is requested); NaN when the contact does not occur.", "solar_elevation_angle")
 
 
 def _find_eclipse(time_or_date) -> np.datetime64:

@@ -287,7 +287,8 @@ def solar_eclipse_path(time_or_date, step_s: float = 60.0) -> xr.Dataset:
     specs["moon_sun_ratio"] = VariableSpec("1", "Moon/Sun apparent diameter ratio",
                                            "On the central line, umbral k.")
     specs["sun_altitude"] = VariableSpec("degree", "Sun altitude on the central line",
-                                         "Geometric altitude of the Sun's centre.")
+                                         "Geometric altitude of the Sun's centre.",
+                                         "solar_elevation_angle")
     specs["path_width"] = VariableSpec("m", "path width",
                                        "Distance from the central-line point to the northern "
                                        "limit line plus that to the southern limit line "
