@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import json
 import math
 import os
 import subprocess
@@ -276,6 +277,16 @@ def test_cli_sweep(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('function = "skytorch.spectrum:no_such"\n[parameters]\nbv = [0.0]\n')
     assert main(["sweep", str(bad), "-o", str(output)]) == 2
+    # the fixed keywords are recorded; a keyword both swept and fixed is an error
+    fixed = tmp_path / "fixed.toml"
+    fixed.write_text('function = "skytorch.atmosphere.rayleigh:rayleigh_cross_section"\n'
+                     "[parameters]\nwavelength_nm = [400.0, 550.0]\n"
+                     '[fixed]\ngas = "air"\n')
+    assert main(["sweep", str(fixed), "-o", str(output), "--no-progress"]) == 0
+    assert json.loads(open_dataset(output).attrs["sweep_fixed"]) == {"gas": "air"}
+    fixed.write_text(fixed.read_text() + "wavelength_nm = 500.0\n")
+    assert main(["sweep", str(fixed), "-o", str(tmp_path / "both.nc")]) == 2
+    assert not (tmp_path / "both.nc").exists()
 
 
 def test_datetime_grid_round_trip(tmp_path):

@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import functools
 import importlib
+import json
 import logging
 from pathlib import Path
 
@@ -80,6 +81,13 @@ def load_config(path: str | Path) -> dict:
     parameters = config.get("parameters", {})
     if not isinstance(parameters, dict) or not parameters:
         raise ValueError(f"{path.name} needs a [parameters] table with one list per parameter")
+    fixed = config.get("fixed", {})
+    if not isinstance(fixed, dict):
+        raise ValueError(f"{path.name}: [fixed] must be a table of keyword arguments")
+    both = sorted(set(parameters) & set(fixed))
+    if both:
+        raise ValueError(f"{path.name}: {both} in both [parameters] and [fixed] (a keyword is "
+                         "swept or fixed, not both)")
     options = dict(config.get("options", {}))
     bad = set(options) - set(OPTIONS)
     if bad:
@@ -132,6 +140,8 @@ def run(args: argparse.Namespace) -> int:
         fn = functools.partial(fn, **config["fixed"])
     dataset = sweep(fn, **options, **config["parameters"])
     dataset.attrs["sweep_function"] = config["function_path"]
+    # the fixed keywords too, so that the file reproduces the run on its own
+    dataset.attrs["sweep_fixed"] = json.dumps(config["fixed"], sort_keys=True, default=str)
     path = write_dataset(dataset, args.output)
     logger.info("wrote %s", path)
     print(f"wrote {path}: {dict(dataset.sizes)}")
