@@ -176,3 +176,15 @@ def test_ground_rays_through_band_absorbers_use_the_columns():
                                 table.x_r.numpy())  # optical depths only
     error = ((summed.optical_depth(zenith, 10_000.0) - direct).abs() / direct).max()
     assert float(error) > 0.02  # (the test would not notice a fallback to differencing)
+
+
+def test_dataset_tables_refuse_parameters_that_want_a_gradient():
+    """A table Dataset holds no gradient: it is refused, not detached (both builders)."""
+    from skytorch.atmosphere.deviation_tables import deviation_table
+
+    turbidity = torch.tensor(2.0, dtype=torch.float64, requires_grad=True)
+    with pytest.raises(ValueError, match="requires a gradient"):
+        transmittance_table(Atmosphere.earth(turbidity=turbidity), [550.0], n_mu=4, n_r=4)
+    pressure = torch.tensor(101325.0, dtype=torch.float64, requires_grad=True)
+    with pytest.raises(ValueError, match="surface_pressure_pa requires a gradient"):
+        deviation_table(Atmosphere.earth(surface_pressure_pa=pressure), 4, 4, progress=False)

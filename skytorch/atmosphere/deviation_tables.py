@@ -27,6 +27,7 @@ from skytorch._validate import (
     check_int,
     check_range,
     common_dtype,
+    refuse_gradient,
 )
 from skytorch.atmosphere.bouguer import TABLE_NODES, TABLE_PANEL_NODES, _observer_bending
 from skytorch.atmosphere.geometry import texture_coordinates, texture_rays
@@ -142,6 +143,7 @@ def deviation_table(
 
     check_choice("parametrisation", parametrisation, TABLE_PARAMETRISATIONS)
     _check_atmosphere(atm)
+    refuse_gradient("deviation_table", atm=atm)
     if _batch_shape(atm) != ():
         raise ValueError("deviation tables need an atmosphere with scalar parameters; got "
                          f"batch shape {_batch_shape(atm)} (build one table per member)")

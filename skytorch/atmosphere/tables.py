@@ -75,6 +75,7 @@ from skytorch._validate import (
     check_range,
     check_zenith,
     common_dtype,
+    refuse_gradient,
 )
 from skytorch.atmosphere import profiles as _profiles
 from skytorch.atmosphere.geometry import (
@@ -193,6 +194,8 @@ def table_key(atmosphere, wavelength_nm, n_mu: int, n_r: int, method: str,
 def _check_build(atmosphere, wavelength_nm, n_mu, n_r, method, n_steps):
     """Return checked arguments of a table build (TypeError/ValueError naming the parameter)."""
     check_atmosphere("atmosphere", atmosphere)
+    refuse_gradient("a transmittance table", atmosphere=atmosphere,
+                    wavelength_nm=wavelength_nm)
     n_mu = check_int("n_mu", n_mu, 2)
     n_r = check_int("n_r", n_r, 2)
     check_choice("method", method, METHODS)
