@@ -467,7 +467,8 @@ def _netcdf_encoding(dataset: xr.Dataset, compress: bool, level: int,
     return {name: spec for name, spec in encoding.items() if spec}
 
 
-def _check_dataset_and_path(dataset, path) -> Path:
+def _check_dataset_and_path(dataset, path, file: bool = False) -> Path:
+    """Check the Dataset and the path of a writer; ``file``: a directory there is refused."""
     if not isinstance(dataset, xr.Dataset):
         raise TypeError(f"dataset must be an xarray.Dataset; got {type(dataset).__name__}")
     if not isinstance(path, (str, os.PathLike)):
@@ -475,6 +476,8 @@ def _check_dataset_and_path(dataset, path) -> Path:
     path = Path(path)
     if not str(path) or path.name in ("", ".", ".."):
         raise ValueError(f"path must name a file; got {str(path)!r}")
+    if file and path.is_dir():
+        raise ValueError(f"path must name a file; {str(path)!r} is a directory")
     return path
 
 
@@ -573,7 +576,7 @@ def to_netcdf(dataset: xr.Dataset, path: str | os.PathLike, *, compress: bool = 
     >>> bool((back.sun_dec == ds.sun_dec).all()), back.time.dtype
     (True, dtype('<M8[ns]'))
     """
-    path = _check_dataset_and_path(dataset, path)
+    path = _check_dataset_and_path(dataset, path, file=True)
     if not isinstance(compress, (bool, np.bool_)):
         raise TypeError(f"compress must be True or False; got {compress!r:.80}")
     if isinstance(compression_level, (bool, np.bool_)) or not isinstance(

@@ -169,6 +169,10 @@ def test_bad_options_are_refused(tmp_path):
         to_netcdf(ds["radiance"], tmp_path / "x.nc")
     with pytest.raises(TypeError, match="path"):
         to_netcdf(ds, 3)
+    (tmp_path / "folder").mkdir()
+    with pytest.raises(ValueError, match="is a directory"):
+        to_netcdf(ds, tmp_path / "folder")
+    (tmp_path / "folder").rmdir()
     with pytest.raises(TypeError, match="unexpected keyword"):
         to_netcdf(ds, tmp_path / "x.nc", compresion_level=3)
     assert list(tmp_path.iterdir()) == []

@@ -1199,8 +1199,9 @@ class Atmosphere(nn.Module):
         n_steps : int, optional
             Resolution of the quadrature (default per method).
         per_species : bool
-            Return ``{"rayleigh", "aerosol", "ozone", "stratospheric_aerosol"}`` instead
-            of the total.
+            Return a dict of :data:`SPECIES` (Rayleigh, aerosol, ozone, the stratospheric
+            aerosol and the absorbing gases: water vapour, O2 and the O2-O2 pairs) instead of the
+            total.
         refraction : bool
             Integrate along the refracted ray (:mod:`skytorch.atmosphere.refraction`).
         rtol : float
