@@ -338,7 +338,9 @@ class Atmosphere(nn.Module):
         Temperature of the ozone cross-sections [K], in [203, 293] K; default: the
         tent-weighted mean U.S. Standard Atmosphere 1976 temperature over the layer
         (:func:`skytorch.atmosphere.ozone.ozone_effective_temperature`; 222.9 K for the
-        default tent 10–40 km).
+        default tent 10–40 km), or the sounding's ozone-weighted temperature. It does not
+        follow ``surface_temperature_k``, which scales :meth:`temperature_k` (T_s/288.15):
+        pass the layer's temperature for a colder or warmer stratosphere.
     reference_refractivity, reference_pressure_pa, reference_temperature_k : float
         :math:`n - 1` at 589.3 nm and the pressure [Pa] and temperature [K] it refers to.
     stratospheric_aerosol_optical_depth : float or Tensor
