@@ -590,6 +590,15 @@ def _gather_rays(table, plan, scratch=None):
     return _geometric(sides[0], sides[1], w3)
 
 
+def _last_order_negligible(member_sizes) -> bool:
+    """Whether the last order is below :data:`CONVERGENCE_RTOL` of the sum, for every member.
+
+    ``member_sizes``: per order, the (b,) sizes of the parameter sets relative to order 1.
+    """
+    sizes = torch.stack(member_sizes)
+    return bool((sizes[-1] <= CONVERGENCE_RTOL * sizes.sum(0)).all())
+
+
 def _geometric_remainder(sky, ground, previous_sky, previous_ground):
     """Orders beyond the last, extrapolated as a geometric series, or None.
 
@@ -861,10 +870,16 @@ class ScatteringTables:
         return self._shell.Rt - self._shell.R
 
     def _lookup_table(self, n: int):
-        """[single | orders <= ``n``] along the channels (b, r, mu, mu_s, phi, channels)."""
-        if n not in self._lookup:
-            self._lookup[n] = torch.cat([self._single, self._levels[n - 1]()], dim=-1)
-        return self._lookup[n]
+        """[single | orders <= ``n``] along the channels (b, r, mu, mu_s, phi, channels).
+
+        Joined at its first use and kept per grad mode: a table joined under
+        ``torch.no_grad()`` (a preview) holds no graph, and served later to a look-up that
+        records one it would drop the gradients of tables built with them.
+        """
+        key = (n, torch.is_grad_enabled())
+        if key not in self._lookup:
+            self._lookup[key] = torch.cat([self._single, self._levels[n - 1]()], dim=-1)
+        return self._lookup[key]
 
     def _order(self, scattering_orders):
         if scattering_orders is None or scattering_orders == "converged":
@@ -1612,6 +1627,12 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
     level_weights = [torch.zeros((b, n_lambda), dtype=dtype)]
     level_shapes = [torch.zeros((b, _PEAK_NODES, n_lambda), dtype=dtype)]
     contributions = [torch.tensor(1.0, dtype=dtype)]
+    # per parameter set: order 1's size and each order's relative to it (the stopping rule
+    # of the last order below CONVERGENCE_RTOL of the sum holds for every member: the
+    # whole batch's sum let a slowly converging member stop short of its remainder)
+    member_reference = field.detach().abs().reshape(b, -1).sum(1)
+    member_reference = torch.where(member_reference > 0, member_reference, 1.0)
+    member_sizes = [torch.ones(b, dtype=dtype)]
     converged = False
     sky = ground = None                      # the last order's two parts
     # the orders beyond the last extrapolated as a geometric series ("converged" only)
@@ -1690,8 +1711,9 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
                 f"the orders of scattering grow ({shown} of order 1): the tables' rays "
                 f"sample this atmosphere too coarsely (n_ray {res.n_ray}, ray_quadrature "
                 f"{res.ray_quadrature!r}); use ray_quadrature='exponential' or more n_ray")
-        total_size = torch.stack(contributions).sum()
-        if float(size) <= CONVERGENCE_RTOL * float(total_size):
+        member_sizes.append((sky + ground).detach().abs().reshape(b, -1).sum(1).to(dtype)
+                            / member_reference)
+        if _last_order_negligible(member_sizes):
             converged = True
             if isinstance(scattering_orders, str):
                 remainder = None
@@ -1716,8 +1738,7 @@ def precompute_scattering(atmosphere, wavelength_nm, *, ground_albedo=0.0,  # no
         level_shapes.append(level_shapes[-1] + weight[:, None] * shapes[order])
         level_weights.append(level_weights[-1] + weight)
     if not isinstance(scattering_orders, str):
-        converged = converged or float(contributions[-1]) <= CONVERGENCE_RTOL * float(
-            torch.stack(contributions).sum())
+        converged = converged or _last_order_negligible(member_sizes)
 
     n_s = len(scatterers)
     single_flat = single.reshape(single.shape[:5] + (n_s * n_lambda,))
