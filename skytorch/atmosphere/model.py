@@ -1493,11 +1493,8 @@ def _multiple_scattering_sky(atmosphere, wavelength_nm, geometry, scattering_ord
                          f"{tables.wavelength_nm.tolist()} nm, not {wavelength.tolist()} nm")
     else:
         tables.check_built_for(atmosphere, ground_albedo)
-        if scattering_orders == "converged" and not tables.converged:
-            raise ValueError(f"scattering_orders='converged' (the default) but the tables "
-                             f"hold {tables.orders_computed} orders that have not converged: "
-                             f"pass scattering_orders={tables.orders_computed} for their "
-                             "sum, or tables built with scattering_orders='converged'")
+        if scattering_orders == "converged":  # the default
+            tables.check_converged()
     if single is None and not final_gather:
         return tables.radiance(*geometry, scattering_orders=scattering_orders)
     first = single if single is not None else tables.radiance(*geometry, scattering_orders=1)

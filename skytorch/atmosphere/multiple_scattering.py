@@ -113,7 +113,9 @@ __all__ = ["MU_S_MIN", "RAY_QUADRATURES", "ScatteringTables", "TableResolution",
            "exponential_path_weights", "forward_peak_shapes", "precompute_scattering"]
 
 #: lowest cosine of the Sun's zenith angle in the tables: the Sun 18 deg below the horizon
-MU_S_MIN = math.cos(math.radians(108.0))
+#: largest Sun zenith angle of the tables [rad] (18 deg below the horizon)
+MAX_SUN_ZENITH_RAD = math.radians(108.0)
+MU_S_MIN = math.cos(MAX_SUN_ZENITH_RAD)
 #: relative size of the last order at which ``"converged"`` stops
 CONVERGENCE_RTOL = 1e-4
 #: values per block of the tables' look-ups (points x channels)
@@ -815,6 +817,18 @@ class ScatteringTables:
         # the Sun reflected once by the ground is computed at each look-up
         self._depth_rows = depth_rows
 
+    def check_converged(self) -> None:
+        """Raise ValueError unless the orders converged (``scattering_orders="converged"``).
+
+        Every entry point that takes ``"converged"`` asks it: a partial sum is not returned
+        under that name.
+        """
+        if not self.converged:
+            raise ValueError(f"scattering_orders='converged' but the tables hold "
+                             f"{self.orders_computed} orders that have not converged: pass "
+                             f"scattering_orders={self.orders_computed} for their sum, or "
+                             "tables built with scattering_orders='converged'")
+
     def check_built_for(self, atmosphere, ground_albedo=None) -> None:
         """Raise ValueError unless the tables are those of ``atmosphere`` (and albedo).
 
@@ -882,6 +896,8 @@ class ScatteringTables:
         return self._lookup[key]
 
     def _order(self, scattering_orders):
+        if scattering_orders == "converged":
+            self.check_converged()
         if scattering_orders is None or scattering_orders == "converged":
             return len(self._levels)
         n = check_int("scattering_orders", scattering_orders, 1, self.orders_computed)
@@ -915,7 +931,7 @@ class ScatteringTables:
                                dtype=dtype)
         vz = check_angle("view_zenith_rad", view_zenith_rad, math.pi, dtype)
         va = check_range("view_azimuth_rad", view_azimuth_rad, dtype=dtype)
-        sz = check_angle("sun_zenith_rad", sun_zenith_rad, math.radians(108.0), dtype)
+        sz = check_angle("sun_zenith_rad", sun_zenith_rad, MAX_SUN_ZENITH_RAD, dtype)
         sa = check_range("sun_azimuth_rad", sun_azimuth_rad, dtype=dtype)
         try:
             shape = torch.broadcast_shapes(self.batch_shape, altitude.shape, vz.shape,
@@ -1019,7 +1035,7 @@ class ScatteringTables:
         dtype = self._single.dtype
         altitude = check_range("altitude_m", altitude_m, 0.0, self.top_altitude_m, unit=" m",
                                dtype=dtype)
-        sun = check_angle("sun_zenith_rad", sun_zenith_rad, math.radians(108.0), dtype)
+        sun = check_angle("sun_zenith_rad", sun_zenith_rad, MAX_SUN_ZENITH_RAD, dtype)
         x, w = legendre_unit(n_mu)
         mu = torch.tensor(x, dtype=dtype)
         weight = torch.tensor(w, dtype=dtype) * mu * (2.0 * math.pi / n_phi)
