@@ -926,3 +926,16 @@ def test_sun_beyond_the_tables_is_refused_by_the_gather_as_by_the_look_up():
         tables.radiance(0.0, 0.5, 0.0, sun)
     with pytest.raises(ValueError, match="sun_zenith_rad"):
         higher_orders_gathered(tables, atm, zero, zero + 0.5, zero, sun, scattering_orders=3)
+
+
+def test_tables_refuse_pickling_by_name_and_deep_copy():
+    """A raw AttributeError named a local closure; deepcopy gives equal look-ups."""
+    import copy
+    import pickle
+
+    tables = precompute_scattering(Atmosphere.earth(), WAVELENGTH, scattering_orders=2,
+                                   resolution=TableResolution.tiny())
+    with pytest.raises(TypeError, match="cannot be pickled"):
+        pickle.dumps(tables)
+    twin = copy.deepcopy(tables)
+    assert torch.equal(twin.radiance(0.0, 0.5, 0.0, 0.8), tables.radiance(0.0, 0.5, 0.0, 0.8))

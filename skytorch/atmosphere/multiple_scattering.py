@@ -96,6 +96,7 @@ Examples
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 from dataclasses import dataclass
@@ -758,8 +759,12 @@ def _depth_to_top(rows, shell, res, bi, r, mu):
 class ScatteringTables:
     """Precomputed orders of scattering of one atmosphere at given wavelengths.
 
-    Built by :func:`precompute_scattering`; holds tensors only (its state is explicit: the
-    look-up table of an order is joined from them at its first look-up).
+    Built by :func:`precompute_scattering`; holds tensors and the species' phase functions
+    (its state is explicit: the look-up table of an order is joined from the tensors at its
+    first look-up, per grad mode). It lives in the process that built it: the phase
+    functions are closures of the atmosphere's species, so the tables cannot be pickled
+    (TypeError; ``copy.deepcopy`` works); rebuild them where they are needed (a build's
+    cost: docs/multiple_scattering.md "Cost").
 
     Attributes
     ----------
@@ -816,6 +821,19 @@ class ScatteringTables:
         # optical depth to the top (b * transmittance_r * transmittance_mu, λ), float64:
         # the Sun reflected once by the ground is computed at each look-up
         self._depth_rows = depth_rows
+
+    def __deepcopy__(self, memo):
+        """Copy every attribute (closures are shared, as deepcopy does for functions)."""
+        new = object.__new__(type(self))
+        memo[id(self)] = new
+        new.__dict__.update(copy.deepcopy(self.__dict__, memo))
+        return new
+
+    def __reduce_ex__(self, protocol):
+        """Refuse pickling with the reason (a raw AttributeError named a local closure)."""
+        raise TypeError("ScatteringTables cannot be pickled: they hold the atmosphere's "
+                        "phase functions (closures); rebuild them with precompute_scattering "
+                        "in the process that uses them")
 
     def check_converged(self) -> None:
         """Raise ValueError unless the orders converged (``scattering_orders="converged"``).
