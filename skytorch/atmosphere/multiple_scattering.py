@@ -153,7 +153,12 @@ class TableResolution:
     n_phi : int
         View-Sun azimuth differences, uniform on [0, pi], >= 3.
     n_ray : int
-        Samples along each table ray (trapezoid), >= 2.
+        Samples along each table ray, >= 2. Few samples overweight the observer's end of
+        the rays (they cluster there): on :meth:`tiny` tables, 550 nm, Sun and view at
+        28.6 deg, order 1 against the ray-marched single scattering (512 samples) is 40 /
+        4.5 / 1.44 / 1.20 / 1.10 / 1.04 times it with 2 / 4 / 8 / 12 / 16 / 24 samples
+        (trapezoid; exponential 31 / 4.2 / 1.41 / 1.19 / 1.10 / 1.04). Sizes that small
+        serve gradient checks and tests; the build does not judge accuracy.
     n_sphere_mu : int
         Gauss-Legendre nodes per hemisphere of the sphere quadrature, >= 1.
     transmittance_r, transmittance_mu : int
