@@ -134,3 +134,11 @@ def test_scene_sun_transmittance_along_the_refracted_ray(elevation_m, true_deg):
     traced = resources.atmosphere.optical_depth(wavelength, zenith, elevation_m,
                                                 refraction=True, method="rk4")
     assert torch.allclose(-torch.log(transmittance), traced, rtol=0.0, atol=1e-3)
+
+
+def test_no_atmosphere_no_scintillation():
+    """Without air nothing scintillates: index 0 and twinkle identically 1 (was up to 2.6e4)."""
+    ds = observe(bright_stars(2.0), ["2024-01-01T22:00", "2024-01-01T23:00"], 48.0, 2.0, 0.0,
+                 atmosphere=False, twinkle_samples=4)
+    assert float(abs(ds["scintillation_index"]).max()) == 0.0
+    assert bool((ds["twinkle"] == 1.0).all())

@@ -500,7 +500,8 @@ _SPECS = {
         "1", "relative brightness", "10^(0.4 (m_a - m)) times the day-night factor "
         "(Mueller et al. 2012), 0 below the horizon."),
     "scintillation_index": VariableSpec(
-        "1", "scintillation index", "Relative intensity variance (Young 1967)."),
+        "1", "scintillation index", "Relative intensity variance (Young 1967); 0 without an "
+        "atmosphere."),
     "twinkle": VariableSpec("1", "relative intensity (twinkling)",
                             "Seeded log-normal intensity sequence I/<I> with the "
                             "scintillation index of the star."),
@@ -936,6 +937,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
                                              factor)
     brightness, scint = _brightness_and_scintillation(result, control_magnitude, factor,
                                                       aperture_m, exposure_s, elevation)
+    if not has_atmosphere:  # no air, no scintillation (and twinkle identically 1)
+        scint.zero_()
     color, color_exo = _star_colours(bv, result, colour_table)
 
     ts = ("time", "star")
