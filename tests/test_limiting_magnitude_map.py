@@ -93,3 +93,42 @@ def test_natural_component_dark_site_levels():
     mags = _natural([90.0, 30.0, 10.0])
     assert 21.2 < float(mags[0]) < 22.2
     assert float(mags[1]) < float(mags[0]) and float(mags[2]) < float(mags[0])
+
+
+def test_visibility_helpers_refuse_what_they_cannot_mean():
+    """Booleans as pixel indices (True was pixel 1), NaN magnitudes and limits (counted as
+    not visible), negative radiance (a black 40 mag sky)."""
+    from skytorch.scene.visibility_map import sky_mag_from_radiance, visible_star_count
+
+    limits = torch.tensor([6.0, 6.5, 7.0], dtype=torch.float64)
+    with pytest.raises(TypeError, match="pixel_index"):
+        visible_star_count(torch.tensor([1.0, 2.0]), torch.tensor([True, False]), limits)
+    with pytest.raises(ValueError, match="magnitude must be finite"):
+        visible_star_count(torch.tensor([1.0, float("nan")]), torch.tensor([0, 1]), limits)
+    with pytest.raises(ValueError, match="limit_map must be finite"):
+        visible_star_count(torch.tensor([1.0, 2.0]), torch.tensor([0, 1]),
+                           torch.tensor([6.0, float("nan"), 7.0]))
+    wavelength = torch.tensor([500.0, 550.0, 600.0], dtype=torch.float64)
+    with pytest.raises(ValueError, match="spectral_radiance"):
+        sky_mag_from_radiance(torch.tensor([1e-9, -5e-9, 1e-9], dtype=torch.float64),
+                              wavelength)
+    assert float(sky_mag_from_radiance(torch.zeros(3, dtype=torch.float64), wavelength)) == 40.0
+
+
+def test_galactic_coordinates_and_van_rhijn_check_their_inputs():
+    """Vectors of length 5 gave another latitude; a (2, 2) input a raw RuntimeError;
+    van_rhijn(nan) and a negative planet radius passed."""
+    import math
+
+    from skytorch.nightsky.airglow import van_rhijn
+    from skytorch.nightsky.starlight import galactic_coordinates
+
+    with pytest.raises(ValueError, match="unit vectors"):
+        galactic_coordinates(torch.tensor([[0.0, 0.0, 5.0]], dtype=torch.float64))
+    with pytest.raises(ValueError, match="last dimension of 3"):
+        galactic_coordinates(torch.ones(2, 2, dtype=torch.float64))
+    with pytest.raises(ValueError, match="zenith_rad must be finite"):
+        van_rhijn(float("nan"))
+    with pytest.raises(ValueError, match="planet_radius_m"):
+        van_rhijn(0.5, planet_radius_m=-1.0)
+    assert float(van_rhijn(math.pi / 2)) == pytest.approx(6.01, abs=0.005)

@@ -35,7 +35,7 @@ import math
 
 import torch
 
-from skytorch._validate import as_tensor, check_range
+from skytorch._validate import check_finite, check_range
 
 __all__ = [
     "AIRGLOW_HEIGHT_M",
@@ -124,11 +124,20 @@ def van_rhijn(zenith_rad, *, layer_height_m: float = AIRGLOW_HEIGHT_M,
     >>> round(float(van_rhijn(math.pi / 2)), 2)
     6.01
     """
-    zenith = as_tensor("zenith_rad", zenith_rad)
-    if not 0.0 <= observer_height_m < layer_height_m:
+    zenith = check_finite("zenith_rad", zenith_rad)
+    # the heights in float64: their ratio is 1 - 1e-2, cast to the zenith's dtype once formed
+    planet_radius_m = check_range("planet_radius_m", planet_radius_m, 0.0,
+                                  low_inclusive=False, unit=" m", dtype=torch.float64)
+    layer_height_m = check_range("layer_height_m", layer_height_m, 0.0,
+                                 low_inclusive=False, unit=" m", dtype=torch.float64)
+    observer_height_m = check_finite("observer_height_m", observer_height_m,
+                                     dtype=torch.float64)
+    if not bool(((observer_height_m >= 0.0) & (observer_height_m < layer_height_m)).all()):
         raise ValueError(f"observer_height_m must be in [0, layer_height_m = "
-                         f"{layer_height_m} m); got {observer_height_m} m")
-    ratio = (planet_radius_m + observer_height_m) / (planet_radius_m + layer_height_m)
+                         f"{float(layer_height_m.max())} m); got "
+                         f"{observer_height_m.tolist()} m")
+    ratio = ((planet_radius_m + observer_height_m)
+             / (planet_radius_m + layer_height_m)).to(zenith.dtype)
     sine = torch.sin(zenith)
     return torch.rsqrt(1.0 - ratio * ratio * sine * sine)
 

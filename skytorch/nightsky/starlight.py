@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 from skytorch._angles import wrap_to_turn
-from skytorch._validate import as_tensor, check_range
+from skytorch._validate import check_finite, check_range
 
 __all__ = [
     "GAIA_LIMIT_G",
@@ -80,8 +80,18 @@ def _gaia_columns() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def galactic_coordinates(icrs_unit: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Galactic longitude in [0, 2π) and latitude [rad] of ICRS unit vectors (..., 3)."""
-    vectors = as_tensor("icrs_unit", icrs_unit)
+    """Galactic longitude in [0, 2π) and latitude [rad] of ICRS unit vectors (..., 3).
+
+    ValueError for another last dimension, non-finite values or vectors whose length
+    differs from 1 by more than 1e-6 (a latitude from an unnormalised z would be wrong).
+    """
+    vectors = check_finite("icrs_unit", icrs_unit)
+    if vectors.shape[-1:] != (3,):
+        raise ValueError(f"icrs_unit must have a last dimension of 3; got {tuple(vectors.shape)}")
+    length = torch.linalg.vector_norm(vectors.detach(), dim=-1)
+    if vectors.numel() and float((length - 1.0).abs().max()) > 1e-6:
+        raise ValueError(f"icrs_unit must hold unit vectors; got lengths "
+                         f"{float(length.min()):.6g} to {float(length.max()):.6g}")
     rotation = torch.tensor(ICRS_TO_GALACTIC, dtype=vectors.dtype)
     g = vectors @ rotation.T
     lon = wrap_to_turn(torch.atan2(g[..., 1], g[..., 0]), 2.0 * math.pi)

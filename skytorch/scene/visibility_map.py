@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import torch
 
-from skytorch._validate import as_tensor
+from skytorch._validate import check_finite, check_range
 from skytorch.moon.sky import radiance_to_mag_arcsec2
 from skytorch.stars.visibility import REFERENCE_PUPIL_MM, limiting_magnitude
 
@@ -34,8 +34,9 @@ def sky_mag_from_radiance(spectral_radiance, wavelength_nm) -> torch.Tensor:
     40 mag arcsec^-2, the upper end of :func:`limiting_magnitude`'s range, where the
     limit is that of a black background (7.93 mag).
     """
-    radiance = as_tensor("spectral_radiance", spectral_radiance)
-    dark = radiance.sum(-1) <= 0.0
+    radiance = check_range("spectral_radiance", spectral_radiance, low=0.0,
+                           unit=" W m^-2 sr^-1 nm^-1")
+    dark = radiance.sum(-1) == 0.0
     safe = torch.where(dark[..., None], torch.ones_like(radiance), radiance)
     mag = radiance_to_mag_arcsec2(safe, wavelength_nm)
     return torch.where(dark, torch.full_like(mag, 40.0), mag.clamp(max=40.0))
@@ -81,12 +82,14 @@ def visible_star_count(magnitude, pixel_index, limit_map) -> tuple[torch.Tensor,
     visible : torch.Tensor (bool), shape (star,)
     count : torch.Tensor (int64), shape ()
     """
-    mag = as_tensor("magnitude", magnitude)
+    mag = check_finite("magnitude", magnitude)
     index = torch.as_tensor(pixel_index)
+    if index.dtype == torch.bool:
+        raise TypeError("pixel_index must hold integer pixel indices; got booleans")
     if index.dtype.is_floating_point or index.shape != mag.shape:
         raise ValueError(f"pixel_index must be an integer tensor of the magnitudes' shape "
                          f"{tuple(mag.shape)}; got {index.dtype} {tuple(index.shape)}")
-    limits = as_tensor("limit_map", limit_map).reshape(-1)
+    limits = check_finite("limit_map", limit_map).reshape(-1)
     if bool((index >= limits.numel()).any()) or bool((index < -1).any()):
         raise ValueError(f"pixel_index must be in [-1, {limits.numel() - 1}]")
     inside = index >= 0

@@ -575,13 +575,14 @@ def _star_colours(bv: torch.Tensor, result: dict[str, torch.Tensor], table
 def _brightness_and_scintillation(result: dict[str, torch.Tensor], control_magnitude: float,
                                   factor: torch.Tensor | None, aperture_m: float,
                                   exposure_s: float, elevation: float,
-                                  time_chunk: int = TIME_CHUNK
+                                  atmosphere: bool = True, time_chunk: int = TIME_CHUNK
                                   ) -> tuple[torch.Tensor, torch.Tensor]:
     """Return the relative brightness and the scintillation index (time, star).
 
     The brightness is 0 below the horizon and scaled by the day-night ``factor`` (time,)
-    when given; the scintillation index is taken at the air mass (at least 1). Computed
-    per chunk of times, which keeps the temporaries small.
+    when given; the scintillation index is taken at the air mass (at least 1), and is 0
+    without an ``atmosphere`` (no air, no scintillation). Computed per chunk of times,
+    which keeps the temporaries small.
     """
     magnitude, above, airmass = (result[name] for name in
                                  ("magnitude", "above_horizon", "airmass"))
@@ -598,6 +599,8 @@ def _brightness_and_scintillation(result: dict[str, torch.Tensor], control_magni
             chunk.mul_(factor[sl, None])
         chunk = torch.clamp(airmass[sl], min=1.0, out=scint[sl]).log_()
         torch.add(log_coefficient, chunk, alpha=exponent, out=chunk).exp_()
+    if not atmosphere:
+        scint.zero_()
     return brightness, scint
 
 
@@ -936,9 +939,8 @@ def observe(catalog: xr.Dataset, times, lat_deg: float, lon_deg: float,
                                              visibility,
                                              factor)
     brightness, scint = _brightness_and_scintillation(result, control_magnitude, factor,
-                                                      aperture_m, exposure_s, elevation)
-    if not has_atmosphere:  # no air, no scintillation (and twinkle identically 1)
-        scint.zero_()
+                                                      aperture_m, exposure_s, elevation,
+                                                      has_atmosphere)
     color, color_exo = _star_colours(bv, result, colour_table)
 
     ts = ("time", "star")
