@@ -96,8 +96,11 @@ def test_natural_component_dark_site_levels():
 
 
 def test_visibility_helpers_refuse_what_they_cannot_mean():
-    """Booleans as pixel indices (True was pixel 1), NaN magnitudes and limits (counted as
-    not visible), negative radiance (a black 40 mag sky)."""
+    """Input the visibility helpers cannot mean is refused.
+
+    Booleans as pixel indices (True was pixel 1), NaN magnitudes and limits (counted as not
+    visible), negative radiance (a black 40 mag sky).
+    """
     from skytorch.scene.visibility_map import sky_mag_from_radiance, visible_star_count
 
     limits = torch.tensor([6.0, 6.5, 7.0], dtype=torch.float64)
@@ -116,8 +119,11 @@ def test_visibility_helpers_refuse_what_they_cannot_mean():
 
 
 def test_galactic_coordinates_and_van_rhijn_check_their_inputs():
-    """Vectors of length 5 gave another latitude; a (2, 2) input a raw RuntimeError;
-    van_rhijn(nan) and a negative planet radius passed."""
+    """Galactic coordinates take unit vectors; van Rhijn's law finite inputs.
+
+    Vectors of length 5 gave another latitude, a (2, 2) input a raw RuntimeError;
+    van_rhijn(nan) and a negative planet radius passed.
+    """
     import math
 
     from skytorch.nightsky.airglow import van_rhijn

@@ -199,8 +199,11 @@ def test_scattered_zodiacal_light_at_the_zenith_against_the_eso_sky_model(monkey
 
 
 def test_leinert_settings_are_checked_when_the_scene_is_made():
-    """A limit outside the catalogue map failed at render() naming fainter_than; the zenith
-    value and the airglow share, unused by this model, changed the planner's decisions."""
+    """The leinert1998 settings are checked when the scene is made.
+
+    A limit outside the catalogue map failed at render() naming fainter_than; the zenith
+    value and the airglow share, unused by this model, changed the planner's decisions.
+    """
     for settings, name in (({"star_limit_mag": 11.0}, "star_limit_mag"),
                            ({"star_limit_mag": -2.5}, "star_limit_mag"),
                            ({"natural_mag_arcsec2": 14.0}, "natural_mag_arcsec2"),
