@@ -47,6 +47,8 @@ def test_ephemeris_command_refuses_bad_observers(tmp_path, capsys):
     (["planets", "--times", "2020-03-24T00:00", "--elevation", "300"], "elevation_m"),
     (["stars", "--time", "2020-03-24T00:00", "--lat", "50", "--lon", "10",
       "--no-atmosphere", "--ozone", "250"], "--ozone"),
+    (["stars", "--time", "2020-03-24T00:00", "--step", "5min", "--lat", "50", "--lon", "10"],
+     "--step"),
 ])
 def test_settings_that_would_go_unused_are_errors(tmp_path, capsys, arguments, name):
     """Atmosphere settings without an atmosphere, a height without an observer."""

@@ -23,7 +23,8 @@ def add_time_and_observer(parser: argparse.ArgumentParser, step: str = "10min") 
     when.add_argument("--time", nargs="+", metavar="TIME", help="one or more instants")
     when.add_argument("--start", help="first instant of a range")
     when.add_argument("--end", help="last instant of a range (inclusive)")
-    when.add_argument("--step", default=step, help=f"spacing of a range (default {step})")
+    when.add_argument("--step", help=f"spacing of a range (default {step})")
+    parser.set_defaults(default_step=step)
     where = parser.add_argument_group("observer")
     where.add_argument("--lat", type=float, required=True, help="geodetic latitude [deg]")
     where.add_argument("--lon", type=float, required=True, help="east longitude [deg]")
@@ -36,9 +37,15 @@ def times_from(args: argparse.Namespace):
     from skytorch.commands.ephemeris import time_range
 
     if args.time:
+        given = [f"--{name}" for name in ("start", "end", "step")
+                 if getattr(args, name) is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)}: a range, which --time replaces (give one "
+                             "or the other)")
         return args.time
     if args.start and args.end:
-        return time_range(args.start, args.end, args.step)
+        return time_range(args.start, args.end,
+                          args.default_step if args.step is None else args.step)
     raise ValueError("give --time, or --start and --end")
 
 
