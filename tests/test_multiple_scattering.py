@@ -888,46 +888,6 @@ def test_exponential_ray_quadrature_nearer_converged_rays():
     assert exponential < trapezoid / 5
 
 
-def test_converged_is_refused_on_unconverged_tables_everywhere():
-    """'converged' never names a partial sum: the gather and the moonlit sky ask too.
-
-    On two orders the gather returned 0.0063 and the moonlit sky the partial sum where
-    ``sky_radiance`` refused the same tables.
-    """
-    from skytorch.atmosphere.final_gather import higher_orders_gathered
-    from skytorch.moon.sky import moonlit_sky_multiple_scattering
-
-    atm = Atmosphere.earth(turbidity=2.0)
-    tables = precompute_scattering(atm, WAVELENGTH, scattering_orders=2,
-                                   resolution=TableResolution.tiny())
-    assert not tables.converged
-    zero = torch.tensor(0.0, dtype=F64)
-    with pytest.raises(ValueError, match="have not converged"):
-        tables.radiance(0.0, 0.5, 0.0, 0.8, scattering_orders="converged")
-    with pytest.raises(ValueError, match="have not converged"):
-        higher_orders_gathered(tables, atm, zero, zero + 0.5, zero, zero + 0.8)
-    with pytest.raises(ValueError, match="have not converged"):
-        moonlit_sky_multiple_scattering(atm, tables, 0.3, 0.8, 0.5, 0.0,
-                                        scattering_orders="converged")
-    # the orders computed are summed when asked for by number
-    assert torch.isfinite(tables.radiance(0.0, 0.5, 0.0, 0.8, scattering_orders=2)).all()
-
-
-def test_sun_beyond_the_tables_is_refused_by_the_gather_as_by_the_look_up():
-    """Sun 20 deg down: the look-up refused it, the final gather returned 0."""
-    from skytorch.atmosphere.final_gather import higher_orders_gathered
-
-    atm = Atmosphere.earth(turbidity=2.0)
-    tables = precompute_scattering(atm, WAVELENGTH, scattering_orders=3,
-                                   resolution=TableResolution.tiny())
-    zero = torch.tensor(0.0, dtype=F64)
-    sun = torch.tensor(math.radians(110.0), dtype=F64)
-    with pytest.raises(ValueError, match="sun_zenith_rad"):
-        tables.radiance(0.0, 0.5, 0.0, sun)
-    with pytest.raises(ValueError, match="sun_zenith_rad"):
-        higher_orders_gathered(tables, atm, zero, zero + 0.5, zero, sun, scattering_orders=3)
-
-
 def test_tables_refuse_pickling_by_name_and_deep_copy():
     """A raw AttributeError named a local closure; deepcopy gives equal look-ups."""
     import copy

@@ -125,8 +125,8 @@ def test_observe_accepts_the_documented_time_range():
 
 def test_twinkle_with_tiny_aperture_at_the_horizon():
     """observe(twinkle_samples=1, aperture_m=1e-4): σ_I² ~ 1e7 at the horizon, finite."""
-    ds = observe(CATALOG, "2025-09-07T20:00", 52.5, 13.4, atmosphere=False,
-                 twinkle_samples=1, aperture_m=1e-4)
+    ds = observe(CATALOG, "2025-09-07T20:00", 52.5, 13.4, twinkle_samples=1,
+                 aperture_m=1e-4)
     assert float(ds["scintillation_index"].max()) > 1e6
     assert np.isfinite(ds["twinkle"].values).all() and (ds["twinkle"].values > 0).all()
 

@@ -68,8 +68,8 @@ import math
 
 import torch
 
-from skytorch._validate import check_angle, check_int, check_range
-from skytorch.atmosphere.multiple_scattering import MAX_SUN_ZENITH_RAD, MU_S_MIN, ScatteringTables
+from skytorch._validate import check_int, check_range
+from skytorch.atmosphere.multiple_scattering import MU_S_MIN, ScatteringTables
 from skytorch.atmosphere.scattering import gather_on_line_of_sight
 
 __all__ = ["LINES_PER_CALL", "higher_orders_gathered"]
@@ -127,7 +127,6 @@ def higher_orders_gathered(tables, atmosphere, altitude_m, view_zenith_rad,
                          f"parameters; got batch shape {tuple(tables.batch_shape)}")
     tables.check_built_for(atmosphere)
     if scattering_orders == "converged":
-        tables.check_converged()
         incoming_orders = "converged"
     else:
         n = check_int("scattering_orders", scattering_orders, 2, tables.orders_computed + 1)
@@ -140,8 +139,9 @@ def higher_orders_gathered(tables, atmosphere, altitude_m, view_zenith_rad,
                            dtype=dtype)
     view_zenith = check_range("view_zenith_rad", view_zenith_rad, 0.0, math.pi, dtype=dtype)
     view_azimuth = check_range("view_azimuth_rad", view_azimuth_rad, dtype=dtype)
-    # the tables' range (their look-ups refuse beyond it): 0 there would be no gather
-    sun_zenith = check_angle("sun_zenith_rad", sun_zenith_rad, MAX_SUN_ZENITH_RAD, dtype)
+    # any Sun: the samples of the line of sight look the tables up where their own Sun is
+    # within the tables' 108 deg (the eclipse shadow's points lie far beyond it)
+    sun_zenith = check_range("sun_zenith_rad", sun_zenith_rad, 0.0, math.pi, dtype=dtype)
     sun_azimuth = check_range("sun_azimuth_rad", sun_azimuth_rad, dtype=dtype)
     constituents = atmosphere.constituents(tables.wavelength_nm)
     if len(constituents.batch_shape):

@@ -841,10 +841,12 @@ class ScatteringTables:
                         "in the process that uses them")
 
     def check_converged(self) -> None:
-        """Raise ValueError unless the orders converged (``scattering_orders="converged"``).
+        """Raise ValueError unless the orders converged.
 
-        Every entry point that takes ``"converged"`` asks it: a partial sum is not returned
-        under that name.
+        :meth:`skytorch.atmosphere.Atmosphere.sky_radiance` asks it of tables given for
+        its default ``scattering_orders="converged"``. The look-ups here, the final gather
+        and the eclipse shadow's higher orders take ``"converged"`` as every order the
+        tables hold (``converged`` says whether that is the limit).
         """
         if not self.converged:
             raise ValueError(f"scattering_orders='converged' but the tables hold "
@@ -919,8 +921,6 @@ class ScatteringTables:
         return self._lookup[key]
 
     def _order(self, scattering_orders):
-        if scattering_orders == "converged":
-            self.check_converged()
         if scattering_orders is None or scattering_orders == "converged":
             return len(self._levels)
         n = check_int("scattering_orders", scattering_orders, 1, self.orders_computed)
