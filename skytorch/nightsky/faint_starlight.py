@@ -6,18 +6,19 @@ Imaging Photopolarimeter map of Toller (1981) at 0.44 µm, in S10(sun) on a grid
 galactic longitude (every 10°) and latitude (−80° … +80°, 4° to 10° apart), shipped as
 ``data/leinert1998_starlight_table35.csv``. The catalogue stars of
 :func:`skytorch.nightsky.starlight.catalogue_starlight_map` already give the part of that
-light from 6.5 < V < 10.15 (Gaia DR3 G < 10); the part fainter than the catalogue is
+light from the Gaia DR3 stars (G < 10) other than those of V ≤ 6.5; the part fainter than
+the catalogue is
 
 .. math:: L_{\rm faint}(l_k, b_i) = L_{\rm Pioneer}(l_k, b_i)
-          - \langle L_{\rm cat}(6.5 < V < 10.15)\rangle_{ik},
+          - \langle L_{\rm cat}(6.5)\rangle_{ik},
 
-the table minus the mean of the catalogue map over the table cell of each node (longitude
-l_k ± 5°, latitude between the midpoints to the neighbouring nodes; the ±80° cells reach
-the poles). A scene adds the catalogue map of its own point-star limit (stars from that
-limit to V = 10.15) and this faint part (V > 10.15 and the diffuse galactic light): the
-split is made at the catalogue's limit, so no star is counted twice, whatever the limit.
-The faint part is positive at every node (smallest 5.7 S10, near l = 160°, b = −8°; it
-is 50 % of the table at the poles and 70–75 % in the plane).
+the table minus the mean of the catalogue map without the points of V ≤ 6.5 over the
+table cell of each node (longitude l_k ± 5°, latitude between the midpoints to the
+neighbouring nodes; the ±80° cells reach the poles). A scene adds the catalogue map of
+its own point-star limit (every catalogued star it does not draw) and this faint part
+(G > 10 and the diffuse galactic light), so no star is counted twice, whatever the limit.
+The faint part is positive at every node (smallest 6.3 S10, at l = 320°, b = −80°; it
+is 51–54 % of the table at |b| = 80° and 74–77 % within |b| ≤ 8°).
 
 Between nodes the faint part is interpolated bilinearly in (l, b), periodic in l; from
 |b| = 80° to the poles it goes linearly to the mean of the ±80° row (the table stops at
@@ -65,7 +66,7 @@ __all__ = [
     "pioneer_starlight_table",
 ]
 
-#: faint limit of the catalogue map in V (G = 10 at V − G = 0.153) [mag]
+#: V at the catalogue's limit G = 10 for a star of the mean field colour (V − G = 0.153) [mag]
 CATALOGUE_LIMIT_V = GAIA_LIMIT_G + V_MINUS_G
 #: stars brighter than this were removed from the Pioneer map (Leinert et al. 1998 §10) [mag]
 PIONEER_BRIGHT_LIMIT_V = 6.5
@@ -136,8 +137,8 @@ def faint_starlight_table(n_lon: int = 360, n_lat: int = 180
         The table's galactic latitudes and longitudes [deg].
     radiance : torch.Tensor, float64, shape (25, 36)
         Pioneer 10/11 starlight (V > 6.5 and diffuse galactic light) minus the mean of the
-        catalogue map of 6.5 < V < 10.15 over each node's cell: stars with V > 10.15 and
-        the diffuse galactic light. Not clipped: a negative value would mean more
+        catalogue map without the points of V ≤ 6.5 over each node's cell: stars with
+        G > 10 and the diffuse galactic light. Not clipped: a negative value would mean more
         catalogue light than the table in a cell (none is).
     """
     n_lon, n_lat = int(n_lon), int(n_lat)
@@ -176,7 +177,7 @@ def faint_starlight_v_radiance(icrs_unit: torch.Tensor,
     >>> poles = torch.tensor([ICRS_TO_GALACTIC[2], ICRS_TO_GALACTIC[0]], dtype=torch.float64)
     >>> faint = faint_starlight_v_radiance(poles, faint_starlight_table())
     >>> [round(v) for v in (faint / S10_V_RADIANCE).tolist()]
-    [15, 224]
+    [16, 236]
     """
     lat_deg, lon_deg, radiance = table
     vectors = as_tensor("icrs_unit", icrs_unit)

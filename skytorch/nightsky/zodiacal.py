@@ -32,6 +32,7 @@ import torch
 
 from skytorch._data import data_path
 from skytorch._validate import as_tensor, check_finite
+from skytorch.spectrum import solar_irradiance
 
 __all__ = [
     "S10_W_M2_SR_NM",
@@ -196,8 +197,6 @@ def zodiacal_spectral_radiance(helio_ecliptic_lon_rad, ecliptic_lat_rad,
         :func:`zodiacal_colour` and scaled to Table 17 at 500 nm (the 40 nm mean of the
         solar spectrum there, as Table 17 is broad-band).
     """
-    from skytorch.spectrum import solar_irradiance
-
     level = zodiacal_brightness_500(helio_ecliptic_lon_rad, ecliptic_lat_rad)
     wavelength = as_tensor("wavelength_nm", wavelength_nm, dtype=level.dtype).reshape(-1)
     solar = solar_irradiance(wavelength)

@@ -11,9 +11,9 @@ r"""The natural night sky per view direction: zodiacal light, airglow and starli
   :func:`skytorch.nightsky.airglow_zenith_mag` for the solar flux
   ``knobs.solar_flux_sfu`` (130 sfu when the knobs carry none), brightened towards the
   horizon by the van Rhijn factor of a layer at ``knobs.airglow_height_m``;
-* integrated starlight of the Gaia catalogue stars fainter than ``knobs.star_limit_mag``
-  (the stars the scene draws as points are brighter) and, beyond the catalogue (V >
-  10.15), the Pioneer 10/11 starlight and diffuse galactic light of Leinert et al. 1998
+* integrated starlight of the Gaia catalogue stars the scene does not draw as points
+  (those are the Hipparcos stars of V ≤ ``knobs.star_limit_mag``) and, beyond the
+  catalogue (G > 10), the Pioneer 10/11 starlight and diffuse galactic light of Leinert et al. 1998
   Table 35 less the catalogue's share, with the solar spectral shape
   (:func:`skytorch.nightsky.catalogue_starlight_map`,
   :func:`skytorch.nightsky.faint_starlight.faint_starlight_v_radiance`).
@@ -178,8 +178,8 @@ def _zodiacal_and_starlight(icrs, sun_lon, wavelength, knobs) -> torch.Tensor:
     zodiacal = zodiacal_spectral_radiance(lon - sun_lon, lat, wavelength)
     solar = solar_irradiance(wavelength)
     solar_mag = _v_mag(solar, wavelength)
-    # catalogue stars from the point-star limit to V = 10.15, then the Pioneer 10/11
-    # starlight fainter than the catalogue (V > 10.15 and diffuse galactic light)
+    # catalogue stars not drawn as points, then the Pioneer 10/11 starlight fainter than
+    # the catalogue (G > 10 and diffuse galactic light)
     star_v = (starlight_v_radiance(icrs, catalogue_starlight_map(float(knobs.star_limit_mag)))
               + faint_starlight_v_radiance(icrs, faint_starlight_table()))
     star_mag_per_unit = -2.5 * math.log10(_ARCSEC2_SR / _V_ZERO_FLUX)  # V of 1 W m^-2 sr^-1 nm^-1
