@@ -105,6 +105,28 @@ def test_minimal_reduction_matches_linear_programme():
     assert float(result["reduction"].min()) >= 0 and float(result["reduction"].max()) <= 1
 
 
+@pytest.mark.parametrize("iterations", [1, 2, 3])
+def test_minimal_reduction_is_the_same_after_any_number_of_iterations(iterations):
+    """With tolerance 0 a round-off excess repeats the linearised step: it must keep γ.
+
+    The linearisation's right-hand side took +Σ grad γ for −Σ grad γ: every second
+    iteration reset γ to 0 (final/initial 1.0, nothing removed at 2 iterations).
+    """
+    model = cached_model()
+    city = synthetic_city(20e3, 1000.0, population=1e5, centre_xy=(3000.0, 0.0))
+    region = sky_region(model, elevation_deg=(0.0, 30.0))
+    one = minimal_reduction(model, city, region, target_fraction=0.5, tolerance=0.0,
+                            max_iterations=1, as_dataset=False)
+    result = minimal_reduction(model, city, region, target_fraction=0.5, tolerance=0.0,
+                               max_iterations=iterations, as_dataset=False)
+    assert result["final_luminance"] == pytest.approx(0.5 * result["initial_luminance"],
+                                                      rel=1e-9)
+    assert result["removed_flux_lm"] == pytest.approx(one["removed_flux_lm"], rel=1e-9)
+    dark = minimal_reduction(model, city, region, target_fraction=0.0, tolerance=0.0,
+                             max_iterations=iterations, as_dataset=False)
+    assert dark["final_luminance"] <= 1e-12 * dark["initial_luminance"]
+
+
 def test_reduction_applied_by_dimension_name_on_a_transposed_map():
     """A map stored as (x, y): gamma goes to the cells it was computed for.
 

@@ -356,7 +356,8 @@ def minimal_reduction(model: SkyglowModel, light_map, region, target_luminance_c
     target_luminance_cd_m2 : float, optional
         Target mean luminance of the region [cd m^-2].
     target_fraction : float, optional
-        Alternatively the target as a fraction of the current value, in (0, 1].
+        Alternatively the target as a fraction of the current value, in [0, 1] (0: every
+        cell that lights the region switched off).
     max_iterations : int
     tolerance : float
         Relative tolerance on the constraint, in [0, 1).
@@ -405,8 +406,9 @@ def minimal_reduction(model: SkyglowModel, light_map, region, target_luminance_c
         # linearised problem: value + Σ grad_i (γ'_i − γ_i) ≤ target, minimise Σ γ'_i L_i
         gain = (-gradient).clamp_min(0.0).reshape(-1)  # luminance removed per unit γ
         cost = flux0.reshape(-1)
-        need = float(value.detach()) - target + float((gradient * gamma).sum())
-        # need = Σ gain_i γ'_i required; fill cells with the best gain / cost first
+        # need = Σ gain_i γ'_i required (gain = −grad); fill cells with the best gain /
+        # cost first
+        need = float(value.detach()) - target - float((gradient * gamma).sum())
         ratio = torch.where(cost > 0, gain / cost.clamp_min(1e-300), torch.zeros_like(gain))
         order = torch.argsort(ratio, descending=True)
         sorted_gain = gain[order]
