@@ -31,7 +31,7 @@ def test_pollution_level_is_norm_of_kernel_image():
     j = 5
     r = float(model.distance_m[j])
     ds = pollution_influence(model, _map([0.0], [r], [[2.5e5]]))
-    # reference: RMS norm of the kernel image itself (no PCA) at that distance
+    # reference: root-sum-square norm of the kernel image itself (no PCA) at that distance
     kernel = model.kernel[0, j, 0]
     expected = 2.5e5 * float(kernel.pow(2).sum().sqrt())
     assert float(ds["pollution_level"].values[0, 0]) == pytest.approx(expected, rel=0.1 * PERCENT)

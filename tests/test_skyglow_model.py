@@ -240,6 +240,32 @@ def test_observer_altitude_interpolation_and_mixed_batches():
     torch.testing.assert_close(batch, torch.stack([high, low, middle]), rtol=1e-12, atol=0.0)
 
 
+def test_altitude_gradient_at_the_nodes_is_a_one_sided_difference():
+    """d(luminance)/d(altitude) at 0 m, an inner node and the top: a side's slope.
+
+    Between nodes the image is linear in the altitude; at a node the node of weight 0 was
+    left out of the convolution, so autograd gave −K/Δh (twice the slope at 0 m, the wrong
+    sign at the top).
+    """
+    model = cached_model(n_azimuth=16, n_elevation=4, n_distance=8, n_components=8,
+                         n_observer_altitude=3, observer_altitude_range_m=(0.0, 1000.0))
+    city = _map([-3e3, 4e3], [2e3], [[2e5, 6e5]])
+
+    def total(h):
+        return model.render(city, observer_xy=(1e3, 0.0), observer_altitude_m=h,
+                            as_dataset=False)["luminance"].sum()
+
+    step = 50.0
+    for h in (0.0, 500.0, 1000.0):
+        at = torch.tensor(h, dtype=torch.float64, requires_grad=True)
+        (slope,) = torch.autograd.grad(total(at), at)
+        sides = [float(total(torch.tensor(min(max(h + d, 0.0), 1000.0), dtype=torch.float64))
+                       - total(torch.tensor(h, dtype=torch.float64))) / d
+                 for d in (step, -step) if 0.0 <= h + d <= 1000.0]
+        assert any(abs(float(slope) - side) <= 1e-9 * abs(side) for side in sides), (
+            h, float(slope), sides)
+
+
 #: float32 kernel quadrature in the precompute against float64 (the PCA is float64 in
 #: both): rendered luminance per pixel, incl. the 0.7° row of the paper's 64 elevations
 FLOAT32_PRECOMPUTE_TOLERANCE = 0.1 * PERCENT

@@ -1247,7 +1247,9 @@ class SkyglowModel(nn.Module):
                 continue
             weight = torch.where(jj == node, 1 - ww, torch.zeros_like(ww)) + torch.where(
                 jj + 1 == node, ww, torch.zeros_like(ww))
-            use = weight > 0
+            # a node of weight 0 still has a derivative with respect to the altitude (an
+            # observer exactly at a node): kept where the weights carry a gradient
+            use = ((jj == node) | (jj + 1 == node)) if ww.requires_grad else weight > 0
             if not bool(use.any()):
                 continue
             part = self.convolve(polar[use], node)
