@@ -266,6 +266,31 @@ def test_altitude_gradient_at_the_nodes_is_a_one_sided_difference():
             h, float(slope), sides)
 
 
+def test_precompute_refuses_settings_its_medium_overrides():
+    """A reused medium's atmosphere, wavelengths and phase functions are the model's.
+
+    A turbidity-5 atmosphere with a turbidity-2 medium gave the turbidity-2 kernel while
+    the model recorded turbidity 5; three wavelengths asked gave the medium's one.
+    """
+    from skytorch.atmosphere import Atmosphere
+    from skytorch.skyglow import SkyglowModel
+    from skytorch.skyglow.kernel import Medium
+
+    atm = Atmosphere.earth(turbidity=2.0)
+    medium = Medium(atm, [550.0])
+    settings = dict(n_azimuth=4, n_elevation=2, n_distance=2, max_distance_m=5e3,
+                    n_components=1, n_steps=2, progress=False, medium=medium)
+    with pytest.raises(ValueError, match="atmosphere must be the one the medium"):
+        SkyglowModel.precompute(Atmosphere.earth(turbidity=5.0), **settings)
+    with pytest.raises(ValueError, match=r"wavelength_nm must be omitted or the medium's"):
+        SkyglowModel.precompute(atm, wavelength_nm=[440.0, 550.0, 680.0], **settings)
+    with pytest.raises(ValueError, match="phase_functions"):
+        SkyglowModel.precompute(atm, phase_functions={"rayleigh": lambda c: c}, **settings)
+    model = SkyglowModel.precompute(Atmosphere.earth(turbidity=2.0), wavelength_nm=[550.0],
+                                    **settings)
+    assert model.parameters_used["atmosphere"] == atm.parameters_dict()
+
+
 #: float32 kernel quadrature in the precompute against float64 (the PCA is float64 in
 #: both): rendered luminance per pixel, incl. the 0.7° row of the paper's 64 elevations
 FLOAT32_PRECOMPUTE_TOLERANCE = 0.1 * PERCENT

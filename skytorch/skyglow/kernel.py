@@ -219,6 +219,8 @@ class Medium:
         if wavelength.numel() == 0:
             raise ValueError("wavelength_nm must hold at least one wavelength")
         self.wavelength_nm = wavelength
+        #: the atmosphere the tables were built from
+        self.atmosphere = atmosphere
         self.planet_radius_m = float(check_positive("planet_radius_m",
                                                     atmosphere.planet_radius_m, unit=" m"))
         self.top_altitude_m = float(check_positive("top_altitude_m",

@@ -464,6 +464,29 @@ def _multiple_scattering_record(summaries, n_paths: int) -> dict:
     }
 
 
+def _check_medium(medium, atmosphere, wavelength_nm, phase_functions) -> None:
+    """ValueError where ``precompute``'s own settings differ from the reused medium's."""
+    if not isinstance(medium, Medium):
+        raise TypeError(f"medium must be a skytorch.skyglow.kernel.Medium; got "
+                        f"{type(medium).__name__}")
+    own = medium.atmosphere
+    same = atmosphere is own or (
+        callable(getattr(atmosphere, "parameters_dict", None))
+        and callable(getattr(own, "parameters_dict", None))
+        and atmosphere.parameters_dict() == own.parameters_dict())
+    if not same:
+        raise ValueError("atmosphere must be the one the medium was built from (the kernel "
+                         "uses the medium's tables); got another atmosphere")
+    if wavelength_nm is not None:
+        asked = as_tensor("wavelength_nm", wavelength_nm, dtype=torch.float64).reshape(-1)
+        if asked.shape != medium.wavelength_nm.shape or not torch.equal(
+                asked, medium.wavelength_nm):
+            raise ValueError(f"wavelength_nm must be omitted or the medium's "
+                             f"{medium.wavelength_nm.tolist()} nm; got {asked.tolist()}")
+    if phase_functions is not None:
+        raise ValueError("phase_functions must be omitted with a medium (it holds its own)")
+
+
 class SkyglowModel(nn.Module):
     """Precomputed PCA + FFT skyglow tables for one atmosphere.
 
@@ -594,7 +617,10 @@ class SkyglowModel(nn.Module):
         keep_kernel : bool
             Keep the raw kernel tensor in ``model.kernel`` (for studies of M; memory!).
         medium : Medium, optional
-            Reuse atmosphere tables built before (must hold the same wavelengths).
+            Reuse atmosphere tables built before from ``atmosphere`` (the same object, or
+            one with the same ``parameters_dict()``); its wavelengths and phase functions
+            are the model's, so ``wavelength_nm`` must then be omitted or the same and
+            ``phase_functions`` omitted.
         compute_dtype : torch.dtype
             dtype of the kernel quadrature; the PCA and the stored tables are float64.
             float32 is about twice as fast and, with the kernel's cancellation-free
@@ -652,7 +678,9 @@ class SkyglowModel(nn.Module):
         if compute_dtype not in (torch.float64, torch.float32):
             raise TypeError(f"compute_dtype must be torch.float64 or torch.float32; got "
                             f"{compute_dtype!r:.60}")
-        if wavelength_nm is None:
+        if medium is not None:
+            _check_medium(medium, atmosphere, wavelength_nm, phase_functions)
+        elif wavelength_nm is None:
             from skytorch.spectrum import wavelength_grid
 
             wavelength_nm = wavelength_grid("rgb")
