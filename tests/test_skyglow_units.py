@@ -75,6 +75,11 @@ def test_synthetic_city_conserves_flux():
                           n_towns=3, town_population=1e3, terrain_amplitude_m=300.0)
     assert float(city["flux"].sum()) == pytest.approx(800.0 * (5e4 + 3e3), rel=1e-9)
     assert city["flux"].dims == ("y", "x") and city["x"].attrs["units"] == "m"
+    # a centre off the map put the whole city into the edge column (or, past ~1 500 km,
+    # an empty map): refused
+    for centre in ((10_001.0, 0.0), (0.0, -1e6)):
+        with pytest.raises(ValueError, match="centre_xy"):
+            synthetic_city(20_000.0, 500.0, centre_xy=centre)
     assert 0.0 <= float(city["altitude"].min()) and float(city["altitude"].max()) <= 300.0
     cells = point_sources(16, 10_000.0, 500.0, exclude_radius_m=1000.0)
     lit = cells["flux"].values > 0

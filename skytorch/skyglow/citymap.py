@@ -87,9 +87,11 @@ def synthetic_city(extent_m: float = 40_000.0, cell_m: float = 500.0, *,
     cell_m : float
         Cell size [m].
     centre_xy : (float, float)
-        City centre east/north [m].
+        City centre east/north [m], on the map (|x|, |y| ≤ extent_m / 2).
     population : float
-        Inhabitants of the main city.
+        Inhabitants of the main city on the map: the profile is normalised over the map's
+        cells, so a city whose profile the map's edge cuts keeps all its inhabitants on
+        the map (model a city larger than the map with a larger map).
     scale_length_m : float
         e-folding length of the population density [m].
     lumens_per_capita : float
@@ -115,7 +117,8 @@ def synthetic_city(extent_m: float = 40_000.0, cell_m: float = 500.0, *,
     1.0
     """
     extent_m, cell_m = _grid_size(extent_m, cell_m)
-    centre_xy = _pair("centre_xy", centre_xy, -1e7, 1e7)
+    half = 0.5 * extent_m
+    centre_xy = _pair("centre_xy", centre_xy, -half, half)
     population = float(check_positive("population", population, allow_zero=True))
     scale_length_m = float(check_positive("scale_length_m", scale_length_m, unit=" m"))
     lumens_per_capita = float(check_positive("lumens_per_capita", lumens_per_capita,
