@@ -40,6 +40,17 @@ def test_skyglow_command_synthetic_city(tmp_path, capsys):
     assert "--turbidity: settings of a model to build" in capsys.readouterr().err
     assert main(["skyglow", "--synthetic", "--lat", "200", "-o", str(again), *SMALL]) == 2
     assert "--lat must be in [-90.0 degree, 90.0 degree]" in capsys.readouterr().err
+    # the command's models have one observer-altitude node: another altitude drew the
+    # ground's sky with a warning; --save-model with --model wrote nothing
+    assert main(["skyglow", "--synthetic", "--observer-altitude", "800", "-o", str(again),
+                 *SMALL]) == 2
+    assert "--observer-altitude must be 0 m" in capsys.readouterr().err
+    assert main(["skyglow", "--lights", str(lights), "--model", str(model), "-o", str(again),
+                 "--observer-altitude", "800"]) == 2
+    assert "observer altitudes [0, 0] m; got 800 m" in capsys.readouterr().err
+    assert main(["skyglow", "--lights", str(lights), "--model", str(model), "-o", str(again),
+                 "--save-model", str(tmp_path / "copy.nc")]) == 2
+    assert "--save-model" in capsys.readouterr().err and not (tmp_path / "copy.nc").exists()
 
 
 def test_skyglow_command_reports_bad_map(tmp_path, capsys):

@@ -109,12 +109,21 @@ def run(args: argparse.Namespace) -> int:
             # a loaded model is already built: its settings would be ignored
             raise ValueError(f"{', '.join('--' + n.replace('_', '-') for n in given)}: "
                              f"settings of a model to build, not of --model {args.model}")
+        if args.save_model:
+            raise ValueError(f"--save-model {args.save_model}: writes a model this command "
+                             f"builds, not the one read with --model {args.model}")
         model = SkyglowModel.load(args.model)
     else:
         import torch
 
         from skytorch.atmosphere import Atmosphere
 
+        if args.observer_altitude != 0.0:  # before the precomputation
+            raise ValueError(f"--observer-altitude must be 0 m for the model this command "
+                             f"builds (one observer-altitude node at the ground); got "
+                             f"{args.observer_altitude:g} m (a model with more altitude "
+                             f"nodes comes from SkyglowModel.precompute("
+                             f"n_observer_altitude=...), read with --model)")
         options = {name: MODEL_DEFAULTS[name] if getattr(args, name) is None
                    else getattr(args, name) for name in MODEL_DEFAULTS}
         model = SkyglowModel.precompute(
@@ -127,6 +136,15 @@ def run(args: argparse.Namespace) -> int:
         if args.save_model:
             model.save(args.save_model)
             logger.info("model written to %s", args.save_model)
+    nodes = model.observer_altitude_m
+    low, high = float(nodes.min()), float(nodes.max())
+    if not low - 1e-6 <= args.observer_altitude <= high + 1e-6:
+        # the Python API clamps with a warning; here the command's models have one node
+        raise ValueError(f"--observer-altitude must be within the model's observer "
+                         f"altitudes [{low:g}, {high:g}] m; got {args.observer_altitude:g} m "
+                         f"(a model with more altitude nodes comes from "
+                         f"SkyglowModel.precompute(n_observer_altitude=...), read with "
+                         f"--model)")
     ds = model.render(light_map, observer_xy=(args.observer_x, args.observer_y),
                       observer_altitude_m=args.observer_altitude, lamp=args.lamp)
     if args.lat is not None:

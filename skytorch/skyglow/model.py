@@ -592,7 +592,8 @@ class SkyglowModel(nn.Module):
         n_source_altitude, n_observer_altitude : int
             N_hc and N_ho, spread evenly over the altitude ranges [m].
         source_altitude_range_m, observer_altitude_range_m : (float, float)
-            Altitude ranges [m] (Dobashi: 0–1000 m with 16 nodes each).
+            Altitude ranges [m] (Dobashi: 0–1000 m with 16 nodes each); one node sits at
+            the low end. ``parameters_used`` records the nodes' range.
         wavelength_nm : Tensor (wavelength,), optional
             Default ``spectrum.wavelength_grid("rgb")``.
         emission_parameters : mapping, optional
@@ -791,8 +792,10 @@ class SkyglowModel(nn.Module):
             "n_components": n_k - 1, "emission": emission,
             "emission_parameters": dict(emission_parameters or {}),
             "n_source_altitude": n_source_altitude, "n_observer_altitude": n_observer_altitude,
-            "source_altitude_range_m": [float(v) for v in source_altitude_range_m],
-            "observer_altitude_range_m": [float(v) for v in observer_altitude_range_m],
+            # the tabulated nodes' range (one node: the range's low end)
+            "source_altitude_range_m": [float(source_altitude[0]), float(source_altitude[-1])],
+            "observer_altitude_range_m": [float(observer_altitude[0]),
+                                          float(observer_altitude[-1])],
             "n_steps": n_steps, "quadrature_tolerance": float(quadrature_tolerance),
             "quadrature": quadrature,
             "source_radius_m": float(source_radius_m), "normalize": bool(normalize),
