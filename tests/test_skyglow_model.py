@@ -291,6 +291,34 @@ def test_precompute_refuses_settings_its_medium_overrides():
     assert model.parameters_used["atmosphere"] == atm.parameters_dict()
 
 
+def test_render_refuses_what_it_would_ignore():
+    """Coordinates beside a Dataset map, kilometres, oversampling of a splat, a lamp's graph.
+
+    Each was taken silently before: x_m shifted by 100 km changed nothing, a map in km was
+    read as metres (10.8x the zenith), oversampling=8 with splatting was recorded and
+    unused, and a Dataset was built from a lamp spectrum that carried a gradient.
+    """
+    model = cached_model(n_azimuth=16, n_elevation=4, n_distance=8, n_components=8)
+    city = _map([-3e3, 4e3], [2e3], [[2e5, 6e5]])
+    with pytest.raises(ValueError, match="x_m: coordinates of a tensor light_map"):
+        model.render(city, x_m=torch.tensor([1e5, 1.07e5]))
+    high = city.assign(altitude=(("y", "x"), np.full((1, 2), 100.0)))
+    with pytest.raises(ValueError, match="altitude_m: the Dataset light_map has its own"):
+        model.render(high, altitude_m=torch.zeros(1, 2))
+    km = city.assign_coords(x=city.x / 1e3, y=city.y / 1e3)
+    km.x.attrs["units"] = "km"
+    with pytest.raises(ValueError, match=r"light_map\['x'\] must be in metres"):
+        model.render(km)
+    with pytest.raises(ValueError, match="oversampling applies to resampling='sample'"):
+        model.render(city, oversampling=8)
+    wavelength = torch.linspace(380.0, 780.0, 9, dtype=torch.float64)
+    spectrum = torch.ones(9, dtype=torch.float64, requires_grad=True)
+    with pytest.raises(ValueError, match="lamp_spectrum"):
+        model.render(city, lamp=(wavelength, spectrum))
+    out = model.render(city, lamp=(wavelength, spectrum), as_dataset=False)
+    assert out["luminance"].requires_grad
+
+
 #: float32 kernel quadrature in the precompute against float64 (the PCA is float64 in
 #: both): rendered luminance per pixel, incl. the 0.7° row of the paper's 64 elevations
 FLOAT32_PRECOMPUTE_TOLERANCE = 0.1 * PERCENT

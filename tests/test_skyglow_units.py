@@ -70,6 +70,17 @@ def test_per_lumen_spectra_emit_one_lumen(lamp):
         lamps.lamp_spectrum("mercury", wl)
 
 
+def test_custom_lamp_spectrum_carries_its_gradient():
+    """A sampled lamp spectrum's values are differentiated (they were detached silently)."""
+    wavelength = torch.linspace(380.0, 780.0, 9, dtype=torch.float64)
+    spectrum = torch.linspace(1.0, 2.0, 9, dtype=torch.float64).requires_grad_(True)
+    at = torch.tensor([450.0, 555.0, 650.0], dtype=torch.float64)
+    assert torch.autograd.gradcheck(
+        lambda values: lamps.per_lumen((wavelength, values), at), (spectrum,))
+    with pytest.raises(ValueError, match="lamp_wavelength_nm"):
+        lamps.per_lumen((wavelength.clone().requires_grad_(True), spectrum.detach()), at)
+
+
 def test_synthetic_city_conserves_flux():
     city = synthetic_city(20_000.0, 500.0, population=5e4, lumens_per_capita=800.0,
                           n_towns=3, town_population=1e3, terrain_amplitude_m=300.0)

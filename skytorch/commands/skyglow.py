@@ -92,17 +92,10 @@ def _plot(ds, path):
     plt.close(figure)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Render the panorama and write the files."""
-    from skytorch.dataset import open_dataset, to_netcdf
-    from skytorch.skyglow.citymap import synthetic_city
-    from skytorch.skyglow.model import SkyglowModel, light_map_arrays
+def _model(args: argparse.Namespace):
+    """Load the model of ``--model`` or build one from the model options."""
+    from skytorch.skyglow.model import SkyglowModel
 
-    for name, low, high in (("lat", -90.0, 90.0), ("lon", -180.0, 360.0)):
-        if getattr(args, name) is not None:
-            check_range(f"--{name}", getattr(args, name), low, high, unit=" degree")
-    light_map = synthetic_city() if args.synthetic else open_dataset(args.lights)
-    light_map_arrays(light_map)  # fail early on a bad map, before any precomputation
     given = [name for name in MODEL_DEFAULTS if getattr(args, name) is not None]
     if args.model:
         if given:
@@ -145,6 +138,21 @@ def run(args: argparse.Namespace) -> int:
                          f"(a model with more altitude nodes comes from "
                          f"SkyglowModel.precompute(n_observer_altitude=...), read with "
                          f"--model)")
+    return model
+
+
+def run(args: argparse.Namespace) -> int:
+    """Render the panorama and write the files."""
+    from skytorch.dataset import open_dataset, to_netcdf
+    from skytorch.skyglow.citymap import synthetic_city
+    from skytorch.skyglow.model import light_map_arrays
+
+    for name, low, high in (("lat", -90.0, 90.0), ("lon", -180.0, 360.0)):
+        if getattr(args, name) is not None:
+            check_range(f"--{name}", getattr(args, name), low, high, unit=" degree")
+    light_map = synthetic_city() if args.synthetic else open_dataset(args.lights)
+    light_map_arrays(light_map)  # fail early on a bad map, before any precomputation
+    model = _model(args)
     ds = model.render(light_map, observer_xy=(args.observer_x, args.observer_y),
                       observer_altitude_m=args.observer_altitude, lamp=args.lamp)
     if args.lat is not None:

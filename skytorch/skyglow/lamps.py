@@ -39,7 +39,13 @@ from functools import lru_cache
 
 import torch
 
-from skytorch._validate import as_tensor, check_choice, check_positive, check_range
+from skytorch._validate import (
+    as_tensor,
+    check_choice,
+    check_positive,
+    check_range,
+    refuse_gradient,
+)
 from skytorch.constants import LUMINOUS_EFFICACY_LM_PER_W
 
 __all__ = ["LAMPS", "cct_mccamy", "lamp_spectrum", "luminance_weights", "per_lumen"]
@@ -114,20 +120,30 @@ def _spectrum_values(lamp, fine):
         raise TypeError(f"lamp must be a name, one of {LAMPS}, or a pair (wavelength_nm, "
                         f"spectrum); got {lamp!r:.80}")
     wavelength, values = lamp
+    refuse_gradient("a lamp's spectrum", why="its sample wavelengths are not differentiated "
+                    "(the spectrum's values are)", lamp_wavelength_nm=wavelength)
     wavelength = check_positive("lamp wavelength_nm", wavelength, unit=" nm").reshape(-1)
     values = check_range("lamp spectrum", values, 0.0, dtype=wavelength.dtype).reshape(-1)
     if wavelength.numel() != values.numel() or wavelength.numel() < 2:
         raise ValueError(f"lamp (wavelength_nm, spectrum) must have the same length >= 2; "
                          f"got {wavelength.numel()} and {values.numel()}")
     order = torch.argsort(wavelength)
-    return torch.as_tensor(_interp(fine, wavelength[order], values[order]))
+    return _interp(fine, wavelength[order], values[order])
 
 
 def _interp(x, xp, fp):
-    import numpy as np
+    """Piecewise-linear ``fp(xp)`` at ``x`` (``xp`` increasing), 0 outside; linear in fp.
 
-    return torch.as_tensor(np.interp(x.numpy(), xp.detach().numpy(), fp.detach().numpy(),
-                                     left=0.0, right=0.0))
+    Differentiable with respect to the spectrum ``fp`` (its gradient flows to the render).
+    """
+    x = x.to(fp.dtype)
+    xp = xp.to(fp.dtype)
+    upper = torch.searchsorted(xp, x, right=True).clamp(1, xp.numel() - 1)
+    x0, x1 = xp[upper - 1], xp[upper]
+    width = x1 - x0
+    w = torch.where(width > 0, (x - x0) / torch.where(width > 0, width, 1.0), 1.0)
+    values = torch.lerp(fp[upper - 1], fp[upper], w)
+    return torch.where((x < xp[0]) | (x > xp[-1]), torch.zeros_like(values), values)
 
 
 def per_lumen(lamp, wavelength_nm=None) -> torch.Tensor:

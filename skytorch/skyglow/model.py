@@ -310,6 +310,12 @@ def _dataset_light_map(light_map):
     if not (np.issubdtype(da.dtype, np.floating) or np.issubdtype(da.dtype, np.integer)):
         # a mask (bool) or text is not a flux in lumens
         raise TypeError(f"light_map['flux'] must hold numbers [lm]; got dtype {da.dtype}")
+    for name in ("x", "y", "altitude"):
+        units = light_map[name].attrs.get("units") if name in light_map else None
+        if units is not None and str(units).strip() not in ("m", "metre", "meter", "metres",
+                                                           "meters"):
+            raise ValueError(f"light_map['{name}'] must be in metres (units 'm'); got units "
+                             f"{units!r}")
     flux = torch.tensor(np.array(da.values, dtype=np.float64))
     x_m = torch.tensor(np.array(light_map["x"].values, dtype=np.float64))
     y_m = torch.tensor(np.array(light_map["y"].values, dtype=np.float64))
@@ -348,7 +354,14 @@ def light_map_arrays(light_map, x_m=None, y_m=None, altitude_m=None):
         For a light map that is neither a Dataset nor numeric.
     """
     if not isinstance(light_map, torch.Tensor) and hasattr(light_map, "data_vars"):
+        given = [name for name, value in (("x_m", x_m), ("y_m", y_m)) if value is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)}: coordinates of a tensor light_map; a "
+                             f"Dataset light_map has its own x and y")
         flux, x_m, y_m, dataset_altitude = _dataset_light_map(light_map)
+        if dataset_altitude is not None and altitude_m is not None:
+            raise ValueError("altitude_m: the Dataset light_map has its own 'altitude'; give "
+                             "one of them")
         altitude_m = altitude_m if dataset_altitude is None else dataset_altitude
     else:
         flux = as_tensor("light_map", light_map)
@@ -1211,6 +1224,9 @@ class SkyglowModel(nn.Module):
         """
         check_choice("resampling", resampling, RESAMPLINGS)
         oversampling = check_int("oversampling", oversampling, low=1, high=64)
+        if oversampling != 1 and resampling != "sample":
+            raise ValueError(f"oversampling applies to resampling='sample'; got "
+                             f"oversampling={oversampling} with resampling={resampling!r}")
         max_pairs = check_int("max_pairs", max_pairs, low=1)
         reuse_splat = check_flag("reuse_splat", reuse_splat)
         if not isinstance(cells, Mapping) or any(
@@ -1360,7 +1376,8 @@ class SkyglowModel(nn.Module):
         refuse_gradient("render with as_dataset=True (as_dataset=False keeps the graph)",
                         **{name: value for name, value in cells.items()
                            if torch.is_tensor(value)},
-                        observer_xy=observer_xy, observer_altitude_m=observer_altitude_m)
+                        observer_xy=observer_xy, observer_altitude_m=observer_altitude_m,
+                        lamp_spectrum=None if isinstance(lamp, str) else lamp[1])
         return self._dataset(outputs, cells, observer_xy, observer_altitude_m, lamp, natural,
                              single, resampling=resampling, oversampling=oversampling)
 
