@@ -319,6 +319,21 @@ def test_render_refuses_what_it_would_ignore():
     assert out["luminance"].requires_grad
 
 
+def test_naive_reference_records_the_altitude_it_integrated_at():
+    """sources="cells" integrates at the observer's altitude: recorded as rendered there.
+
+    On a one-node (0 m) model at 3 km it recorded 0 m while its sky was 3 km's.
+    """
+    model = cached_model(n_azimuth=16, n_elevation=4, n_distance=8, n_components=8)
+    city = _map([-3e3, 4e3], [2e3], [[2e5, 6e5]])
+    high = render_naive(model, city, observer_altitude_m=3000.0)
+    ground = render_naive(model, city, observer_altitude_m=0.0)
+    assert high.attrs["parameter_observer_altitude_rendered_m"] == 3000.0
+    assert not np.allclose(high["luminance"].values, ground["luminance"].values, rtol=1e-3)
+    polar = render_naive(model, city, observer_altitude_m=0.0, sources="polar")
+    assert polar.attrs["parameter_observer_altitude_rendered_m"] == 0.0
+
+
 #: float32 kernel quadrature in the precompute against float64 (the PCA is float64 in
 #: both): rendered luminance per pixel, incl. the 0.7° row of the paper's 64 elevations
 FLOAT32_PRECOMPUTE_TOLERANCE = 0.1 * PERCENT

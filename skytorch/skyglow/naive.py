@@ -149,7 +149,9 @@ def render_naive(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
 
     Same arguments, checks and output as :meth:`SkyglowModel.render`, plus ``sources``
     (see the module notes) and ``medium`` (a :class:`~skytorch.skyglow.kernel.Medium` at
-    the model's wavelengths).
+    the model's wavelengths). With ``sources="cells"`` the kernel is integrated at the
+    observer's own altitude, also outside the model's tabulated altitudes (recorded as
+    ``observer_altitude_rendered_m``; ``render`` clamps to the table there).
 
     Examples
     --------
@@ -181,6 +183,9 @@ def render_naive(model: SkyglowModel, light_map, observer_xy=(0.0, 0.0),
     ds = model._dataset(outputs, cells, observer_xy, observer_altitude_m, lamp,
                         NATURAL_ZENITH_SKY_MAG_ARCSEC2, single)
     ds.attrs["title"] = f"Artificial skyglow panorama, naive reference (sources={sources})"
+    if sources == "cells":  # integrated at the observer's own altitude, not the model's nodes
+        ds.attrs["parameter_observer_altitude_rendered_m"] = ds.attrs[
+            "parameter_observer_altitude_m"]
     return ds
 
 
