@@ -334,6 +334,22 @@ def test_naive_reference_records_the_altitude_it_integrated_at():
     assert polar.attrs["parameter_observer_altitude_rendered_m"] == 0.0
 
 
+@pytest.mark.parametrize("normalize", [True, False])
+def test_model_dataset_puts_the_kernel_unit_where_the_values_carry_it(normalize):
+    """The mean image's coefficient is 1 where the basis holds the radiance (normalize=False)."""
+    model = cached_model(n_azimuth=16, n_elevation=4, n_distance=8, n_components=8,
+                         normalize=normalize)
+    ds = model.to_dataset()
+    mean_coefficient = ds["coefficients"].isel(component=0).values
+    if normalize:
+        assert (ds["basis"].attrs["units"], ds["coefficients"].attrs["units"]) == (
+            "1", "m-2 sr-1")
+    else:
+        assert (ds["basis"].attrs["units"], ds["coefficients"].attrs["units"]) == (
+            "m-2 sr-1", "1")
+        np.testing.assert_allclose(mean_coefficient, 1.0)
+
+
 #: float32 kernel quadrature in the precompute against float64 (the PCA is float64 in
 #: both): rendered luminance per pixel, incl. the 0.7° row of the paper's 64 elevations
 FLOAT32_PRECOMPUTE_TOLERANCE = 0.1 * PERCENT

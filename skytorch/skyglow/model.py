@@ -510,10 +510,13 @@ class SkyglowModel(nn.Module):
     azimuth_rad (azimuth,), elevation_rad (elevation,), distance_m (distance,),
     distance_edges_m (distance + 1,), source_altitude_m (source_altitude,),
     observer_altitude_m (observer_altitude,), wavelength_nm (wavelength,);
-    basis (observer_altitude, component, azimuth, elevation, wavelength) [m^-2 sr^-1]
-    with component 0 the mean image; coefficients (observer_altitude, distance,
-    source_altitude, component) [1]; basis_fft (observer_altitude, frequency, component,
-    elevation · wavelength), the real Fourier transform of the bases over azimuth;
+    basis (observer_altitude, component, azimuth, elevation, wavelength) with component 0
+    the mean image and coefficients (observer_altitude, distance, source_altitude,
+    component), whose product is the kernel per unit flux [m^-2 sr^-1]: with
+    ``normalize=True`` (the default) the basis of the normalised kernels is [1] and the
+    coefficients carry [m^-2 sr^-1], with ``normalize=False`` the other way round;
+    basis_fft (observer_altitude, frequency, component, elevation · wavelength), the real
+    Fourier transform of the bases over azimuth;
     pollution_level (observer_altitude, distance, source_altitude), Q of eq. 10.
 
     Examples
@@ -1470,15 +1473,19 @@ class SkyglowModel(nn.Module):
                                               VariableSpec("1", "principal component index",
                                                            "Index k of B_k, k >= 1.")),
         })
+        # the kernel's unit m-2 sr-1 is on the coefficients of normalised kernels' bases
+        normalized = bool(self.parameters_used.get("normalize", True))
+        basis_units, coefficient_units = ("1", "m-2 sr-1") if normalized else ("m-2 sr-1", "1")
         data = {
             "basis": variable(("observer_altitude", "component", "azimuth", "elevation",
                                "wavelength"), self.basis, VariableSpec(
-                "1", "basis images B_k", "Mean and principal components of the normalised "
-                "kernel images (Dobashi et al. 2023, eq. 4).")),
+                basis_units, "basis images B_k", "Mean and principal components of the "
+                + ("normalised " if normalized else "") + "kernel images (Dobashi et al. "
+                "2023, eq. 4).")),
             "coefficients": variable(("observer_altitude", "distance", "source_altitude",
                                       "component"), self.coefficients, VariableSpec(
-                "m-2 sr-1", "basis coefficients c_k", "Kernel radiance per unit flux is "
-                "sum_k c_k B_k.")),
+                coefficient_units, "basis coefficients c_k", "Kernel radiance per unit flux "
+                "is sum_k c_k B_k.")),
             "explained_variance_ratio": variable(
                 ("observer_altitude", "principal_component"), self.explained_variance_ratio,
                 VariableSpec("1", "explained variance ratio",
