@@ -72,6 +72,7 @@ from skytorch._validate import (
     check_finite,
     check_range,
     check_shape_last,
+    refuse_gradient,
 )
 from skytorch.constants import SPEED_OF_LIGHT_M_S
 from skytorch.dataset import VariableSpec, build_dataset, coordinate, time_coordinate, variable
@@ -396,6 +397,8 @@ def one_observer(where: str, lat_deg=None, lon_deg=None, elevation_m=None):
     than one observer, is refused (ValueError naming ``where``); ranges as
     :func:`check_observer` (height default 0 m).
     """
+    refuse_gradient(where, why="skyfield computes its positions",
+                    lat_deg=lat_deg, lon_deg=lon_deg, elevation_m=elevation_m)
     if (lat_deg is None) != (lon_deg is None):
         raise ValueError(f"{where}: give both lat_deg and lon_deg for an observer, or "
                          f"neither; got lat_deg={lat_deg!r}, lon_deg={lon_deg!r}")
@@ -827,6 +830,8 @@ def sun_moon(times, lat_deg=None, lon_deg=None, elevation_m=0.0) -> xr.Dataset:
     >>> abs(float(ds.sun_dec[0])) < 0.01
     True
     """
+    refuse_gradient("sun_moon", why="skyfield computes its positions",
+                    lat_deg=lat_deg, lon_deg=lon_deg, elevation_m=elevation_m)
     if (lat_deg is None) != (lon_deg is None):
         raise ValueError("give both lat_deg and lon_deg for an observer, or neither; got "
                          f"lat_deg={lat_deg!r}, lon_deg={lon_deg!r}")

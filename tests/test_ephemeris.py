@@ -516,3 +516,15 @@ def test_matrices_reject_bad_observers():
         eph.icrs_to_horizontal_matrices("2024-01-01", -90.5, 0.0)
     with pytest.raises(ValueError, match="1899-07-29"):
         eph.icrs_to_horizontal_matrices("2060-01-01", 0.0, 0.0)
+
+
+@pytest.mark.parametrize("entry", ["sun_moon", "planets", "moon_geometry"])
+def test_observer_tensors_with_a_gradient_are_refused(entry):
+    """README: Dataset entry points refuse a gradient; these three took it with a warning."""
+    import skytorch as st
+
+    function = {"sun_moon": st.ephemeris.sun_moon, "planets": st.stars.planets,
+                "moon_geometry": st.moon.moon_geometry}[entry]
+    latitude = torch.tensor(52.5, dtype=torch.float64, requires_grad=True)
+    with pytest.raises(ValueError, match=f"lat_deg requires a gradient, which {entry}"):
+        function("2024-03-20T03:06Z", lat_deg=latitude, lon_deg=13.4)
