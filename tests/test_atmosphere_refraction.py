@@ -583,3 +583,21 @@ def test_dispersion_of_refraction(default_air):
     assert abs(float(rk4[0] - batched[0, 0])) < 0.01 * ARCSECOND
     with pytest.raises(ValueError, match="one wavelength"):
         rf.refraction_angle(default_air, elevation, wavelength_nm=wavelength, method="rk4")
+
+
+@pytest.mark.parametrize("method", ["bouguer", "rk4"])
+def test_apparent_altitude_at_the_zenith_is_the_zenith(default_air, method):
+    """No refraction at the zenith: e(π/2) = π/2, alone, from a height, with a gradient.
+
+    Newton's step landed on the bracket's end (π/2) and counted as leaving it: the root
+    was replaced by the bisection midpoint, 45°.
+    """
+    zenith = torch.tensor(math.pi / 2, dtype=torch.float64)
+    for height in (0.0, 1000.0):
+        e = default_air.apparent_altitude(zenith, torch.tensor(height, dtype=torch.float64),
+                                     method=method)
+        assert abs(float(e) - math.pi / 2) < 1e-12
+    true = zenith.clone().requires_grad_(True)
+    e = default_air.apparent_altitude(true, method=method)
+    (slope,) = torch.autograd.grad(e, true)
+    assert abs(float(e.detach()) - math.pi / 2) < 1e-12 and 0.999 < float(slope) < 1.0

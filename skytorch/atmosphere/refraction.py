@@ -508,8 +508,10 @@ def apparent_altitude(
             low = torch.where(visible & (f < 0), e, low)
             high = torch.where(visible & (f > 0), e, high)
             outside = visible & ((step <= low) | (step >= high) | ~torch.isfinite(step))
-            e = torch.where(outside, 0.5 * (low + high), step)
-            if bool((f.abs() <= max(tolerance, float(floor))).all()):
+            # a root already found stays (at the zenith Newton's step is the bracket's end)
+            converged = f.abs() <= max(tolerance, float(floor))
+            e = torch.where(converged, e, torch.where(outside, 0.5 * (low + high), step))
+            if bool(converged.all()):
                 break
     needs_grad = (target.requires_grad or height.requires_grad
                   or (wavelength_nm is not None and isinstance(wavelength_nm, torch.Tensor)
