@@ -188,3 +188,23 @@ def test_dataset_tables_refuse_parameters_that_want_a_gradient():
     pressure = torch.tensor(101325.0, dtype=torch.float64, requires_grad=True)
     with pytest.raises(ValueError, match="surface_pressure_pa requires a gradient"):
         deviation_table(Atmosphere.earth(surface_pressure_pa=pressure), 4, 4, progress=False)
+
+
+def test_scalar_lookups_of_rays_that_meet_the_ground():
+    """0-d zenith and altitude: the ground-meeting branch (a raw RuntimeError before).
+
+    Against the 1-element lookup of the same ray and Atmosphere.optical_depth (the default
+    256 x 64 table: within 0.3 %).
+    """
+    atm = Atmosphere.earth()
+    wavelength = torch.tensor([450.0, 550.0, 650.0], dtype=torch.float64)
+    table = TransmittanceTable.build(atm, wavelength)
+    for zenith, altitude in ((math.pi, 0.0), (2.0, 1000.0), (0.5, 1000.0)):
+        scalar = table.optical_depth(zenith, altitude)
+        vector = table.optical_depth(torch.tensor([zenith], dtype=torch.float64),
+                                     torch.tensor([altitude], dtype=torch.float64))
+        assert scalar.shape == (3,)
+        torch.testing.assert_close(scalar, vector[0], rtol=0.0, atol=0.0)
+        direct = atm.optical_depth(wavelength, torch.tensor(zenith, dtype=torch.float64),
+                                   torch.tensor(altitude, dtype=torch.float64))
+        torch.testing.assert_close(scalar, direct, rtol=0.01, atol=1e-12)

@@ -601,6 +601,8 @@ class TransmittanceTable(nn.Module):
         r = self.planet_radius_m + altitude
         mu = torch.cos(zenith)
         r, mu = torch.broadcast_tensors(r, mu)
+        shape = r.shape
+        r, mu = r.reshape(-1), mu.reshape(-1)  # boolean indexing of 0-d tensors adds a dim
         hits = _ray_hits_ground(r, mu, self.planet_radius_m)
         table = self.columns
         up = self._lookup(r - self.planet_radius_m, torch.where(hits, -mu, mu), table)
@@ -615,6 +617,7 @@ class TransmittanceTable(nn.Module):
             from_ground = self._lookup(torch.zeros_like(r_hit), -mu_ground, table)
             # (additive columns: exact; optical depths: exact for linear species only)
             value = up.index_put((hits,), torch.clamp(from_ground - up[hits], min=0.0))
+        value = value.reshape(*shape, value.shape[-1])
         if table is None:
             return value
         columns = dict(zip(self.constituents.names, value.unbind(-1), strict=True))
