@@ -288,3 +288,29 @@ def test_property_monotone_in_path_length(altitude, zenith_fraction, forward_fra
     tau0 = ATMOSPHERE.optical_depth(WAVELENGTH, torch.tensor(math.acos(mu0), dtype=torch.float64),
                                     torch.tensor(r0 - R, dtype=torch.float64))
     assert bool((tau1 >= tau0 * (1.0 - 1e-9)).all())
+
+
+@pytest.mark.parametrize("altitude", [1000.0, 2000.0, 8000.0])
+def test_horizontal_ray_from_a_profile_level_has_the_altitude_derivative(altitude):
+    """A horizontal ray from a breakpoint altitude of the U.S. 1976 air: dτ/dh = central FD.
+
+    The level at the observer's own altitude passed the clamp's derivative of its crossing
+    distance (~1e16 m/m): Rayleigh +18 %, O2-O2 330 times the slope at 2000 m.
+    """
+    from skytorch.atmosphere import Atmosphere
+
+    atm = Atmosphere.earth()
+    wavelength = torch.tensor([550.0], dtype=torch.float64)
+    zenith = torch.tensor(math.pi / 2, dtype=torch.float64)
+    height = torch.tensor(altitude, dtype=torch.float64, requires_grad=True)
+    columns = atm.optical_depth(wavelength, zenith, height, per_species=True)
+    step = 0.01
+    for name in ("rayleigh", "o2o2", "aerosol"):
+        (slope,) = torch.autograd.grad(columns[name][0], height, retain_graph=True)
+
+        def tau(h, name=name):
+            return float(atm.optical_depth(wavelength, zenith, torch.tensor(
+                h, dtype=torch.float64), per_species=True)[name][0])
+
+        central = (tau(altitude + step) - tau(altitude - step)) / (2 * step)
+        assert abs(float(slope) - central) <= 1e-6 * abs(central), (name, float(slope), central)

@@ -189,7 +189,11 @@ def _gauss_leg(density, leg, planet_radius, levels_m, n_nodes, truncate, support
     c_levels = levels * (2.0 * planet_radius + levels)  # (R + h)^2 - R^2
     tau_levels = safe_sqrt(c_levels - leg["excess"][..., None])
     u_levels = _safe_divide(c_levels - c_lo[..., None], tau_levels + lo[..., None])
-    u_levels = torch.minimum(torch.clamp(u_levels, min=0.0), length[..., None])
+    # a level at or behind the leg's start is not crossed: 0 with a zero gradient (a clamp
+    # would pass the derivative of (c_level - c_lo) / (tau + lo), ~1e16 for a horizontal
+    # ray from a level's own altitude, where the pieces' boundary terms no longer cancel)
+    u_levels = torch.where(u_levels > 0, u_levels, torch.zeros_like(u_levels))
+    u_levels = torch.minimum(u_levels, length[..., None])
     shape = broadcast_shape(u_levels.shape[:-1], lo.shape)
     u_levels = u_levels.expand(*shape, -1)
     if support:
