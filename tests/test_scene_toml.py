@@ -57,3 +57,29 @@ def test_camera_view_and_several_observers_from_toml(tmp_path, capsys):
     assert (tmp_path / "moon_0.png").stat().st_size > 100
     assert (tmp_path / "moon_1.png").stat().st_size > 100
     assert "observer 1: computed: moon" in capsys.readouterr().out
+
+
+def test_scene_file_refuses_keys_it_would_ignore_or_override():
+    """A table's key at the top level overrode the table; directions without their view.
+
+    ``turbidity = 2.0`` at the top level and ``[atmosphere] turbidity = 6.0`` rendered
+    turbidity 2; ``[view]`` directions drew a 256² fisheye.
+    """
+    base = {"time": "2024-06-21T12:00:00", "observer": {"lat_deg": 48.85, "lon_deg": 2.35}}
+    with pytest.raises(ValueError, match=r"unknown top-level keys \['turbidity'\]"):
+        st.Scene.from_dict({**base, "turbidity": 2.0, "atmosphere": {"turbidity": 6.0}})
+    with pytest.raises(ValueError, match="directions describes view='directions'"):
+        st.Scene.from_dict({**base, "view": {"altitude_deg": [10.0], "azimuth_deg": [0.0]}})
+    with pytest.raises(ValueError, match="camera describes view='camera'"):
+        st.Scene(view="fisheye", camera={"fov_deg": 3.0, "target": "sun"})
+
+
+def test_camera_on_a_target_far_below_the_horizon_points_at_it():
+    """It was aimed at the horizon's refraction (−0.45°) for any target below −1°."""
+    scene = st.Scene(time="2024-01-15T23:30", lat_deg=48.85, lon_deg=2.35, view="camera",
+                     size=8, camera={"fov_deg": 3.0, "target": "moon"}, fidelity="fast")
+    geometry = scene.resources().geometry(scene)
+    altitude, azimuth = scene.camera_centre()
+    assert geometry.moon_altitude_deg < -10.0
+    assert altitude == pytest.approx(geometry.moon_altitude_deg, abs=1e-9)
+    assert azimuth == pytest.approx(geometry.moon_azimuth_deg, abs=1e-9)

@@ -482,6 +482,10 @@ _TOML_TABLE_KEYS = {"observer": ("lat_deg", "lon_deg", "elevation_m"),
                                    "stratospheric_aod"),
                     "planner": ("tolerance", "fidelity", "scattering_orders", "force",
                                 "exclude")}
+#: keys of a TOML scene outside its tables (docs/scene.md)
+_TOML_TOP_LEVEL_KEYS = ("time", "wavelengths", "outputs", "star_limit_mag",
+                        "natural_mag_arcsec2", "natural_model", "airglow_fraction",
+                        "airglow_height_m", "solar_flux_sfu", "dtype")
 
 
 @dataclass
@@ -705,6 +709,10 @@ class Scene:
             raise ValueError(f"force and exclude both name {sorted(both)}")
         if self.natural_model == "leinert1998":
             self._leinert_settings()
+        for name, kind in (("directions", "directions"), ("camera", "camera")):
+            if getattr(self, name) is not None and self.view != kind:
+                raise ValueError(f"{name} describes view='{kind}'; got view={self.view!r} "
+                                 f"(its {name} would be ignored)")
         if self.directions is not None:
             self.directions = _directions(self.directions)
         elif self.view == "directions":
@@ -858,7 +866,8 @@ class Scene:
         """Altitude and azimuth [degree] of a camera view's centre.
 
         Given, or the apparent (refracted) place of its target (from ``resources``, default
-        :meth:`resources`).
+        :meth:`resources`); a target far below the horizon (below −1° and the refraction
+        table's lowest true altitude) at its true place.
         """
         if "target" not in self.camera:
             return float(self.camera["altitude_deg"]), float(self.camera["azimuth_deg"])
@@ -866,6 +875,11 @@ class Scene:
         g = resources.geometry(self)
         body = self.camera["target"]
         altitude = getattr(g, f"{body}_altitude_deg")
+        table = resources.refraction_table(float(self.elevation_m))
+        if math.radians(altitude) < min(math.radians(-1.0), float(table["low_rad"])):
+            # below the refraction table (and the apparent horizon): its true place (the
+            # table would give the horizon's refraction, a camera aimed at the horizon)
+            return altitude, getattr(g, f"{body}_azimuth_deg")
         apparent = math.degrees(resources.refracted_altitude(float(self.elevation_m),
                                                              math.radians(altitude)))
         return apparent, getattr(g, f"{body}_azimuth_deg")
@@ -965,6 +979,13 @@ class Scene:
             raise TypeError(f"config must be a mapping (a parsed TOML scene); got "
                             f"{type(config).__name__}")
         config = dict(config)
+        tables = ("observer", "view", "atmosphere", "planner", "lights")
+        # a table's key at the top level would override the table (and no file says so)
+        stray = sorted(set(config) - set(tables) - set(_TOML_TOP_LEVEL_KEYS))
+        if stray:
+            raise ValueError(f"scene: unknown top-level keys {stray}; valid: "
+                             f"{list(_TOML_TOP_LEVEL_KEYS)} and the tables "
+                             f"{['[' + name + ']' for name in tables]}")
         kwargs: dict = {}
 
         def table(name: str) -> dict:
