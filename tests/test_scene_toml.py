@@ -83,3 +83,18 @@ def test_camera_on_a_target_far_below_the_horizon_points_at_it():
     assert geometry.moon_altitude_deg < -10.0
     assert altitude == pytest.approx(geometry.moon_altitude_deg, abs=1e-9)
     assert azimuth == pytest.approx(geometry.moon_azimuth_deg, abs=1e-9)
+
+
+def test_scene_refuses_settings_it_would_not_use():
+    """solar_flux_sfu without leinert1998, skyglow settings without a light map, no output.
+
+    Each rendered bit for bit the default before.
+    """
+    base = {"time": "2024-06-21T12:00:00", "lat_deg": 48.85, "lon_deg": 2.35}
+    with pytest.raises(ValueError, match="solar_flux_sfu=250.0: used by natural_model"):
+        st.Scene(**base, solar_flux_sfu=250.0)
+    with pytest.raises(ValueError, match=r"lamp='hps', observer_xy=\(1000.0, 0.0\)"):
+        st.Scene(**base, lamp="hps", observer_xy=(1000.0, 0.0))
+    with pytest.raises(ValueError, match="outputs must name at least one"):
+        st.Scene(**base, outputs=[])
+    assert st.Scene(**base, natural_model="leinert1998", solar_flux_sfu=250.0)

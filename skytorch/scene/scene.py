@@ -482,6 +482,8 @@ _TOML_TABLE_KEYS = {"observer": ("lat_deg", "lon_deg", "elevation_m"),
                                    "stratospheric_aod"),
                     "planner": ("tolerance", "fidelity", "scattering_orders", "force",
                                 "exclude")}
+#: 10.7 cm solar flux of a scene's airglow (natural_model="leinert1998") [sfu]
+DEFAULT_SOLAR_FLUX_SFU = 130.0
 #: keys of a TOML scene outside its tables (docs/scene.md)
 _TOML_TOP_LEVEL_KEYS = ("time", "wavelengths", "outputs", "star_limit_mag",
                         "natural_mag_arcsec2", "natural_model", "airglow_fraction",
@@ -644,7 +646,7 @@ class Scene:
     natural_model: str = "garstang1989"
     airglow_fraction: float = DEFAULT_AIRGLOW_FRACTION
     airglow_height_m: float = 90_000.0
-    solar_flux_sfu: float = 130.0
+    solar_flux_sfu: float = DEFAULT_SOLAR_FLUX_SFU
     dtype: torch.dtype = torch.float64
     #: the resources of the scene this one was copied from (``dataclasses.replace`` passes
     #: them on); kept when their spec is this scene's, else new ones are made
@@ -709,6 +711,12 @@ class Scene:
             raise ValueError(f"force and exclude both name {sorted(both)}")
         if self.natural_model == "leinert1998":
             self._leinert_settings()
+        elif self.solar_flux_sfu != DEFAULT_SOLAR_FLUX_SFU:
+            raise ValueError(f"solar_flux_sfu={self.solar_flux_sfu!r}: used by "
+                             f"natural_model='leinert1998' only (the airglow's solar cycle); "
+                             f"got natural_model={self.natural_model!r}")
+        if not self.outputs:
+            raise ValueError(f"outputs must name at least one of {list(OUTPUTS)}; got none")
         for name, kind in (("directions", "directions"), ("camera", "camera")):
             if getattr(self, name) is not None and self.view != kind:
                 raise ValueError(f"{name} describes view='{kind}'; got view={self.view!r} "
@@ -733,6 +741,12 @@ class Scene:
 
         check_choice("lamp", self.lamp, LAMPS)
         if self.light_map is None:
+            unused = [f"{name}={value!r}" for name, value, default in (
+                ("lamp", self.lamp, "white"), ("observer_xy", self.observer_xy, (0.0, 0.0)))
+                if value != default]
+            if unused:
+                raise ValueError(f"{', '.join(unused)}: settings of the light map's skyglow; "
+                                 "the scene has no light_map")
             return
         if not isinstance(self.light_map, xr.Dataset):
             raise TypeError("light_map must be an xarray.Dataset with a variable 'flux' [lm] "
