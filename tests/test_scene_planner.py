@@ -226,3 +226,11 @@ def test_invalid_scene_parameters():
         st.Scene(time="2015-06-21T12:00", lat_deg=91.0, lon_deg=0.0)
     with pytest.raises(TypeError, match="dtype"):
         scene("day", dtype=torch.int32)
+
+
+def test_a_skipped_sun_gives_its_share_as_the_reason():
+    """The Sun's skip reason read "above the horizon" (a reason to compute it)."""
+    plan = st.Scene(time="2024-06-21T12:00:00", lat_deg=48.85, lon_deg=2.35, tolerance=0.9,
+                    size=16, fidelity="fast").plan()
+    share = float(plan.skipped["sun"].split()[1])
+    assert plan.skipped["sun"].startswith("Sun ") and 0.5 < share < 0.9
