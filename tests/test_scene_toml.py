@@ -98,3 +98,25 @@ def test_scene_refuses_settings_it_would_not_use():
     with pytest.raises(ValueError, match="outputs must name at least one"):
         st.Scene(**base, outputs=[])
     assert st.Scene(**base, natural_model="leinert1998", solar_flux_sfu=250.0)
+
+
+def test_render_command_checks_its_output_options_before_rendering(tmp_path, capsys):
+    """A bad --exposure, --png without 'xyz' and a directory -o failed after the render.
+
+    The netCDF was left behind with exit status 2.
+    """
+    path = tmp_path / "scene.toml"
+    path.write_text('time = "2015-06-21T19:45"\noutputs = ["spectral", "srgb"]\n'
+                    '[observer]\nlat_deg = 48.85\nlon_deg = 2.35\n[view]\nkind = "panorama"\n'
+                    'size = 8\n')
+    out, png = tmp_path / "sky.nc", tmp_path / "sky.png"
+    for options, message in (
+            (["--png", str(png)], "--png tone-maps the 'xyz' output"),
+            (["--png", str(png), "--exposure", "-1"], "--exposure must be"),
+            (["--exposure", "2"], "--exposure sets the PNG's exposure")):
+        capsys.readouterr()
+        assert main(["render", str(path), "-o", str(out), *options]) == 2
+        assert message in capsys.readouterr().err
+        assert not out.exists()
+    assert main(["render", str(path), "-o", str(tmp_path)]) == 2
+    assert "is a directory" in capsys.readouterr().err

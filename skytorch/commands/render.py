@@ -37,6 +37,27 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="night-vision (Purkinje) rendering of the PNG")
 
 
+def _check_outputs(args: argparse.Namespace, scene) -> None:
+    """ValueError for output options that would fail after the render."""
+    from skytorch._validate import check_positive
+
+    if Path(args.output).is_dir() and not str(args.output).endswith(".zarr"):
+        raise ValueError(f"-o {args.output}: is a directory; give a file name")
+    if args.exposure is not None:
+        check_positive("--exposure", args.exposure, unit=" cd^-1 m^2")
+        if not args.png:
+            raise ValueError("--exposure sets the PNG's exposure: give --png too")
+    if args.night and not args.png:
+        raise ValueError("--night renders the PNG: give --png too")
+    if args.png:
+        if "xyz" not in scene.outputs:
+            raise ValueError(f"--png tone-maps the 'xyz' output; the scene's outputs are "
+                             f"{list(scene.outputs)} (add \"xyz\")")
+        if scene.view not in ("fisheye", "panorama", "camera"):
+            raise ValueError(f"--png needs an image view (fisheye, panorama or camera); "
+                             f"the scene's view is {scene.view!r}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Render the scene, write netCDF (and PNG), print the plan."""
     from skytorch.dataset import write_dataset
@@ -47,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
                if v is not None}
     if changes:
         scene = scene.replace(**changes)
+    _check_outputs(args, scene)  # before the render: nothing written for a bad option
     ds = scene.render()
     path = write_dataset(ds, args.output)
     frames = ([ds.isel(observer=i) for i in range(ds.sizes["observer"])]
