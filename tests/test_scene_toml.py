@@ -1,5 +1,7 @@
 """The TOML scene format and ``skytorch render``."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -120,3 +122,15 @@ def test_render_command_checks_its_output_options_before_rendering(tmp_path, cap
         assert not out.exists()
     assert main(["render", str(path), "-o", str(tmp_path)]) == 2
     assert "is a directory" in capsys.readouterr().err
+
+
+def test_scene_file_must_name_its_time_and_place(tmp_path):
+    """A file without time or [observer] rendered the 2015-09-28 eclipse over Berlin."""
+    for text, message in (('[observer]\nlat_deg = 48.85\nlon_deg = 2.35\n', "must give time"),
+                          ('time = "2024-06-21T12:00"\n', "[observer] lat_deg, [observer] lon_deg"),
+                          ('time = "2024-06-21T12:00"\n[observer]\nlat_deg = 48.85\n',
+                           "[observer] lon_deg")):
+        path = tmp_path / "scene.toml"
+        path.write_text(text)
+        with pytest.raises(ValueError, match=re.escape(message)):
+            st.Scene.from_toml(path)

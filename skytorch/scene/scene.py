@@ -1042,5 +1042,14 @@ class Scene:
     def from_toml(cls, path) -> Scene:
         """Read a scene from a TOML file (format in ``docs/scene.md``)."""
         path = Path(path)
-        return cls.from_dict(toml_loads(path.read_text(encoding="utf-8")),
-                             base_dir=path.parent)
+        config = toml_loads(path.read_text(encoding="utf-8"))
+        # a file names its instant and place (Scene()'s defaults, the 2015-09-28 eclipse
+        # over Berlin, would otherwise stand in for a forgotten key)
+        observer = config.get("observer")
+        missing = ([] if "time" in config else ["time"]) + [
+            f"[observer] {key}" for key in ("lat_deg", "lon_deg")
+            if not isinstance(observer, Mapping) or key not in observer]
+        scene = cls.from_dict(config, base_dir=path.parent)  # unknown keys first
+        if missing:
+            raise ValueError(f"scene file {str(path)!r} must give {', '.join(missing)}")
+        return scene
