@@ -500,3 +500,20 @@ def test_cli_dask_options_reach_sweep(tmp_path, monkeypatch):
     assert seen["backend"] == "dask" and seen["n_workers"] == 2
     assert seen["cluster_options"] == {"memory_limit": "1GiB", "processes": True}
     assert open_dataset(output)["bv"].values.tolist() == [0.0, 1.5]
+
+
+def test_cli_sweep_store_in_the_file_is_relative_to_the_file(tmp_path, monkeypatch):
+    """It was relative to the working directory (a render file's paths are to the file)."""
+    from skytorch.cli import main
+
+    folder = tmp_path / "configs"
+    folder.mkdir()
+    config = folder / "sweep.toml"
+    config.write_text('function = "skytorch.spectrum:bv_to_temperature"\n'
+                      "[parameters]\nbv = [0.0, 0.65]\n"
+                      '[options]\nstore = "chunks"\n')
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(["sweep", str(config), "-o", str(tmp_path / "out.nc"), "--no-progress"]) == 0
+    assert (folder / "chunks").is_dir() and not (elsewhere / "chunks").exists()

@@ -126,6 +126,9 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(str(error)) from error
     config = load_config(args.config)
     options = config["options"]
+    if options.get("store") is not None and not Path(options["store"]).is_absolute():
+        # a path in the file is relative to the file, as the render command's light map
+        options["store"] = str(Path(args.config).parent / options["store"])
     for option, value in (("backend", args.backend), ("chunk_size", args.chunk_size),
                           ("store", args.store), ("n_workers", args.workers),
                           ("scheduler_address", args.scheduler)):
