@@ -314,3 +314,18 @@ def test_horizontal_ray_from_a_profile_level_has_the_altitude_derivative(altitud
 
         central = (tau(altitude + step) - tau(altitude - step)) / (2 * step)
         assert abs(float(slope) - central) <= 1e-6 * abs(central), (name, float(slope), central)
+
+
+def test_rk4_column_of_a_ray_outside_the_air_keeps_a_zero_gradient():
+    """A horizontal ray from the top: τ = 0 with a gradient of 0 (a constant before)."""
+    from skytorch.atmosphere.refraction import bent_optical_depth
+
+    atm = Atmosphere.earth()
+    wavelength = torch.tensor([550.0], dtype=torch.float64)
+    for method in ("bouguer", "rk4"):
+        height = torch.tensor(100e3, dtype=torch.float64, requires_grad=True)
+        zenith = torch.tensor(math.pi / 2, dtype=torch.float64, requires_grad=True)
+        tau = bent_optical_depth(atm, wavelength, zenith, height, method=method)
+        assert float(tau.detach().abs().max()) == 0.0
+        gradients = torch.autograd.grad(tau.sum(), (zenith, height))
+        assert all(float(g) == 0.0 for g in gradients), method

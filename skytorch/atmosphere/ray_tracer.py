@@ -300,6 +300,9 @@ def _trace_observer_rk4(atm, elevation, altitude_m, dtype, step_m, max_dh_m, coe
                                    max_dh_m, max_length, stop_at_ground=coefficient is not None,
                                    per_ray=_per_ray(atm, shape))
     if coefficient is not None:
+        # rays that never enter the air: a zero column that keeps the inputs' graph (a
+        # zero gradient, as the Bouguer path gives), not a constant
+        tau = tau + 0.0 * (r0 + e)[:, None]
         return {"optical_depth": tau.reshape(shape + (tau.shape[-1],))}
     return {"deviation_rad": _clockwise_angle(direction, final).reshape(shape),
             "contact_radius_m": r_min.reshape(shape)}
