@@ -620,8 +620,7 @@ def test_stratospheric_layer_of_a_scene():
             st.Scene(**DAY, stratospheric_aod=bad)
     with pytest.raises(TypeError, match="stratospheric_aod"):
         st.Scene(**DAY, stratospheric_aod="background")
-    scene = st.Scene.from_dict({**{k: v for k, v in DAY.items()
-                                   if k not in ("lat_deg", "lon_deg")},
+    scene = st.Scene.from_dict({"time": DAY["time"], "view": {"size": DAY["size"]},
                                 "observer": {"lat_deg": 48.85, "lon_deg": 2.35},
                                 "atmosphere": {"stratospheric_aod": 0.007}})
     assert scene.stratospheric_aod == 0.007
