@@ -45,8 +45,8 @@ __all__ = [
     "ICRS_TO_GALACTIC",
     "V_MINUS_G",
     "catalogue_starlight_map",
-    "point_star_counterparts",
     "galactic_coordinates",
+    "point_star_counterparts",
     "starlight_v_radiance",
 ]
 
@@ -114,13 +114,12 @@ def point_star_counterparts(gaia: xr.Dataset, points: xr.Dataset) -> np.ndarray:
         True for the Gaia source matched to a point's Hipparcos number, and for every
         Gaia source without a Hipparcos counterpart within
         :data:`COUNTERPART_RADIUS_ARCSEC` of a point (moved to J2016.0 with its proper
-        motion) and at most
-        :data:`COUNTERPART_MAX_DMAG` brighter than it (or of a colour past the G − V
-        fit, whose V is only a lower bound: R Dor, V 3.28 from G against the point's
-        4.53): the components of a double star
-        that Hipparcos measured as one (Castor B, 2.98 mag, 4″ from the point of Castor's
-        combined 1.58), and the star itself where the catalogue's 1″ match at J2016.0
-        failed (about 3 % of the points: fast or double stars).
+        motion) and at most :data:`COUNTERPART_MAX_DMAG` brighter than it (or of a colour
+        past the G − V fit, whose V is only a lower bound: R Dor, V 3.28 from G against
+        the point's 4.53): the components of a double star that Hipparcos measured as one
+        (Castor B, 2.98 mag, 4″ from the point of Castor's combined 1.58), and the star
+        itself where the catalogue's 1″ match at J2016.0 failed (about 3 % of the points:
+        fast or double stars).
     """
     from scipy.spatial import cKDTree
 
